@@ -1,0 +1,63 @@
+/* Colour and luminance stage: scene values -> sanitised working-space cd/m^2,
+ * photopic Y and scotopic Y' (see ocl_tonemap/photometry.py for the policy). */
+
+/* Classify one input value by its bits (robust when the device flushes
+ * denormals in arithmetic): returns the repaired value before scaling and
+ * sets *kind to the repair index, or -1 when none. */
+inline float repair_value(float x, int *kind)
+{
+    uint u = as_uint(x);
+    uint e = (u >> 23) & 0xffu, m = u & 0x7fffffu, s = u >> 31;
+    *kind = -1;
+    if (e == 0xffu) {
+        if (m) { *kind = 0; return 0.0f; }          /* NaN */
+        if (!s) { *kind = 1; return INFINITY; }     /* +Inf -> L_MAX after scale */
+        *kind = 2; return 0.0f;                     /* -Inf */
+    }
+    if (s && (e | m)) { *kind = 3; return 0.0f; }   /* negative (incl. negative denormal) */
+    if (e == 0u && m) { *kind = 4; return 0.0f; }   /* positive denormal */
+    return x;
+}
+
+inline float scotopic_luminance(float r, float g, float b)
+{
+    /* Ward-Larson et al. 1997: Y' = Y (1.33 (1 + (Y+Z)/X) - 1.68) */
+    float X = M_XR * r + M_XG * g + M_XB * b;
+    float Y = M_YR * r + M_YG * g + M_YB * b;
+    float Z = M_ZR * r + M_ZG * g + M_ZB * b;
+    if (!(X > 0.0f)) return 0.0f;
+    return fmax(Y * (1.33f * (1.0f + (Y + Z) / X) - 1.68f), 0.0f);
+}
+
+/* src: n pixels of `channels` floats (RGB first); rgb out: n*3 floats. */
+__kernel void scene_to_working(__global const float *src, const int channels, const int n,
+                               const float scale, __global float *rgb,
+                               __global float *Y, __global float *Ys,
+                               __global int *counts)
+{
+    __local int lc[NREPAIR];
+    const int lid = get_local_id(0);
+    if (lid < NREPAIR) lc[lid] = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const int i = get_global_id(0);
+    if (i < n) {
+        float v[3];
+        for (int k = 0; k < 3; ++k) {
+            int kind;
+            float x = repair_value(src[(size_t)i * channels + k], &kind);
+            if (kind >= 0) atomic_inc(&lc[kind]);
+            if (kind == 1) {
+                x = L_MAX;
+            } else {
+                x *= scale;
+                if (x > L_MAX) { atomic_inc(&lc[5]); x = L_MAX; }
+            }
+            v[k] = x;
+        }
+        vstore3((float3)(v[0], v[1], v[2]), i, rgb);
+        Y[i] = M_YR * v[0] + M_YG * v[1] + M_YB * v[2];
+        Ys[i] = scotopic_luminance(v[0], v[1], v[2]);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid < NREPAIR && lc[lid]) atomic_add(&counts[lid], lc[lid]);
+}

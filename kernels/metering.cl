@@ -1,0 +1,116 @@
+/* Metering reductions (two-stage): weighted sums of Y, log Y, Y', log Y' and
+ * the maxima, then a log-luminance histogram for percentile metering.
+ *
+ * Weight modes: 0 uniform; 1 centre-weighted (w_in inside a disc of radius
+ * p2 px at (p0, p1), w_out outside); 2 Gaussian spot at (p0, p1) px with
+ * sigma p2 px. Pixel coordinates are of the full frame: a band starting at
+ * row y0 meters exactly like the whole image. */
+
+#define NMETER 8  /* sum w, sum wY, sum w lnY, sum wY', sum w lnY', max Y, max Y', pad */
+
+inline float meter_weight(int mode, float x, float y, float p0, float p1, float p2,
+                          float w_in, float w_out)
+{
+    if (mode == 0) return 1.0f;
+    float dx = x - p0, dy = y - p1, d2 = dx * dx + dy * dy;
+    if (mode == 1) return d2 <= p2 * p2 ? w_in : w_out;
+    return exp(-0.5f * d2 / (p2 * p2));
+}
+
+/* Kahan-compensated accumulation: float32 sums over millions of pixels. */
+inline void kahan(float *s, float *c, float v)
+{
+    float y = v - *c;
+    float t = *s + y;
+    *c = (t - *s) - y;
+    *s = t;
+}
+
+__kernel void meter_partial(__global const float *Y, __global const float *Ys,
+                            const int n, const int width, const int y0,
+                            const int mode, const float p0, const float p1, const float p2,
+                            const float w_in, const float w_out, const float log_floor,
+                            __global float *partial, __local float *scratch)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    float s[5] = {0, 0, 0, 0, 0}, c[5] = {0, 0, 0, 0, 0};
+    float mY = 0.0f, mYs = 0.0f;
+    for (int i = get_global_id(0); i < n; i += get_global_size(0)) {
+        float x = (float)(i % width) + 0.5f, y = (float)(y0 + i / width) + 0.5f;
+        float w = meter_weight(mode, x, y, p0, p1, p2, w_in, w_out);
+        float l = Y[i], ls = Ys[i];
+        kahan(&s[0], &c[0], w);
+        kahan(&s[1], &c[1], w * l);
+        kahan(&s[2], &c[2], w * log(fmax(l, log_floor)));
+        kahan(&s[3], &c[3], w * ls);
+        kahan(&s[4], &c[4], w * log(fmax(ls, log_floor)));
+        mY = fmax(mY, l);
+        mYs = fmax(mYs, ls);
+    }
+    __local float *me = scratch + lid * NMETER;
+    for (int k = 0; k < 5; ++k) me[k] = s[k];
+    me[5] = mY; me[6] = mYs; me[7] = 0.0f;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int off = lsz / 2; off > 0; off >>= 1) {
+        if (lid < off) {
+            __local float *o = scratch + (lid + off) * NMETER;
+            for (int k = 0; k < 5; ++k) me[k] += o[k];
+            me[5] = fmax(me[5], o[5]);
+            me[6] = fmax(me[6], o[6]);
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0)
+        for (int k = 0; k < NMETER; ++k) partial[get_group_id(0) * NMETER + k] = me[k];
+}
+
+/* Stage 2: one work-group folds `groups` partial records into one. */
+__kernel void meter_final(__global const float *partial, const int groups,
+                          __global float *result, __local float *scratch)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    float s[5] = {0, 0, 0, 0, 0}, c[5] = {0, 0, 0, 0, 0};
+    float mY = 0.0f, mYs = 0.0f;
+    for (int g = lid; g < groups; g += lsz) {
+        __global const float *p = partial + g * NMETER;
+        for (int k = 0; k < 5; ++k) kahan(&s[k], &c[k], p[k]);
+        mY = fmax(mY, p[5]);
+        mYs = fmax(mYs, p[6]);
+    }
+    __local float *me = scratch + lid * NMETER;
+    for (int k = 0; k < 5; ++k) me[k] = s[k];
+    me[5] = mY; me[6] = mYs; me[7] = 0.0f;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int off = lsz / 2; off > 0; off >>= 1) {
+        if (lid < off) {
+            __local float *o = scratch + (lid + off) * NMETER;
+            for (int k = 0; k < 5; ++k) me[k] += o[k];
+            me[5] = fmax(me[5], o[5]);
+            me[6] = fmax(me[6], o[6]);
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0)
+        for (int k = 0; k < NMETER; ++k) result[k] = me[k];
+}
+
+/* Histogram of log10(L) over [lo, hi) in nbins bins (below -> bin 0, above ->
+ * last bin), accumulated into hist (which the host zeroes once per frame). */
+__kernel void log_histogram(__global const float *L, const int n, const float lo,
+                            const float hi, const int nbins, __global int *hist,
+                            __local int *lh)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    for (int b = lid; b < nbins; b += lsz) lh[b] = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const float scale = nbins / (hi - lo);
+    for (int i = get_global_id(0); i < n; i += get_global_size(0)) {
+        float v = L[i];
+        int b = v > 0.0f ? (int)floor((log10(v) - lo) * scale) : 0;
+        b = clamp(b, 0, nbins - 1);
+        atomic_inc(&lh[b]);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int b = lid; b < nbins; b += lsz)
+        if (lh[b]) atomic_add(&hist[b], lh[b]);
+}

@@ -1,0 +1,137 @@
+"""Compute backends: the float64 NumPy reference and OpenCL.
+
+Both run the same stages on one frame: bad-value policy and luminances
+(colour stage), metering, then -- after the host scheduler has advanced the
+adaptation state through ``step`` -- the operator's per-pixel pass.
+
+The OpenCL backend processes images larger than ``max_band_pixels`` in row
+bands: pass 1 meters every band (sums add up exactly as for one band), pass 2
+maps each band. A frame that fits stays resident between the passes.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from . import metering as met
+from .photometry import RepairCounts, photopic_luminance, sanitize, scotopic_luminance
+
+StepFn = Callable[[float, float], object]  # (G_rod, G_cone) -> operator frame params
+
+
+class ReferenceBackend:
+    """Float64 NumPy, straight from the equations; the ground truth."""
+
+    name = "reference"
+
+    def describe(self) -> str:
+        return "float64 NumPy reference"
+
+    def process(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec, op,
+                step: StepFn):
+        rgb, repairs = sanitize(pixels[..., :3], scale)
+        Y = photopic_luminance(rgb)
+        Ys = scotopic_luminance(rgb)
+        G_rod, G_cone = met.reference_goal(Y, Ys, spec)
+        params = step(G_rod, G_cone)
+        out = op.map_reference(rgb, Y, Ys, params)
+        return out.astype(np.float32), repairs, (G_rod, G_cone)
+
+
+class OpenCLBackend:
+    """Float32 OpenCL kernels (kernels/*.cl)."""
+
+    name = "opencl"
+
+    def __init__(self, device: str | None = None, max_band_pixels: int | None = None):
+        from .runtime import get_runtime
+        self.rt = get_runtime(device)
+        self.meter = met.DeviceMeter(self.rt)
+        self._colour = self.rt.kernel("colour.cl", "scene_to_working")
+        if max_band_pixels is None:
+            # Per pixel: src (<=4 floats), rgb 3, Y, Y', out 3 = 48 B; keep to 1/4
+            # of global memory and under the largest single allocation.
+            max_band_pixels = min(self.rt.max_alloc_bytes() // 16,
+                                  self.rt.global_mem_bytes() // (48 * 4))
+        self.max_band_pixels = int(max(1, max_band_pixels))
+        self._bufs = None
+        self._cap = 0
+
+    def describe(self) -> str:
+        from .runtime import describe_device
+        return describe_device(self.rt.device)
+
+    def _buffers(self, npix: int, channels: int):
+        import pyopencl as cl
+        need = npix * max(channels, 3)
+        if self._bufs is None or self._cap < need:
+            ctx, mf = self.rt.context, cl.mem_flags
+            cap = max(need, 1)
+            self._bufs = {
+                "src": cl.Buffer(ctx, mf.READ_ONLY, cap * 4),
+                "rgb": cl.Buffer(ctx, mf.READ_WRITE, cap * 4),
+                "Y": cl.Buffer(ctx, mf.READ_WRITE, cap * 4),
+                "Ys": cl.Buffer(ctx, mf.READ_WRITE, cap * 4),
+                "out": cl.Buffer(ctx, mf.READ_WRITE, cap * 4),
+                "counts": cl.Buffer(ctx, mf.READ_WRITE, 8 * 4),
+            }
+            self._cap = cap
+        return self._bufs
+
+    def _to_working(self, band: np.ndarray, scale: float, count: bool):
+        """Upload one band and run the colour stage; returns its repair counts."""
+        import pyopencl as cl
+        from .runtime import round_up
+        q = self.rt.queue
+        rows, width, channels = band.shape
+        n = rows * width
+        b = self._buffers(n, channels)
+        cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
+        cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)
+        self._colour(q, (round_up(n, 64),), (64,), b["src"], np.int32(channels), np.int32(n),
+                     np.float32(scale), b["rgb"], b["Y"], b["Ys"], b["counts"])
+        rc = RepairCounts()
+        if count:
+            c = np.empty(8, np.int32)
+            cl.enqueue_copy(q, c, b["counts"])
+            for k, v in zip(RepairCounts.KEYS, c):
+                setattr(rc, k, int(v))
+        return rc
+
+    def process(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec, op,
+                step: StepFn):
+        import pyopencl as cl
+        h, w, c = pixels.shape
+        rows = max(1, min(h, self.max_band_pixels // max(w, 1)))
+        bands = [(y0, min(rows, h - y0)) for y0 in range(0, h, rows)]
+        repairs = RepairCounts()
+        sums = None
+        for y0, nr in bands:                               # pass 1: colour + meter
+            repairs += self._to_working(pixels[y0:y0 + nr], scale, count=True)
+            b = self._bufs
+            s = self.meter.band_sums(b["Y"], b["Ys"], nr * w, w, h, y0, spec)
+            if sums is None:
+                sums = s
+            else:
+                sums.add(s)
+        G_rod, G_cone = sums.goal(spec)
+        params = step(G_rod, G_cone)
+        out = np.empty((h, w, 3), np.float32)
+        for i, (y0, nr) in enumerate(bands):              # pass 2: per-pixel operator
+            if len(bands) > 1:
+                self._to_working(pixels[y0:y0 + nr], scale, count=False)
+            b = self._bufs
+            op.map_opencl(self.rt, b["rgb"], b["Y"], b["Ys"], b["out"], nr * w, params)
+            cl.enqueue_copy(self.rt.queue, out[y0:y0 + nr], b["out"])
+        return out, repairs, (G_rod, G_cone)
+
+
+def make_backend(name: str = "opencl", device: str | None = None,
+                 max_band_pixels: int | None = None):
+    if name == "reference":
+        return ReferenceBackend()
+    if name == "opencl":
+        return OpenCLBackend(device, max_band_pixels)
+    raise ValueError(f"unknown backend {name!r} (opencl | reference)")

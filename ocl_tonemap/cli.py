@@ -1,0 +1,174 @@
+"""Command line: ``ocl-tonemap run | devices | displays | sample | demo``."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+
+from . import __version__
+from .operators import REGISTRY
+
+log = logging.getLogger("ocl_tonemap")
+
+
+def _add_run_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--frames", help="frame range for sequence patterns: A-B, A-BxSTEP, or a list")
+    p.add_argument("--fps", type=float, help="frames per second (default: FramesPerSecond "
+                   "metadata, else 24)")
+    p.add_argument("--operator", default="pattanaik00", choices=sorted(REGISTRY))
+    p.add_argument("--metering", default="logmean",
+                   help="logmean | mean | max | centre[:mean] | spot:X,Y[,SIGMA] | percentile:P")
+    p.add_argument("--luminance-scale", type=float,
+                   help="cd/m^2 of pixel value 1.0 (default: whiteLuminance, else 1)")
+    p.add_argument("--exposure", type=float, default=0.0, help="extra scale in stops (EV)")
+    p.add_argument("--colorconfig", help="OCIO config: file, ocio:// URI or 'ocl-tonemap' "
+                   "(default: $OCIO, else ocio://default)")
+    p.add_argument("--iscolorspace", help="input colourspace (default: file metadata, file "
+                   "rules, scene_linear)")
+    p.add_argument("--display", help="OCIO display (default: the config's default)")
+    p.add_argument("--view", help="OCIO view (default: the un-tone-mapped view)")
+    p.add_argument("--display-model", default="display", choices=["display", "paper-crt"],
+                   help="display observer: from the chosen display, or Pattanaik 2000's CRT")
+    p.add_argument("--display-white", type=float, help="display white, cd/m^2 (default: 100 SDR, "
+                   "peak for HDR)")
+    p.add_argument("--display-peak", type=float, default=1000.0, help="HDR display peak, cd/m^2")
+    p.add_argument("--preadapt", help="initial adaptation: CD_M2 (fully adapted) or "
+                   "CD_M2:SECONDS (exposed that long from dark)")
+    p.add_argument("--state-in", help="resume from this adaptation state (JSON)")
+    p.add_argument("--state-out", help="write the final adaptation state (JSON)")
+    p.add_argument("--backend", default="opencl", choices=["opencl", "reference"])
+    p.add_argument("--device", help="OpenCL device: P:D index, gpu, cpu or a name substring")
+    p.add_argument("--out-bits", choices=["8", "16", "half", "float"],
+                   help="output sample type (default by extension)")
+    p.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
+    p.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
+    p.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
+
+
+def _options(a, input_, output):
+    from .imageio import parse_frames
+    from .sequence import JobOptions, parse_preadapt
+    return JobOptions(
+        input=input_, output=output,
+        frames=parse_frames(a.frames) if a.frames else None, fps=a.fps, operator=a.operator,
+        metering=a.metering, luminance_scale=a.luminance_scale, exposure=a.exposure,
+        colorconfig=a.colorconfig, iscolorspace=a.iscolorspace, display=a.display, view=a.view,
+        display_model=a.display_model, display_white=a.display_white,
+        display_peak=a.display_peak,
+        preadapt=parse_preadapt(a.preadapt) if a.preadapt else None,
+        state_in=a.state_in, state_out=a.state_out, backend=a.backend, device=a.device,
+        out_bits=a.out_bits, plot=a.plot,
+        plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
+        max_band_pixels=a.max_band_pixels,
+        progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="ocl-tonemap", description=(
+        "Show an HDR scene or shot as a human observer would see it (time-dependent "
+        "visual adaptation on OpenCL, OIIO/OCIO pipelines)."))
+    ap.add_argument("--version", action="version", version=f"ocl-tonemap {__version__}")
+    ap.add_argument("-v", "--verbose", action="count", default=0)
+    ap.add_argument("-q", "--quiet", action="store_true")
+    # -v/-q also after the sub-command (ocl-tonemap run ... -v)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS)
+    common.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    _sub = sub.add_parser
+
+    def add_parser(name, **kw):
+        return _sub(name, parents=[common], **kw)
+    sub.add_parser = add_parser
+    p = sub.add_parser("run", help="tone map an image or a sequence")
+    p.add_argument("input", help="image or sequence pattern (shot.#.exr, shot.@@@@.exr, shot.%%04d.exr)")
+    p.add_argument("output", help="output image or pattern (format by extension)")
+    _add_run_args(p)
+    sub.add_parser("devices", help="list OpenCL devices")
+    p = sub.add_parser("displays", help="list the OCIO config's displays and views")
+    p.add_argument("--colorconfig")
+    p = sub.add_parser("sample", help="write the built-in tunnel-drive sample (EXR, cd/m^2)")
+    p.add_argument("outdir")
+    p.add_argument("--size", default="320x180")
+    p.add_argument("--seconds", type=float, default=8.0)
+    p.add_argument("--fps", type=float, default=30.0)
+    p = sub.add_parser("demo", help="write the sample and run the main job on it")
+    p.add_argument("outdir")
+    p.add_argument("--size", default="320x180")
+    p.add_argument("--seconds", type=float, default=8.0)
+    _add_run_args(p)
+    return ap
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+        if w < 1 or h < 1:
+            raise ValueError
+        return w, h
+    except ValueError:
+        raise SystemExit(f"ocl-tonemap ERROR: bad --size {text!r} (use WxH)") from None
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = build_parser().parse_args(argv)
+    level = logging.WARNING if a.quiet else (logging.INFO if a.verbose else logging.WARNING)
+    if a.verbose > 1:
+        level = logging.DEBUG
+    logging.basicConfig(level=level, format="ocl-tonemap %(levelname)s: %(message)s")
+    if a.quiet:
+        logging.getLogger("ocl_tonemap").setLevel(logging.ERROR)
+    from .imageio import FrameError
+    try:
+        if a.cmd == "devices":
+            from .runtime import OpenCLUnavailable, describe_device, list_devices
+            devs = list_devices()
+            if not devs:
+                raise OpenCLUnavailable("no OpenCL platform found; install with "
+                                        '`pip install "pyopencl[pocl]"`')
+            for k, d in devs:
+                print(f"{k}  {describe_device(d)}")
+            return 0
+        if a.cmd == "displays":
+            from .colour import list_displays, load_config, resolve_config_source
+            cfg = load_config(a.colorconfig)
+            print(f"config: {resolve_config_source(a.colorconfig)} ({cfg.getName() or 'unnamed'})")
+            for d, views in list_displays(cfg):
+                print(f"{d}: {', '.join(views)}")
+            return 0
+        if a.cmd == "sample":
+            from .sample import write_tunnel_sequence
+            w, h = _size(a.size)
+            pattern, frames = write_tunnel_sequence(a.outdir, w, h, a.fps, a.seconds)
+            print(f"wrote {len(frames)} frames: {pattern} (frames {frames[0]}-{frames[-1]})")
+            return 0
+        if a.cmd == "demo":
+            from .sample import write_tunnel_sequence
+            from .sequence import run_job
+            w, h = _size(a.size)
+            src = os.path.join(a.outdir, "scene")
+            pattern, frames = write_tunnel_sequence(src, w, h, 30.0, a.seconds)
+            out = os.path.join(a.outdir, "display", "tunnel.####.png")
+            os.makedirs(os.path.dirname(out), exist_ok=True)
+            opts = _options(a, pattern, out)
+            opts.plot = opts.plot or os.path.join(a.outdir, "adaptation.png")
+            opts.state_out = opts.state_out or os.path.join(a.outdir, "state.json")
+            res = run_job(opts)
+            print(f"demo: {len(res.outputs)} frames -> {out}; plot {opts.plot}; "
+                  f"state {opts.state_out}; {res.seconds:.1f} s")
+            return 0
+        from .sequence import run_job
+        res = run_job(_options(a, a.input, a.output))
+        if not a.quiet:
+            rep = f"; repaired values: {res.repairs.summary()}" if res.repairs.total else ""
+            print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s{rep}")
+        return 0
+    except FrameError as e:
+        print(f"ocl-tonemap ERROR: {e.path} frame {e.frame if e.frame is not None else '-'}: {e.why}",
+              file=sys.stderr)
+        return 2
+    except (ValueError, RuntimeError, OSError) as e:
+        print(f"ocl-tonemap ERROR: {e}", file=sys.stderr)
+        return 2

@@ -1,0 +1,216 @@
+"""Image I/O through OpenImageIO: frames, sequences, atomic writes.
+
+Sequence patterns follow oiiotool: a lone ``#`` is four digits of padding,
+``@`` one digit each, printf ``%04d``; a run of several ``#`` is one digit
+each (Nuke style, so ``####`` is also four). Outputs are written to a
+temporary file beside the target and renamed over it, so a failed or
+interrupted write never leaves a partial frame, and an input is never
+overwritten.
+"""
+
+from __future__ import annotations
+
+import glob
+import json
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+
+_PAT = re.compile(r"(#+|@+|%0?(\d*)d)")
+
+#: Default output sample type by file extension.
+DEFAULT_BITS = {".exr": "half", ".tif": "16", ".tiff": "16", ".png": "8", ".jpg": "8",
+                ".jpeg": "8", ".hdr": "float", ".dpx": "16"}
+BITS_TYPES = {"8": oiio.UINT8, "16": oiio.UINT16, "half": oiio.HALF, "float": oiio.FLOAT}
+#: Radiance RGBE: pixel value x 179 lm/W = cd/m^2 (WHITE_EFFICACY).
+RADIANCE_EFFICACY = 179.0
+
+
+class FrameError(RuntimeError):
+    """A failure tied to one file and frame: ``ocl-tonemap ERROR: <file> frame <n>: <why>``."""
+
+    def __init__(self, path, frame, why):
+        self.path, self.frame, self.why = str(path), frame, str(why)
+        super().__init__(f"{self.path} frame {frame if frame is not None else '-'}: {why}")
+
+
+def is_sequence(pattern: str) -> bool:
+    return bool(_PAT.search(os.path.basename(pattern)))
+
+
+def _digits(tok: str) -> int:
+    if tok[0] == "#":
+        return 4 if len(tok) == 1 else len(tok)
+    if tok[0] == "@":
+        return len(tok)
+    m = re.fullmatch(r"%0?(\d*)d", tok)
+    return int(m.group(1)) if m and m.group(1) else 0
+
+
+def frame_path(pattern: str, frame: int) -> str:
+    """The file name of ``frame`` in ``pattern`` (every token is replaced)."""
+    def rep(m):
+        n = _digits(m.group(0))
+        s = f"{abs(frame):0{n}d}" if n else str(abs(frame))
+        return ("-" if frame < 0 else "") + s
+    d, b = os.path.split(pattern)
+    return os.path.join(d, _PAT.sub(rep, b))
+
+
+def find_frames(pattern: str) -> list[int]:
+    """Frame numbers of the files on disk that match ``pattern``."""
+    d, b = os.path.split(pattern)
+    parts = _PAT.split(b)
+    # re.split with 2 groups yields [text, tok, sub, text, tok, sub, ...]
+    rx, gl = "", ""
+    i = 0
+    while i < len(parts):
+        if i % 3 == 0:
+            rx += re.escape(parts[i])
+            gl += glob.escape(parts[i])
+            i += 1
+        else:
+            n = _digits(parts[i])
+            rx += r"(-?\d{%d,})" % max(n, 1) if n else r"(-?\d+)"
+            gl += "*"
+            i += 2
+    rxc = re.compile(rx + r"\Z")
+    frames = set()
+    for p in glob.glob(os.path.join(glob.escape(d) if d else "", gl)):
+        m = rxc.match(os.path.basename(p))
+        if m:
+            frames.add(int(m.group(1)))
+    return sorted(frames)
+
+
+def parse_frames(text: str) -> list[int]:
+    """``"1001-1100"``, ``"1-10x2"`` or ``"1,5,9-12"`` -> frame numbers."""
+    out: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        m = re.fullmatch(r"(-?\d+)(?:-(-?\d+)(?:x(\d+))?)?", part)
+        if not m:
+            raise ValueError(f"bad --frames {text!r} (use A-B, A-BxSTEP or a comma list)")
+        a = int(m.group(1))
+        b = int(m.group(2)) if m.group(2) is not None else a
+        step = int(m.group(3) or 1)
+        if b < a or step < 1:
+            raise ValueError(f"bad --frames range {part!r}")
+        out.extend(range(a, b + 1, step))
+    return out
+
+
+@dataclass
+class Frame:
+    """One input frame: pixels of its data window and where they came from."""
+
+    path: str
+    frame: int | None
+    pixels: np.ndarray          # (H, W, 3 or 4) float32: RGB [+ alpha]
+    spec: object                # the file's oiio.ImageSpec (metadata, windows)
+    colorspace: str | None      # the file's oiio:ColorSpace, if any
+    white_luminance: float | None
+    fps: float | None
+    timestamp: float | None
+    format_name: str
+
+
+def _fps(spec) -> float | None:
+    v = spec.getattribute("FramesPerSecond")
+    if v is None:
+        return None
+    try:
+        if isinstance(v, (tuple, list)) and len(v) == 2:
+            return float(v[0]) / float(v[1]) if v[1] else None
+        if isinstance(v, str) and "/" in v:
+            a, b = v.split("/")
+            return float(a) / float(b)
+        f = float(v)
+        return f if f > 0 else None
+    except (TypeError, ValueError, ZeroDivisionError):
+        return None
+
+
+def read_frame(path: str, frame: int | None = None) -> Frame:
+    """Read the RGB (+alpha) of an image OIIO can read, as float32."""
+    if not os.path.exists(path):
+        raise FrameError(path, frame, "no such file")
+    buf = oiio.ImageBuf(path)
+    if buf.has_error:
+        raise FrameError(path, frame, f"cannot read: {buf.geterror().strip()}")
+    spec = buf.spec()
+    pix = buf.get_pixels(oiio.FLOAT)
+    if buf.has_error or pix is None:
+        raise FrameError(path, frame, f"cannot read pixels: {buf.geterror().strip()}")
+    pix = np.asarray(pix, np.float32)
+    if pix.ndim == 4:  # volume images: take the first slice
+        pix = pix[0]
+    from .pipeline import _rgb_alpha_indices
+    pix = np.ascontiguousarray(pix[..., _rgb_alpha_indices(spec)])
+    wl = spec.getattribute("whiteLuminance")
+    ts = spec.getattribute("ocltm:timestamp")
+    fmt = buf.file_format_name
+    return Frame(path, frame, pix, spec, spec.getattribute("oiio:ColorSpace") or None,
+                 float(wl) if isinstance(wl, (int, float)) and wl > 0 else None, _fps(spec),
+                 float(ts) if isinstance(ts, (int, float)) else None, fmt)
+
+
+def default_scale(fr: Frame) -> tuple[float, str]:
+    """cd/m^2 of pixel value 1.0, and where it came from."""
+    if fr.white_luminance:
+        return fr.white_luminance, "whiteLuminance attribute"
+    if fr.format_name == "hdr":
+        exp = fr.spec.getattribute("Exposure")
+        e = float(exp) if isinstance(exp, (int, float)) and exp > 0 else 1.0
+        return RADIANCE_EFFICACY / e, "Radiance efficacy 179 lm/W"
+    return 1.0, "default (pixel values are cd/m^2)"
+
+
+def same_file(a: str, b: str) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.abspath(a) == os.path.abspath(b)
+
+
+def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
+                metadata: dict, bits: str | None = None, frame: int | None = None) -> None:
+    """Write display pixels atomically, keeping the input's windows and metadata."""
+    ext = Path(path).suffix.lower()
+    bits = bits or DEFAULT_BITS.get(ext, "float")
+    if bits not in BITS_TYPES:
+        raise FrameError(path, frame, f"unknown output bit depth {bits!r} (8, 16, half, float)")
+    pix = np.ascontiguousarray(pixels, np.float32)
+    if ext in (".jpg", ".jpeg") and pix.shape[2] == 4:
+        pix = np.ascontiguousarray(pix[..., :3])
+    nch = pix.shape[2]
+    spec = oiio.ImageSpec(in_spec) if in_spec is not None else \
+        oiio.ImageSpec(pix.shape[1], pix.shape[0], nch, oiio.FLOAT)
+    spec.nchannels = nch
+    spec.channelnames = ("R", "G", "B", "A")[:nch]
+    spec.alpha_channel = 3 if nch == 4 else -1
+    spec.set_format(BITS_TYPES[bits])
+    for k in ("whiteLuminance", "ocltm:timestamp"):
+        spec.erase_attribute(k)
+    spec.attribute("oiio:ColorSpace", colorspace)
+    for k, v in metadata.items():
+        spec.attribute(k, v if isinstance(v, (str, int, float)) else json.dumps(v, sort_keys=True))
+    buf = oiio.ImageBuf(spec)
+    roi = oiio.ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height, 0, 1, 0, nch)
+    if not buf.set_pixels(roi, pix):
+        raise FrameError(path, frame, f"cannot set pixels: {buf.geterror()}")
+    d = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(d):
+        raise FrameError(path, frame, f"output folder {d} does not exist")
+    tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{ext}")
+    try:
+        if not buf.write(tmp, BITS_TYPES[bits]):
+            raise FrameError(path, frame, f"cannot write: {buf.geterror().strip()}")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)

@@ -1,0 +1,29 @@
+"""Operator registry: ``--operator NAME`` -> the module implementing it.
+
+An operator module provides, in the papers' terms:
+
+``steady_state(G_rod, G_cone)``   state values fully adapted to a goal;
+``advance(values, G_rod, G_cone, dt)``   exact time step of the state;
+``preadapted(L_cd, seconds)``   state after pre-adaptation to a neutral field;
+``frame_params(state, display)``   per-frame scalars for the per-pixel pass;
+``map_reference(rgb, Y, Ys, params)``   float64 per-pixel pass;
+``map_opencl(rt, rgb, Y, Ys, out, n, params)``   the same on the device.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+#: name -> (module, one-line description). Later papers add to this.
+REGISTRY = {
+    "pattanaik00": ("ocl_tonemap.pattanaik00",
+                    "Pattanaik, Tumblin, Yee & Greenberg 2000: time-dependent global adaptation"),
+}
+
+
+def get_operator(name: str):
+    try:
+        modname, _ = REGISTRY[name]
+    except KeyError:
+        raise ValueError(f"unknown operator {name!r}; available: {', '.join(sorted(REGISTRY))}") from None
+    return importlib.import_module(modname)

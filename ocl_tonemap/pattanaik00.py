@@ -1,0 +1,269 @@
+"""Pattanaik, Tumblin, Yee & Greenberg 2000: time-dependent global adaptation.
+
+"Time-Dependent Visual Adaptation for Fast Realistic Image Display",
+SIGGRAPH 2000. Equation numbers below are the paper's. Units: cd/m^2 for
+luminances (photopic for cones, scotopic for rods), seconds for time.
+
+The float64 functions here are the reference; ``kernels/pattanaik00.cl`` is
+the fused per-pixel device pass (Eqs. 2, 3, 8 and the inverse of Sec. 4.3).
+Reconstructions of the garbled text are in docs/models.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, asdict
+
+import numpy as np
+
+from .adaptation import AdaptationState, bleaching_step, exponential_step
+from .display import DISPLAY_LINEAR_MAX, DisplaySpec
+from .photometry import neutral_scotopic_ratio
+
+NAME = "pattanaik00"
+
+#: Eq. 2 exponent (Hunt's n, Sec. 4.1.1).
+N = 0.73
+#: Neural time constants t0, s (Sec. 4.1.2).
+T0_ROD, T0_CONE = 0.150, 0.080
+#: Pigment regeneration time constants tau, s (Sec. 4.1.2).
+TAU_ROD, TAU_CONE = 400.0, 110.0
+#: Bleaching half-rate constants of Eq. 7 (J = T*B*G/k), cd/m^2.
+K_ROD, K_CONE = 16.0, 2.2e8
+#: Floor on luminance inside the response (cd/m^2): far below the absolute
+#: threshold of vision (~1e-6) and far above float32 denormals.
+L_FLOOR = 1.0e-10
+#: Floor on adaptation luminance where Eqs. 4-5 are 0/0 at A = 0.
+A_FLOOR = 1.0e-10
+#: Floor on colour ratios before the Eq. 3 power (log of 0 is -inf).
+RATIO_FLOOR = 1.0e-12
+LN10 = math.log(10.0)
+
+
+# --- Static response model (Sec. 4.1.1) ---------------------------------------
+
+def sigma_rod(A_rod):
+    """Half-saturation of rods, Eq. 4 (cd/m^2 scotopic). j = 1/(5e5*A + 1)."""
+    A = np.maximum(np.asarray(A_rod, np.float64), A_FLOOR)
+    j2 = (1.0 / (5.0e5 * A + 1.0)) ** 2
+    return 2.5874 * A / (19000.0 * j2 * A + 0.2615 * (1.0 - j2) ** 4 * A ** (1.0 / 6.0))
+
+
+def sigma_cone(A_cone):
+    """Half-saturation of cones, Eq. 5 (cd/m^2). k = 1/(5*A + 1)."""
+    A = np.maximum(np.asarray(A_cone, np.float64), A_FLOOR)
+    k4 = (1.0 / (5.0 * A + 1.0)) ** 4
+    return 12.9223 * A / (k4 * A + 0.171 * (1.0 - k4) ** 2 * A ** (1.0 / 3.0))
+
+
+def bleach_rod_static(G_rod):
+    """Hunt's static rod bleaching factor, Eq. 6: 0.04/(0.04 + A)."""
+    return 0.04 / (0.04 + np.maximum(np.asarray(G_rod, np.float64), 0.0))
+
+
+def bleach_cone_static(G_cone):
+    """Hunt's static cone bleaching factor, Eq. 6: 2e6/(2e6 + A)."""
+    return 2.0e6 / (2.0e6 + np.maximum(np.asarray(G_cone, np.float64), 0.0))
+
+
+def saturation(L, sigma):
+    """L^n / (L^n + sigma^n) of Eq. 2, written as 1/(1 + (sigma/L)^n) (no overflow)."""
+    L = np.maximum(np.asarray(L, np.float64), L_FLOOR)
+    return 1.0 / (1.0 + (np.asarray(sigma, np.float64) / L) ** N)
+
+
+def response(L, sigma, bleach):
+    """Receptor response R = B * L^n/(L^n + sigma^n), Eq. 2."""
+    return bleach * saturation(L, sigma)
+
+
+def colour_slope(L_cone, sigma_c, bleach_c):
+    """S_color = dR_cone / dlog10(L_cone), Eq. 3 (log10 reconstruction, see docs/models.md).
+
+    d/dln L of Eq. 2 is n*B*x*(1 - x) with x = L^n/(L^n + sigma^n) (the printed
+    right-hand side); per log10 unit it is ln(10) times that. Base 10 is the
+    one that reproduces the paper's display S_d = 0.1383.
+    """
+    x = saturation(L_cone, sigma_c)
+    return LN10 * N * bleach_c * x * (1.0 - x)
+
+
+# --- Display observer (Sec. 4.3) ------------------------------------------------
+
+@dataclass(frozen=True)
+class DisplayObserver:
+    """Steady-state constants of the display observer (Sec. 4.3)."""
+
+    sigma_rod: float
+    sigma_cone: float
+    B_rod: float
+    B_cone: float
+    ref_white: float   # response, Eq. 8 form at display white
+    ref_black: float   # response at display black
+    S_d: float         # response slope per log10 between black and white
+    unit_cd: float
+
+    @classmethod
+    def from_spec(cls, d: DisplaySpec) -> "DisplayObserver":
+        if d.paper_crt:
+            # Printed constants, verbatim (sigma_rod = 722 is not Eq. 4 at
+            # A = 25, which gives 144.7; see docs/models.md).
+            sr, sc, br, bc = 722.0, 646.0, 0.0016, 1.0
+        else:
+            A = d.adapt_cd
+            sr, sc = float(sigma_rod(A)), float(sigma_cone(A))
+            br, bc = float(bleach_rod_static(A)), float(bleach_cone_static(A))
+        w = float(response(d.white_cd, sr, br) + response(d.white_cd, sc, bc))
+        k = float(response(d.black_cd, sr, br) + response(d.black_cd, sc, bc))
+        # Forward difference of Eq. 2 between display REF_blk and REF_whit.
+        s_d = (w - k) / math.log10(d.white_cd / d.black_cd)
+        return cls(sr, sc, br, bc, w, k, s_d, d.unit_cd)
+
+    def luminance(self, R):
+        """Inverse of R = B_r x/(x + s_r) + B_c x/(x + s_c), x = L^n (display sees L
+        with both receptors): the quadratic
+            (B_r + B_c - R) x^2 + (B_r s_c + B_c s_r - R (s_r + s_c)) x - R s_r s_c = 0
+        has one non-negative root; solved in the cancellation-free form."""
+        sr, sc = self.sigma_rod ** N, self.sigma_cone ** N
+        rmax = self.B_rod + self.B_cone
+        R = np.clip(np.asarray(R, np.float64), 0.0, rmax * (1.0 - 1e-6))
+        a = rmax - R
+        b = self.B_rod * sc + self.B_cone * sr - R * (sr + sc)
+        c = R * sr * sc
+        disc = np.sqrt(b * b + 4.0 * a * c)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = np.where(b > 0, 2.0 * c / (b + disc), (disc - b) / (2.0 * a))
+        return np.maximum(x, 0.0) ** (1.0 / N)
+
+
+# --- Appearance model and its inverse (Secs. 4.2, 4.3) -----------------------
+
+def reference_responses(v: dict):
+    """Scene REF_whit and REF_blk, Eq. 8: responses at 5*A and 5/32*A."""
+    sr, sc = sigma_rod(v["A_rod"]), sigma_cone(v["A_cone"])
+    white = (response(5.0 * v["A_rod"], sr, v["B_rod"])
+             + response(5.0 * v["A_cone"], sc, v["B_cone"]))
+    black = (response(5.0 / 32.0 * v["A_rod"], sr, v["B_rod"])
+             + response(5.0 / 32.0 * v["A_cone"], sc, v["B_cone"]))
+    return float(white), float(black)
+
+
+def appearance_map(scene_white, scene_black, disp: DisplayObserver):
+    """Inverse appearance model, Sec. 4.3 rules 1-4, as R_display = gain*R_lum + offset.
+
+    Q_lum = R_lum - REF_blk (Sec. 4.2); Q_span = white - black, Q_mid = mean.
+    Returns (gain, offset, rule).
+    """
+    dw, dk = disp.ref_white, disp.ref_black
+    span_s, span_d = scene_white - scene_black, dw - dk
+    if scene_black >= dk and scene_white <= dw:          # rule 1: reproduce directly
+        return 1.0, 0.0, 1
+    if span_s > span_d:                                   # rule 2: compress and offset
+        g = span_d / span_s
+        return g, dk - g * scene_black, 2
+    if 0.5 * (scene_white + scene_black) > 0.5 * (dw + dk):  # rule 3: offset down
+        return 1.0, dw - scene_white, 3
+    return 1.0, dk - scene_black, 4                        # rule 4: offset up
+
+
+# --- Per-frame scalars for the per-pixel pass ---------------------------------------
+
+@dataclass(frozen=True)
+class FrameParams:
+    """Everything the per-pixel pass needs for one frame (all scalars)."""
+
+    sigma_rod: float
+    sigma_cone: float
+    B_rod: float
+    B_cone: float
+    gain: float
+    offset: float
+    rule: int
+    display: DisplayObserver
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["display"] = asdict(self.display)
+        return d
+
+
+def frame_params(state: AdaptationState, display: DisplaySpec) -> FrameParams:
+    v = state.values
+    disp = DisplayObserver.from_spec(display)
+    w, k = reference_responses(v)
+    gain, offset, rule = appearance_map(w, k, disp)
+    return FrameParams(float(sigma_rod(v["A_rod"])), float(sigma_cone(v["A_cone"])),
+                       v["B_rod"], v["B_cone"], gain, offset, rule, disp)
+
+
+def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams) -> np.ndarray:
+    """Float64 reference of the per-pixel pass: scene cd/m^2 -> display-linear.
+
+    rgb: (..., 3) working-space cd/m^2 (already sanitised); Y, Ys: photopic and
+    scotopic luminance. Returns (..., 3) display-linear (1.0 = display unit).
+    """
+    xc = saturation(Y, p.sigma_cone)
+    R_lum = p.B_rod * saturation(Ys, p.sigma_rod) + p.B_cone * xc      # Eq. 2, R_rod + R_cone
+    s_color = LN10 * N * p.B_cone * xc * (1.0 - xc)                   # Eq. 3
+    R_disp = p.gain * R_lum + p.offset                                  # Sec. 4.3 rules
+    L_disp = p.display.luminance(R_disp)                                # inverse Eq. 2
+    Yc = np.asarray(Y, np.float64)[..., None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(Yc > L_FLOOR, rgb / np.where(Yc > L_FLOOR, Yc, 1.0), 1.0)
+    # Q_color = ratio^S_color (Eq. 3); display colour ratio C_d = Q_color^(1/S_d).
+    c_disp = np.maximum(ratio, RATIO_FLOOR) ** (s_color / p.display.S_d)[..., None]
+    out = L_disp[..., None] * c_disp / p.display.unit_cd
+    return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
+
+
+def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParams):
+    """Enqueue the fused per-pixel pass (kernels/pattanaik00.cl) on ``rt``."""
+    import pyopencl as cl  # noqa: F401  (device path only)
+    from .runtime import round_up
+
+    d = p.display
+    f = np.float32
+    knl = rt.kernel("pattanaik00.cl", "pattanaik00_map")
+    wg = 64
+    knl(rt.queue, (round_up(max(n_pixels, 1), wg),), (wg,),
+        rgb_buf, y_buf, ys_buf, out_buf, np.int32(n_pixels),
+        f(math.log2(p.sigma_rod)), f(math.log2(p.sigma_cone)), f(p.B_rod), f(p.B_cone),
+        f(p.gain), f(p.offset),
+        f(d.B_rod), f(d.B_cone), f(d.sigma_rod ** N), f(d.sigma_cone ** N),
+        f(LN10 * N * p.B_cone / d.S_d), f(1.0 / d.unit_cd))
+
+
+# --- Scheduler hooks --------------------------------------------------------
+
+def steady_state(G_rod: float, G_cone: float) -> dict:
+    """Fully adapted state: A = G, B = Hunt's static B (Eq. 6)."""
+    return {"A_rod": float(G_rod), "A_cone": float(G_cone),
+            "B_rod": float(bleach_rod_static(G_rod)), "B_cone": float(bleach_cone_static(G_cone))}
+
+
+def advance(values: dict, G_rod: float, G_cone: float, dt: float) -> dict:
+    """Advance the four adaptation signals by ``dt`` seconds toward the goals (Sec. 4.1.2).
+
+    A: exact exponential filters (t0 = 150 ms rods, 80 ms cones).
+    B: exact solution of Eq. 7's kinetics (see adaptation.bleaching_step).
+    """
+    return {
+        "A_rod": exponential_step(values["A_rod"], G_rod, dt, T0_ROD),
+        "A_cone": exponential_step(values["A_cone"], G_cone, dt, T0_CONE),
+        "B_rod": bleaching_step(values["B_rod"], G_rod, dt, K_ROD, TAU_ROD),
+        "B_cone": bleaching_step(values["B_cone"], G_cone, dt, K_CONE, TAU_CONE),
+    }
+
+
+def preadapted(L_cd: float, seconds: float | None) -> dict:
+    """State of an observer who looked at a neutral field of ``L_cd`` cd/m^2.
+
+    Without ``seconds``: fully adapted to it. With ``seconds``: starting
+    dark-adapted (A at the floor, B = 1, full pigment) and exposed for that
+    long, so longer exposure leaves more pigment bleached.
+    """
+    G_rod, G_cone = L_cd * neutral_scotopic_ratio(), L_cd
+    if seconds is None:
+        return steady_state(G_rod, G_cone)
+    dark = {"A_rod": A_FLOOR, "A_cone": A_FLOOR, "B_rod": 1.0, "B_cone": 1.0}
+    return advance(dark, G_rod, G_cone, seconds)

@@ -1,0 +1,181 @@
+"""The pipeline: one observer watching a sequence of frames.
+
+Data flows one way per frame:
+    pixels (working space) x luminance scale -> cd/m^2 (bad-value policy)
+    -> meter (adaptation goal) -> advance state (host scheduler)
+    -> per-pixel operator -> display-linear (1.0 = display unit).
+OCIO display encoding and file I/O wrap this in ``sequence.py`` / the CLI;
+:class:`Tonemapper` is the Python API for a compositing pipeline step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .adaptation import AdaptationState
+from .backends import make_backend
+from .display import DisplaySpec
+from .metering import MeteringSpec
+from .operators import get_operator
+from .photometry import RepairCounts
+
+
+@dataclass
+class FrameInfo:
+    """What happened on one frame (also written to the output's metadata)."""
+
+    frame: int | None
+    time_s: float
+    dt: float
+    G_rod: float
+    G_cone: float
+    repairs: RepairCounts
+    state: AdaptationState
+    params: dict = field(default_factory=dict)
+
+
+class Tonemapper:
+    """Time-dependent tone mapping of frames for one observer.
+
+    Parameters
+    ----------
+    operator : registry name (``pattanaik00``).
+    backend : ``"opencl"`` (default) or ``"reference"`` (float64 NumPy).
+    metering : metering spec string or :class:`MeteringSpec` (``logmean``).
+    display : the display observer (:class:`DisplaySpec`); SDR 100 cd/m^2 by default.
+    preadapt : ``(L_cd, seconds_or_None)`` initial adaptation; default: fully
+        adapted to the first frame.
+    state : an :class:`AdaptationState` to resume from.
+    device : OpenCL device spec (see ``runtime.choose_device``).
+    max_band_pixels : process larger frames in row bands (device memory).
+    """
+
+    def __init__(self, operator: str = "pattanaik00", backend: str = "opencl",
+                 metering: str | MeteringSpec | None = "logmean",
+                 display: DisplaySpec | None = None,
+                 preadapt: tuple[float, float | None] | None = None,
+                 state: AdaptationState | None = None, device: str | None = None,
+                 max_band_pixels: int | None = None):
+        self.operator_name = operator
+        self.op = get_operator(operator)
+        self.backend = make_backend(backend, device, max_band_pixels)
+        self.metering = metering if isinstance(metering, MeteringSpec) else MeteringSpec.parse(metering)
+        self.display = display or DisplaySpec.from_white("sRGB - Display", 100.0)
+        self.preadapt = preadapt
+        if preadapt is not None:
+            L, s = preadapt
+            if not (L >= 0 and math.isfinite(L)) or (s is not None and not (s >= 0 and math.isfinite(s))):
+                raise ValueError(f"bad pre-adaptation {preadapt}: need L >= 0 cd/m^2 and seconds >= 0")
+        self._state = state.copy() if state is not None else AdaptationState(operator)
+        if self._state.operator != operator:
+            raise ValueError(f"state belongs to operator {self._state.operator!r}, not {operator!r}")
+        self.last: FrameInfo | None = None
+
+    # -- state -----------------------------------------------------------------
+    @property
+    def state(self) -> AdaptationState:
+        """A copy of the current adaptation state (serialisable)."""
+        return self._state.copy()
+
+    @state.setter
+    def state(self, value: AdaptationState) -> None:
+        if value.operator != self.operator_name:
+            raise ValueError(f"state belongs to operator {value.operator!r}")
+        self._state = value.copy()
+
+    # -- frames ----------------------------------------------------------------
+    def process(self, frame: np.ndarray, dt: float | None = None, time_s: float | None = None,
+                frame_number: int | None = None, luminance_scale: float = 1.0) -> np.ndarray:
+        """Tone map one working-space frame (H x W x 3 or 4, float).
+
+        ``frame * luminance_scale`` must be cd/m^2. Time advances by ``dt``
+        seconds, or to the absolute ``time_s``; the first frame of a fresh
+        observer needs neither. Returns display-linear float32 of the same
+        shape; a 4th (alpha) channel is passed through unchanged.
+        """
+        pix = np.asarray(frame)
+        if pix.ndim == 2:
+            pix = pix[..., None]
+        if pix.ndim != 3 or pix.shape[2] not in (1, 3, 4) or pix.shape[0] < 1 or pix.shape[1] < 1:
+            raise ValueError(f"frame must be H x W x 3 or 4 (got shape {np.shape(frame)})")
+        if pix.shape[2] == 1:
+            pix = np.repeat(pix, 3, axis=2)
+        if not (math.isfinite(luminance_scale) and luminance_scale > 0):
+            raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
+        pix = np.ascontiguousarray(pix, np.float32)
+
+        st = self._state
+        fresh = not st.values
+        if time_s is None:
+            if fresh:
+                time_s = 0.0 if st.time_s is None else st.time_s
+            elif dt is None:
+                raise ValueError("give dt (seconds since the last frame) or time_s")
+            else:
+                time_s = (st.time_s or 0.0) + dt
+        step_dt = 0.0 if (fresh or st.time_s is None) else time_s - st.time_s
+        if not math.isfinite(step_dt) or step_dt < 0:
+            raise ValueError(f"time goes backwards or is not finite: last frame at {st.time_s} s, "
+                             f"this one at {time_s} s")
+        holder = {}
+
+        def step(G_rod: float, G_cone: float):
+            if fresh:
+                if self.preadapt is not None:
+                    st.values = self.op.preadapted(*self.preadapt)
+                else:
+                    st.values = self.op.steady_state(G_rod, G_cone)
+            else:
+                st.values = self.op.advance(st.values, G_rod, G_cone, step_dt)
+            st.time_s, st.frame = float(time_s), frame_number
+            p = self.op.frame_params(st, self.display)
+            holder["params"] = p
+            return p
+
+        out, repairs, (G_rod, G_cone) = self.backend.process(pix, luminance_scale, self.metering,
+                                                             self.op, step)
+        p = holder["params"]
+        self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone, repairs,
+                              st.copy(), p.as_dict() if hasattr(p, "as_dict") else {})
+        if pix.shape[2] == 4:
+            out = np.concatenate([out, pix[..., 3:4]], axis=2)
+        return out
+
+    def process_imagebuf(self, buf, dt: float | None = None, time_s: float | None = None,
+                         luminance_scale: float = 1.0):
+        """ImageBuf in (working space), ImageBuf out (display-linear float, same spec)."""
+        import OpenImageIO as oiio
+        spec = buf.spec()
+        pix = buf.get_pixels(oiio.FLOAT)
+        rgb_idx = _rgb_alpha_indices(spec)
+        sel = pix[..., rgb_idx]
+        out = self.process(sel, dt=dt, time_s=time_s, luminance_scale=luminance_scale)
+        ospec = oiio.ImageSpec(spec)
+        ospec.nchannels = out.shape[2]
+        ospec.channelnames = ("R", "G", "B", "A")[: out.shape[2]]
+        ospec.alpha_channel = 3 if out.shape[2] == 4 else -1
+        ospec.set_format(oiio.FLOAT)
+        res = oiio.ImageBuf(ospec)
+        res.set_pixels(oiio.ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height,
+                                spec.z, spec.z + max(spec.depth, 1), 0, out.shape[2]), out)
+        return res
+
+
+def _rgb_alpha_indices(spec) -> list[int]:
+    """Channel indices of R, G, B (by name, else the first three) and alpha if any."""
+    names = [n.split(".")[-1].upper() for n in spec.channelnames]
+    idx = []
+    for want in ("R", "G", "B"):
+        if want in names:
+            idx.append(names.index(want))
+    if len(idx) != 3:
+        if spec.nchannels < 3:
+            idx = [0, 0, 0]
+        else:
+            idx = [0, 1, 2]
+    if spec.alpha_channel >= 0 and spec.alpha_channel not in idx:
+        idx.append(spec.alpha_channel)
+    return idx

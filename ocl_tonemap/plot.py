@@ -1,0 +1,89 @@
+"""Plots like the graphs under Pattanaik 2000, Figure 7.
+
+Top: adaptation goal and state over time (log10 cd/m^2) and the bleaching
+factors. Bottom: the scene-to-display mapping of neutral luminances at chosen
+frames (log10 scene cd/m^2 -> log10 display cd/m^2), from the float64
+reference of the operator with each frame's state.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .photometry import neutral_scotopic_ratio
+
+
+def mapping_curve(op, state, display, L: np.ndarray) -> np.ndarray:
+    """Display luminance (cd/m^2) of neutral scene luminances ``L`` for one state."""
+    p = op.frame_params(state, display)
+    rgb = np.repeat(L[:, None], 3, axis=1)
+    out = op.map_reference(rgb, L, L * neutral_scotopic_ratio(), p)
+    return out[:, 1] * p.display.unit_cd
+
+
+def default_plot_frames(infos, count: int = 6) -> list[int]:
+    """Indices where the goal changes most, plus first and last."""
+    if len(infos) <= count:
+        return list(range(len(infos)))
+    g = np.log10(np.maximum([i.G_cone for i in infos], 1e-6))
+    jumps = np.argsort(-np.abs(np.diff(g)))[: count // 2]
+    picks = {0, len(infos) - 1}
+    for j in jumps:
+        picks.add(min(int(j) + 1, len(infos) - 1))
+        picks.add(min(int(j) + 8, len(infos) - 1))
+    return sorted(picks)[:count]
+
+
+def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> None:
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as exc:
+        raise RuntimeError("--plot needs matplotlib: pip install 'ocl-tonemap[plot]'") from exc
+    if not infos:
+        raise RuntimeError("nothing to plot")
+    t = np.array([i.time_s for i in infos])
+    val = lambda k: np.array([i.state.values[k] for i in infos])  # noqa: E731
+    lg = lambda x: np.log10(np.maximum(x, 1e-7))  # noqa: E731
+    fig, axes = plt.subplots(3, 1, figsize=(9, 10), gridspec_kw={"height_ratios": [2, 1, 2]})
+    ax = axes[0]
+    ax.plot(t, lg([i.G_cone for i in infos]), "k:", label="G_cone (goal)")
+    ax.plot(t, lg([i.G_rod for i in infos]), "b:", label="G_rod (goal, scotopic)")
+    if "A_cone" in infos[0].state.values:
+        ax.plot(t, lg(val("A_cone")), "k-", label="A_cone")
+        ax.plot(t, lg(val("A_rod")), "b-", label="A_rod")
+    ax.set_ylabel("log10 cd/m^2")
+    ax.set_title(f"{tm.operator_name}: adaptation over time")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    ax = axes[1]
+    for k, c in (("B_cone", "k"), ("B_rod", "b")):
+        if k in infos[0].state.values:
+            ax.plot(t, val(k), c, label=k)
+    ax.set_yscale("log")
+    ax.set_ylabel("bleaching B")
+    ax.set_xlabel("time (s)")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    ax = axes[2]
+    picks = frames if frames else default_plot_frames(infos)
+    L = np.logspace(-4, 6, 241)
+    for idx in picks:
+        idx = min(max(int(idx), 0), len(infos) - 1)
+        inf = infos[idx]
+        Ld = mapping_curve(tm.op, inf.state, tm.display, L)
+        lab = f"t={inf.time_s:.2f}s" + (f" (frame {inf.frame})" if inf.frame is not None else "")
+        ax.plot(np.log10(L), lg(Ld), label=lab)
+        for ti in (idx,):
+            axes[0].axvline(infos[ti].time_s, color="0.8", lw=0.8)
+    ax.axhline(np.log10(tm.display.white_cd), color="0.6", ls="--", lw=0.8)
+    ax.axhline(np.log10(tm.display.black_cd), color="0.6", ls="--", lw=0.8)
+    ax.set_xlabel("scene luminance, log10 cd/m^2")
+    ax.set_ylabel("display luminance, log10 cd/m^2")
+    ax.set_title("scene-to-display mapping (dashed: display white and black)")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,185 @@
+"""OpenCL runtime: device choice, program build and cache.
+
+Device choice, in order: an explicit ``--device`` spec, ``$PYOPENCL_CTX``
+(pyopencl's own convention, ``"platform:device"`` indices), the first GPU of
+any platform, else the first CPU device (PoCL's ``pthread`` device in CI).
+
+Programs are built once per (context, kernel file set) per process and kept in
+a module cache; pyopencl additionally keeps compiled binaries on disk, so a
+second process skips the compiler.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+INSTALL_HINT = (
+    'no OpenCL platform found. Install a CPU OpenCL driver with '
+    '`pip install "pyopencl[pocl]"` (or `pip install pocl-binary-distribution`), '
+    "or install your GPU vendor's OpenCL ICD."
+)
+
+
+class OpenCLUnavailable(RuntimeError):
+    """Raised when no usable OpenCL platform or device exists."""
+
+
+def _cl():
+    try:
+        import pyopencl as cl
+    except ImportError as exc:  # pragma: no cover - dependency is required
+        raise OpenCLUnavailable(f"pyopencl is not importable ({exc}); {INSTALL_HINT}") from exc
+    return cl
+
+
+def kernel_dir() -> Path:
+    """Folder holding the ``*.cl`` sources (installed package data first)."""
+    try:
+        p = resources.files("ocl_tonemap.kernels")
+        if (Path(str(p)) / "colour.cl").is_file():
+            return Path(str(p))
+    except (ModuleNotFoundError, TypeError):
+        pass
+    p = Path(__file__).resolve().parent.parent / "kernels"
+    if (p / "colour.cl").is_file():
+        return p
+    raise FileNotFoundError("OpenCL kernel sources (kernels/*.cl) not found in the package or source tree")
+
+
+def list_devices() -> list[tuple[str, object]]:
+    """All OpenCL devices as ``("P:D", device)`` pairs; empty when none."""
+    cl = _cl()
+    try:
+        platforms = cl.get_platforms()
+    except cl.Error:
+        return []
+    out = []
+    for pi, p in enumerate(platforms):
+        try:
+            devs = p.get_devices()
+        except cl.Error:
+            continue
+        for di, d in enumerate(devs):
+            out.append((f"{pi}:{di}", d))
+    return out
+
+
+def describe_device(dev) -> str:
+    cl = _cl()
+    kind = cl.device_type.to_string(dev.type)
+    return (f"{dev.name.strip()} [{kind}] on {dev.platform.name.strip()} "
+            f"({dev.version.strip()}), {dev.max_compute_units} CU, "
+            f"{dev.global_mem_size / 2**30:.1f} GiB global, "
+            f"max alloc {dev.max_mem_alloc_size / 2**30:.2f} GiB")
+
+
+def choose_device(spec: str | None = None):
+    """Pick an OpenCL device.
+
+    ``spec`` may be ``"P:D"`` (platform and device index as listed by
+    ``ocl-tonemap devices``), ``"P"``, ``"gpu"``, ``"cpu"`` or a
+    case-insensitive substring of the platform or device name (``"pocl"``).
+    """
+    devices = list_devices()
+    if not devices:
+        raise OpenCLUnavailable(INSTALL_HINT)
+    cl = _cl()
+    spec = spec if spec else os.environ.get("PYOPENCL_CTX") or None
+    if spec:
+        s = spec.strip()
+        if s in ("gpu", "cpu"):
+            want = cl.device_type.GPU if s == "gpu" else cl.device_type.CPU
+            for _, d in devices:
+                if d.type & want:
+                    return d
+            raise OpenCLUnavailable(f"no OpenCL {s.upper()} device; available: "
+                                    + "; ".join(f"{k} {d.name}" for k, d in devices))
+        if ":" in s or s.isdigit():
+            parts = s.split(":")
+            key = f"{parts[0]}:{parts[1] if len(parts) > 1 and parts[1] else 0}"
+            for k, d in devices:
+                if k == key:
+                    return d
+            raise OpenCLUnavailable(f"no OpenCL device {key!r}; available: "
+                                    + "; ".join(f"{k} {d.name}" for k, d in devices))
+        low = s.lower()
+        for _, d in devices:
+            if low in d.name.lower() or low in d.platform.name.lower():
+                return d
+        raise OpenCLUnavailable(f"no OpenCL device matches {spec!r}; available: "
+                                + "; ".join(f"{k} {d.name}" for k, d in devices))
+    for _, d in devices:
+        if d.type & cl.device_type.GPU:
+            return d
+    return devices[0][1]
+
+
+@dataclass
+class Runtime:
+    """An OpenCL context, queue and the built kernel programs."""
+
+    device: object
+    context: object
+    queue: object
+
+    @property
+    def name(self) -> str:
+        return self.device.name.strip()
+
+    def program(self, *files: str):
+        """Build (once per process) and return the program made of ``files``."""
+        return _build(self.context, self.device, tuple(files))
+
+    def kernel(self, file: str, name: str):
+        """A kernel of ``file``, retrieved once per process (kernel objects are costly)."""
+        return _kernel(self.context, self.device, file, name)
+
+    def max_alloc_bytes(self) -> int:
+        return int(self.device.max_mem_alloc_size)
+
+    def global_mem_bytes(self) -> int:
+        return int(self.device.global_mem_size)
+
+
+@functools.lru_cache(maxsize=None)
+def _runtime_for(device) -> Runtime:
+    cl = _cl()
+    ctx = cl.Context([device])
+    q = cl.CommandQueue(ctx)
+    return Runtime(device, ctx, q)
+
+
+def get_runtime(spec: str | None = None) -> Runtime:
+    """The process-wide runtime for the chosen device (created once)."""
+    return _runtime_for(choose_device(spec))
+
+
+@functools.lru_cache(maxsize=None)
+def _build(context, device, files: tuple[str, ...]):
+    cl = _cl()
+    kdir = kernel_dir()
+    src = "\n".join((kdir / f).read_text() for f in ("common.h", *files))
+    # No -cl-fast-relaxed-math: the kernels rely on IEEE inf/0 behaviour at the
+    # extremes (documented in docs/models.md).
+    return cl.Program(context, src).build(options=["-cl-std=CL1.2"], devices=[device])
+
+
+@functools.lru_cache(maxsize=None)
+def _kernel(context, device, file: str, name: str):
+    cl = _cl()
+    return cl.Kernel(_build(context, device, (file,)), name)
+
+
+def round_up(n: int, m: int) -> int:
+    """Smallest multiple of ``m`` that is >= ``n`` (padded global sizes)."""
+    return ((int(n) + m - 1) // m) * m
+
+
+def as_f32(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float32)

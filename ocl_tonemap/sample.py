@@ -1,0 +1,131 @@
+"""The built-in sample: the tunnel drive of Pattanaik 2000, Figure 7.
+
+A car at 90 km/h drives on a sunlit road (~5000 cd/m^2), through an unlit
+tunnel entrance into a tunnel whose road is ~5 cd/m^2 under sodium lamps, and
+out into daylight again. Each frame is ray cast (2x2 supersampled) in
+absolute cd/m^2, linear BT.709, and written as an OpenEXR sequence with
+``whiteLuminance = 1`` and ``FramesPerSecond`` metadata.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import OpenImageIO as oiio
+
+from .photometry import Y_WEIGHTS
+
+SPEED = 25.0                 # m/s (90 km/h)
+CAM_H = 1.2                  # eye height, m
+ROAD_HALF, WALL, CEIL = 3.5, 5.0, 5.5   # road half width, wall offset, ceiling height, m
+MOUNTAIN = 40.0              # mountain face height above the road, m
+L_ROAD_SUN, L_VERGE, L_ROCK, L_SKY = 5000.0, 2500.0, 3000.0, 8000.0
+L_ROAD_TUNNEL, L_WALL, L_CEIL, L_LAMP = 5.0, 7.0, 2.0, 3000.0
+
+
+def _colour(rgb):
+    c = np.asarray(rgb, np.float64)
+    return c / (c @ Y_WEIGHTS)   # unit luminance
+
+
+C_ROAD, C_VERGE = _colour([1.0, 0.97, 0.9]), _colour([0.45, 1.0, 0.3])
+C_ROCK, C_SKY = _colour([1.0, 0.9, 0.75]), _colour([0.65, 0.82, 1.25])
+C_SODIUM = _colour([1.0, 0.55, 0.12])
+C_TUNNEL = _colour([1.0, 0.8, 0.55])
+
+
+def tunnel_layout(seconds: float) -> tuple[float, float]:
+    """Tunnel entrance and exit (m along the road) for a drive of ``seconds``:
+    30% approach, 40% inside, 30% after the exit."""
+    total = SPEED * seconds
+    return 0.3 * total, 0.7 * total
+
+
+def render_frame(t: float, width: int, height: int, seconds: float, fov_deg: float = 60.0,
+                 ss: int = 2) -> np.ndarray:
+    """The view at time ``t`` s, (height, width, 3) float32 in cd/m^2."""
+    z_in, z_out = tunnel_layout(seconds)
+    z0 = SPEED * t
+    tan = np.tan(np.radians(fov_deg) / 2.0)
+    sx = (np.arange(width * ss) + 0.5) / (width * ss) * 2.0 - 1.0
+    sy = 1.0 - (np.arange(height * ss) + 0.5) / (height * ss) * 2.0
+    dx = (sx * tan)[None, :] * np.ones((height * ss, 1))
+    dy = (sy * tan * height / width)[:, None] * np.ones((1, width * ss)) - 0.03  # slight downward gaze
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_road = np.where(dy < 0, CAM_H / -dy, np.inf)
+        t_ceil = np.where(dy > 0, (CEIL - CAM_H) / dy, np.inf)
+        t_wall = np.where(dx != 0, WALL / np.abs(dx), np.inf)
+    L = np.empty(dx.shape)
+    C = np.empty(dx.shape + (3,))
+
+    def paint(mask, lum, col):
+        L[mask] = lum if np.isscalar(lum) else lum[mask]
+        C[mask] = col
+
+    def outside(mask):
+        road = mask & np.isfinite(t_road)
+        xr = dx * t_road
+        paint(road & (np.abs(xr) <= ROAD_HALF), L_ROAD_SUN, C_ROAD)
+        paint(road & (np.abs(xr) > ROAD_HALF), L_VERGE, C_VERGE)
+        paint(mask & ~road, L_SKY, C_SKY)
+
+    def tunnel(mask, z_start):
+        t_hit = np.minimum(np.minimum(t_road, t_ceil), t_wall)
+        z_hit = z0 + t_hit
+        beyond = mask & (z_hit >= z_out)
+        outside(beyond)
+        inner = mask & ~beyond
+        is_road = inner & (t_hit == t_road)
+        is_ceil = inner & (t_hit == t_ceil) & ~is_road
+        is_wall = inner & ~is_road & ~is_ceil
+        paint(is_road, L_ROAD_TUNNEL, C_TUNNEL)
+        paint(is_wall, L_WALL, C_TUNNEL)
+        lamp = is_ceil & (np.mod(z_hit, 12.0) < 1.2) & (np.abs(dx * t_hit) < 0.4)
+        paint(is_ceil & ~lamp, L_CEIL, C_TUNNEL)
+        paint(lamp, L_LAMP, C_SODIUM)
+
+    everything = np.ones(dx.shape, bool)
+    if z0 < z_in:
+        t_face = z_in - z0
+        xf, yf = dx * t_face, dy * t_face
+        road_first = t_road < t_face
+        outside(road_first)
+        rest = ~road_first
+        opening = rest & (np.abs(xf) < WALL) & (yf < CEIL - CAM_H)
+        tunnel(opening, z_in)
+        rock = rest & ~opening & (yf < MOUNTAIN - CAM_H)
+        paint(rock, L_ROCK, C_ROCK)
+        outside(rest & ~opening & ~rock)
+    elif z0 < z_out:
+        tunnel(everything, z0)
+    else:
+        outside(everything)
+    img = L[..., None] * C
+    img = img.reshape(height, ss, width, ss, 3).mean(axis=(1, 3))
+    return img.astype(np.float32)
+
+
+def write_tunnel_sequence(out_dir: str, width: int = 320, height: int = 180, fps: float = 30.0,
+                          seconds: float = 8.0, first_frame: int = 1,
+                          name: str = "tunnel.####.exr") -> tuple[str, list[int]]:
+    """Write the tunnel drive; returns (pattern path, frame numbers)."""
+    from .imageio import frame_path
+    os.makedirs(out_dir, exist_ok=True)
+    n = int(round(seconds * fps))
+    frames = list(range(first_frame, first_frame + n))
+    pattern = os.path.join(out_dir, name)
+    for i, f in enumerate(frames):
+        img = render_frame(i / fps, width, height, seconds)
+        spec = oiio.ImageSpec(width, height, 3, oiio.HALF)
+        spec.attribute("whiteLuminance", 1.0)
+        spec.attribute("FramesPerSecond", oiio.TypeDesc("rational"), (int(round(fps * 1000)), 1000))
+        spec.attribute("oiio:ColorSpace", "lin_rec709")
+        spec.attribute("compression", "zip")
+        spec.attribute("ImageDescription", "ocl-tonemap built-in sample: tunnel drive (cd/m^2)")
+        buf = oiio.ImageBuf(spec)
+        buf.set_pixels(oiio.ROI(0, width, 0, height, 0, 1, 0, 3), img)
+        path = frame_path(pattern, f)
+        if not buf.write(path):
+            raise RuntimeError(f"cannot write sample frame {path}: {buf.geterror()}")
+    return pattern, frames
