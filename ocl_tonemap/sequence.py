@@ -159,6 +159,8 @@ def run_job(opts: JobOptions) -> JobResult:
                 "ocltm:backend": opts.backend,
                 "ocltm:metering": tm.metering.describe(),
                 "ocltm:input_colorspace": f"{cs} ({why})",
+                "ocltm:output_colorspace": colour.output_colorspace,
+                "ocltm:view": f"{colour.display} / {colour.view}",
                 "ocltm:luminance_scale": float(scale),
                 "ocltm:luminance_scale_source": scale_why,
                 "ocltm:display": json.dumps(disp.as_dict(), sort_keys=True),

@@ -1,0 +1,136 @@
+"""The command line end to end on the generated sample, and the Python API."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from ocl_tonemap.cli import main
+from ocl_tonemap.imageio import frame_path
+
+
+def pixels(path):
+    return oiio.ImageBuf(str(path)).get_pixels(oiio.FLOAT)
+
+
+def test_run_sequence_end_to_end(sample_dir, tmp_path, capsys):
+    pattern, frames = sample_dir
+    out = str(tmp_path / "o.####.exr")
+    assert main(["run", pattern, out, "--out-bits", "float", "-q"]) == 0
+    for f in frames:
+        b = oiio.ImageBuf(frame_path(out, f))
+        s = b.spec()
+        assert s.getattribute("ocltm:operator") == "pattanaik00"
+        st = json.loads(s.getattribute("ocltm:state"))
+        assert st["frame"] == f and st["time_s"] == pytest.approx(f / 30.0)
+        assert set(st["values"]) == {"A_rod", "A_cone", "B_rod", "B_cone"}
+        px = b.get_pixels(oiio.FLOAT)
+        assert np.isfinite(px).all() and px.min() >= 0
+    # inside the tunnel the first frames are darker than later ones (adaptation)
+    means = [pixels(frame_path(out, f)).mean() for f in frames]
+    assert max(means) > 0.05 and min(means) < max(means)
+
+
+def test_chunked_state_equals_single_run(sample_dir, tmp_path):
+    pattern, frames = sample_dir
+    a, b = frames[0], frames[-1]
+    mid = (a + b) // 2
+    one = str(tmp_path / "one.####.exr")
+    two = str(tmp_path / "two.####.exr")
+    st = str(tmp_path / "state.json")
+    assert main(["run", pattern, one, "--frames", f"{a}-{b}", "--out-bits", "float", "-q"]) == 0
+    assert main(["run", pattern, two, "--frames", f"{a}-{mid}", "--state-out", st,
+                 "--out-bits", "float", "-q"]) == 0
+    assert main(["run", pattern, two, "--frames", f"{mid + 1}-{b}", "--state-in", st,
+                 "--out-bits", "float", "-q"]) == 0
+    for f in frames:
+        np.testing.assert_array_equal(pixels(frame_path(one, f)), pixels(frame_path(two, f)))
+
+
+def test_reference_backend_cli_matches_opencl(sample_dir, tmp_path):
+    pattern, frames = sample_dir
+    o1, o2 = str(tmp_path / "a.####.exr"), str(tmp_path / "b.####.exr")
+    rng = f"{frames[0]}-{frames[0] + 9}"
+    for o, be in ((o1, "opencl"), (o2, "reference")):
+        assert main(["run", pattern, o, "--frames", rng, "--backend", be,
+                     "--display", "Rec.2100-PQ - Display", "--out-bits", "float", "-q"]) == 0
+    for f in range(frames[0], frames[0] + 10):
+        np.testing.assert_allclose(pixels(frame_path(o1, f)), pixels(frame_path(o2, f)), atol=1e-3)
+
+
+def test_bad_frame_error_names_file_and_frame(sample_dir, tmp_path, capsys):
+    pattern, frames = sample_dir
+    d = tmp_path / "seq"
+    shutil.copytree(os.path.dirname(pattern), d)
+    bad = frame_path(str(d / os.path.basename(pattern)), frames[3])
+    with open(bad, "wb") as fh:
+        fh.write(b"garbage")
+    out = str(tmp_path / "o.####.png")
+    rc = main(["run", str(d / os.path.basename(pattern)), out, "-q"])
+    err = capsys.readouterr().err
+    assert rc != 0
+    assert f"ocl-tonemap ERROR: {bad} frame {frames[3]}:" in err
+    assert os.path.getsize(bad) == 7                               # input untouched
+    assert os.path.exists(frame_path(out, frames[2]))              # earlier frames written
+    assert not os.path.exists(frame_path(out, frames[3]))
+    assert not [p for p in os.listdir(tmp_path) if ".tmp" in p]
+
+
+def test_never_overwrites_input(sample_dir, tmp_path, capsys):
+    pattern, frames = sample_dir
+    src = tmp_path / "in.exr"
+    shutil.copy(frame_path(pattern, frames[0]), src)
+    before = src.read_bytes()
+    assert main(["run", str(src), str(src), "-q"]) != 0
+    assert "overwrite an input" in capsys.readouterr().err
+    assert src.read_bytes() == before
+
+
+def test_single_image_png_and_plot(sample_dir, tmp_path):
+    pattern, frames = sample_dir
+    out, plot = tmp_path / "still.png", tmp_path / "plot.png"
+    assert main(["run", frame_path(pattern, frames[10]), str(out), "--plot", str(plot),
+                 "--metering", "spot:0.5,0.8", "--preadapt", "1000:30", "-q"]) == 0
+    px = pixels(out)
+    assert px.shape == (27, 48, 3) and px.max() > 0
+    assert plot.stat().st_size > 10_000
+
+
+def test_bad_arguments_are_clear(sample_dir, tmp_path, capsys):
+    pattern, _ = sample_dir
+    assert main(["run", pattern, str(tmp_path / "o.png"), "-q"]) != 0
+    assert "frame pattern" in capsys.readouterr().err
+    assert main(["run", pattern, str(tmp_path / "o.#.png"), "--metering", "bogus", "-q"]) != 0
+    assert "bad --metering" in capsys.readouterr().err
+    assert main(["run", pattern, str(tmp_path / "o.#.png"), "--display", "Nope", "-q"]) != 0
+    assert "not in the OCIO config" in capsys.readouterr().err
+
+
+def test_devices_and_displays_commands():
+    r = subprocess.run([sys.executable, "-m", "ocl_tonemap", "devices"], capture_output=True, text=True)
+    assert r.returncode == 0 and "0:0" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "ocl_tonemap", "displays", "--colorconfig", "ocl-tonemap"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "Rec.2100-PQ - Display: Un-tone-mapped, Raw" in r.stdout
+
+
+def test_imagebuf_api_round_trip():
+    from ocl_tonemap import Tonemapper
+    spec = oiio.ImageSpec(6, 4, 4, oiio.FLOAT)
+    buf = oiio.ImageBuf(spec)
+    px = np.full((4, 6, 4), 50.0, np.float32)
+    px[..., 3] = 0.5
+    buf.set_pixels(oiio.ROI(0, 6, 0, 4, 0, 1, 0, 4), px)
+    tm = Tonemapper()
+    out = tm.process_imagebuf(buf)
+    assert out.spec().nchannels == 4
+    o = out.get_pixels(oiio.FLOAT)
+    assert np.allclose(o[..., 3], 0.5) and (o[..., :3] > 0).all()
+    s = tm.state
+    out2 = tm.process_imagebuf(buf, dt=1 / 24)
+    assert tm.state.time_s == pytest.approx(1 / 24) and s.time_s == 0.0

@@ -1,0 +1,148 @@
+"""Real OIIO files and real OCIO processors."""
+
+import os
+
+import numpy as np
+import OpenImageIO as oiio
+import PyOpenColorIO as ocio
+import pytest
+
+from ocl_tonemap import colour
+from ocl_tonemap.imageio import FrameError, find_frames, frame_path, read_frame, write_frame
+
+
+def _write(path, pix, **attrs):
+    h, w, c = pix.shape
+    spec = oiio.ImageSpec(w, h, c, oiio.FLOAT)
+    for k, v in attrs.items():
+        spec.attribute(k, v)
+    buf = oiio.ImageBuf(spec)
+    buf.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, c), pix)
+    assert buf.write(str(path)), buf.geterror()
+
+
+def test_exr_round_trip_keeps_windows_and_metadata(tmp_path):
+    pix = np.random.default_rng(0).uniform(0, 4, (6, 8, 4)).astype(np.float32)
+    spec = oiio.ImageSpec(8, 6, 4, oiio.FLOAT)
+    spec.x, spec.y = 3, 2                      # data window offset
+    spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, 16, 12
+    spec.attribute("Artist", "tester")
+    spec.attribute("whiteLuminance", 250.0)
+    buf = oiio.ImageBuf(spec)
+    buf.set_pixels(oiio.ROI(3, 11, 2, 8, 0, 1, 0, 4), pix)
+    src = tmp_path / "in.exr"
+    assert buf.write(str(src))
+    fr = read_frame(str(src), 7)
+    assert fr.white_luminance == 250.0 and fr.pixels.shape == (6, 8, 4)
+    np.testing.assert_array_equal(fr.pixels, pix)
+    out = tmp_path / "out.exr"
+    write_frame(str(out), fr.pixels, fr.spec, "sRGB - Display", {"ocltm:test": "x"}, "float", 7)
+    back = oiio.ImageBuf(str(out))
+    s = back.spec()
+    assert (s.x, s.y, s.full_width, s.full_height) == (3, 2, 16, 12)
+    assert s.getattribute("Artist") == "tester"
+    assert s.getattribute("ocltm:test") == "x"
+    # OIIO 3 stores its colour-interop ID for known spaces
+    assert s.getattribute("oiio:ColorSpace") in ("sRGB - Display", "srgb_rec709_display")
+    assert s.getattribute("whiteLuminance") is None          # output is display-referred
+    assert s.alpha_channel == 3
+    np.testing.assert_array_equal(back.get_pixels(oiio.FLOAT), pix)
+    assert not [p for p in os.listdir(tmp_path) if ".tmp" in p]
+
+
+@pytest.mark.parametrize("ext,bits,dtype", [(".png", "8", "uint8"), (".tif", "16", "uint16"),
+                                            (".jpg", "8", "uint8"), (".exr", "half", "half")])
+def test_write_formats(tmp_path, ext, bits, dtype):
+    pix = np.linspace(0, 1, 5 * 7 * 3, dtype=np.float32).reshape(5, 7, 3)
+    p = tmp_path / f"o{ext}"
+    write_frame(str(p), pix, None, "sRGB - Display", {}, None)
+    inp = oiio.ImageInput.open(str(p))
+    assert str(inp.spec().format) == dtype
+    inp.close()
+    got = oiio.ImageBuf(str(p)).get_pixels(oiio.FLOAT)
+    tol = {"8": 0.03 if ext == ".jpg" else 1 / 255, "16": 1 / 65535, "half": 1e-3}[bits]
+    np.testing.assert_allclose(got, pix, atol=tol)
+
+
+def test_failed_write_leaves_nothing_and_names_the_file(tmp_path):
+    with pytest.raises(FrameError, match="does not exist"):
+        write_frame(str(tmp_path / "missing" / "o.exr"), np.zeros((2, 2, 3), np.float32), None,
+                    "x", {}, None, 4)
+
+
+def test_read_errors_name_file_and_frame(tmp_path):
+    bad = tmp_path / "broken.0005.exr"
+    bad.write_bytes(b"not an exr at all")
+    with pytest.raises(FrameError) as e:
+        read_frame(str(bad), 5)
+    assert e.value.frame == 5 and "broken.0005.exr" in e.value.path
+
+
+def test_sequence_patterns(tmp_path):
+    for f in (1, 2, 10):
+        _write(tmp_path / f"s.{f:04d}.exr", np.zeros((1, 1, 3), np.float32))
+    assert find_frames(str(tmp_path / "s.#.exr")) == [1, 2, 10]
+    assert find_frames(str(tmp_path / "s.@@@@.exr")) == [1, 2, 10]
+    assert find_frames(str(tmp_path / "s.%04d.exr")) == [1, 2, 10]
+    assert frame_path("a.#.exr", 42) == "a.0042.exr" and frame_path("a.@@.exr", 7) == "a.07.exr"
+
+
+# --- OCIO ------------------------------------------------------------------------
+
+def test_config_resolution_order(monkeypatch):
+    monkeypatch.delenv("OCIO", raising=False)
+    assert colour.resolve_config_source() == "ocio://default"
+    monkeypatch.setenv("OCIO", "ocio://studio-config-latest")
+    assert colour.resolve_config_source() == "ocio://studio-config-latest"
+    assert colour.resolve_config_source("ocl-tonemap").endswith("ocl_tonemap.ocio")
+    assert colour.load_config("ocl-tonemap").getName() == "ocl-tonemap"
+
+
+def test_bad_config_is_an_error_not_raw():
+    with pytest.raises(colour.ColourError, match="cannot load OCIO config"):
+        colour.load_config("/nonexistent/config.ocio")
+
+
+@pytest.mark.parametrize("cfgname", ["ocl-tonemap", "ocio://default"])
+@pytest.mark.parametrize("display", ["sRGB - Display", "Rec.1886 Rec.709 - Display",
+                                     "Display P3 - Display", "Rec.2100-PQ - Display"])
+def test_encode_equals_ocio_cpu_processor(cfgname, display):
+    cfg = colour.load_config(cfgname)
+    cp = colour.ColourPipeline(cfg, display)
+    assert cp.view == "Un-tone-mapped"
+    lin = np.random.default_rng(2).uniform(0, 10, (4, 5, 3)).astype(np.float32)
+    ours = cp.encode(lin)
+    proc = cfg.getProcessor(cp.working, display, "Un-tone-mapped",
+                            ocio.TRANSFORM_DIR_FORWARD).getDefaultCPUProcessor()
+    for px, got in zip(lin.reshape(-1, 3), ours.reshape(-1, 3)):
+        np.testing.assert_allclose(got, proc.applyRGB([float(v) for v in px]), rtol=1e-6, atol=1e-7)
+
+
+def test_bundled_config_matches_ocio_builtin():
+    ours, ref = colour.load_config("ocl-tonemap"), colour.load_config("ocio://default")
+    v = [0.3, 0.6, 0.1]
+    for cs in ("ACEScg", "ACES2065-1", "lin_p3d65", "lin_rec2020"):
+        a = ours.getProcessor(cs, "lin_rec709").getDefaultCPUProcessor().applyRGB(v)
+        b = ref.getProcessor(cs, "lin_rec709").getDefaultCPUProcessor().applyRGB(v)
+        np.testing.assert_allclose(a, b, rtol=1e-5)
+    # PQ: display-linear 1.0 = 100 cd/m^2 (PQ code 0.508)
+    cp = colour.ColourPipeline(ours, "Rec.2100-PQ - Display")
+    assert cp.encode(np.ones((1, 1, 3), np.float32))[0, 0, 1] == pytest.approx(0.5081, abs=1e-3)
+
+
+def test_input_colorspace_precedence(tmp_path):
+    cfg = colour.load_config("ocl-tonemap")
+    p = str(tmp_path / "x.exr")
+    assert colour.input_colorspace(cfg, p, "ACEScg", "lin_p3d65") == ("lin_p3d65", "--iscolorspace")
+    assert colour.input_colorspace(cfg, p, "ACEScg", None) == ("ACEScg", "file oiio:ColorSpace")
+    assert colour.input_colorspace(cfg, p, "not-a-space", None)[0] == "lin_rec709"
+    with pytest.raises(colour.ColourError):
+        colour.input_colorspace(cfg, p, None, "nope")
+
+
+def test_to_working_converts_acescg():
+    cfg = colour.load_config("ocl-tonemap")
+    cp = colour.ColourPipeline(cfg)
+    px = np.array([[[0.2, 0.5, 0.1]]], np.float32)
+    expect = cfg.getProcessor("ACEScg", "lin_rec709").getDefaultCPUProcessor().applyRGB([0.2, 0.5, 0.1])
+    np.testing.assert_allclose(cp.to_working(px.copy(), "ACEScg")[0, 0], expect, rtol=1e-6)

@@ -1,0 +1,158 @@
+"""The OpenCL path against the float64 reference, on real sequences and at the extremes.
+
+Stated tolerance (docs/models.md): |opencl - reference| <= 1e-3 * max(1, |reference|)
+in display-linear output (1.0 = display white unit), i.e. 1e-3 absolute where an
+SDR display shows it and 1e-3 relative above.
+"""
+
+import numpy as np
+import pytest
+
+from ocl_tonemap.pipeline import Tonemapper
+from conftest import hdr_image
+
+TOL = 1e-3
+
+
+def assert_close(ocl, ref):
+    err = np.abs(ocl.astype(np.float64) - ref) / np.maximum(1.0, np.abs(ref))
+    assert np.isfinite(ocl).all()
+    assert err.max() <= TOL, f"max scaled error {err.max():.3g}"
+
+
+def run_both(frames, dt, **kw):
+    a = Tonemapper(backend="reference", **kw)
+    b = Tonemapper(backend="opencl", **kw)
+    for f in frames:
+        ra = a.process(f, dt=dt)
+        rb = b.process(f, dt=dt)
+        assert_close(rb, ra)
+        assert a.last.params["rule"] == b.last.params["rule"] or \
+            abs(a.last.G_cone / b.last.G_cone - 1) < 1e-5
+    return a, b
+
+
+@pytest.mark.parametrize("metering", ["logmean", "mean", "max", "centre", "spot:0.5,0.7,0.05"])
+def test_tunnel_sequence_agrees(tunnel_frames, metering):
+    a, b = run_both(tunnel_frames, 0.1, metering=metering)
+    for k in ("A_rod", "A_cone", "B_rod", "B_cone"):
+        assert b.state.values[k] == pytest.approx(a.state.values[k], rel=1e-4)
+
+
+def test_percentile_metering_within_one_bin(tunnel_frames):
+    from ocl_tonemap.metering import HIST_BINS, HIST_HI, HIST_LO
+    bin_decades = (HIST_HI - HIST_LO) / HIST_BINS
+    a = Tonemapper(backend="reference", metering="percentile:60")
+    b = Tonemapper(backend="opencl", metering="percentile:60")
+    for f in tunnel_frames[::5]:
+        a.process(f, dt=0.5)
+        b.process(f, dt=0.5)
+        for g in ("G_cone", "G_rod"):
+            ga, gb = getattr(a.last, g), getattr(b.last, g)
+            assert abs(np.log10(gb) - np.log10(ga)) <= bin_decades
+
+
+@pytest.mark.parametrize("display", ["sdr", "pq", "crt"])
+def test_displays_agree(display):
+    from ocl_tonemap.display import DisplaySpec
+    spec = {"sdr": DisplaySpec.from_white("sRGB - Display", 100.0),
+            "pq": DisplaySpec.from_white("Rec.2100-PQ - Display", 1000.0, hdr=True),
+            "crt": DisplaySpec.crt_2000()}[display]
+    frames = [hdr_image(20, 30, s, lo, hi) for s, (lo, hi) in
+              enumerate([(-5, -1), (-2, 2), (1, 5), (3, 8)])]
+    run_both(frames, 0.25, display=spec)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (3, 7), (4099, 3), (3, 4099)])
+def test_odd_sizes(shape):
+    img = hdr_image(*shape, seed=3)
+    run_both([img, img * 0.01], 0.05)
+
+
+def test_bands_equal_single_pass():
+    img = hdr_image(37, 53, seed=5)
+    one = Tonemapper()
+    banded = Tonemapper(max_band_pixels=200)      # 3 rows per band, 13 bands
+    for k in range(3):
+        f = img * (10.0 ** (2 * k - 2))
+        r1 = one.process(f, dt=0.1)
+        r2 = banded.process(f, dt=0.1)
+        np.testing.assert_allclose(r2, r1, rtol=2e-5, atol=1e-6)
+        assert banded.last.G_cone == pytest.approx(one.last.G_cone, rel=1e-5)
+
+
+BAD = np.array([np.nan, np.inf, -np.inf, -3.0, 1e-41, 5.0, 1e12, 0.0, -0.0], np.float32)
+
+
+@pytest.mark.parametrize("backend", ["reference", "opencl"])
+def test_bad_values_repaired_and_counted(backend):
+    rng = np.random.default_rng(7)
+    img = hdr_image(9, 11, seed=7)
+    flat = img.reshape(-1)
+    idx = rng.choice(flat.size, 40, replace=False)
+    flat[idx] = np.resize(BAD, 40)
+    tm = Tonemapper(backend=backend)
+    out = tm.process(img)
+    assert np.isfinite(out).all() and out.min() >= 0
+    rep = tm.last.repairs
+    vals = np.resize(BAD, 40)
+    assert rep.nan == int(np.isnan(vals).sum())
+    assert rep.pos_inf == int(np.isposinf(vals).sum())
+    assert rep.neg_inf == int(np.isneginf(vals).sum())
+    assert rep.negative == int(((vals < 0) & np.isfinite(vals)).sum())
+    assert rep.denormal == int(((vals > 0) & (vals < np.finfo(np.float32).tiny)).sum())
+    assert rep.over_max == int((vals == np.float32(1e12)).sum())
+
+
+def test_bad_values_same_output_both_backends():
+    img = hdr_image(6, 6, seed=9)
+    flat = img.reshape(-1)
+    flat[::5] = np.resize(BAD, flat[::5].size)
+    a = Tonemapper(backend="reference").process(img)
+    b = Tonemapper(backend="opencl").process(img)
+    assert_close(b, a)
+
+
+@pytest.mark.parametrize("level", [0.0, 1e-6, 1e-3, 1.0, 1e4, 1e8])
+def test_uniform_extreme_scenes(level):
+    img = np.full((4, 5, 3), level, np.float32)
+    for backend in ("reference", "opencl"):
+        tm = Tonemapper(backend=backend)
+        for dt in (1e-3, 1 / 30, 3600.0):
+            out = tm.process(img, dt=dt)
+            assert np.isfinite(out).all() and out.min() >= 0 and out.max() <= 100.0
+
+
+def test_all_zero_then_bright_no_nan():
+    tm = Tonemapper()
+    tm.process(np.zeros((8, 8, 3), np.float32))
+    out = tm.process(np.full((8, 8, 3), 1e8, np.float32), dt=1e-3)
+    assert np.isfinite(out).all()
+
+
+def test_alpha_passed_through():
+    img = np.concatenate([hdr_image(5, 6, seed=1), np.linspace(0, 1, 30, dtype=np.float32).reshape(5, 6, 1)], 2)
+    out = Tonemapper().process(img)
+    assert out.shape == (5, 6, 4)
+    np.testing.assert_array_equal(out[..., 3], img[..., 3])
+
+
+def test_time_must_not_go_backwards():
+    tm = Tonemapper()
+    img = hdr_image(4, 4)
+    tm.process(img, time_s=1.0)
+    with pytest.raises(ValueError, match="backwards"):
+        tm.process(img, time_s=0.5)
+
+
+def test_adaptation_dims_after_entering_dark():
+    # Response compression on entering a tunnel: the first dark frame shows the
+    # tunnel much darker than it looks once adapted (Fig. 7).
+    tm = Tonemapper()
+    bright = np.full((8, 8, 3), 5000.0, np.float32)
+    dark = np.full((8, 8, 3), 5.0, np.float32)
+    tm.process(bright)
+    first = tm.process(dark, dt=1 / 30)[0, 0, 1]
+    for _ in range(60):
+        later = tm.process(dark, dt=1 / 30)[0, 0, 1]
+    assert first < 0.2 * later
