@@ -18,7 +18,6 @@ no second scene tone curve is applied on top of the operator.
 from __future__ import annotations
 
 import os
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -37,16 +36,8 @@ class ColourError(ValueError):
 
 
 def bundled_config_path() -> Path:
-    try:
-        p = Path(str(resources.files("ocl_tonemap.ocio_configs"))) / "ocl_tonemap.ocio"
-        if p.is_file():
-            return p
-    except (ModuleNotFoundError, TypeError):
-        pass
-    p = Path(__file__).resolve().parent.parent / "ocio_configs" / "ocl_tonemap.ocio"
-    if p.is_file():
-        return p
-    raise FileNotFoundError("bundled OCIO config ocl_tonemap.ocio not found")
+    from .runtime import package_data_dir
+    return package_data_dir("ocio_configs", "ocl_tonemap.ocio") / "ocl_tonemap.ocio"
 
 
 def resolve_config_source(colorconfig: str | None = None) -> str:

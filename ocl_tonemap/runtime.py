@@ -14,7 +14,6 @@ from __future__ import annotations
 import functools
 import os
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -38,18 +37,19 @@ def _cl():
     return cl
 
 
+def package_data_dir(name: str, probe: str) -> Path:
+    """``ocl_tonemap/<name>`` in an installed wheel (where pyproject maps the
+    top-level folder), else ``<name>`` beside the package in a source tree."""
+    here = Path(__file__).resolve().parent
+    for p in (here / name, here.parent / name):
+        if (p / probe).is_file():
+            return p
+    raise FileNotFoundError(f"{name}/{probe} not found in the installed package or the source tree")
+
+
 def kernel_dir() -> Path:
-    """Folder holding the ``*.cl`` sources (installed package data first)."""
-    try:
-        p = resources.files("ocl_tonemap.kernels")
-        if (Path(str(p)) / "colour.cl").is_file():
-            return Path(str(p))
-    except (ModuleNotFoundError, TypeError):
-        pass
-    p = Path(__file__).resolve().parent.parent / "kernels"
-    if (p / "colour.cl").is_file():
-        return p
-    raise FileNotFoundError("OpenCL kernel sources (kernels/*.cl) not found in the package or source tree")
+    """Folder holding the OpenCL sources (``*.cl`` and ``common.h``)."""
+    return package_data_dir("kernels", "common.h")
 
 
 def list_devices() -> list[tuple[str, object]]:
