@@ -216,16 +216,21 @@ def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams
     return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
 
 
-def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParams):
-    """Enqueue the fused per-pixel pass (kernels/pattanaik00.cl) on ``rt``."""
-    import pyopencl as cl  # noqa: F401  (device path only)
+def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParams,
+               vector: bool = True):
+    """Enqueue the fused per-pixel pass (kernels/pattanaik00.cl) on ``rt``.
+
+    ``vector``: four pixels per work-item in float4 (default), else one.
+    """
     from .runtime import round_up
 
     d = p.display
     f = np.float32
-    knl = rt.kernel("pattanaik00.cl", "pattanaik00_map")
+    name = "pattanaik00_map4" if vector else "pattanaik00_map"
+    knl = rt.kernel("pattanaik00.cl", name)
+    items = -(-max(n_pixels, 1) // 4) if vector else max(n_pixels, 1)
     wg = 64
-    knl(rt.queue, (round_up(max(n_pixels, 1), wg),), (wg,),
+    knl(rt.queue, (round_up(items, wg),), (wg,),
         rgb_buf, y_buf, ys_buf, out_buf, np.int32(n_pixels),
         f(math.log2(p.sigma_rod)), f(math.log2(p.sigma_cone)), f(p.B_rod), f(p.B_cone),
         f(p.gain), f(p.offset),

@@ -156,3 +156,21 @@ def test_adaptation_dims_after_entering_dark():
     for _ in range(60):
         later = tm.process(dark, dt=1 / 30)[0, 0, 1]
     assert first < 0.2 * later
+
+
+@pytest.mark.parametrize("n", [1, 3, 4, 5, 1023])
+def test_float4_kernel_equals_scalar_kernel(rt, n):
+    import pyopencl as cl
+    from ocl_tonemap import pattanaik00 as P
+    tm = Tonemapper()
+    img = hdr_image(1, n, seed=n)
+    tm.process(img)
+    b = tm.backend._bufs
+    p = P.frame_params(tm._state, tm.display)
+    outs = []
+    for vector in (True, False):
+        P.map_opencl(rt, b["rgb"], b["Y"], b["Ys"], b["out"], n, p, vector=vector)
+        o = np.empty((n, 3), np.float32)
+        cl.enqueue_copy(rt.queue, o, b["out"])
+        outs.append(o)
+    np.testing.assert_allclose(outs[0], outs[1], rtol=1e-6, atol=1e-7)
