@@ -26,6 +26,26 @@ inline void kahan(float *s, float *c, float v)
     *s = t;
 }
 
+/* Store each work-item's record in scratch and tree-reduce them into record 0
+ * (sums 0-4 add, maxima 5-6 take the max). Local size must be a power of two. */
+inline void reduce_records(__local float *scratch, const int lid, const int lsz,
+                           const float *s, const float mY, const float mYs)
+{
+    __local float *me = scratch + lid * NMETER;
+    for (int k = 0; k < 5; ++k) me[k] = s[k];
+    me[5] = mY; me[6] = mYs; me[7] = 0.0f;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int off = lsz / 2; off > 0; off >>= 1) {
+        if (lid < off) {
+            __local float *o = scratch + (lid + off) * NMETER;
+            for (int k = 0; k < 5; ++k) me[k] += o[k];
+            me[5] = fmax(me[5], o[5]);
+            me[6] = fmax(me[6], o[6]);
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+}
+
 __kernel void meter_partial(__global const float *Y, __global const float *Ys,
                             const int n, const int width, const int y0,
                             const int mode, const float p0, const float p1, const float p2,
@@ -47,19 +67,8 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
         mY = fmax(mY, l);
         mYs = fmax(mYs, ls);
     }
-    __local float *me = scratch + lid * NMETER;
-    for (int k = 0; k < 5; ++k) me[k] = s[k];
-    me[5] = mY; me[6] = mYs; me[7] = 0.0f;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (int off = lsz / 2; off > 0; off >>= 1) {
-        if (lid < off) {
-            __local float *o = scratch + (lid + off) * NMETER;
-            for (int k = 0; k < 5; ++k) me[k] += o[k];
-            me[5] = fmax(me[5], o[5]);
-            me[6] = fmax(me[6], o[6]);
-        }
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
+    reduce_records(scratch, lid, lsz, s, mY, mYs);
+    __local float *me = scratch;
     if (lid == 0)
         for (int k = 0; k < NMETER; ++k) partial[get_group_id(0) * NMETER + k] = me[k];
 }
@@ -77,19 +86,8 @@ __kernel void meter_final(__global const float *partial, const int groups,
         mY = fmax(mY, p[5]);
         mYs = fmax(mYs, p[6]);
     }
-    __local float *me = scratch + lid * NMETER;
-    for (int k = 0; k < 5; ++k) me[k] = s[k];
-    me[5] = mY; me[6] = mYs; me[7] = 0.0f;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (int off = lsz / 2; off > 0; off >>= 1) {
-        if (lid < off) {
-            __local float *o = scratch + (lid + off) * NMETER;
-            for (int k = 0; k < 5; ++k) me[k] += o[k];
-            me[5] = fmax(me[5], o[5]);
-            me[6] = fmax(me[6], o[6]);
-        }
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
+    reduce_records(scratch, lid, lsz, s, mY, mYs);
+    __local float *me = scratch;
     if (lid == 0)
         for (int k = 0; k < NMETER; ++k) result[k] = me[k];
 }
