@@ -122,7 +122,6 @@ def main():
               "| size | OpenCL ms/frame | MPix/s | kernel ms (float4) | kernel ms (scalar) "
               "| roofline ms | kernel/roofline | reference ms | reference/OpenCL | max err | mean err |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
-    import pyopencl as cl
     for w, h in SIZES:
         img = scene(w, h)
         tm = Tonemapper(backend="opencl")

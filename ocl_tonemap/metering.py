@@ -229,7 +229,7 @@ class DeviceMeter:
     def band_sums(self, y_buf, ys_buf, n: int, width: int, height: int, y0: int,
                   spec: MeteringSpec) -> MeterSums:
         import pyopencl as cl
-        rt, q = self.rt, self.rt.queue
+        q = self.rt.queue
         mode, p0, p1, p2, w_in, w_out = spec.weight_params(width, height)
         f = np.float32
         groups = max(1, min(self.GROUPS, -(-n // self.WG)))

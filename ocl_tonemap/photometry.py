@@ -8,7 +8,7 @@ OpenCL versions live in ``kernels/colour.cl`` and must agree with these.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, asdict
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -16,7 +16,6 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 
 INSTALL_HINT = (
     'no OpenCL platform found. Install a CPU OpenCL driver with '
@@ -132,10 +131,6 @@ class Runtime:
     def name(self) -> str:
         return self.device.name.strip()
 
-    def program(self, *files: str):
-        """Build (once per process) and return the program made of ``files``."""
-        return _build(self.context, self.device, tuple(files))
-
     def kernel(self, file: str, name: str):
         """A kernel of ``file``, retrieved once per process (kernel objects are costly)."""
         return _kernel(self.context, self.device, file, name)
@@ -180,6 +175,3 @@ def round_up(n: int, m: int) -> int:
     """Smallest multiple of ``m`` that is >= ``n`` (padded global sizes)."""
     return ((int(n) + m - 1) // m) * m
 
-
-def as_f32(a) -> np.ndarray:
-    return np.ascontiguousarray(a, dtype=np.float32)

@@ -132,5 +132,5 @@ def test_imagebuf_api_round_trip():
     o = out.get_pixels(oiio.FLOAT)
     assert np.allclose(o[..., 3], 0.5) and (o[..., :3] > 0).all()
     s = tm.state
-    out2 = tm.process_imagebuf(buf, dt=1 / 24)
+    tm.process_imagebuf(buf, dt=1 / 24)
     assert tm.state.time_s == pytest.approx(1 / 24) and s.time_s == 0.0
