@@ -29,11 +29,13 @@ inline float scotopic_luminance(float r, float g, float b)
     return fmax(Y * (1.33f * (1.0f + (Y + Z) / X) - 1.68f), 0.0f);
 }
 
-/* src: n pixels of `channels` floats (RGB first); rgb out: n*3 floats. */
+/* src: n pixels of `channels` floats (RGB first); rgb out: n*3 floats.
+ * Repairs are counted for pixels [count_lo, count_hi) only (a band's halo
+ * rows are another band's own). */
 __kernel void scene_to_working(__global const float *src, const int channels, const int n,
                                const float scale, __global float *rgb,
                                __global float *Y, __global float *Ys,
-                               __global int *counts)
+                               __global int *counts, const int count_lo, const int count_hi)
 {
     __local int lc[NREPAIR];
     const int lid = get_local_id(0);
@@ -45,12 +47,13 @@ __kernel void scene_to_working(__global const float *src, const int channels, co
         for (int k = 0; k < 3; ++k) {
             int kind;
             float x = repair_value(src[(size_t)i * channels + k], &kind);
-            if (kind >= 0) atomic_inc(&lc[kind]);
+            const bool counted = i >= count_lo && i < count_hi;
+            if (kind >= 0 && counted) atomic_inc(&lc[kind]);
             if (kind == 1) {
                 x = L_MAX;
             } else {
                 x *= scale;
-                if (x > L_MAX) { atomic_inc(&lc[5]); x = L_MAX; }
+                if (x > L_MAX) { if (counted) atomic_inc(&lc[5]); x = L_MAX; }
             }
             v[k] = x;
         }

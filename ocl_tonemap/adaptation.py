@@ -18,6 +18,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 STATE_FORMAT = "ocl-tonemap.adaptation-state/1"
 
 
@@ -64,6 +66,8 @@ class AdaptationState:
     time_s : time of the last frame shown, seconds; None before the first frame.
     frame : number of the last frame shown, or None.
     extra : operator-specific JSON-able data (e.g. the path of per-pixel state).
+    pixels : per-pixel state of local operators: name -> float32 (h, w) array,
+        saved beside the JSON as ``<name>.pixels.exr`` (one channel per plane).
     """
 
     operator: str
@@ -71,10 +75,13 @@ class AdaptationState:
     time_s: float | None = None
     frame: int | None = None
     extra: dict = field(default_factory=dict)
+    pixels: dict | None = None
 
     def copy(self) -> "AdaptationState":
+        px = None if self.pixels is None else {k: np.array(v, copy=True)
+                                              for k, v in self.pixels.items()}
         return AdaptationState(self.operator, dict(self.values), self.time_s, self.frame,
-                               json.loads(json.dumps(self.extra)))
+                               json.loads(json.dumps(self.extra)), px)
 
     def to_json(self) -> dict:
         return {"format": STATE_FORMAT, "operator": self.operator, "time_s": self.time_s,
@@ -92,10 +99,16 @@ class AdaptationState:
         return cls(doc["operator"], vals, doc.get("time_s"), doc.get("frame"), doc.get("extra") or {})
 
     def save(self, path: str | os.PathLike) -> None:
-        """Write atomically (temp file in the same folder, then rename)."""
+        """Write atomically (temp file in the same folder, then rename); per-pixel
+        state goes first to ``<stem>.pixels.exr`` beside it, named in ``extra``."""
         path = Path(path)
+        doc = self.to_json()
+        if self.pixels is not None:
+            side = path.with_name(path.stem + ".pixels.exr")
+            _write_planes(side, self.pixels)
+            doc["extra"] = dict(doc["extra"], pixel_state=side.name)
         tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-        tmp.write_text(json.dumps(self.to_json(), indent=2, sort_keys=True) + "\n")
+        tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
         os.replace(tmp, path)
 
     @classmethod
@@ -104,4 +117,43 @@ class AdaptationState:
             doc = json.loads(Path(path).read_text())
         except (OSError, json.JSONDecodeError) as exc:
             raise ValueError(f"cannot read adaptation state {path}: {exc}") from exc
-        return cls.from_json(doc)
+        st = cls.from_json(doc)
+        side = st.extra.get("pixel_state")
+        if side:
+            st.pixels = _read_planes(Path(path).with_name(side))
+        return st
+
+
+def _write_planes(path: Path, planes: dict) -> None:
+    """Float32 EXR, one channel per plane, written atomically."""
+    import OpenImageIO as oiio
+    names = list(planes)
+    h, w = np.shape(planes[names[0]])
+    spec = oiio.ImageSpec(w, h, len(names), oiio.FLOAT)
+    spec.channelnames = tuple(names)
+    spec.attribute("compression", "zip")
+    data = np.ascontiguousarray(np.stack([np.asarray(planes[k], np.float32) for k in names],
+                                         axis=-1))
+    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.exr")
+    out = oiio.ImageOutput.create(str(tmp))
+    if out is None or not out.open(str(tmp), spec):
+        raise OSError(f"cannot write per-pixel state {path}: {oiio.geterror()}")
+    ok = out.write_image(data)
+    out.close()
+    if not ok:
+        raise OSError(f"cannot write per-pixel state {path}: {out.geterror()}")
+    os.replace(tmp, path)
+
+
+def _read_planes(path: Path) -> dict:
+    import OpenImageIO as oiio
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise ValueError(f"cannot read per-pixel state {path}: {oiio.geterror()}")
+    spec = inp.spec()
+    data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+    inp.close()
+    if data is None:
+        raise ValueError(f"cannot read per-pixel state {path}")
+    data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
+    return {name: np.array(data[..., i]) for i, name in enumerate(spec.channelnames)}

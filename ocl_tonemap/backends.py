@@ -80,18 +80,22 @@ class OpenCLBackend:
             self._cap = cap
         return self._bufs
 
-    def _to_working(self, band: np.ndarray, scale: float, count: bool):
-        """Upload one band and run the colour stage; returns its repair counts."""
+    def _to_working(self, band: np.ndarray, scale: float, count: bool,
+                    count_rows: tuple[int, int] | None = None):
+        """Upload one band and run the colour stage; returns its repair counts
+        (of rows ``count_rows`` of the band only, when given)."""
         import pyopencl as cl
         from .runtime import round_up
         q = self.rt.queue
         rows, width, channels = band.shape
         n = rows * width
         b = self._buffers(n, channels)
+        lo, hi = count_rows if count_rows is not None else (0, rows)
         cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
         cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)
         self._colour(q, (round_up(n, 64),), (64,), b["src"], np.int32(channels), np.int32(n),
-                     np.float32(scale), b["rgb"], b["Y"], b["Ys"], b["counts"])
+                     np.float32(scale), b["rgb"], b["Y"], b["Ys"], b["counts"],
+                     np.int32(lo * width), np.int32(hi * width))
         rc = RepairCounts()
         if count:
             c = np.empty(8, np.int32)

@@ -8,6 +8,11 @@ An operator module provides, in the papers' terms:
 ``frame_params(state, display)``   per-frame scalars for the per-pixel pass;
 ``map_reference(rgb, Y, Ys, params)``   float64 per-pixel pass;
 ``map_opencl(rt, rgb, Y, Ys, out, n, params)``   the same on the device.
+
+A *local* operator (``LOCAL = True``) keeps per-pixel state instead and
+provides ``make_observer(options, display, preadapt)``, an object with
+``process_reference`` / ``process_opencl`` (one frame), ``pixel_state()`` and
+``set_pixel_state()``.
 """
 
 from __future__ import annotations
@@ -18,6 +23,8 @@ import importlib
 REGISTRY = {
     "pattanaik00": ("ocl_tonemap.pattanaik00",
                     "Pattanaik, Tumblin, Yee & Greenberg 2000: time-dependent global adaptation"),
+    "ledda04": ("ocl_tonemap.ledda04",
+                "Ledda, Santos & Chalmers 2004: local (bilateral) adaptation, dark/light time course"),
 }
 
 

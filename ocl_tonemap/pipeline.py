@@ -51,6 +51,7 @@ class Tonemapper:
     state : an :class:`AdaptationState` to resume from.
     device : OpenCL device spec (see ``runtime.choose_device``).
     max_band_pixels : process larger frames in row bands (device memory).
+    options : operator options (local operators: see e.g. ``ledda04.make_observer``).
     """
 
     def __init__(self, operator: str = "pattanaik00", backend: str = "opencl",
@@ -58,7 +59,7 @@ class Tonemapper:
                  display: DisplaySpec | None = None,
                  preadapt: tuple[float, float | None] | None = None,
                  state: AdaptationState | None = None, device: str | None = None,
-                 max_band_pixels: int | None = None):
+                 max_band_pixels: int | None = None, options: dict | None = None):
         self.operator_name = operator
         self.op = get_operator(operator)
         self.backend = make_backend(backend, device, max_band_pixels)
@@ -72,19 +73,31 @@ class Tonemapper:
         self._state = state.copy() if state is not None else AdaptationState(operator)
         if self._state.operator != operator:
             raise ValueError(f"state belongs to operator {self._state.operator!r}, not {operator!r}")
+        self.local = None
+        if getattr(self.op, "LOCAL", False):
+            self.local = self.op.make_observer(options, self.display, preadapt)
+            self.local.set_pixel_state(self._state.pixels)
+        elif options:
+            raise ValueError(f"operator {operator} takes no options ({', '.join(options)})")
         self.last: FrameInfo | None = None
 
     # -- state -----------------------------------------------------------------
     @property
     def state(self) -> AdaptationState:
-        """A copy of the current adaptation state (serialisable)."""
-        return self._state.copy()
+        """A copy of the current adaptation state (serialisable; for local
+        operators with the per-pixel planes)."""
+        st = self._state.copy()
+        if self.local is not None:
+            st.pixels = self.local.pixel_state()
+        return st
 
     @state.setter
     def state(self, value: AdaptationState) -> None:
         if value.operator != self.operator_name:
             raise ValueError(f"state belongs to operator {value.operator!r}")
         self._state = value.copy()
+        if self.local is not None:
+            self.local.set_pixel_state(self._state.pixels)
 
     # -- frames ----------------------------------------------------------------
     def process(self, frame: np.ndarray, dt: float | None = None, time_s: float | None = None,
@@ -120,6 +133,8 @@ class Tonemapper:
         if not math.isfinite(step_dt) or step_dt < 0:
             raise ValueError(f"time goes backwards or is not finite: last frame at {st.time_s} s, "
                              f"this one at {time_s} s")
+        if self.local is not None:
+            return self._process_local(pix, luminance_scale, step_dt, fresh, time_s, frame_number)
         holder = {}
 
         def step(G_rod: float, G_cone: float):
@@ -140,6 +155,22 @@ class Tonemapper:
         p = holder["params"]
         self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone, repairs,
                               st.copy(), p.as_dict() if hasattr(p, "as_dict") else {})
+        if pix.shape[2] == 4:
+            out = np.concatenate([out, pix[..., 3:4]], axis=2)
+        return out
+
+    def _process_local(self, pix, scale, dt, fresh, time_s, frame_number):
+        st = self._state
+        if self.backend.name == "reference":
+            out, repairs, (G_rod, G_cone) = self.local.process_reference(pix, scale, dt, fresh)
+        else:
+            out, repairs, (G_rod, G_cone) = self.local.process_opencl(self.backend, pix, scale,
+                                                                      dt, fresh)
+        summ = self.local.summary.as_dict()
+        st.values = {"logmean_I_A_cone": float(G_cone), "logmean_I_A_rod": float(G_rod)}
+        st.time_s, st.frame, st.pixels = float(time_s), frame_number, None
+        self.last = FrameInfo(frame_number, float(time_s), dt, G_rod, G_cone, repairs, st.copy(),
+                              summ)
         if pix.shape[2] == 4:
             out = np.concatenate([out, pix[..., 3:4]], axis=2)
         return out

@@ -1,0 +1,132 @@
+/* Ledda, Santos & Chalmers 2004: per-pixel luminances, time course and mapping.
+ * Must agree with ocl_tonemap/ledda04.py (the float64 reference). */
+
+#define V_FLOOR 1.0e-10f
+#define ALPHA 0.69f
+#define BETA_CONE 5.83f
+#define BETA_ROD 2.0f
+#define TAU_CONE 600.0f
+#define TAU_ROD 2400.0f
+#define LN_RHO_CONE 2.995732273553991f   /* ln 20 */
+#define LN_RHO_ROD 2.995732273553991f
+#define K_MAX 12.0f
+#define K_SLOPE (-0.0006f)
+#define E_MAX 10567.0f
+#define T_DONE 1.0e9f
+#define NSTATE 9   /* sigma_in/fin/anchor cone, sigma_in/fin/anchor rod, t, E, K */
+#define DISPLAY_LINEAR_MAX 100.0f
+
+/* Eqs. 6-7; Y' clamped at 0. */
+inline float ledda_Y(float3 c) { return 0.256f * c.x + 0.67f * c.y + 0.065f * c.z; }
+inline float ledda_Ys(float3 c) { return fmax(-0.702f * c.x + 1.039f * c.y + 0.433f * c.z, 0.0f); }
+
+/* The signals the bilateral filter sees: Y and Y', floored at V_FLOOR. */
+__kernel void ledda04_luminance(__global const float *rgb, const int n,
+                                __global float *Y, __global float *Ys)
+{
+    const int i = get_global_id(0);
+    if (i >= n) return;
+    float3 c = vload3(i, rgb);
+    Y[i] = fmax(ledda_Y(c), V_FLOOR);
+    Ys[i] = fmax(ledda_Ys(c), V_FLOOR);
+}
+
+inline float sigma_of(float I, float beta) { return beta * powp(fmax(I, V_FLOOR), ALPHA); }
+
+inline float K_of_energy(float E) { return K_MAX + K_SLOPE * clamp(E, 0.0f, E_MAX); }
+
+/* Eq. 14 with Table 1's normalisers, as a fraction between sigma_fin (0) and sigma_in (1). */
+inline float dark_fraction(float t, float K, float tau)
+{
+    if (t >= tau) return 0.0f;
+    float tt = fmax(t, 1.0f);
+    float e_tau = exp(K / tau);
+    return clamp((exp(K / tt) - e_tau) / (exp(K) - e_tau), 0.0f, 1.0f);
+}
+
+/* Eq. 15: 1 - ln t / ln rho. */
+inline float light_fraction(float t, float ln_rho)
+{
+    return clamp(1.0f - log(fmax(t, 1.0f)) / ln_rho, 0.0f, 1.0f);
+}
+
+inline float sigma_cone_at(float s_in, float s_fin, float t, float K)
+{
+    float f = s_fin < s_in ? dark_fraction(t, K, TAU_CONE) : light_fraction(t, LN_RHO_CONE);
+    return s_fin + f * (s_in - s_fin);
+}
+
+inline float sigma_rod_at(float s_in, float s_fin, float t, float K)
+{
+    float f = s_fin < s_in ? dark_fraction(t - TAU_CONE, K, TAU_ROD) : light_fraction(t, LN_RHO_ROD);
+    return s_fin + f * (s_in - s_fin);
+}
+
+/* One frame for every pixel: take the new goals (init: become fully adapted to
+ * them with energy E_init; else advance the course by dt and restart it where
+ * the goal moved more than change_log2), then map (Eqs. 11-13).
+ *   Ic, Ir: adaptation luminances of cones and rods; Ir is read as
+ *           rod_scale * Ic[i] when rod_from_cone is set (rods not filtered).
+ *   state:  NSTATE planes of `stride` floats; this band starts at plane offset 0.
+ *   rgb:    working-space cd/m^2, pixel i of this band at rgb_off + i.
+ *   out:    display-linear RGB. counts[0] += pixels restarted. */
+__kernel void ledda04_step_map(__global const float *rgb, const int rgb_off,
+                               __global const float *Ic,
+                               __global const float *Ir, const int rod_from_cone,
+                               const float rod_scale, __global float *state, const int stride,
+                               const int n, const float dt, const int init, const float E_init,
+                               const float change_log2, const float sigma_disp,
+                               const float inv_unit, __global float *out,
+                               __global int *counts)
+{
+    __local int lrestart;
+    if (get_local_id(0) == 0) lrestart = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const int i = get_global_id(0);
+    if (i < n) {
+        __global float *s = state + i;
+        const float ic = Ic[i];
+        const float ir = rod_from_cone ? rod_scale * ic : Ir[i];
+        const float gc = sigma_of(ic, BETA_CONE), gr = sigma_of(ir, BETA_ROD);
+        float sic, sfc, sac, sir, sfr, sar, t, E, K;
+        if (init) {
+            sic = sfc = sac = gc;
+            sir = sfr = sar = gr;
+            t = T_DONE; E = E_init; K = K_of_energy(E_init);
+        } else {
+            sic = s[0]; sfc = s[stride]; sac = s[2 * stride];
+            sir = s[3 * stride]; sfr = s[4 * stride]; sar = s[5 * stride];
+            t = s[6 * stride]; E = s[7 * stride]; K = s[8 * stride];
+            const float tn = t + dt;
+            const float i_prev = powp(sfc / BETA_CONE, 1.0f / ALPHA);
+            E = fmin(E + i_prev * dt, 1.0e30f);
+            const bool change = fabs(log2(gc / sac)) > change_log2 ||
+                                fabs(log2(gr / sar)) > change_log2;
+            if (change) {
+                sic = sigma_cone_at(sic, sfc, tn, K);
+                sir = sigma_rod_at(sir, sfr, tn, K);
+                sac = gc; sar = gr;
+                t = 0.0f; K = K_of_energy(E); E = 0.0f;
+                atomic_inc(&lrestart);
+            } else {
+                t = fmin(tn, T_DONE);
+            }
+            sfc = gc; sfr = gr;
+        }
+        s[0] = sic; s[stride] = sfc; s[2 * stride] = sac;
+        s[3 * stride] = sir; s[4 * stride] = sfr; s[5 * stride] = sar;
+        s[6 * stride] = t; s[7 * stride] = E; s[8 * stride] = K;
+
+        const float sc = sigma_cone_at(sic, sfc, t, K);
+        const float sr = sigma_rod_at(sir, sfr, t, K);
+        const float u = clamp((log10(fmax(ic, V_FLOOR)) + 2.0f) / 2.6f, 0.0f, 1.0f);
+        const float mes = u * u * (3.0f - 2.0f * u);                         /* Eq. 11 */
+        const float3 c = vload3(rgb_off + i, rgb);
+        const float cone_gain = mes * sigma_disp / sc * inv_unit;            /* Eq. 12 */
+        const float rod_out = (1.0f - mes) * sigma_disp * ledda_Ys(c) / sr * inv_unit; /* Eq. 13 */
+        float3 o = c * cone_gain + rod_out;
+        vstore3(clamp(o, 0.0f, DISPLAY_LINEAR_MAX), i, out);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (get_local_id(0) == 0 && lrestart) atomic_add(&counts[0], lrestart);
+}
