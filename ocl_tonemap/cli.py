@@ -1,4 +1,4 @@
-"""Command line: ``ocl-tonemap run | devices | displays | sample | demo``."""
+"""Command line: ``ocl-tonemap run | simulate | devices | displays | sample | demo``."""
 
 from __future__ import annotations
 
@@ -45,6 +45,16 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
     p.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
     p.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
+    g = p.add_argument_group("local operators (ledda04)")
+    g.add_argument("--sigma-spatial", type=float,
+                   help="bilateral spatial sigma, pixels (default: 2%% of the larger side)")
+    g.add_argument("--bilateral", choices=["auto", "exact", "fast"], default="auto",
+                   help="exact brute force, fast bilateral grid, or auto (exact when cheap)")
+    g.add_argument("--bilateral-sampling", metavar="Q[,QR]",
+                   help="grid sampling rate per sigma in space[,range] (default 2,2; higher "
+                   "is slower and closer to exact)")
+    g.add_argument("--rods", choices=["auto", "always"], default="auto",
+                   help="auto: skip the rod filter on all-photopic frames")
 
 
 def _options(a, input_, output):
@@ -61,8 +71,22 @@ def _options(a, input_, output):
         state_in=a.state_in, state_out=a.state_out, backend=a.backend, device=a.device,
         out_bits=a.out_bits, plot=a.plot,
         plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
-        max_band_pixels=a.max_band_pixels,
+        max_band_pixels=a.max_band_pixels, operator_options=_operator_options(a),
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
+
+
+def _operator_options(a) -> dict | None:
+    from .operators import get_operator
+    if not getattr(get_operator(a.operator), "LOCAL", False):
+        given = [f for f, v in (("--sigma-spatial", a.sigma_spatial),
+                                ("--bilateral-sampling", a.bilateral_sampling)) if v is not None]
+        if given or a.bilateral != "auto" or a.rods != "auto":
+            log.warning("%s is a global operator: %s ignored", a.operator,
+                        ", ".join(given + [x for x, v in (("--bilateral", a.bilateral),
+                                                          ("--rods", a.rods)) if v != "auto"]))
+        return None
+    return {"sigma_spatial": a.sigma_spatial, "bilateral": a.bilateral,
+            "bilateral_sampling": a.bilateral_sampling, "rods": a.rods}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -85,6 +109,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="tone map an image or a sequence")
     p.add_argument("input", help="image or sequence pattern (shot.#.exr, shot.@@@@.exr, shot.%%04d.exr)")
     p.add_argument("output", help="output image or pattern (format by extension)")
+    _add_run_args(p)
+    p = sub.add_parser("simulate", help="a still image seen over time after pre-adaptation "
+                       "(one output per --at time)")
+    p.add_argument("input", help="one image")
+    p.add_argument("output", help="output name (a _t<T>s suffix is added) or a frame pattern "
+                   "(frames 1..n in --at order)")
+    p.add_argument("--at", required=True, help="elapsed times since the switch: T1,T2,... "
+                   "seconds, or with an m suffix minutes (e.g. 1m,2m,4m,16m)")
     _add_run_args(p)
     sub.add_parser("devices", help="list OpenCL devices")
     p = sub.add_parser("displays", help="list the OCIO config's displays and views")
@@ -158,6 +190,13 @@ def main(argv: list[str] | None = None) -> int:
             res = run_job(opts)
             print(f"demo: {len(res.outputs)} frames -> {out}; plot {opts.plot}; "
                   f"state {opts.state_out}; {res.seconds:.1f} s")
+            return 0
+        if a.cmd == "simulate":
+            from .sequence import parse_times, run_simulate
+            res = run_simulate(_options(a, a.input, a.output), parse_times(a.at))
+            if not a.quiet:
+                for t, o in zip(parse_times(a.at), res.outputs):
+                    print(f"t = {t:g} s -> {o}")
             return 0
         from .sequence import run_job
         res = run_job(_options(a, a.input, a.output))

@@ -80,6 +80,7 @@ class Tonemapper:
         elif options:
             raise ValueError(f"operator {operator} takes no options ({', '.join(options)})")
         self.last: FrameInfo | None = None
+        self.last_output: np.ndarray | None = None
 
     # -- state -----------------------------------------------------------------
     @property
@@ -157,6 +158,7 @@ class Tonemapper:
                               st.copy(), p.as_dict() if hasattr(p, "as_dict") else {})
         if pix.shape[2] == 4:
             out = np.concatenate([out, pix[..., 3:4]], axis=2)
+        self.last_output = out
         return out
 
     def _process_local(self, pix, scale, dt, fresh, time_s, frame_number):
@@ -173,6 +175,7 @@ class Tonemapper:
                               summ)
         if pix.shape[2] == 4:
             out = np.concatenate([out, pix[..., 3:4]], axis=2)
+        self.last_output = out
         return out
 
     def process_imagebuf(self, buf, dt: float | None = None, time_s: float | None = None,

@@ -57,6 +57,7 @@ class JobOptions:
     plot_frames: list[int] | None = None
     max_band_pixels: int | None = None
     progress: bool = False
+    operator_options: dict | None = None
 
 
 @dataclass
@@ -111,17 +112,9 @@ def run_job(opts: JobOptions) -> JobResult:
     t_start = time.perf_counter()
     jobs = _jobs(opts)
     cfg = load_config(opts.colorconfig)
-    colour = ColourPipeline(cfg, opts.display, opts.view)
-    if not colour.view_is_plain:
-        log.warning("view %r may apply its own tone curve on top of the operator's; the "
-                    "un-tone-mapped view is the one meant for display-linear output", colour.view)
+    colour = _colour(cfg, opts)
     disp = display_for(colour.display, opts.display_white, opts.display_peak, opts.display_model)
-    state = AdaptationState.load(opts.state_in) if opts.state_in else None
-    tm = Tonemapper(opts.operator, opts.backend, opts.metering, disp, opts.preadapt, state,
-                    opts.device, opts.max_band_pixels)
-    log.info("backend: %s", tm.backend.describe())
-    log.info("OCIO: working %s, display %r view %r -> %s", colour.working, colour.display,
-             colour.view, colour.output_colorspace)
+    tm = _make_tonemapper(opts, colour)
     result = JobResult([], [])
     fps = opts.fps
     t_prev = tm.state.time_s
@@ -147,29 +140,9 @@ def run_job(opts: JobOptions) -> JobResult:
             scale, scale_why = (opts.luminance_scale, "--luminance-scale") if opts.luminance_scale \
                 else default_scale(fr)
             scale *= 2.0 ** opts.exposure
-            disp_lin = tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale)
-            info = tm.last
-            encoded = colour.encode(disp_lin[..., :3])
-            if disp_lin.shape[2] == 4:
-                encoded = np.concatenate([encoded, disp_lin[..., 3:4]], axis=2)
-            meta = {
-                "Software": f"ocl-tonemap {__version__}",
-                "ocltm:operator": opts.operator,
-                "ocltm:backend": opts.backend,
-                "ocltm:metering": tm.metering.describe(),
-                "ocltm:input_colorspace": f"{cs} ({why})",
-                "ocltm:output_colorspace": colour.output_colorspace,
-                "ocltm:view": f"{colour.display} / {colour.view}",
-                "ocltm:luminance_scale": float(scale),
-                "ocltm:luminance_scale_source": scale_why,
-                "ocltm:display": json.dumps(disp.as_dict(), sort_keys=True),
-                "ocltm:time_s": float(t),
-                "ocltm:goal": json.dumps({"G_rod": info.G_rod, "G_cone": info.G_cone}),
-                "ocltm:state": json.dumps(info.state.to_json(), sort_keys=True),
-                "ocltm:params": json.dumps(info.params, sort_keys=True, default=float),
-                "ocltm:repairs": json.dumps(info.repairs.as_dict(), sort_keys=True),
-            }
-            write_frame(outp, encoded, fr.spec, colour.output_colorspace, meta, opts.out_bits, f)
+            tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale)
+            info = _write_output(opts, colour, disp, tm, pix, fr, outp, f, t, f"{cs} ({why})",
+                                 scale, scale_why, None)
         except FrameError:
             raise
         except Exception as exc:
@@ -190,6 +163,137 @@ def run_job(opts: JobOptions) -> JobResult:
     if opts.plot:
         from .plot import plot_adaptation
         plot_adaptation(opts.plot, result.infos, tm, opts.plot_frames)
+    result.seconds = time.perf_counter() - t_start
+    return result
+
+
+def _colour(cfg, opts: JobOptions) -> ColourPipeline:
+    colour = ColourPipeline(cfg, opts.display, opts.view)
+    if not colour.view_is_plain:
+        log.warning("view %r may apply its own tone curve on top of the operator's; the "
+                    "un-tone-mapped view is the one meant for display-linear output", colour.view)
+    return colour
+
+
+def _make_tonemapper(opts: JobOptions, colour: ColourPipeline) -> Tonemapper:
+    disp = display_for(colour.display, opts.display_white, opts.display_peak, opts.display_model)
+    state = AdaptationState.load(opts.state_in) if opts.state_in else None
+    tm = Tonemapper(opts.operator, opts.backend, opts.metering, disp, opts.preadapt, state,
+                    opts.device, opts.max_band_pixels, opts.operator_options)
+    log.info("backend: %s", tm.backend.describe())
+    log.info("OCIO: working %s, display %r view %r -> %s", colour.working, colour.display,
+             colour.view, colour.output_colorspace)
+    return tm
+
+
+def _write_output(opts: JobOptions, colour: ColourPipeline, disp, tm: Tonemapper, pix, fr, outp,
+                  f, t, cs_text, scale, scale_why, extra: dict | None):
+    """Encode the last processed frame for the display and write it with its metadata."""
+    info = tm.last
+    disp_lin = tm.last_output
+    encoded = colour.encode(disp_lin[..., :3])
+    if disp_lin.shape[2] == 4:
+        encoded = np.concatenate([encoded, disp_lin[..., 3:4]], axis=2)
+    meta = {
+        "Software": f"ocl-tonemap {__version__}",
+        "ocltm:operator": opts.operator,
+        "ocltm:backend": opts.backend,
+        "ocltm:metering": tm.metering.describe() if tm.local is None else "local (bilateral)",
+        "ocltm:input_colorspace": cs_text,
+        "ocltm:output_colorspace": colour.output_colorspace,
+        "ocltm:view": f"{colour.display} / {colour.view}",
+        "ocltm:luminance_scale": float(scale),
+        "ocltm:luminance_scale_source": scale_why,
+        "ocltm:display": json.dumps(disp.as_dict(), sort_keys=True),
+        "ocltm:time_s": float(t),
+        "ocltm:goal": json.dumps({"G_rod": info.G_rod, "G_cone": info.G_cone}),
+        "ocltm:state": json.dumps(info.state.to_json(), sort_keys=True),
+        "ocltm:params": json.dumps(info.params, sort_keys=True, default=float),
+        "ocltm:repairs": json.dumps(info.repairs.as_dict(), sort_keys=True),
+    }
+    meta.update(extra or {})
+    write_frame(outp, encoded, fr.spec, colour.output_colorspace, meta, opts.out_bits, f)
+    return info
+
+
+def parse_times(text: str) -> list[float]:
+    """``T1,T2,...`` in seconds; an ``m`` suffix means minutes."""
+    out = []
+    for item in text.split(","):
+        item = item.strip()
+        try:
+            v = float(item[:-1]) * 60.0 if item.endswith("m") else float(item.rstrip("s"))
+        except ValueError:
+            raise ValueError(f"bad --at value {item!r}: use seconds or minutes (e.g. 30,2m)") from None
+        if not (v >= 0 and math.isfinite(v)):
+            raise ValueError(f"bad --at value {item!r}: times must be >= 0")
+        out.append(v)
+    if not out:
+        raise ValueError("--at needs at least one time")
+    return out
+
+
+def _time_label(seconds: float) -> str:
+    return f"{seconds:g}s".replace(".", "p")
+
+
+def simulate_outputs(output: str, times: list[float]) -> list[tuple[int | None, str]]:
+    """(frame, path) per time: a pattern gets frames 1..n, a plain name ``_t<T>s``."""
+    if is_sequence(output):
+        return [(k + 1, frame_path(output, k + 1)) for k in range(len(times))]
+    root, dot, ext = output.rpartition(".")
+    if not dot:
+        root, ext = output, ""
+    return [(None, f"{root}_t{_time_label(t)}{'.' + ext if dot else ''}") for t in times]
+
+
+def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
+    """A still image seen over time: the observer was pre-adapted (``opts.preadapt``),
+    starts looking at INPUT at t = 0, and one output is rendered per elapsed time."""
+    t_start = time.perf_counter()
+    if is_sequence(opts.input):
+        raise FrameError(opts.input, None, "simulate takes one still image, not a sequence")
+    if opts.preadapt is None:
+        raise ValueError("simulate needs --preadapt CD_M2[:SECONDS] (what the observer saw before)")
+    outs = simulate_outputs(opts.output, times)
+    for _, o in outs:
+        if same_file(o, opts.input):
+            raise FrameError(o, None, "output would overwrite the input file; choose another OUTPUT")
+    cfg = load_config(opts.colorconfig)
+    colour = _colour(cfg, opts)
+    disp = display_for(colour.display, opts.display_white, opts.display_peak, opts.display_model)
+    tm = _make_tonemapper(opts, colour)
+    fr = read_frame(opts.input, None)
+    result = JobResult([], [])
+    try:
+        cs, why = input_colorspace(cfg, opts.input, fr.colorspace, opts.iscolorspace)
+        pix = colour.to_working(fr.pixels, cs)
+        scale, scale_why = (opts.luminance_scale, "--luminance-scale") if opts.luminance_scale \
+            else default_scale(fr)
+        scale *= 2.0 ** opts.exposure
+        t_now = 0.0
+        tm.process(pix, time_s=0.0, luminance_scale=scale)     # the moment of the switch
+        order = sorted(range(len(times)), key=lambda k: times[k])
+        for k in order:
+            t = times[k]
+            if t > t_now:
+                tm.process(pix, time_s=t, luminance_scale=scale)
+                t_now = t
+            f, outp = outs[k]
+            info = _write_output(opts, colour, disp, tm, pix, fr, outp, f, t, f"{cs} ({why})",
+                                 scale, scale_why, {"ocltm:elapsed_s": float(t),
+                                                    "ocltm:preadapt": json.dumps(opts.preadapt)})
+            result.frames.append(f)
+            result.outputs.append(outp)
+            result.infos.append(info)
+            result.repairs += info.repairs
+            log.info("t = %g s -> %s", t, outp)
+    except FrameError:
+        raise
+    except Exception as exc:
+        raise FrameError(opts.input, None, exc) from exc
+    if opts.state_out:
+        tm.state.save(opts.state_out)
     result.seconds = time.perf_counter() - t_start
     return result
 
