@@ -1,0 +1,237 @@
+"""Ledda, Santos & Chalmers 2004 (ledda04) and the shared bilateral filters."""
+
+import math
+
+import numpy as np
+import pytest
+
+from conftest import hdr_image
+from ocl_tonemap import ledda04 as L
+from ocl_tonemap.adaptation import AdaptationState
+from ocl_tonemap.bilateral import (LEDDA_RANGE, DeviceBilateral, RangeKernel,
+                                   bilateral_reference)
+from ocl_tonemap.pipeline import Tonemapper
+
+#: Stated tolerance of the device exact path against float64 (relative).
+TOL_EXACT = 1e-5
+#: Recorded bound of the grid (q_s = q_r = 2) against exact on white-noise HDR
+#: (the worst case; natural scenes are far better, see benchmarks/results).
+FAST_MAX_LOG10 = 0.02
+#: Operator output, device vs float64 reference, scaled as in the foundation.
+TOL_OP = 1e-3
+
+
+@pytest.fixture(scope="module")
+def filt(rt):
+    return DeviceBilateral(rt)
+
+
+def piecewise_scene(h=40, w=60):
+    """A 1e4:1 step with gentle gradients and texture on each side (cd/m^2)."""
+    x = np.linspace(0, 1, w)[None, :]
+    y = np.linspace(0, 1, h)[:, None]
+    lum = np.where(x < 0.5, 0.01 * (1 + 0.3 * y), 100.0 * (1 + 0.3 * x)) * np.ones((h, w))
+    return lum
+
+
+# --- bilateral ---------------------------------------------------------------------
+
+@pytest.mark.parametrize("sigma", [1.0, 2.5])
+def test_exact_bilateral_matches_float64(filt, sigma):
+    v = hdr_image(30, 41, seed=5)[..., 1]
+    ref = bilateral_reference(v, sigma, LEDDA_RANGE)
+    dev = filt.filter(v, sigma, LEDDA_RANGE, "exact")
+    assert np.max(np.abs(dev / ref - 1)) < TOL_EXACT
+    rk = RangeKernel("difference", 0.4 * math.log(10))
+    lv = np.log(v + 1e-3)
+    ref = bilateral_reference(lv, sigma, rk)
+    assert np.max(np.abs(filt.filter(lv, sigma, rk, "exact") - ref)) < 1e-4
+
+
+def test_fast_bilateral_within_recorded_bound(filt):
+    v = hdr_image(48, 64, seed=6)[..., 1].astype(np.float64)
+    ex = filt.filter(v, 3.0, LEDDA_RANGE, "exact")
+    fa = filt.filter(v, 3.0, LEDDA_RANGE, "fast", 2.0, 2.0)
+    err = np.abs(np.log10(fa) - np.log10(ex))
+    assert err.max() < FAST_MAX_LOG10
+    coarse = np.abs(np.log10(filt.filter(v, 3.0, LEDDA_RANGE, "fast", 1.0, 1.0)) - np.log10(ex))
+    assert coarse.mean() > err.mean()          # the knob does what it says
+
+
+@pytest.mark.parametrize("method", ["exact", "fast"])
+def test_bilateral_constant_and_edge(filt, method):
+    const = np.full((20, 30), 7.5)
+    assert np.allclose(filt.filter(const, 3.0, LEDDA_RANGE, method), 7.5, rtol=1e-5)
+    lum = piecewise_scene()
+    out = filt.filter(lum, 4.0, LEDDA_RANGE, method)
+    # the edge stops the filter: the dark side is not lifted by the bright one
+    assert np.all(out[:, :29] < 0.02) and np.all(out[:, 31:] > 90)
+
+
+def test_range_kernel_is_a_function_of_log_ratio():
+    # Eq. 10 with sigma_g = 0.15 I_s depends on I_p / I_s only.
+    rk = LEDDA_RANGE
+    for Is in (1e-4, 1.0, 1e6):
+        Ip = Is * np.array([0.8, 1.0, 1.1, 1.3])
+        direct = np.exp(-(Ip - Is) ** 2 / (2 * (0.15 * Is) ** 2))
+        assert np.allclose(rk.weight_of_dz(np.log(Ip / Is)), direct)
+
+
+# --- the static operator -------------------------------------------------------------
+
+def test_mesopic_factor_range_and_monotonic():
+    I = np.logspace(-6, 8, 500)
+    m = L.mesopic_factor(I)
+    assert m.min() == 0.0 and m.max() == 1.0 and np.all(np.diff(m) >= 0)
+    assert L.mesopic_factor(0.01) == 0.0 and L.mesopic_factor(10 ** 0.6) == 1.0
+    assert 0 < L.mesopic_factor(0.1) < 1
+
+
+def test_inverse_identity():
+    # (R/(1-R))^(1/n) sigma_disp == Y sigma_disp / sigma, used for stability.
+    Y = np.logspace(-3, 3, 13)
+    s = L.sigma_of(2.0, L.BETA_CONE)
+    R = L.response(Y, s)
+    assert np.allclose(L.inverse_response(R, 1.0), Y / s, rtol=1e-9)
+
+
+def test_photopic_cone_only_scotopic_rod_only():
+    tm = Tonemapper("ledda04", "reference")
+    bright = np.ones((12, 12, 3)) * np.array([150.0, 100.0, 60.0])   # warm, photopic
+    out = tm.process(bright)
+    # cones only: chromaticity kept (channel ratios of the input)
+    assert np.allclose(out[6, 6] / out[6, 6, 1], [1.5, 1.0, 0.6], rtol=1e-6)
+    dark = bright * 1e-5
+    out = Tonemapper("ledda04", "reference").process(dark)
+    assert np.allclose(out[6, 6], out[6, 6, 0], rtol=1e-6)           # rods only: grey
+    assert out[6, 6, 0] > 0
+    meso = bright * 1e-3                                             # I_A ~ 0.1 cd/m^2
+    out = Tonemapper("ledda04", "reference").process(meso)
+    r = out[6, 6] / out[6, 6, 1]
+    assert 1.0 < r[0] < 1.5 and 0.6 < r[2] < 1.0                    # both: desaturated
+
+
+def test_no_halo_across_a_step():
+    lum = piecewise_scene()
+    img = np.repeat(lum[..., None], 3, axis=2)
+    for method in ("exact", "fast"):
+        out = Tonemapper("ledda04", "opencl", options={"bilateral": method,
+                                                       "sigma_spatial": 4.0}).process(img)
+        row = out[20, :, 1]
+        assert np.all(np.diff(row) >= -1e-7), method          # monotonic, no reversal
+
+
+@pytest.mark.parametrize("method", ["exact", "fast"])
+def test_opencl_matches_reference_over_time(method):
+    img = hdr_image(24, 36, seed=7, lo=-4, hi=4)
+    opts = {"rods": "always", "sigma_spatial": 2.5}
+    a = Tonemapper("ledda04", "opencl", options=dict(opts, bilateral=method))
+    b = Tonemapper("ledda04", "reference", options=opts)
+    tol = TOL_OP if method == "exact" else 0.05
+    for t, k in ((0, 1.0), (0.5, 1e-3), (3, 1e-3), (700, 1e-3), (4000, 1e-3), (4010, 10.0)):
+        oa = a.process(img * k, time_s=t)
+        ob = b.process(img * k, time_s=t)
+        assert np.max(np.abs(oa - ob) / np.maximum(1.0, np.abs(ob))) < tol, (method, t)
+
+
+# --- time course -----------------------------------------------------------------------
+
+def test_dark_curve_endpoints_and_energy():
+    t = np.array([0.1, 1.0, 2.0, 10.0, 60.0, 599.0, 600.0, 1e4])
+    for K in (L.K_MIN, 9.0, L.K_MAX):
+        f = L.dark_fraction(t, K, L.TAU_CONE)
+        assert f[0] == 1.0 and f[1] == pytest.approx(1.0) and f[-2] == 0.0 and f[-1] == 0.0
+        assert np.all(np.diff(f) <= 0)
+    # larger energy -> smaller K -> slower recovery (Eq. 17)
+    assert L.K_of_energy(0) == 12.0 and L.K_of_energy(1e9) == pytest.approx(L.K_MIN)
+    assert L.dark_fraction(60.0, L.K_of_energy(8000), 600) > L.dark_fraction(60.0, L.K_of_energy(100), 600)
+
+
+def test_light_curve_and_rod_lag():
+    assert L.light_fraction(1.0, 20) == 1.0 and L.light_fraction(20.0, 20) == 0.0
+    assert L.light_fraction(np.sqrt(20.0), 20) == pytest.approx(0.5)
+    # in the dark, rods hold sigma_in until tau_cone has passed
+    s = L.sigma_at(100.0, 1.0, np.array([0.0, 300.0, 600.0, 660.0, 3100.0]), 8.0, "rod")
+    assert s[0] == s[1] == s[2] == 100.0 and 1.0 < s[3] < 100.0 and s[4] == 1.0
+    c = L.sigma_at(100.0, 1.0, np.array([0.0, 60.0, 600.0]), 8.0, "cone")
+    assert c[0] == 100.0 and 1.0 < c[1] < 100.0 and c[2] == 1.0
+
+
+def test_long_dark_reaches_static_result():
+    img = hdr_image(16, 20, seed=8, lo=-3, hi=1)
+    tm = Tonemapper("ledda04", "opencl", preadapt=(500.0, 60.0))
+    tm.process(img, time_s=0)
+    first = tm.last_output.copy()
+    out = tm.process(img, time_s=3 * 3600.0)
+    static = Tonemapper("ledda04", "opencl").process(img)
+    assert np.allclose(out, static, rtol=1e-5, atol=1e-7)
+    assert first.mean() < 0.2 * static.mean()      # temporarily blind at the switch
+
+
+def test_small_changes_continue_the_course():
+    img = hdr_image(10, 10, seed=9, lo=0, hi=1)
+    tm = Tonemapper("ledda04", "opencl")
+    tm.process(img, time_s=0)
+    tm.process(img * 1.1, time_s=0.1)              # 10%: below the restart threshold
+    assert tm.last.params["restarted_fraction"] == 0.0
+    tm.process(img * 10, time_s=0.2)
+    assert tm.last.params["restarted_fraction"] == 1.0
+
+
+def test_figure_11_trend():
+    from ocl_tonemap.validation import dark_adaptation_thresholds
+    times = np.geomspace(0.5, 2700, 40)
+    lo_E = dark_adaptation_thresholds(5.0, times)       # E = 1000
+    hi_E = dark_adaptation_thresholds(120.0, times)     # E beyond 10567
+    for th in (lo_E, hi_E):
+        assert np.all(np.diff(th) <= 0)                 # thresholds only fall
+        assert th[-1] < th[0] / 100
+    assert np.all(hi_E >= lo_E) and np.any(hi_E > lo_E)  # more energy: slower
+
+
+# --- extremes, state, bands ----------------------------------------------------------
+
+@pytest.mark.parametrize("backend", ["opencl", "reference"])
+def test_extremes_never_nan(backend):
+    img = hdr_image(9, 11, seed=10)
+    img[0, 0] = [np.nan, np.inf, -np.inf]
+    img[1, 1] = [-3.0, 1e-42, 0.0]
+    img[2] = 1e8
+    img[3] = 1e-6
+    img[4] = 0.0
+    tm = Tonemapper("ledda04", backend)
+    for t in (0.0, 0.001, 0.002, 3600.0, 7200.0 + 0.001):
+        out = tm.process(img, time_s=t)
+        assert np.all(np.isfinite(out)) and out.min() >= 0
+    assert tm.last.repairs.nan == 1
+    one = Tonemapper("ledda04", backend).process(np.full((1, 1, 3), 5.0))
+    assert np.all(np.isfinite(one)) and one.shape == (1, 1, 3)
+    zero = Tonemapper("ledda04", backend).process(np.zeros((4, 4, 3)))
+    assert np.all(zero == 0)
+
+
+@pytest.mark.parametrize("method", ["exact", "fast"])
+def test_bands_equal_one_pass(method):
+    img = hdr_image(45, 50, seed=11, lo=-3, hi=3)
+    opts = {"bilateral": method, "sigma_spatial": 3.0}
+    a = Tonemapper("ledda04", "opencl", options=opts)
+    b = Tonemapper("ledda04", "opencl", options=opts, max_band_pixels=50 * 11)
+    for t, k in ((0, 1.0), (2, 0.01), (50, 0.01)):
+        assert np.array_equal(a.process(img * k, time_s=t), b.process(img * k, time_s=t))
+        assert a.last.repairs.as_dict() == b.last.repairs.as_dict()
+
+
+def test_state_side_file_roundtrip(tmp_path):
+    img = hdr_image(20, 30, seed=12)
+    one = Tonemapper("ledda04", "opencl")
+    for t, k in ((0, 1.0), (1, 1e-3)):
+        one.process(img * k, time_s=t)
+    one.state.save(tmp_path / "s.json")
+    assert (tmp_path / "s.pixels.exr").exists()
+    final = one.process(img * 1e-3, time_s=30)
+    st = AdaptationState.load(tmp_path / "s.json")
+    assert set(st.pixels) == set(L.STATE_CHANNELS)
+    two = Tonemapper("ledda04", "opencl", state=st)
+    assert np.array_equal(two.process(img * 1e-3, time_s=30), final)
+    with pytest.raises(ValueError, match="one image size"):
+        Tonemapper("ledda04", "opencl", state=st).process(img[:10], time_s=31)
