@@ -203,15 +203,16 @@ class BilateralSpec:
     """How to filter: ``method`` exact | fast | auto, sigma_s in pixels, grid sampling.
 
     ``auto`` uses the exact filter when it is cheap (sigma_s <= AUTO_EXACT_SIGMA
-    px, where the grid cannot be coarser than the image) or the grid would not
-    fit in memory, and the grid otherwise.
+    px: on PoCL the grid is slower than brute force at sigma_s = 4 px and 37x
+    faster at 12.8, see benchmarks/results/bilateral_ledda04.md) or the grid
+    would not fit in memory, and the grid otherwise.
     """
 
     method: str = "auto"
     q_s: float = 2.0
     q_r: float = 2.0
 
-    AUTO_EXACT_SIGMA = 2.0
+    AUTO_EXACT_SIGMA = 5.0
 
     def __post_init__(self):
         if self.method not in ("exact", "fast", "auto"):
