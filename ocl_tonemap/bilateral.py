@@ -27,6 +27,7 @@ luminance for range reduction); sigma_spatial in pixels.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -76,6 +77,9 @@ class RangeKernel:
 
     def z_width(self) -> float:
         """Standard deviation of g along z (for ratio: of exp(-k (e^dz - 1)^2), numerically)."""
+        return _z_width(self)
+
+    def _z_width(self) -> float:
         if not self.ratio:
             return self.sigma
         d = np.linspace(-12 * self.sigma, 12 * self.sigma, 20001)
@@ -83,7 +87,7 @@ class RangeKernel:
         m = (w * d).sum() / w.sum()
         return float(math.sqrt((w * (d - m) ** 2).sum() / w.sum()))
 
-    def z_extent(self, eps: float = 1e-6) -> tuple[float, float]:
+    def z_extent(self, eps: float = 1e-4) -> tuple[float, float]:
         """dz range outside which g < eps."""
         if not self.ratio:
             r = self.sigma * math.sqrt(2.0 * math.log(1.0 / eps))
@@ -91,6 +95,11 @@ class RangeKernel:
         t = self.sigma * math.sqrt(2.0 * math.log(1.0 / eps))
         lo = math.log(1.0 - t) if t < 1.0 else -50.0
         return lo, math.log1p(t)
+
+
+@functools.lru_cache(maxsize=16)
+def _z_width(rk: RangeKernel) -> float:
+    return rk._z_width()
 
 
 LEDDA_RANGE = RangeKernel("ratio", LEDDA_SIGMA_RELATIVE)
@@ -352,11 +361,32 @@ class DeviceBilateral:
                     np.int32(geom.gw), np.int32(geom.gh), np.int32(geom.nz), self._grid[0],
                     out_buf)
 
+    def grid_limit_bytes(self) -> int:
+        return int(min(self.rt.max_alloc_bytes(),
+                       self.GRID_MEMORY_FRACTION * self.rt.global_mem_bytes()))
+
+    def fit_geometry(self, width: int, height: int, z_min: float, z_max: float, sigma_s: float,
+                     rk: RangeKernel, q_s: float, q_r: float) -> GridGeometry:
+        """grid_geometry, coarsened (q_s, then q_r, down to 0.5) until the grid fits
+        in GRID_MEMORY_FRACTION of device memory; ValueError if it never does."""
+        limit = self.grid_limit_bytes()
+        while True:
+            g = grid_geometry(width, height, z_min, z_max, sigma_s, rk, q_s, q_r)
+            if g.nbytes <= limit:
+                return g
+            if q_s > 0.5:
+                q_s = max(0.5, q_s / 1.25)
+            elif q_r > 0.5:
+                q_r = max(0.5, q_r / 1.25)
+            else:
+                raise ValueError(f"bilateral grid needs {g.nbytes / 2**20:.0f} MiB even at the "
+                                 f"coarsest sampling; use the exact filter")
+
     def fast(self, v_buf, out_buf, width: int, height: int, sigma_s: float, rk: RangeKernel,
              q_s: float = 2.0, q_r: float = 2.0) -> GridGeometry:
         """Whole-frame grid filter (signal resident in one buffer)."""
         z_min, z_max = self.z_range(v_buf, width * height, rk)
-        geom = grid_geometry(width, height, z_min, z_max, sigma_s, rk, q_s, q_r)
+        geom = self.fit_geometry(width, height, z_min, z_max, sigma_s, rk, q_s, q_r)
         self.begin_grid(geom)
         self.splat(v_buf, width, height, 0, geom, rk)
         self.blur(geom, rk)

@@ -406,7 +406,7 @@ class LeddaObserver:
 
     def process_opencl(self, backend, pixels: np.ndarray, scale: float, dt: float, fresh: bool):
         import pyopencl as cl
-        from .bilateral import DeviceBilateral, grid_geometry, spatial_radius
+        from .bilateral import DeviceBilateral, spatial_radius
         from .metering import MeteringSpec
         from .photometry import RepairCounts
         from .runtime import round_up
@@ -455,8 +455,8 @@ class LeddaObserver:
                 for k, (flt, buf) in enumerate(((fc, yl), (fr, ysl))):
                     lo, hi = flt.z_range(buf, n, LEDDA_RANGE)
                     zr[k] = [min(zr[k][0], lo), max(zr[k][1], hi)]
-            geoms = [grid_geometry(w, h, zr[k][0], zr[k][1], sig, LEDDA_RANGE, bs.q_s, bs.q_r)
-                     for k in range(2)]
+            geoms = [flt.fit_geometry(w, h, zr[k][0], zr[k][1], sig, LEDDA_RANGE, bs.q_s, bs.q_r)
+                     for k, flt in enumerate((fc, fr))]
             for flt, g in zip((fc, fr), geoms):
                 flt.begin_grid(g)
             for y0, nr in bands:                    # pass B: splat
@@ -533,8 +533,11 @@ class LeddaObserver:
             G_rod = max(G_cone * NEUTRAL_ROD_RATIO, V_FLOOR)
         nres = np.empty(1, np.int32)
         cl.enqueue_copy(q, nres, counts)
-        self.summary = FrameSummary(sig, f"{method}" + (f" (q_s={bs.q_s:g}, q_r={bs.q_r:g})"
-                                                        if method == "fast" else ""),
+        grid = ""
+        if method == "fast":
+            g = geoms[0]
+            grid = f" (q_s={sig / g.s_s:.3g}, q_r={LEDDA_RANGE.z_width() / g.s_r:.3g})"
+        self.summary = FrameSummary(sig, method + grid,
                                     self.sigma_disp, bool(rods_used),
                                     float(nres[0]) / (h * w) if mode != "init" else 0.0,
                                     G_cone, G_rod)

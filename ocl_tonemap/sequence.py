@@ -141,7 +141,7 @@ def run_job(opts: JobOptions) -> JobResult:
                 else default_scale(fr)
             scale *= 2.0 ** opts.exposure
             tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale)
-            info = _write_output(opts, colour, disp, tm, pix, fr, outp, f, t, f"{cs} ({why})",
+            info = _write_output(opts, colour, disp, tm, fr, outp, f, t, f"{cs} ({why})",
                                  scale, scale_why, None)
         except FrameError:
             raise
@@ -186,7 +186,7 @@ def _make_tonemapper(opts: JobOptions, colour: ColourPipeline) -> Tonemapper:
     return tm
 
 
-def _write_output(opts: JobOptions, colour: ColourPipeline, disp, tm: Tonemapper, pix, fr, outp,
+def _write_output(opts: JobOptions, colour: ColourPipeline, disp, tm: Tonemapper, fr, outp,
                   f, t, cs_text, scale, scale_why, extra: dict | None):
     """Encode the last processed frame for the display and write it with its metadata."""
     info = tm.last
@@ -280,7 +280,7 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
                 tm.process(pix, time_s=t, luminance_scale=scale)
                 t_now = t
             f, outp = outs[k]
-            info = _write_output(opts, colour, disp, tm, pix, fr, outp, f, t, f"{cs} ({why})",
+            info = _write_output(opts, colour, disp, tm, fr, outp, f, t, f"{cs} ({why})",
                                  scale, scale_why, {"ocltm:elapsed_s": float(t),
                                                     "ocltm:preadapt": json.dumps(opts.preadapt)})
             result.frames.append(f)

@@ -152,7 +152,7 @@ def test_ledda_sequence_chunked_with_pixel_state(sample_dir, tmp_path):
         assert np.array_equal(pixels(frame_path(whole, f)), pixels(frame_path(b, f)))
     spec = oiio.ImageBuf(frame_path(whole, frames[-1])).spec()
     params = json.loads(spec.getattribute("ocltm:params"))
-    assert params["bilateral"] in ("exact", "fast (q_s=2, q_r=2)")
+    assert params["bilateral"] == "exact"          # auto: sigma_s ~1 px is cheap exactly
 
 
 def test_simulate_dark_adaptation(sample_dir, tmp_path, capsys):

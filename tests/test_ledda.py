@@ -235,3 +235,12 @@ def test_state_side_file_roundtrip(tmp_path):
     assert np.array_equal(two.process(img * 1e-3, time_s=30), final)
     with pytest.raises(ValueError, match="one image size"):
         Tonemapper("ledda04", "opencl", state=st).process(img[:10], time_s=31)
+
+
+def test_grid_fits_device_memory_and_tiny_images(filt):
+    # a grid that would not fit is coarsened, not an allocation failure
+    g = filt.fit_geometry(100000, 100000, -20.0, 20.0, 4.0, LEDDA_RANGE, 2.0, 2.0)
+    assert g.nbytes <= filt.grid_limit_bytes()
+    for shape in ((1, 1), (1, 7), (5, 1)):
+        v = np.full(shape, 3.0)
+        assert np.allclose(filt.filter(v, 3.0, LEDDA_RANGE, "fast"), 3.0, rtol=1e-5)
