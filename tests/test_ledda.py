@@ -239,8 +239,10 @@ def test_state_side_file_roundtrip(tmp_path):
 
 def test_grid_fits_device_memory_and_tiny_images(filt):
     # a grid that would not fit is coarsened, not an allocation failure
-    g = filt.fit_geometry(100000, 100000, -20.0, 20.0, 4.0, LEDDA_RANGE, 2.0, 2.0)
-    assert g.nbytes <= filt.grid_limit_bytes()
+    g = filt.fit_geometry(7680, 4320, -20.0, 20.0, 4.0, LEDDA_RANGE, 2.0, 2.0)
+    assert g.nbytes <= filt.grid_limit_bytes() and g.s_s > 2.0
+    with pytest.raises(ValueError, match="use the exact filter"):
+        filt.fit_geometry(10 ** 6, 10 ** 6, -20.0, 20.0, 4.0, LEDDA_RANGE, 2.0, 2.0)
     for shape in ((1, 1), (1, 7), (5, 1)):
         v = np.full(shape, 3.0)
         assert np.allclose(filt.filter(v, 3.0, LEDDA_RANGE, "fast"), 3.0, rtol=1e-5)
