@@ -28,13 +28,15 @@ import argparse
 import math
 import os
 import platform
-import statistics
 import sys
 import time
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.dirname(__file__))
+
+from benchutil import timeit  # noqa: E402
 
 from ocl_tonemap import ledda04 as L  # noqa: E402
 from ocl_tonemap.bilateral import LEDDA_RANGE, DeviceBilateral, prepare_signal  # noqa: E402
@@ -88,16 +90,6 @@ def scene_noise(w, h, seed=2):
 
 SCENES = {"night street": scene_night_street, "sky + sun": scene_sky,
           "tunnel (sample)": scene_tunnel, "noise (worst)": scene_noise}
-
-
-def timeit(fn, reps):
-    fn()
-    ts = []
-    for _ in range(reps):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts)
 
 
 def psnr(err, peak):

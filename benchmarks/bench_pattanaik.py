@@ -22,13 +22,14 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import statistics
 import sys
-import time
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.dirname(__file__))
+
+from benchutil import timeit  # noqa: E402
 
 from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
 from ocl_tonemap.runtime import describe_device, get_runtime  # noqa: E402
@@ -43,16 +44,6 @@ def scene(w, h, seed=0):
     lum = 10 ** (4 * (1 - y) - 1 + 0.5 * np.sin(12 * x)) * (1 + 0.1 * rng.standard_normal((h, w)))
     col = np.stack([0.8 + 0.2 * x + 0 * y, 0.9 + 0 * x * y, 1.1 - 0.3 * y + 0 * x], -1)
     return (np.abs(lum)[..., None] * col).astype(np.float32)
-
-
-def timeit(fn, reps):
-    fn()
-    ts = []
-    for _ in range(reps):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts)
 
 
 def copy_bandwidth(rt, nbytes):
