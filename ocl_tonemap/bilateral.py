@@ -337,11 +337,9 @@ class DeviceBilateral:
     def blur(self, geom: GridGeometry, rk: RangeKernel):
         """Blur the grid: Gaussian in x and y, the range kernel in z. Result in grid[0]."""
         from .runtime import round_up
-        ts = self._const(blur_taps_spatial(geom))
-        tz_arr = blur_taps_range(geom, rk)
-        tz = self._const(tz_arr)
-        Rs = (len(blur_taps_spatial(geom)) - 1) // 2
-        Rz = (len(tz_arr) - 1) // 2
+        ts_arr, tz_arr = blur_taps_spatial(geom), blur_taps_range(geom, rk)
+        ts, tz = self._const(ts_arr), self._const(tz_arr)
+        Rs, Rz = (len(ts_arr) - 1) // 2, (len(tz_arr) - 1) // 2
         gsize = (round_up(geom.nz, 16), geom.gw, geom.gh)
         src, dst = self._grid
         for axis, taps, R in ((2, tz, Rz), (0, ts, Rs), (1, ts, Rs)):

@@ -156,6 +156,10 @@ class Tonemapper:
         p = holder["params"]
         self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone, repairs,
                               st.copy(), p.as_dict() if hasattr(p, "as_dict") else {})
+        return self._finish(out, pix)
+
+    def _finish(self, out: np.ndarray, pix: np.ndarray) -> np.ndarray:
+        """Pass alpha through and remember the frame's output."""
         if pix.shape[2] == 4:
             out = np.concatenate([out, pix[..., 3:4]], axis=2)
         self.last_output = out
@@ -173,10 +177,7 @@ class Tonemapper:
         st.time_s, st.frame, st.pixels = float(time_s), frame_number, None
         self.last = FrameInfo(frame_number, float(time_s), dt, G_rod, G_cone, repairs, st.copy(),
                               summ)
-        if pix.shape[2] == 4:
-            out = np.concatenate([out, pix[..., 3:4]], axis=2)
-        self.last_output = out
-        return out
+        return self._finish(out, pix)
 
     def process_imagebuf(self, buf, dt: float | None = None, time_s: float | None = None,
                          luminance_scale: float = 1.0):
