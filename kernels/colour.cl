@@ -64,3 +64,16 @@ __kernel void scene_to_working(__global const float *src, const int channels, co
     barrier(CLK_LOCAL_MEM_FENCE);
     if (lid < NREPAIR && lc[lid]) atomic_add(&counts[lid], lc[lid]);
 }
+
+/* Von Kries chromatic adaptation of the cone signals (Durand & Dorsey 2000,
+ * Eq. 6): rgb *= gains, photopic Y recomputed; the rod signal Y' is left as
+ * it was (rods do not adapt chromatically). */
+__kernel void apply_gains(__global float *rgb, __global float *Y, const int n,
+                          const float gr, const float gg, const float gb)
+{
+    const int i = get_global_id(0);
+    if (i >= n) return;
+    const float3 c = vload3(i, rgb) * (float3)(gr, gg, gb);
+    vstore3(c, i, rgb);
+    Y[i] = M_YR * c.x + M_YG * c.y + M_YB * c.z;
+}

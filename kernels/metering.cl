@@ -3,7 +3,7 @@
  *
  * Weight modes: 0 uniform; 1 centre-weighted (w_in inside a disc of radius
  * p2 px at (p0, p1), w_out outside); 2 Gaussian spot at (p0, p1) px with
- * sigma p2 px. Pixel coordinates are of the full frame: a band starting at
+ * sigma p2 px; 3 a weight image (mask, full-frame, row-major). Pixel coordinates are of the full frame: a band starting at
  * row y0 meters exactly like the whole image. */
 
 #define NMETER 8  /* sum w, sum wY, sum w lnY, sum wY', sum w lnY', max Y, max Y', pad */
@@ -50,6 +50,7 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
                             const int n, const int width, const int y0,
                             const int mode, const float p0, const float p1, const float p2,
                             const float w_in, const float w_out, const float log_floor,
+                            __global const float *mask,
                             __global float *partial, __local float *scratch)
 {
     const int lid = get_local_id(0), lsz = get_local_size(0);
@@ -57,7 +58,8 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
     float mY = 0.0f, mYs = 0.0f;
     for (int i = get_global_id(0); i < n; i += get_global_size(0)) {
         float x = (float)(i % width) + 0.5f, y = (float)(y0 + i / width) + 0.5f;
-        float w = meter_weight(mode, x, y, p0, p1, p2, w_in, w_out);
+        float w = mode == 3 ? mask[(size_t)y0 * width + i]
+                            : meter_weight(mode, x, y, p0, p1, p2, w_in, w_out);
         float l = Y[i], ls = Ys[i];
         kahan(&s[0], &c[0], w);
         kahan(&s[1], &c[1], w * l);
@@ -111,4 +113,33 @@ __kernel void log_histogram(__global const float *L, const int n, const float lo
     barrier(CLK_LOCAL_MEM_FENCE);
     for (int b = lid; b < nbins; b += lsz)
         if (lh[b]) atomic_add(&hist[b], lh[b]);
+}
+
+/* Illuminant estimate (effects.py): per work-group sums of Y*r, Y*g, Y*b, Y*Y
+ * -- a luminance-weighted grey world, dominated by the bright regions and the
+ * light sources. The host adds the group records in float64. */
+__kernel void illuminant_partial(__global const float *rgb, __global const float *Y,
+                                 const int n, __global float *partial,
+                                 __local float *scratch)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    float s[4] = {0, 0, 0, 0}, c[4] = {0, 0, 0, 0};
+    for (int i = get_global_id(0); i < n; i += get_global_size(0)) {
+        const float3 v = vload3(i, rgb);
+        const float y = Y[i];
+        kahan(&s[0], &c[0], y * v.x);
+        kahan(&s[1], &c[1], y * v.y);
+        kahan(&s[2], &c[2], y * v.z);
+        kahan(&s[3], &c[3], y * y);
+    }
+    __local float *me = scratch + lid * 4;
+    for (int k = 0; k < 4; ++k) me[k] = s[k];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int off = lsz / 2; off > 0; off >>= 1) {
+        if (lid < off)
+            for (int k = 0; k < 4; ++k) me[k] += scratch[(lid + off) * 4 + k];
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0)
+        for (int k = 0; k < 4; ++k) partial[get_group_id(0) * 4 + k] = scratch[k];
 }

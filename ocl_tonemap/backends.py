@@ -18,7 +18,9 @@ import numpy as np
 from . import metering as met
 from .photometry import RepairCounts, photopic_luminance, sanitize, scotopic_luminance
 
-StepFn = Callable[[float, float], object]  # (G_rod, G_cone) -> operator frame params
+#: (G_rod, G_cone, illuminant_fn) -> (operator frame params, von Kries gains or None);
+#: illuminant_fn() returns the frame's illuminant estimate (computed on demand).
+StepFn = Callable[[float, float, Callable], tuple]
 
 
 class ReferenceBackend:
@@ -29,13 +31,24 @@ class ReferenceBackend:
     def describe(self) -> str:
         return "float64 NumPy reference"
 
+    def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec):
+        """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn)."""
+        rgb, repairs = sanitize(pixels[..., :3], scale)
+        G = met.reference_goal(photopic_luminance(rgb), scotopic_luminance(rgb), spec)
+        from .effects import illuminant_estimate_reference
+        return rgb, repairs, G, lambda: illuminant_estimate_reference(rgb)
+
     def process(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec, op,
                 step: StepFn):
+        from .effects import illuminant_estimate_reference
         rgb, repairs = sanitize(pixels[..., :3], scale)
         Y = photopic_luminance(rgb)
         Ys = scotopic_luminance(rgb)
         G_rod, G_cone = met.reference_goal(Y, Ys, spec)
-        params = step(G_rod, G_cone)
+        params, gains = step(G_rod, G_cone, lambda: illuminant_estimate_reference(rgb))
+        if gains is not None:                      # Eq. 6: cone signals only
+            rgb = rgb * np.asarray(gains, np.float64)
+            Y = photopic_luminance(rgb)
         out = op.map_reference(rgb, Y, Ys, params)
         return out.astype(np.float32), repairs, (G_rod, G_cone)
 
@@ -50,6 +63,8 @@ class OpenCLBackend:
         self.rt = get_runtime(device)
         self.meter = met.DeviceMeter(self.rt)
         self._colour = self.rt.kernel("colour.cl", "scene_to_working")
+        self._gains = self.rt.kernel("colour.cl", "apply_gains")
+        self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
         if max_band_pixels is None:
             # Per pixel: src (<=4 floats), rgb 3, Y, Y', out 3 = 48 B; keep to 1/4
             # of global memory and under the largest single allocation.
@@ -104,15 +119,37 @@ class OpenCLBackend:
                 setattr(rc, k, int(v))
         return rc
 
-    def process(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec, op,
-                step: StepFn):
+    ILLUM_GROUPS = 64
+
+    def _illuminant_sums(self, n: int) -> np.ndarray:
+        """Device sums (Y r, Y g, Y b, Y Y) over the resident band (float64 on the host)."""
         import pyopencl as cl
-        h, w, c = pixels.shape
+        b = self._bufs
+        if "illum" not in b:
+            b["illum"] = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE,
+                                   self.ILLUM_GROUPS * 4 * 4)
+        wg = 64
+        groups = max(1, min(self.ILLUM_GROUPS, -(-n // wg)))
+        self._illum(self.rt.queue, (groups * wg,), (wg,), b["rgb"], b["Y"], np.int32(n),
+                    b["illum"], cl.LocalMemory(wg * 4 * 4))
+        part = np.empty((groups, 4), np.float32)
+        cl.enqueue_copy(self.rt.queue, part, b["illum"])
+        return part.astype(np.float64).sum(axis=0)
+
+    def _bands(self, h: int, w: int):
         rows = max(1, min(h, self.max_band_pixels // max(w, 1)))
-        bands = [(y0, min(rows, h - y0)) for y0 in range(0, h, rows)]
+        return [(y0, min(rows, h - y0)) for y0 in range(0, h, rows)]
+
+    def _meter_pass(self, pixels, scale, spec, illuminant: bool, keep_rgb: np.ndarray | None):
+        """Pass 1 over the bands: colour stage + metering (+ illuminant sums,
+        + the working rgb copied to ``keep_rgb``)."""
+        import pyopencl as cl
+        h, w, _ = pixels.shape
+        bands = self._bands(h, w)
         repairs = RepairCounts()
         sums = None
-        for y0, nr in bands:                               # pass 1: colour + meter
+        illum = np.zeros(4)
+        for y0, nr in bands:
             repairs += self._to_working(pixels[y0:y0 + nr], scale, count=True)
             b = self._bufs
             s = self.meter.band_sums(b["Y"], b["Ys"], nr * w, w, h, y0, spec)
@@ -120,14 +157,38 @@ class OpenCLBackend:
                 sums = s
             else:
                 sums.add(s)
-        G_rod, G_cone = sums.goal(spec)
-        params = step(G_rod, G_cone)
+            if illuminant:
+                illum += self._illuminant_sums(nr * w)
+            if keep_rgb is not None:
+                cl.enqueue_copy(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
+        return bands, repairs, sums.goal(spec), illum
+
+    def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec):
+        """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn)."""
+        h, w, _ = pixels.shape
+        rgb = np.empty((h, w, 3), np.float32)
+        _, repairs, G, illum = self._meter_pass(pixels, scale, spec, True, rgb)
+        return rgb, repairs, G, lambda: illum[:3]
+
+    def process(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec, op,
+                step: StepFn):
+        import pyopencl as cl
+        from .runtime import round_up
+        h, w, c = pixels.shape
+        bands, repairs, (G_rod, G_cone), illum = self._meter_pass(
+            pixels, scale, spec, getattr(step, "wants_illuminant", False), None)
+        params, gains = step(G_rod, G_cone, lambda: illum[:3])
         out = np.empty((h, w, 3), np.float32)
         for i, (y0, nr) in enumerate(bands):              # pass 2: per-pixel operator
             if len(bands) > 1:
                 self._to_working(pixels[y0:y0 + nr], scale, count=False)
             b = self._bufs
-            op.map_opencl(self.rt, b["rgb"], b["Y"], b["Ys"], b["out"], nr * w, params)
+            n = nr * w
+            if gains is not None:                          # Eq. 6: cone signals only
+                g = np.asarray(gains, np.float32)
+                self._gains(self.rt.queue, (round_up(n, 64),), (64,), b["rgb"], b["Y"],
+                            np.int32(n), g[0], g[1], g[2])
+            op.map_opencl(self.rt, b["rgb"], b["Y"], b["Ys"], b["out"], n, params)
             cl.enqueue_copy(self.rt.queue, out[y0:y0 + nr], b["out"])
         return out, repairs, (G_rod, G_cone)
 

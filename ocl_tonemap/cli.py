@@ -55,6 +55,27 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    "is slower and closer to exact)")
     g.add_argument("--rods", choices=["auto", "always"], default="auto",
                    help="auto: skip the rod filter on all-photopic frames")
+    g = p.add_argument_group("durand00")
+    g.add_argument("--blue-shift", metavar="R,G,B",
+                   help="colour of rod signals (Eq. 5; default 1.05,0.97,1.27; 1,1,1 for none)")
+    g.add_argument("--lut", type=int, default=0, metavar="N",
+                   help="evaluate the mapping through per-frame tables of N entries over 12 "
+                   "decades (Sec. 5; the paper uses 2000); 0 = direct (default)")
+    g = p.add_argument_group("effects (every operator; default auto for durand00, else off)")
+    for name, what in (("flare", "glare of light sources (Spencer et al. 1995)"),
+                       ("acuity", "loss of acuity in the dark (Shaler 1937)"),
+                       ("chromatic-adaptation", "von Kries adaptation to the illuminant, tau 5 s")):
+        g.add_argument(f"--{name}", choices=["on", "off", "auto"], help=what)
+    g.add_argument("--fov", type=float, help="angular width of the image, degrees (default 50)")
+    g.add_argument("--illuminant", help="illuminant for chromatic adaptation: x,y or a name "
+                   "(D65, D50, A, F2, F11, LED-B3 ...); default: EXR adoptedNeutral, else "
+                   "estimated from the frame")
+    g.add_argument("--flare-method", choices=["fast", "exact"],
+                   help="fast: Gaussians on a pyramid (default); exact: FFT of the full PSF")
+    g.add_argument("--flare-threshold", type=float,
+                   help="light sources are pixels above this x the adaptation level (default 7)")
+    g.add_argument("--flare-sampling", type=int, metavar="N",
+                   help="fast flare: Gaussians per octave (default 1)")
 
 
 def _options(a, input_, output):
@@ -72,11 +93,39 @@ def _options(a, input_, output):
         out_bits=a.out_bits, plot=a.plot,
         plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
         max_band_pixels=a.max_band_pixels, operator_options=_operator_options(a),
+        effects=_effects(a),
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
+
+
+def _effects(a):
+    from .effects import EffectSettings
+    return EffectSettings.for_operator(
+        a.operator, flare=a.flare, acuity=a.acuity, chromatic_adaptation=a.chromatic_adaptation,
+        fov_deg=a.fov, illuminant=a.illuminant, flare_method=a.flare_method,
+        flare_threshold=a.flare_threshold, flare_per_octave=a.flare_sampling)
+
+
+def _tint(text: str) -> tuple:
+    try:
+        t = tuple(float(v) for v in text.split(","))
+        if len(t) != 3 or min(t) < 0:
+            raise ValueError
+        return t
+    except ValueError:
+        raise ValueError(f"bad --blue-shift {text!r}: three non-negative numbers R,G,B") from None
 
 
 def _operator_options(a) -> dict | None:
     from .operators import get_operator
+    if a.operator == "durand00":
+        opts = {"lut": a.lut}
+        if a.lut and not (2 <= a.lut <= 1 << 20):
+            raise ValueError(f"--lut must be 0 or 2 .. 1048576 entries (got {a.lut})")
+        if a.blue_shift:
+            opts["tint"] = _tint(a.blue_shift)
+        return opts
+    if a.lut or a.blue_shift:
+        log.warning("--lut and --blue-shift belong to durand00: ignored for %s", a.operator)
     if not getattr(get_operator(a.operator), "LOCAL", False):
         given = [f for f, v in (("--sigma-spatial", a.sigma_spatial),
                                 ("--bilateral-sampling", a.bilateral_sampling)) if v is not None]

@@ -17,6 +17,10 @@ Rods are metered on scotopic luminance Y', cones on photopic Y. Modes:
     fraction of the width (default 0.02, about 1 degree of a 50-degree view:
     the foveal weighting of Ward-Larson et al. 1997 used for Fig. 7);
     log-mean unless a fourth field ``mean``.
+``mask:PATH[:mean]``
+    a weight image (any format OIIO reads; the mean of its colour channels,
+    negatives and NaN as 0), resized to the frame; log-mean unless ``:mean``.
+    Durand & Dorsey 2000, Sec. 4.1's weight texture.
 ``percentile:P``
     the P-th percentile (0-100). The reference is exact; the device bins
     log10 L in ``HIST_BINS`` bins over [HIST_LO, HIST_HI) and interpolates,
@@ -47,11 +51,20 @@ class MeteringSpec:
     y: float = 0.5
     sigma: float = 0.02
     percentile: float = 50.0
+    mask: str | None = None
 
     @classmethod
     def parse(cls, text: str | None) -> "MeteringSpec":
         if not text:
             return cls()
+        if text.lower().startswith("mask:"):
+            path, stat = text[5:], "logmean"
+            for suffix in (":mean", ":logmean"):
+                if path.lower().endswith(suffix):
+                    path, stat = path[: -len(suffix)], suffix[1:]
+            if not path:
+                raise ValueError("bad --metering mask: give the weight image, mask:PATH[:mean]")
+            return cls("mask", stat, mask=path)
         head, _, rest = text.partition(":")
         head = head.strip().lower().replace("center", "centre")
         fields = [f.strip() for f in rest.split(",")] if rest else []
@@ -82,7 +95,7 @@ class MeteringSpec:
         except ValueError:
             pass
         raise ValueError(f"bad --metering {text!r}: use logmean | mean | max | centre[:mean] | "
-                         "spot:X,Y[,SIGMA][,mean] | percentile:P")
+                         "spot:X,Y[,SIGMA][,mean] | mask:PATH[:mean] | percentile:P")
 
     def describe(self) -> str:
         if self.mode == "spot":
@@ -91,6 +104,8 @@ class MeteringSpec:
             return f"centre:{self.statistic}"
         if self.mode == "percentile":
             return f"percentile:{self.percentile:g}"
+        if self.mode == "mask":
+            return f"mask:{self.mask}:{self.statistic}"
         return self.mode
 
     # -- weights -------------------------------------------------------------
@@ -106,7 +121,36 @@ class MeteringSpec:
                     (1 - CENTRE_FRACTION) / n_out * width * height)
         if self.mode == "spot":
             return 2, self.x * width, self.y * height, self.sigma * width, 1.0, 1.0
+        if self.mode == "mask":
+            return 3, 0.0, 0.0, 1.0, 1.0, 1.0
         return 0, 0.0, 0.0, 1.0, 1.0, 1.0
+
+    def mask_weights(self, width: int, height: int) -> np.ndarray:
+        """The mask image resized to (height, width), float32 weights >= 0."""
+        return _mask_weights(self.mask, width, height)
+
+
+@functools.lru_cache(maxsize=8)
+def _mask_weights(path: str, width: int, height: int) -> np.ndarray:
+    import os
+    import OpenImageIO as oiio
+    if not os.path.exists(path):
+        raise ValueError(f"metering mask {path}: no such file")
+    buf = oiio.ImageBuf(path)
+    if buf.has_error:
+        raise ValueError(f"metering mask {path}: cannot read: {buf.geterror().strip()}")
+    spec = buf.spec()
+    if (spec.width, spec.height) != (width, height):
+        buf = oiio.ImageBufAlgo.resize(buf, roi=oiio.ROI(0, width, 0, height, 0, 1, 0,
+                                                           spec.nchannels))
+    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float64).reshape(height, width, -1)
+    nc = px.shape[2]
+    colour = [i for i in range(nc) if i != spec.alpha_channel] or [0]
+    w = np.nan_to_num(px[..., colour[:3]].mean(axis=2), nan=0.0, posinf=0.0, neginf=0.0)
+    w = np.maximum(w, 0.0)
+    if not w.sum() > 0:
+        raise ValueError(f"metering mask {path}: no positive weight")
+    return w.astype(np.float32)
 
 
 @functools.lru_cache(maxsize=32)
@@ -124,6 +168,8 @@ def weights(spec: MeteringSpec, width: int, height: int, y0: int = 0, rows: int 
     mode, p0, p1, p2, w_in, w_out = spec.weight_params(width, height)
     if mode == 0:
         return np.ones((rows, width))
+    if mode == 3:
+        return spec.mask_weights(width, height)[y0:y0 + rows].astype(np.float64)
     x = np.arange(width) + 0.5
     y = np.arange(y0, y0 + rows) + 0.5
     d2 = (x[None, :] - p0) ** 2 + (y[:, None] - p1) ** 2
@@ -225,6 +271,21 @@ class DeviceMeter:
         self._k_partial = rt.kernel("metering.cl", "meter_partial")
         self._k_final = rt.kernel("metering.cl", "meter_final")
         self._k_hist = rt.kernel("metering.cl", "log_histogram")
+        self._no_mask = cl.Buffer(rt.context, mf.READ_ONLY, 4)
+        self._mask_key = None
+        self._mask_buf = None
+
+    def _mask(self, spec: MeteringSpec, width: int, height: int):
+        import pyopencl as cl
+        if spec.mode != "mask":
+            return self._no_mask
+        key = (spec.mask, width, height)
+        if key != self._mask_key:
+            self._mask_buf = cl.Buffer(self.rt.context,
+                                       cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                       hostbuf=spec.mask_weights(width, height))
+            self._mask_key = key
+        return self._mask_buf
 
     def band_sums(self, y_buf, ys_buf, n: int, width: int, height: int, y0: int,
                   spec: MeteringSpec) -> MeterSums:
@@ -236,7 +297,8 @@ class DeviceMeter:
         scratch = cl.LocalMemory(self.WG * 8 * 4)
         self._k_partial(q, (groups * self.WG,), (self.WG,), y_buf, ys_buf, np.int32(n),
                         np.int32(width), np.int32(y0), np.int32(mode), f(p0), f(p1), f(p2),
-                        f(w_in), f(w_out), f(LOG_FLOOR), self.partial, scratch)
+                        f(w_in), f(w_out), f(LOG_FLOOR), self._mask(spec, width, height),
+                        self.partial, scratch)
         self._k_final(q, (self.WG,), (self.WG,), self.partial, np.int32(groups), self.result,
                       scratch)
         out = np.empty(8, np.float32)

@@ -9,6 +9,9 @@ An operator module provides, in the papers' terms:
 ``map_reference(rgb, Y, Ys, params)``   float64 per-pixel pass;
 ``map_opencl(rt, rgb, Y, Ys, out, n, params)``   the same on the device.
 
+A global operator may take options (``OPTIONS``, a tuple of names), passed
+as keywords to ``frame_params``.
+
 A *local* operator (``LOCAL = True``) keeps per-pixel state instead and
 provides ``make_observer(options, display, preadapt)``, an object with
 ``process_reference`` / ``process_opencl`` (one frame), ``pixel_state()`` and
@@ -25,6 +28,9 @@ REGISTRY = {
                     "Pattanaik, Tumblin, Yee & Greenberg 2000: time-dependent global adaptation"),
     "ledda04": ("ocl_tonemap.ledda04",
                 "Ledda, Santos & Chalmers 2004: local (bilateral) adaptation, dark/light time course"),
+    "durand00": ("ocl_tonemap.durand00",
+                 "Durand & Dorsey 2000: Ferwerda threshold mapping, mesopic blue shift, "
+                 "light and chromatic adaptation"),
 }
 
 

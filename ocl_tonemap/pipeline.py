@@ -18,6 +18,7 @@ import numpy as np
 from .adaptation import AdaptationState
 from .backends import make_backend
 from .display import DisplaySpec
+from .effects import EffectSettings, Effects
 from .metering import MeteringSpec
 from .operators import get_operator
 from .photometry import RepairCounts
@@ -35,6 +36,7 @@ class FrameInfo:
     repairs: RepairCounts
     state: AdaptationState
     params: dict = field(default_factory=dict)
+    effects: dict = field(default_factory=dict)
 
 
 class Tonemapper:
@@ -51,7 +53,10 @@ class Tonemapper:
     state : an :class:`AdaptationState` to resume from.
     device : OpenCL device spec (see ``runtime.choose_device``).
     max_band_pixels : process larger frames in row bands (device memory).
-    options : operator options (local operators: see e.g. ``ledda04.make_observer``).
+    options : operator options (local operators: see e.g. ``ledda04.make_observer``;
+        durand00: ``tint``, ``lut``).
+    effects : :class:`~ocl_tonemap.effects.EffectSettings` (flare, acuity, chromatic
+        adaptation); default: on ``auto`` for durand00, off for the others.
     """
 
     def __init__(self, operator: str = "pattanaik00", backend: str = "opencl",
@@ -59,7 +64,8 @@ class Tonemapper:
                  display: DisplaySpec | None = None,
                  preadapt: tuple[float, float | None] | None = None,
                  state: AdaptationState | None = None, device: str | None = None,
-                 max_band_pixels: int | None = None, options: dict | None = None):
+                 max_band_pixels: int | None = None, options: dict | None = None,
+                 effects: EffectSettings | None = None):
         self.operator_name = operator
         self.op = get_operator(operator)
         self.backend = make_backend(backend, device, max_band_pixels)
@@ -78,7 +84,13 @@ class Tonemapper:
             self.local = self.op.make_observer(options, self.display, preadapt)
             self.local.set_pixel_state(self._state.pixels)
         elif options:
-            raise ValueError(f"operator {operator} takes no options ({', '.join(options)})")
+            known = getattr(self.op, "OPTIONS", ())
+            bad = [k for k in options if k not in known]
+            if bad:
+                raise ValueError(f"operator {operator} takes no option(s) {', '.join(bad)}"
+                                 + (f" (it takes {', '.join(known)})" if known else ""))
+        self.options = {k: v for k, v in (options or {}).items() if v is not None}
+        self.effects = Effects(effects or EffectSettings.for_operator(operator), self.backend)
         self.last: FrameInfo | None = None
         self.last_output: np.ndarray | None = None
 
@@ -102,13 +114,16 @@ class Tonemapper:
 
     # -- frames ----------------------------------------------------------------
     def process(self, frame: np.ndarray, dt: float | None = None, time_s: float | None = None,
-                frame_number: int | None = None, luminance_scale: float = 1.0) -> np.ndarray:
+                frame_number: int | None = None, luminance_scale: float = 1.0,
+                illuminant=None) -> np.ndarray:
         """Tone map one working-space frame (H x W x 3 or 4, float).
 
         ``frame * luminance_scale`` must be cd/m^2. Time advances by ``dt``
         seconds, or to the absolute ``time_s``; the first frame of a fresh
         observer needs neither. Returns display-linear float32 of the same
         shape; a 4th (alpha) channel is passed through unchanged.
+        ``illuminant``: the frame's own illuminant (working RGB, e.g. from EXR
+        ``adoptedNeutral``) for chromatic adaptation, below a user value.
         """
         pix = np.asarray(frame)
         if pix.ndim == 2:
@@ -134,11 +149,18 @@ class Tonemapper:
         if not math.isfinite(step_dt) or step_dt < 0:
             raise ValueError(f"time goes backwards or is not finite: last frame at {st.time_s} s, "
                              f"this one at {time_s} s")
+        orig = pix
+        eff: dict = {}
+        pre_repairs = None
+        pix, luminance_scale, pre_repairs = self._pre_effects(pix, luminance_scale, eff, step_dt,
+                                                              fresh, illuminant)
         if self.local is not None:
-            return self._process_local(pix, luminance_scale, step_dt, fresh, time_s, frame_number)
+            return self._process_local(pix, orig, luminance_scale, step_dt, fresh, time_s,
+                                       frame_number, eff, pre_repairs)
         holder = {}
+        fx = self.effects
 
-        def step(G_rod: float, G_cone: float):
+        def step(G_rod: float, G_cone: float, estimate):
             if fresh:
                 if self.preadapt is not None:
                     st.values = self.op.preadapted(*self.preadapt)
@@ -147,16 +169,49 @@ class Tonemapper:
             else:
                 st.values = self.op.advance(st.values, G_rod, G_cone, step_dt)
             st.time_s, st.frame = float(time_s), frame_number
-            p = self.op.frame_params(st, self.display)
+            p = self.op.frame_params(st, self.display, **self.options)
             holder["params"] = p
-            return p
+            gains = None
+            if fx.s.chromatic_adaptation != "off":
+                goal, src = fx.illuminant_goal(illuminant, estimate)
+                gains, eff["chromatic_adaptation"] = fx.chromatic(
+                    st.extra, goal, src, step_dt, fresh, self.preadapt is not None)
+            return p, gains
 
+        step.wants_illuminant = fx.s.chromatic_adaptation != "off"
         out, repairs, (G_rod, G_cone) = self.backend.process(pix, luminance_scale, self.metering,
                                                              self.op, step)
+        out, eff["acuity"] = fx.acuity(out, G_rod)
         p = holder["params"]
-        self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone, repairs,
-                              st.copy(), p.as_dict() if hasattr(p, "as_dict") else {})
-        return self._finish(out, pix)
+        self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone,
+                              pre_repairs or repairs, st.copy(),
+                              p.as_dict() if hasattr(p, "as_dict") else {}, eff)
+        return self._finish(out, orig)
+
+    def _pre_effects(self, pix, scale, eff: dict, dt: float, fresh: bool, illuminant):
+        """Effects on the scene before the operator: flares (every operator) and,
+        for local operators, chromatic adaptation. Returns the frame to tone map
+        (cd/m^2 with scale 1 when changed) and the repairs of the original."""
+        fx = self.effects
+        local_chroma = self.local is not None and fx.s.chromatic_adaptation != "off"
+        if fx.s.flare == "off" and not local_chroma:
+            return pix, scale, None
+        rgb, repairs, (G_rod, G_cone), estimate = self.backend.working(pix, scale, self.metering)
+        changed = False
+        new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)
+        if new is not None:
+            rgb, changed = new, True
+        if local_chroma:
+            goal, src = fx.illuminant_goal(illuminant, estimate)
+            gains, eff["chromatic_adaptation"] = fx.chromatic(
+                self._state.extra, goal, src, dt, fresh, self.preadapt is not None)
+            if gains is not None:
+                rgb, changed = (rgb * gains).astype(np.float32), True
+        if not changed:
+            return pix, scale, None
+        if pix.shape[2] == 4:
+            rgb = np.concatenate([rgb, pix[..., 3:4]], axis=2)
+        return np.ascontiguousarray(rgb, np.float32), 1.0, repairs
 
     def _finish(self, out: np.ndarray, pix: np.ndarray) -> np.ndarray:
         """Pass alpha through and remember the frame's output."""
@@ -165,19 +220,21 @@ class Tonemapper:
         self.last_output = out
         return out
 
-    def _process_local(self, pix, scale, dt, fresh, time_s, frame_number):
+    def _process_local(self, pix, orig, scale, dt, fresh, time_s, frame_number, eff,
+                       pre_repairs):
         st = self._state
         if self.backend.name == "reference":
             out, repairs, (G_rod, G_cone) = self.local.process_reference(pix, scale, dt, fresh)
         else:
             out, repairs, (G_rod, G_cone) = self.local.process_opencl(self.backend, pix, scale,
                                                                       dt, fresh)
+        out, eff["acuity"] = self.effects.acuity(out, G_rod)
         summ = self.local.summary.as_dict()
         st.values = {"logmean_I_A_cone": float(G_cone), "logmean_I_A_rod": float(G_rod)}
         st.time_s, st.frame, st.pixels = float(time_s), frame_number, None
-        self.last = FrameInfo(frame_number, float(time_s), dt, G_rod, G_cone, repairs, st.copy(),
-                              summ)
-        return self._finish(out, pix)
+        self.last = FrameInfo(frame_number, float(time_s), dt, G_rod, G_cone,
+                              pre_repairs or repairs, st.copy(), summ, eff)
+        return self._finish(out, orig)
 
     def process_imagebuf(self, buf, dt: float | None = None, time_s: float | None = None,
                          luminance_scale: float = 1.0):

@@ -20,6 +20,7 @@ from . import __version__
 from .adaptation import AdaptationState
 from .colour import ColourPipeline, input_colorspace, load_config
 from .display import display_for
+from .effects import illuminant_from_metadata
 from .imageio import (FrameError, default_scale, find_frames, frame_path, is_sequence,
                       read_frame, same_file, write_frame)
 from .pipeline import Tonemapper
@@ -58,6 +59,7 @@ class JobOptions:
     max_band_pixels: int | None = None
     progress: bool = False
     operator_options: dict | None = None
+    effects: object | None = None   # effects.EffectSettings; None: the operator's defaults
 
 
 @dataclass
@@ -140,7 +142,8 @@ def run_job(opts: JobOptions) -> JobResult:
             scale, scale_why = (opts.luminance_scale, "--luminance-scale") if opts.luminance_scale \
                 else default_scale(fr)
             scale *= 2.0 ** opts.exposure
-            tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale)
+            tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
+                       illuminant=illuminant_from_metadata(fr.spec))
             info = _write_output(opts, colour, disp, tm, fr, outp, f, t, f"{cs} ({why})",
                                  scale, scale_why, None)
         except FrameError:
@@ -179,7 +182,7 @@ def _make_tonemapper(opts: JobOptions, colour: ColourPipeline) -> Tonemapper:
     disp = display_for(colour.display, opts.display_white, opts.display_peak, opts.display_model)
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
     tm = Tonemapper(opts.operator, opts.backend, opts.metering, disp, opts.preadapt, state,
-                    opts.device, opts.max_band_pixels, opts.operator_options)
+                    opts.device, opts.max_band_pixels, opts.operator_options, opts.effects)
     log.info("backend: %s", tm.backend.describe())
     log.info("OCIO: working %s, display %r view %r -> %s", colour.working, colour.display,
              colour.view, colour.output_colorspace)
@@ -210,6 +213,8 @@ def _write_output(opts: JobOptions, colour: ColourPipeline, disp, tm: Tonemapper
         "ocltm:state": json.dumps(info.state.to_json(), sort_keys=True),
         "ocltm:params": json.dumps(info.params, sort_keys=True, default=float),
         "ocltm:repairs": json.dumps(info.repairs.as_dict(), sort_keys=True),
+        "ocltm:effects": json.dumps(info.effects, sort_keys=True, default=float),
+        "ocltm:effects_ran": ",".join(k for k, v in info.effects.items() if v.get("ran")) or "none",
     }
     meta.update(extra or {})
     write_frame(outp, encoded, fr.spec, colour.output_colorspace, meta, opts.out_bits, f)
@@ -272,12 +277,13 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
             else default_scale(fr)
         scale *= 2.0 ** opts.exposure
         t_now = 0.0
-        tm.process(pix, time_s=0.0, luminance_scale=scale)     # the moment of the switch
+        hint = illuminant_from_metadata(fr.spec)
+        tm.process(pix, time_s=0.0, luminance_scale=scale, illuminant=hint)  # the switch
         order = sorted(range(len(times)), key=lambda k: times[k])
         for k in order:
             t = times[k]
             if t > t_now:
-                tm.process(pix, time_s=t, luminance_scale=scale)
+                tm.process(pix, time_s=t, luminance_scale=scale, illuminant=hint)
                 t_now = t
             f, outp = outs[k]
             info = _write_output(opts, colour, disp, tm, fr, outp, f, t, f"{cs} ({why})",
