@@ -85,7 +85,9 @@ def pupil_diameter(L_wa) -> np.ndarray:
 
 def flare_weights(D: float) -> tuple[float, float, float, float]:
     """(w0, w1, w2, w3), Eq. 8: Spencer et al.'s photopic (D = 2 mm) to scotopic
-    (D = 7 mm) sets, linear in the pupil diameter."""
+    (D = 7 mm) sets, linear in the pupil diameter (held at the ends: the pupil
+    ranges over 1.9-7.9 mm, and w3 < 0 below 2 mm)."""
+    D = min(max(float(D), 2.0), 7.0)      # interpolate between the sets, never beyond
     w1 = 0.478
     w2 = 0.138 + 0.08 * (D - 2.0) / 5.0
     w3 = 0.033 * (D - 2.0) / 5.0
@@ -127,7 +129,15 @@ def basis_kernel(name: str, shape: tuple[int, int], deg_per_px: float) -> np.nda
             th = np.hypot(dx[0, xx][:, None] + ox.ravel(), dy[yy, 0][:, None] + oy.ravel())
             k[yy, xx] = fn(th * deg_per_px).mean(axis=1)
     k[r * deg_per_px > THETA_MAX] = 0.0
-    return k * (deg_per_px ** 2 / basis_norm(name))
+    k = k * (deg_per_px ** 2 / basis_norm(name))
+    k[h - 1, w - 1] = centre_energy(name, deg_per_px)
+    return k
+
+
+def centre_energy(name: str, deg_per_px: float) -> float:
+    """Energy share of the source's own pixel: the basis's energy within the disc of
+    equal area (f0 is 0.02 deg wide, below any supersampling of a large pixel)."""
+    return basis_energy_within(name, deg_per_px / math.sqrt(math.pi))
 
 
 def channel_bases(ch: int) -> tuple[str, str, str, str]:
@@ -183,8 +193,9 @@ class GaussianFit:
 def basis_energy_within(name: str, theta: float) -> float:
     """Share of a basis's energy within ``theta`` degrees of the source."""
     theta = min(theta, THETA_MAX)
-    t = np.concatenate([np.linspace(0.0, min(0.5, theta), 20001),
-                        np.geomspace(0.5, max(theta, 0.5), 20001)[1:]])
+    t = np.linspace(0.0, min(0.5, theta), 20001)
+    if theta > 0.5:
+        t = np.concatenate([t, np.geomspace(0.5, theta, 20001)[1:]])
     y = 2.0 * np.pi * t * _basis(name)(t)
     return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(t)) / basis_norm(name))
 
@@ -230,6 +241,10 @@ def fit_gaussians(shape: tuple[int, int], deg_per_px: float, per_octave: int = 1
                 prof[m] = _pixel_average(fn, ox[m], oy[m], deg_per_px, int(sv))
             prof = prof * (deg_per_px ** 2 / basis_norm(name))
             prof[r * deg_per_px > THETA_MAX] = 0.0
+            prof[r == 0] = centre_energy(name, deg_per_px)
+            if not prof.max() > 0:              # nothing of this basis reaches a pixel
+                weights[name], errs[name] = np.zeros(A.shape[1]), 0.0
+                continue
             scale = 1.0 / np.maximum(prof, prof.max() * 1e-6)
             E = basis_energy_within(name, R * deg_per_px)
             M = np.vstack([A * scale[:, None], FIT_ENERGY_WEIGHT * np.ones((1, A.shape[1]))])
@@ -242,10 +257,18 @@ def fit_gaussians(shape: tuple[int, int], deg_per_px: float, per_octave: int = 1
     return GaussianFit(tuple(sig), weights, errs)
 
 
-def pyramid_level(sigma: float, max_level: int, min_coarse: float = 1.0) -> tuple[int, float]:
+#: A Gaussian goes to the coarsest level where it is still this wide (coarse px):
+#: 1 px is 1.4x faster, 2 px cuts the largest error next to a source from 28% to 10%
+#: (benchmarks/results/flare.md).
+PYRAMID_MIN_SIGMA = 2.0
+
+
+def pyramid_level(sigma: float, max_level: int,
+                  min_coarse: float | None = None) -> tuple[int, float]:
     """(level, coarse sigma) for a Gaussian of ``sigma`` full-resolution px: the
     coarsest level where it is still >= ``min_coarse`` px wide after removing
     the pyramid's own variance ((4^l - 1)/3 px^2: box down + bilinear up)."""
+    min_coarse = PYRAMID_MIN_SIGMA if min_coarse is None else min_coarse
     best = (0, sigma)
     for lev in range(1, max_level + 1):
         v = sigma * sigma - (4.0 ** lev - 1.0) / 3.0
@@ -259,19 +282,21 @@ def pyramid_level(sigma: float, max_level: int, min_coarse: float = 1.0) -> tupl
 
 
 def _down2(a: np.ndarray) -> np.ndarray:
-    """2x2 box average, zero-padded to even size."""
+    """2x2 box average; an odd last row/column is repeated (edge padding)."""
     h, w = a.shape[:2]
-    p = np.zeros(((h + 1) // 2 * 2, (w + 1) // 2 * 2) + a.shape[2:], a.dtype)
-    p[:h, :w] = a
+    pad = [(0, h % 2), (0, w % 2)] + [(0, 0)] * (a.ndim - 2)
+    p = np.pad(a, pad, mode="edge") if (h % 2 or w % 2) else a
     return 0.25 * (p[0::2, 0::2] + p[1::2, 0::2] + p[0::2, 1::2] + p[1::2, 1::2])
 
 
 def _up2(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """Bilinear 2x upsampling (zero outside) to ``shape``: fine[2j] = .75 c[j] + .25 c[j-1]."""
+    """Bilinear 2x upsampling to ``shape``: fine[2j] = .75 c[j] + .25 c[j-1], the
+    coarse field held at its edges (it is smooth there: blurred light)."""
     def axis_up(x, n, ax):
-        z = np.zeros_like(np.take(x, [0], axis=ax))
-        prev = np.concatenate([z, x], axis=ax)[(slice(None),) * ax + (slice(0, -1),)]
-        nxt = np.concatenate([x, z], axis=ax)[(slice(None),) * ax + (slice(1, None),)]
+        first = np.take(x, [0], axis=ax)
+        last = np.take(x, [x.shape[ax] - 1], axis=ax)
+        prev = np.concatenate([first, x], axis=ax)[(slice(None),) * ax + (slice(0, -1),)]
+        nxt = np.concatenate([x, last], axis=ax)[(slice(None),) * ax + (slice(1, None),)]
         even, odd = 0.75 * x + 0.25 * prev, 0.75 * x + 0.25 * nxt
         out = np.stack([even, odd], axis=ax + 1)
         out = out.reshape(x.shape[:ax] + (2 * x.shape[ax],) + x.shape[ax + 1:])
@@ -279,6 +304,8 @@ def _up2(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return axis_up(axis_up(a, shape[0], 0), shape[1], 1)
 
 
+#: The coarsest pyramid level keeps at least this many pixels across.
+PYRAMID_MIN_SIZE = 16
 #: The halo ring (f3) is convolved directly on the coarsest level where its
 #: width (0.71 deg) is still this many pixels.
 RING_MIN_PX = 1.5
@@ -307,7 +334,7 @@ def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int 
     fit = fit_gaussians((h, w), float(deg_per_px), int(per_octave))
     w0, w1, w2, w3 = flare_weights(D)
     a = sum(wi * fit.weights[b] for wi, b in zip((w0, w1, w2), channel_bases(0)))
-    max_level = max(0, int(math.log2(max(1, min(h, w)))) - 1)
+    max_level = max(0, int(math.log2(max(1, min(h, w)) / PYRAMID_MIN_SIZE)))
     by_level: dict[int, list] = {}
     for k, sg in enumerate(fit.sigmas):
         if a[k + 1] > 0:
