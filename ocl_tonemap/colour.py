@@ -83,7 +83,10 @@ def input_colorspace(cfg: ocio.Config, path: str | None, file_cs: str | None,
     if _has_cs(cfg, file_cs):
         return cfg.getColorSpace(file_cs).getName(), "file oiio:ColorSpace"
     if path and not cfg.filepathOnlyMatchesDefaultRule(path):
-        return cfg.getColorSpaceFromFilepath(path), "config file rules"
+        cs = cfg.getColorSpaceFromFilepath(path)
+        if isinstance(cs, tuple):        # OCIO >= 2.x Python: (name, rule index)
+            cs = cs[0]
+        return cs, "config file rules"
     role = cfg.getRoleColorSpace("scene_linear") if hasattr(cfg, "getRoleColorSpace") else None
     if not role:
         cs = cfg.getColorSpace("scene_linear")

@@ -174,3 +174,59 @@ def test_simulate_dark_adaptation(sample_dir, tmp_path, capsys):
     assert all(os.path.exists(frame_path(pat, k)) for k in (1, 2, 3))
     assert main(["simulate", src, out, "--at", "1", "-q"]) == 2
     assert "needs --preadapt" in capsys.readouterr().err
+
+
+def test_durand_sequence_effects_metadata_and_chunks(sample_dir, tmp_path):
+    """durand00 with all effects: metadata says what ran; the chromatic and
+    light-adaptation state resumes across chunks bit for bit."""
+    pattern, frames = sample_dir
+    a, b = frames[0], frames[-1]
+    mid = (a + b) // 2
+    one, two = str(tmp_path / "one.####.exr"), str(tmp_path / "two.####.exr")
+    st = str(tmp_path / "state.json")
+    fx = ["--operator", "durand00", "--flare", "on", "--chromatic-adaptation", "on",
+          "--acuity", "on", "--fov", "8", "--out-bits", "float", "-q"]
+    assert main(["run", pattern, one, *fx]) == 0
+    assert main(["run", pattern, two, "--frames", f"{a}-{mid}", "--state-out", st, *fx]) == 0
+    saved = json.loads(open(st).read())
+    assert len(saved["extra"]["illuminant_rgb"]) == 3
+    assert set(saved["values"]) == {"inv_eps_rod", "inv_eps_cone", "L_waR", "L_wa"}
+    assert main(["run", pattern, two, "--frames", f"{mid + 1}-{b}", "--state-in", st, *fx]) == 0
+    for f in frames:
+        np.testing.assert_array_equal(pixels(frame_path(one, f)), pixels(frame_path(two, f)))
+    spec = oiio.ImageBuf(frame_path(one, b)).spec()
+    eff = json.loads(spec.getattribute("ocltm:effects"))
+    assert set(eff) == {"flare", "acuity", "chromatic_adaptation"}
+    assert eff["chromatic_adaptation"]["source"] == "estimate"
+    assert spec.getattribute("ocltm:effects_ran") == ",".join(
+        k for k, v in eff.items() if v["ran"])
+
+
+def test_adopted_neutral_and_mask_metering(tmp_path):
+    """An EXR's adoptedNeutral drives chromatic adaptation; a weight image meters."""
+    h, w = 24, 32
+    img = np.full((h, w, 3), 300.0, np.float32)
+    img[:, w // 2:] = 3.0                                    # dark right half
+    spec = oiio.ImageSpec(w, h, 3, oiio.FLOAT)
+    spec.attribute("adoptedNeutral", oiio.TypeDesc("float[2]"), (0.44757, 0.40745))  # A
+    src = oiio.ImageBuf(spec)
+    src.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, 3), img)
+    src.write(str(tmp_path / "in.exr"))
+    mask = np.zeros((h // 2, w // 2, 1), np.float32)
+    mask[:, w // 4:] = 1.0                                  # meter the right half only
+    mb = oiio.ImageBuf(oiio.ImageSpec(w // 2, h // 2, 1, oiio.FLOAT))
+    mb.set_pixels(oiio.ROI(0, w // 2, 0, h // 2, 0, 1, 0, 1), mask)
+    mb.write(str(tmp_path / "mask.exr"))
+    out_u, out_m = str(tmp_path / "u.exr"), str(tmp_path / "m.exr")
+    base = [str(tmp_path / "in.exr")]
+    assert main(["run", *base, out_u, "--operator", "durand00", "--out-bits", "float", "-q"]) == 0
+    assert main(["run", *base, out_m, "--operator", "durand00", "--out-bits", "float", "-q",
+                 "--metering", f"mask:{tmp_path / 'mask.exr'}"]) == 0
+    su, sm = oiio.ImageBuf(out_u).spec(), oiio.ImageBuf(out_m).spec()
+    gu, gm = (json.loads(s.getattribute("ocltm:goal"))["G_cone"] for s in (su, sm))
+    assert gm < 10 < gu                                     # the mask looked at the dark half
+    eff = json.loads(su.getattribute("ocltm:effects"))["chromatic_adaptation"]
+    assert eff["source"] == "adoptedNeutral" and eff["ran"]
+    assert eff["gains"][2] > 2 * eff["gains"][0]             # tungsten: boost blue
+    assert main(["run", *base, str(tmp_path / "x.exr"), "--operator", "durand00", "-q",
+                 "--metering", f"mask:{tmp_path / 'nope.exr'}"]) == 2
