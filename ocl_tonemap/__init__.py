@@ -1,7 +1,7 @@
 """ocl-tonemap: how a human observer would see an HDR scene or shot.
 
-Time-dependent visual adaptation operators (Pattanaik et al. 2000, with
-Ledda 2004, Durand & Dorsey 2000 and Kirk & O'Brien 2011 to follow) on
+Time-dependent visual adaptation operators (Pattanaik et al. 2000, Ledda et
+al. 2004, Durand & Dorsey 2000; Kirk & O'Brien 2011 to follow) on
 OpenCL, with a float64 NumPy reference, for OpenImageIO/OpenColorIO
 pipelines. See README.md; the Python API is :class:`Tonemapper`.
 """
@@ -10,7 +10,9 @@ __version__ = "0.1.0"
 
 from .adaptation import AdaptationState  # noqa: E402
 from .display import DisplaySpec  # noqa: E402
+from .effects import EffectSettings  # noqa: E402
 from .metering import MeteringSpec  # noqa: E402
 from .pipeline import Tonemapper  # noqa: E402
 
-__all__ = ["Tonemapper", "AdaptationState", "DisplaySpec", "MeteringSpec", "__version__"]
+__all__ = ["Tonemapper", "AdaptationState", "DisplaySpec", "EffectSettings", "MeteringSpec",
+           "__version__"]

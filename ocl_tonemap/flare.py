@@ -162,13 +162,20 @@ def source_part(rgb: np.ndarray, L_wa: float, threshold: float = DEFAULT_THRESHO
     return rgb * f[..., None]
 
 
-def _fftconvolve_same(img: np.ndarray, kern: np.ndarray) -> np.ndarray:
+def _fftconvolve_same(img: np.ndarray, kern: np.ndarray, kern_fft=None) -> np.ndarray:
     """Linear convolution of (H, W) with a (2H-1, 2W-1) centred kernel, cropped to (H, W)."""
     h, w = img.shape
     H, W = 3 * h - 2, 3 * w - 2
-    F = np.fft.rfft2(img, (H, W)) * np.fft.rfft2(kern, (H, W))
-    full = np.fft.irfft2(F, (H, W))
+    KF = kern_fft if kern_fft is not None else np.fft.rfft2(kern, (H, W))
+    full = np.fft.irfft2(np.fft.rfft2(img, (H, W)) * KF, (H, W))
     return full[h - 1:2 * h - 1, w - 1:2 * w - 1]
+
+
+@functools.lru_cache(maxsize=8)
+def _ring_kernel_fft(shape: tuple[int, int], deg_per_px: float, ch: int) -> np.ndarray:
+    """FFT of the normalised f3 kernel of channel ``ch`` for the fast method's ring level."""
+    h, w = shape
+    return np.fft.rfft2(basis_kernel(channel_bases(ch)[3], shape, deg_per_px), (3 * h - 2, 3 * w - 2))
 
 
 def convolve_exact(src: np.ndarray, deg_per_px: float, D: float) -> np.ndarray:
@@ -356,8 +363,8 @@ def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int 
         if lev == lring:
             lv = levels[lev]
             dl = deg_per_px * 2.0 ** lev
-            ring = np.stack([_fftconvolve_same(lv[..., c], w3 * basis_kernel(
-                channel_bases(c)[3], lv.shape[:2], dl)) for c in range(3)], axis=-1)
+            ring = np.stack([w3 * _fftconvolve_same(lv[..., c], None, _ring_kernel_fft(
+                lv.shape[:2], dl, c)) for c in range(3)], axis=-1)
             part = ring if part is None else part + ring
         if part is not None:
             acc = part if acc is None else acc + part

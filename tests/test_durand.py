@@ -210,10 +210,14 @@ def test_acuity_blur_widens_monotonically_as_light_falls():
     assert np.all(np.diff(sig) <= 0)                                  # never less blur in the dark
     inside = (np.log10(L) > -3.5) & (np.log10(L) < 3.0)
     assert np.all(np.diff(sig[inside]) < 0)
-    # Ferwerda's G(omega) = eps_R / L is not monotone: it rises again at low light
-    ratio = dd.threshold_rod(L) / L
-    assert np.any(np.diff(ratio) > 0) and np.any(np.diff(ratio) < 0) or \
-        np.all(np.diff(ratio) < 0)
+    # Ferwerda's criterion G(omega) = eps_R(L)/L (Eq. 9) gives a blur that
+    # narrows again as light falls below the rods' absolute threshold
+    Lf = 10.0 ** np.linspace(-3.5, -1.0, 200)
+    g = dd.threshold_rod(Lf) / Lf
+    ok = g < 1
+    a_f = fx.acuity_cutoff(Lf[ok]) * np.sqrt(np.pi / -np.log(g[ok]))
+    sig_f = 1.0 / (a_f * np.sqrt(2 * np.pi))
+    assert np.any(np.diff(sig_f) > 0) and np.any(np.diff(sig_f) < 0)
     assert fx.ACUITY_A_PER_OMEGA == pytest.approx(1.86, abs=0.005)   # Eq. 10
 
 
