@@ -23,7 +23,7 @@ import numpy as np
 
 from . import flare as fl
 from .adaptation import exponential_step
-from .convolution import EDGE_CLAMP, blur_reference, gaussian_taps
+from .convolution import EDGE_CLAMP, EDGE_ZERO, blur_reference, gaussian_taps
 from .photometry import RGB709_TO_XYZ, Y_WEIGHTS
 
 MODES = ("on", "off", "auto")
@@ -224,6 +224,14 @@ class Effects:
             from .convolution import DeviceBlur
             self._blur = DeviceBlur(backend.rt, backend.max_band_pixels)
 
+    def _device_blur(self, edge: int):
+        """``blur(img, taps)`` on the device, or None (the float64 reference) on the
+        reference backend."""
+        if self._blur is None:
+            return None
+        dev = self._blur
+        return lambda img, taps: dev.blur(img, taps, edge)
+
     # flare ----------------------------------------------------------------
     def flare(self, rgb: np.ndarray, G_rod: float, G_cone: float):
         """(new rgb or None, info) for one frame in cd/m^2."""
@@ -233,14 +241,9 @@ class Effects:
             Ymax = float(np.max(rgb.reshape(-1, 3) @ Y_WEIGHTS, initial=0.0))
             if not Ymax > self.s.flare_threshold * G_cone:
                 return None, {"ran": False, "reason": "no light sources"}
-        blur = None
-        if self._blur is not None:
-            dev = self._blur
-
-            def blur(img, taps):
-                return dev.blur(img, taps)
         out, info = fl.apply_flare(rgb, G_cone, G_rod, self.s.fov_deg, self.s.flare_method,
-                                   self.s.flare_threshold, self.s.flare_per_octave, blur)
+                                   self.s.flare_threshold, self.s.flare_per_octave,
+                                   self._device_blur(EDGE_ZERO))
         info["ran"] = info["sources"] > 0
         return out.astype(np.float32), info
 
@@ -275,12 +278,6 @@ class Effects:
     def acuity(self, img: np.ndarray, G_rod: float):
         if self.s.acuity == "off":
             return img, {"ran": False}
-        blur = None
-        if self._blur is not None:
-            dev = self._blur
-
-            def blur(im, taps):
-                return dev.blur(im, taps, EDGE_CLAMP)
-        out, info = apply_acuity(img, G_rod, self.s.fov_deg, blur)
+        out, info = apply_acuity(img, G_rod, self.s.fov_deg, self._device_blur(EDGE_CLAMP))
         info["ran"] = info["blend"] > 0
         return out, info
