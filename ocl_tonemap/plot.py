@@ -13,12 +13,13 @@ import numpy as np
 from .photometry import neutral_scotopic_ratio
 
 
-def mapping_curve(op, state, display, L: np.ndarray) -> np.ndarray:
-    """Display luminance (cd/m^2) of neutral scene luminances ``L`` for one state."""
-    p = op.frame_params(state, display)
+def mapping_curve(op, state, display, L: np.ndarray, options: dict | None = None) -> np.ndarray:
+    """Display luminance (cd/m^2) of neutral scene luminances ``L`` for one state
+    of a global operator."""
+    p = op.frame_params(state, display, **(options or {}))
     rgb = np.repeat(L[:, None], 3, axis=1)
     out = op.map_reference(rgb, L, L * neutral_scotopic_ratio(), p)
-    return out[:, 1] * p.display.unit_cd
+    return out[:, 1] * display.unit_cd
 
 
 def default_plot_frames(infos, count: int = 6) -> list[int]:
@@ -58,21 +59,33 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     ax = axes[1]
-    for k, c in (("B_cone", "k"), ("B_rod", "b")):
-        if k in infos[0].state.values:
+    if "B_cone" in infos[0].state.values:
+        for k, c in (("B_cone", "k"), ("B_rod", "b")):
             ax.plot(t, val(k), c, label=k)
-    ax.set_yscale("log")
-    ax.set_ylabel("bleaching B")
+        ax.set_ylabel("bleaching B")
+    elif "m_cone" in infos[0].params:                  # durand00: threshold-mapping factors
+        for k, c in (("m_cone", "k"), ("m_rod", "b")):
+            ax.plot(t, [i.params[k] for i in infos], c, label=k)
+        ax.set_ylabel("scale factor m")
+    else:
+        ax.text(0.5, 0.5, "per-pixel state (see the state's .pixels.exr)", ha="center",
+                transform=ax.transAxes)
+    if ax.lines:
+        ax.set_yscale("log")
+        ax.legend(loc="best", fontsize=8)
     ax.set_xlabel("time (s)")
-    ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     ax = axes[2]
     picks = frames if frames else default_plot_frames(infos)
     L = np.logspace(-4, 6, 241)
+    if tm.local is not None:                 # no single curve: each pixel has its own
+        picks = []
+        ax.text(0.5, 0.5, "local operator: the mapping differs per pixel", ha="center",
+                transform=ax.transAxes)
     for idx in picks:
         idx = min(max(int(idx), 0), len(infos) - 1)
         inf = infos[idx]
-        Ld = mapping_curve(tm.op, inf.state, tm.display, L)
+        Ld = mapping_curve(tm.op, inf.state, tm.display, L, tm.options)
         lab = f"t={inf.time_s:.2f}s" + (f" (frame {inf.frame})" if inf.frame is not None else "")
         ax.plot(np.log10(L), lg(Ld), label=lab)
         for ti in (idx,):
@@ -82,7 +95,8 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
     ax.set_xlabel("scene luminance, log10 cd/m^2")
     ax.set_ylabel("display luminance, log10 cd/m^2")
     ax.set_title("scene-to-display mapping (dashed: display white and black)")
-    ax.legend(loc="best", fontsize=8)
+    if picks:
+        ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

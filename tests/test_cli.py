@@ -101,6 +101,16 @@ def test_single_image_png_and_plot(sample_dir, tmp_path):
     assert plot.stat().st_size > 10_000
 
 
+@pytest.mark.parametrize("operator", ["durand00", "ledda04"])
+def test_plot_for_every_operator(sample_dir, tmp_path, operator):
+    pattern, frames = sample_dir
+    plot = tmp_path / "plot.png"
+    assert main(["run", pattern, str(tmp_path / "o.####.png"), "--frames",
+                 f"{frames[0]}-{frames[5]}", "--operator", operator, "--plot", str(plot),
+                 "-q"]) == 0
+    assert plot.stat().st_size > 10_000
+
+
 def test_bad_arguments_are_clear(sample_dir, tmp_path, capsys):
     pattern, _ = sample_dir
     assert main(["run", pattern, str(tmp_path / "o.png"), "-q"]) != 0
