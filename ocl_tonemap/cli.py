@@ -45,7 +45,7 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
     p.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
     p.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
-    g = p.add_argument_group("local operators (ledda04)")
+    g = p.add_argument_group("local operators (ledda04, kirk11)")
     g.add_argument("--sigma-spatial", type=float,
                    help="bilateral spatial sigma, pixels (default: 2%% of the larger side)")
     g.add_argument("--bilateral", choices=["auto", "exact", "fast"], default="auto",
@@ -61,6 +61,16 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--lut", type=int, default=0, metavar="N",
                    help="evaluate the mapping through per-frame tables of N entries over 12 "
                    "decades (Sec. 5; the paper uses 2000); 0 = direct (default)")
+    g = p.add_argument_group("kirk11 (spectral EXR input is used when present)")
+    g.add_argument("--kappa", choices=["full", "adaptive"],
+                   help="rod mixing: full scotopic values (the paper, default) or following "
+                   "the frame's mesopic level")
+    g.add_argument("--shift-scale", metavar="X,Y,Z",
+                   help="Purkinje shift scales of Eq. 12 (default 15,15,5)")
+    g.add_argument("--night-dim", type=float, metavar="GAMMA",
+                   help="range kept by fully scotopic pixels (default 0.25; 1 = no dimming)")
+    g.add_argument("--target-contrast", type=float,
+                   help="base-layer contrast after Durand & Dorsey 2002 compression (default 5)")
     g = p.add_argument_group("effects (every operator; default auto for durand00, else off)")
     for name, what in (("flare", "glare of light sources (Spencer et al. 1995)"),
                        ("acuity", "loss of acuity in the dark (Shaler 1937)"),
@@ -105,14 +115,14 @@ def _effects(a):
         flare_threshold=a.flare_threshold, flare_per_octave=a.flare_sampling)
 
 
-def _tint(text: str) -> tuple:
+def _triple(text: str, flag: str) -> tuple:
     try:
         t = tuple(float(v) for v in text.split(","))
         if len(t) != 3 or min(t) < 0:
             raise ValueError
         return t
     except ValueError:
-        raise ValueError(f"bad --blue-shift {text!r}: three non-negative numbers R,G,B") from None
+        raise ValueError(f"bad {flag} {text!r}: three non-negative numbers a,b,c") from None
 
 
 def _operator_options(a) -> dict | None:
@@ -122,7 +132,7 @@ def _operator_options(a) -> dict | None:
         if a.lut and not (2 <= a.lut <= 1 << 20):
             raise ValueError(f"--lut must be 0 or 2 .. 1048576 entries (got {a.lut})")
         if a.blue_shift:
-            opts["tint"] = _tint(a.blue_shift)
+            opts["tint"] = _triple(a.blue_shift, "--blue-shift")
         return opts
     if a.lut or a.blue_shift:
         log.warning("--lut and --blue-shift belong to durand00: ignored for %s", a.operator)
@@ -134,8 +144,16 @@ def _operator_options(a) -> dict | None:
                         ", ".join(given + [x for x, v in (("--bilateral", a.bilateral),
                                                           ("--rods", a.rods)) if v != "auto"]))
         return None
-    return {"sigma_spatial": a.sigma_spatial, "bilateral": a.bilateral,
+    opts = {"sigma_spatial": a.sigma_spatial, "bilateral": a.bilateral,
             "bilateral_sampling": a.bilateral_sampling, "rods": a.rods}
+    kirk = {"kappa": a.kappa, "gamma": a.night_dim, "target_contrast": a.target_contrast,
+            "shift_xyz": _triple(a.shift_scale, "--shift-scale") if a.shift_scale else None}
+    if a.operator == "kirk11":
+        opts.update(kirk)
+    elif any(v is not None for v in kirk.values()):
+        log.warning("--kappa, --night-dim, --target-contrast and --shift-scale belong to "
+                    "kirk11: ignored for %s", a.operator)
+    return opts
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -153,6 +153,21 @@ class ColourPipeline:
         _apply(proc, pixels)
         return pixels
 
+    def display_primaries(self) -> np.ndarray:
+        """(3, 3): column c is the working-space linear RGB of the display's primary c
+        (through the inverse display/view transform), scaled so that the columns
+        sum to luminance 1. For a BT.709 display this is the identity."""
+        proc = self.cfg.getProcessor(self.working, self.display, self.view,
+                                     ocio.TRANSFORM_DIR_INVERSE).getDefaultCPUProcessor()
+        codes = np.array([[[0.5, 0, 0], [0, 0.5, 0], [0, 0, 0.5], [0, 0, 0]]], np.float32)
+        _apply(proc, codes)
+        D = (codes[0, :3] - codes[0, 3]).T.astype(np.float64)
+        from .photometry import Y_WEIGHTS
+        y = float(Y_WEIGHTS @ D.sum(axis=1))
+        if not (np.all(np.isfinite(D)) and y > 0):
+            return np.eye(3)
+        return D / y
+
     def encode(self, display_linear: np.ndarray) -> np.ndarray:
         """Display-linear working-space RGB -> display encoding (new array)."""
         out = np.array(display_linear, dtype=np.float32, copy=True, order="C")

@@ -117,6 +117,9 @@ class Frame:
     fps: float | None
     timestamp: float | None
     format_name: str
+    wavelengths: np.ndarray | None = None   # spectral channels (nm), when the file has them
+    spectral: np.ndarray | None = None      # (H, W, N) spectral radiance
+    rgb_from_spectrum: bool = False         # pixels were computed from the spectrum (working RGB)
 
 
 def _fps(spec) -> float | None:
@@ -149,14 +152,53 @@ def read_frame(path: str, frame: int | None = None) -> Frame:
     pix = np.asarray(pix, np.float32)
     if pix.ndim == 4:  # volume images: take the first slice
         pix = pix[0]
-    from .pipeline import _rgb_alpha_indices
-    pix = np.ascontiguousarray(pix[..., _rgb_alpha_indices(spec)])
+    if pix.ndim == 2:
+        pix = pix[..., None]
+    lam, cube = _spectral_part(spec, pix, path, frame)
+    names = [n.split(".")[-1].upper() for n in spec.channelnames]
+    from_spectrum = False
+    if lam is not None and not all(c in names for c in "RGB"):
+        from .lmsr import spectral_to_rgb
+        pix = spectral_to_rgb(lam, cube).astype(np.float32)     # working RGB, cd/m^2
+        from_spectrum = True
+    else:
+        from .pipeline import _rgb_alpha_indices
+        pix = np.ascontiguousarray(pix[..., _rgb_alpha_indices(spec)])
     wl = spec.getattribute("whiteLuminance")
     ts = spec.getattribute("ocltm:timestamp")
     fmt = buf.file_format_name
     return Frame(path, frame, pix, spec, spec.getattribute("oiio:ColorSpace") or None,
                  float(wl) if isinstance(wl, (int, float)) and wl > 0 else None, _fps(spec),
-                 float(ts) if isinstance(ts, (int, float)) else None, fmt)
+                 float(ts) if isinstance(ts, (int, float)) else None, fmt, lam, cube,
+                 from_spectrum)
+
+
+_SPECTRAL_CHANNEL = re.compile(r"^(?:S0\.)?(\d+(?:[.,]\d*)?)\s*nm$|^(\d{3}(?:[.,]\d*)?)$",
+                               re.IGNORECASE)
+#: Fewest wavelength-named channels that make a file spectral.
+MIN_SPECTRAL_CHANNELS = 4
+
+
+def spectral_channels(names) -> list[tuple[int, float]]:
+    """(index, wavelength nm) of the channels named by wavelength: the spectral
+    OpenEXR convention ``S0.<wl>nm`` (Fichet et al. 2021; a comma may stand for
+    the decimal point) or plain ``<wl>nm`` / ``<wl>`` names, sorted by wavelength."""
+    out = []
+    for i, n in enumerate(names):
+        m = _SPECTRAL_CHANNEL.match(n.strip())
+        if m:
+            out.append((i, float((m.group(1) or m.group(2)).replace(",", "."))))
+    return sorted(out, key=lambda t: t[1]) if len(out) >= MIN_SPECTRAL_CHANNELS else []
+
+
+def _spectral_part(spec, pix_all: np.ndarray, path: str, frame):
+    chans = spectral_channels(spec.channelnames)
+    if not chans:
+        return None, None
+    lam = np.array([w for _, w in chans])
+    if np.any(np.diff(lam) <= 0):
+        raise FrameError(path, frame, "spectral channels repeat a wavelength")
+    return lam, np.ascontiguousarray(pix_all[..., [i for i, _ in chans]], np.float32)
 
 
 def default_scale(fr: Frame) -> tuple[float, str]:

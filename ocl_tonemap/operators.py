@@ -31,6 +31,9 @@ REGISTRY = {
     "durand00": ("ocl_tonemap.durand00",
                  "Durand & Dorsey 2000: Ferwerda threshold mapping, mesopic blue shift, "
                  "light and chromatic adaptation"),
+    "kirk11": ("ocl_tonemap.kirk11",
+               "Kirk & O'Brien 2011: Purkinje colour shift (rods in the cone pathways), "
+               "bilateral range reduction, mesopic dimming"),
 }
 
 

@@ -115,7 +115,7 @@ class Tonemapper:
     # -- frames ----------------------------------------------------------------
     def process(self, frame: np.ndarray, dt: float | None = None, time_s: float | None = None,
                 frame_number: int | None = None, luminance_scale: float = 1.0,
-                illuminant=None) -> np.ndarray:
+                illuminant=None, wavelengths=None) -> np.ndarray:
         """Tone map one working-space frame (H x W x 3 or 4, float).
 
         ``frame * luminance_scale`` must be cd/m^2. Time advances by ``dt``
@@ -124,7 +124,13 @@ class Tonemapper:
         shape; a 4th (alpha) channel is passed through unchanged.
         ``illuminant``: the frame's own illuminant (working RGB, e.g. from EXR
         ``adoptedNeutral``) for chromatic adaptation, below a user value.
+        ``wavelengths``: the frame is spectral radiance (H x W x N, W sr^-1 m^-2
+        nm^-1 times ``luminance_scale`` / 683 ... see lmsr.py) sampled at these
+        wavelengths (nm); operators that model receptors from spectra (kirk11) only.
         """
+        if wavelengths is not None:
+            return self._process_spectral(frame, dt, time_s, frame_number, luminance_scale,
+                                          wavelengths)
         pix = np.asarray(frame)
         if pix.ndim == 2:
             pix = pix[..., None]
@@ -187,6 +193,35 @@ class Tonemapper:
                               pre_repairs or repairs, st.copy(),
                               p.as_dict() if hasattr(p, "as_dict") else {}, eff)
         return self._finish(out, orig)
+
+    def _process_spectral(self, frame, dt, time_s, frame_number, scale, wavelengths):
+        if self.local is None or not getattr(self.op, "SPECTRAL", False):
+            raise ValueError(f"operator {self.operator_name} takes RGB frames; spectral "
+                             "input needs --operator kirk11")
+        fx = self.effects.s
+        if fx.flare != "off" or fx.chromatic_adaptation != "off":
+            raise ValueError("flare and chromatic adaptation need RGB input; switch them off "
+                             "for spectral frames")
+        pix = np.ascontiguousarray(frame, np.float32)
+        lam = np.asarray(wavelengths, np.float64)
+        if pix.ndim != 3 or pix.shape[2] != len(lam) or len(lam) < 2:
+            raise ValueError(f"spectral frame must be H x W x {len(lam)} (got {pix.shape})")
+        if not (math.isfinite(scale) and scale > 0):
+            raise ValueError(f"luminance scale must be a positive finite number (got {scale})")
+        st = self._state
+        fresh = not st.values
+        if time_s is None:
+            time_s = (st.time_s or 0.0) + (dt or 0.0)
+        step_dt = 0.0 if (fresh or st.time_s is None) else time_s - st.time_s
+        if not math.isfinite(step_dt) or step_dt < 0:
+            raise ValueError(f"time goes backwards: last frame at {st.time_s} s, this one at "
+                             f"{time_s} s")
+        self.local.wavelengths = lam
+        try:
+            return self._process_local(pix, pix[..., :0], scale, step_dt, fresh, time_s,
+                                       frame_number, {}, None)
+        finally:
+            self.local.wavelengths = None
 
     def _pre_effects(self, pix, scale, eff: dict, dt: float, fresh: bool, illuminant):
         """Effects on the scene before the operator: flares (every operator) and,

@@ -129,3 +129,43 @@ def write_tunnel_sequence(out_dir: str, width: int = 320, height: int = 180, fps
         if not buf.write(path):
             raise RuntimeError(f"cannot write sample frame {path}: {buf.geterror()}")
     return pattern, frames
+
+
+def spectral_patches(illuminant: str = "A", luminance: float = 1.0,
+                     wavelengths=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The 24 ColorChecker reflectances (Ohta, colour-science) under an illuminant,
+    as spectral radiance (W sr^-1 m^-2 nm^-1) sampled at ``wavelengths`` (default
+    400-700 nm every 10 nm), scaled so that the perfect white would have
+    ``luminance`` cd/m^2. Returns (wavelengths, (24, N) spectra, patch names)."""
+    from . import lmsr
+    colour = lmsr.colour_module()
+    lam = np.arange(400.0, 701.0, 10.0) if wavelengths is None else np.asarray(wavelengths)
+    il = colour.SDS_ILLUMINANTS[illuminant]
+    E0 = np.interp(lam, il.wavelengths, il.values)
+    cc = colour.SDS_COLOURCHECKERS["ColorChecker N Ohta"]
+    refl = np.array([np.interp(lam, sd.wavelengths, sd.values) for sd in cc.values()])
+    white = lmsr.spectrum_weights(lam, lmsr.xyz_cmfs())[1] @ E0
+    return lam, refl * E0 * (luminance / white), list(cc.keys())
+
+
+def write_spectral_image(path: str, illuminant: str = "A", luminance: float = 1.0,
+                         patch_px: int = 8, with_rgb: bool = False) -> np.ndarray:
+    """A 6x4 ColorChecker as a spectral OpenEXR (channels ``S0.<wl>nm``, emissive
+    radiance), optionally with RGB channels too. Returns the wavelengths."""
+    lam, spectra, _ = spectral_patches(illuminant, luminance)
+    cube = np.repeat(np.repeat(spectra.reshape(4, 6, -1), patch_px, 0), patch_px, 1)
+    names = [f"S0.{w:g}nm" for w in lam]
+    if with_rgb:
+        from .lmsr import spectral_to_rgb
+        cube = np.concatenate([spectral_to_rgb(lam, cube), cube], axis=2)
+        names = ["R", "G", "B"] + names
+    h, w, n = cube.shape
+    spec = oiio.ImageSpec(w, h, n, oiio.FLOAT)
+    spec.channelnames = tuple(names)
+    spec.attribute("spectralLayoutVersion", "1.0")
+    spec.attribute("emissiveUnits", "W.m^-2.sr^-1.nm^-1")
+    buf = oiio.ImageBuf(spec)
+    buf.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, n), np.ascontiguousarray(cube, np.float32))
+    if not buf.write(path):
+        raise OSError(f"cannot write {path}: {buf.geterror()}")
+    return lam

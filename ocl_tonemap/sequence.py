@@ -137,14 +137,13 @@ def run_job(opts: JobOptions) -> JobResult:
             if t_prev is not None and t < t_prev:
                 raise ValueError(f"frame time {t:.6g} s is before the previous frame's {t_prev:.6g} s "
                                  "(frames out of order, or --state-in from a later chunk)")
-            cs, why = input_colorspace(cfg, inp, fr.colorspace, opts.iscolorspace)
-            pix = colour.to_working(fr.pixels, cs)
+            pix, lam, cs_text = _frame_input(cfg, colour, tm, opts, fr, inp)
             scale, scale_why = (opts.luminance_scale, "--luminance-scale") if opts.luminance_scale \
                 else default_scale(fr)
             scale *= 2.0 ** opts.exposure
             tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
-                       illuminant=illuminant_from_metadata(fr.spec))
-            info = _write_output(opts, colour, disp, tm, fr, outp, f, t, f"{cs} ({why})",
+                       illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam)
+            info = _write_output(opts, colour, disp, tm, fr, outp, f, t, cs_text,
                                  scale, scale_why, None)
         except FrameError:
             raise
@@ -170,6 +169,20 @@ def run_job(opts: JobOptions) -> JobResult:
     return result
 
 
+def _frame_input(cfg, colour: ColourPipeline, tm: Tonemapper, opts: JobOptions, fr, path):
+    """(pixels, wavelengths or None, description of the input colour) for one frame:
+    the spectrum for an operator that takes spectra, else working-space RGB (from
+    the spectrum through the CIE 1931 observer when the file has no RGB)."""
+    if fr.wavelengths is not None and getattr(tm.op, "SPECTRAL", False):
+        lam = fr.wavelengths
+        return fr.spectral, lam, (f"spectral, {len(lam)} channels {lam[0]:g}-{lam[-1]:g} nm "
+                                  "(radiance, W sr^-1 m^-2 nm^-1)")
+    if fr.rgb_from_spectrum:
+        return fr.pixels, None, f"{colour.working} (from the spectrum, CIE 1931 2-degree)"
+    cs, why = input_colorspace(cfg, path, fr.colorspace, opts.iscolorspace)
+    return colour.to_working(fr.pixels, cs), None, f"{cs} ({why})"
+
+
 def _colour(cfg, opts: JobOptions) -> ColourPipeline:
     colour = ColourPipeline(cfg, opts.display, opts.view)
     if not colour.view_is_plain:
@@ -183,6 +196,8 @@ def _make_tonemapper(opts: JobOptions, colour: ColourPipeline) -> Tonemapper:
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
     tm = Tonemapper(opts.operator, opts.backend, opts.metering, disp, opts.preadapt, state,
                     opts.device, opts.max_band_pixels, opts.operator_options, opts.effects)
+    if hasattr(tm.local, "set_display_primaries"):
+        tm.local.set_display_primaries(colour.display_primaries())
     log.info("backend: %s", tm.backend.describe())
     log.info("OCIO: working %s, display %r view %r -> %s", colour.working, colour.display,
              colour.view, colour.output_colorspace)
@@ -271,22 +286,23 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
     fr = read_frame(opts.input, None)
     result = JobResult([], [])
     try:
-        cs, why = input_colorspace(cfg, opts.input, fr.colorspace, opts.iscolorspace)
-        pix = colour.to_working(fr.pixels, cs)
+        pix, lam, cs_text = _frame_input(cfg, colour, tm, opts, fr, opts.input)
         scale, scale_why = (opts.luminance_scale, "--luminance-scale") if opts.luminance_scale \
             else default_scale(fr)
         scale *= 2.0 ** opts.exposure
         t_now = 0.0
         hint = illuminant_from_metadata(fr.spec)
-        tm.process(pix, time_s=0.0, luminance_scale=scale, illuminant=hint)  # the switch
+        tm.process(pix, time_s=0.0, luminance_scale=scale, illuminant=hint,
+                   wavelengths=lam)                                     # the switch
         order = sorted(range(len(times)), key=lambda k: times[k])
         for k in order:
             t = times[k]
             if t > t_now:
-                tm.process(pix, time_s=t, luminance_scale=scale, illuminant=hint)
+                tm.process(pix, time_s=t, luminance_scale=scale, illuminant=hint,
+                           wavelengths=lam)
                 t_now = t
             f, outp = outs[k]
-            info = _write_output(opts, colour, disp, tm, fr, outp, f, t, f"{cs} ({why})",
+            info = _write_output(opts, colour, disp, tm, fr, outp, f, t, cs_text,
                                  scale, scale_why, {"ocltm:elapsed_s": float(t),
                                                     "ocltm:preadapt": json.dumps(opts.preadapt)})
             result.frames.append(f)

@@ -19,12 +19,14 @@ def test_wheel_contains_kernels_and_config(tmp_path):
         if k.suffix in (".cl", ".h"):
             assert f"ocl_tonemap/kernels/{k.name}" in names
     assert "ocl_tonemap/ocio_configs/ocl_tonemap.ocio" in names
+    assert "ocl_tonemap/data/rgb_to_lmsr.json" in names
     # run from the unpacked wheel, away from the source tree
     site = tmp_path / "site"
     zipfile.ZipFile(whl).extractall(site)
     code = ("import numpy as np; from ocl_tonemap import Tonemapper; "
             "from ocl_tonemap.colour import load_config; load_config('ocl-tonemap'); "
-            "print(Tonemapper().process(np.full((2,2,3),10,np.float32)).shape)")
+            "print(Tonemapper().process(np.full((2,2,3),10,np.float32)).shape); "
+            "print(Tonemapper('kirk11').process(np.full((2,2,3),1,np.float32)).shape)")
     r = subprocess.run([sys.executable, "-c", code], cwd=str(tmp_path), capture_output=True,
                        text=True, env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"})
     assert r.returncode == 0, r.stderr

@@ -1,0 +1,307 @@
+"""Kirk & O'Brien 2011: perceptually based tone mapping for low-light conditions.
+
+"Perceptually Based Tone Mapping for Low-Light Conditions", ACM TOG 30(4)
+(SIGGRAPH 2011). Equation numbers are the paper's. The Purkinje shift is
+Cao, Pokorny, Smith & Zele 2008's model of rod signals in the cone pathways.
+
+Per pixel::
+
+    q = (L, M, S, R)                  from a spectrum (Eq. 8) or RGB via H (Sec. 4)
+    g_L = (1 + 0.33 (q_L + k1 q_R))^-1/2, g_M likewise, g_S with k2   (Eq. 10, trolands)
+    delta o (Eq. 12), o = A q^ (Eq. 11), q^ = q_LMS + A^-1 delta o    (Eq. 13)
+    p* = argmin ||M p - q^||, p >= 0                                   (Eqs. 14-15)
+    w = alpha g_L/l_max + (1 - alpha) g_M/m_max                        (Eq. 16)
+
+then Durand & Dorsey 2002 range reduction on log luminance (bilateral base /
+detail, ``bilateral.py``), the mesopic dimming by w, and for RGB input the
+paper's blend from the source image (photopic) to the mesopic image by w.
+
+The float64 functions here are the reference; ``kernels/kirk11.cl`` is the
+device pass. Reconstructions of the seed text are in docs/models.md.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from . import lmsr
+from .bilateral import BilateralSpec, RangeKernel, bilateral_reference
+from .display import DISPLAY_LINEAR_MAX, DisplaySpec
+from .durand00 import mesopic_factor
+from .flare import pupil_diameter
+from .photometry import Y_WEIGHTS, sanitize
+
+NAME = "kirk11"
+LOCAL = True
+SPECTRAL = True     # takes spectral frames (Tonemapper.process(..., wavelengths=...))
+
+#: Rod mixing at full scotopic adaptation (Eq. 10; Cao et al. 2008).
+KAPPA1, KAPPA2 = 0.25, 0.4
+#: Eq. 12 constants (Cao et al. 2008 fits).
+RHO = (1.111, 0.939, 0.4, 0.15)
+ALPHA = 0.619
+#: Shift scales x, y, z (the paper's examples use 15, 15, 5).
+SHIFT_XYZ = (15.0, 15.0, 5.0)
+#: Eq. 11: o = A q^ with rows red/green, blue/yellow, luminance.
+A = np.array([[-1.0, 1.0, 0.0],
+              [-1.0, -1.0, 1.0],
+              [1.0, 1.0, 0.0]])
+A_INV = np.linalg.inv(A)
+#: Mesopic dimming (Sec. 3.2): w at which a pixel is fully scotopic, and the
+#: floor of the range a pixel keeps (the paper's gamma, 0.25-0.5 in its examples).
+BETA, GAMMA = 1.0, 0.25
+#: Durand & Dorsey 2002: base-layer contrast after compression, and the range
+#: sigma of their bilateral filter on log10 luminance.
+TARGET_CONTRAST = 5.0
+SIGMA_RANGE_LOG10 = 0.4
+#: Floor on luminances before the log, cd/m^2.
+Y_FLOOR = 1.0e-10
+
+
+def pupil_area(L_cd: float) -> float:
+    """Pupil area, mm^2, at adaptation luminance ``L_cd`` (Moon & Spencer, flare.py):
+    multiplies cd/m^2 into trolands, the units of Cao et al.'s Eq. 10."""
+    d = float(pupil_diameter(L_cd))
+    return math.pi * d * d / 4.0
+
+
+# --- Eqs. 10-13, 16 ----------------------------------------------------------------
+
+def regulated_signals(q_td: np.ndarray, k1: float, k2: float) -> np.ndarray:
+    """g, Eq. 10 (q in trolands, (..., 4) LMSR) -> (..., 3)."""
+    q = np.asarray(q_td, np.float64)
+    r = q[..., 3]
+    return np.stack([(1.0 + 0.33 * (q[..., 0] + k1 * r)) ** -0.5,
+                     (1.0 + 0.33 * (q[..., 1] + k1 * r)) ** -0.5,
+                     (1.0 + 0.33 * (q[..., 2] + k2 * r)) ** -0.5], axis=-1)
+
+
+def mesopic_weight(g: np.ndarray) -> np.ndarray:
+    """w, Eq. 16: 0 photopic, growing toward scotopic."""
+    return ALPHA * g[..., 0] / lmsr.L_MAX + (1.0 - ALPHA) * g[..., 1] / lmsr.M_MAX
+
+
+def opponent_shift(g: np.ndarray, q_rod: np.ndarray, k1: float, xyz=SHIFT_XYZ,
+                   rod_gain: float = 1.0) -> np.ndarray:
+    """delta o, Eq. 12 (same units as q_rod). ``rod_gain`` scales all three terms
+    (1 as printed; the adaptive mode's mesopic factor)."""
+    x, y, z = xyz
+    r1, r2, r3, r4 = RHO
+    gl, gm, gs = g[..., 0] / lmsr.L_MAX, g[..., 1] / lmsr.M_MAX, g[..., 2] / lmsr.S_MAX
+    lum = ALPHA * gl + (1.0 - ALPHA) * gm
+    rod = rod_gain * np.asarray(q_rod, np.float64)
+    return np.stack([x * k1 * (r1 * gm - r2 * gl) * rod,
+                     y * (r3 * gs - r4 * lum) * rod,
+                     z * lum * rod], axis=-1)
+
+
+def purkinje_shift(q: np.ndarray, area_mm2: float, k1: float = KAPPA1, k2: float = KAPPA2,
+                   xyz=SHIFT_XYZ, rod_gain: float = 1.0):
+    """Eqs. 10-13 for (..., 4) LMSR in cd/m^2 units: returns (q^ (..., 3) in the
+    same units, w). Trolands (x pupil area) inside, as Cao et al.'s constants need."""
+    q = np.asarray(q, np.float64)
+    qt = q * area_mm2
+    g = regulated_signals(qt, k1, k2)
+    d_o = opponent_shift(g, qt[..., 3], k1, xyz, rod_gain)
+    q_hat = q[..., :3] + (d_o @ A_INV.T) / area_mm2
+    return q_hat, mesopic_weight(g)
+
+
+# --- Eq. 15: non-negative display values ----------------------------------------------
+
+SUBSETS = [s for n in (3, 2, 1) for s in itertools.combinations(range(3), n)]
+
+
+def subset_solvers(M: np.ndarray) -> np.ndarray:
+    """(7, 3, 3): for each support set (all three channels first), the matrix that
+    maps q^ to the least-squares p on that support (zeros off it)."""
+    out = []
+    for s in SUBSETS:
+        Ms = M[:, list(s)]
+        P = np.zeros((3, 3))
+        P[list(s), :] = np.linalg.pinv(Ms)
+        out.append(P)
+    return np.array(out)
+
+
+def nnls3(M: np.ndarray, q_hat: np.ndarray):
+    """Exact per-pixel NNLS for 3 unknowns: the unconstrained solve first; where it
+    has a negative, the best feasible least-squares solution over the 6 smaller
+    supports (one of them is the optimum). Returns (p (..., 3), used_fallback)."""
+    q = np.asarray(q_hat, np.float64)
+    P = subset_solvers(M)
+    best = q @ P[0].T
+    ok = np.all(best >= 0, axis=-1)
+    fallback = ~ok
+    best = np.where(ok[..., None], best, 0.0)
+    best_res = np.where(ok, np.sum((best @ M.T - q) ** 2, axis=-1), np.sum(q * q, axis=-1))
+    for Pk in P[1:]:
+        p = q @ Pk.T
+        feas = fallback & np.all(p >= -1e-12 * np.abs(q).max(initial=1.0), axis=-1)
+        p = np.maximum(p, 0.0)
+        res = np.sum((p @ M.T - q) ** 2, axis=-1)
+        better = feas & (res < best_res)
+        best = np.where(better[..., None], p, best)
+        best_res = np.where(better, res, best_res)
+    return best, fallback
+
+
+# --- settings and the per-frame pieces -------------------------------------------------
+
+@dataclass(frozen=True)
+class KirkSettings:
+    kappa: str = "full"              # full (the paper) | adaptive (mesopic interpolation)
+    shift_xyz: tuple = SHIFT_XYZ
+    gamma: float = GAMMA
+    beta: float = BETA
+    target_contrast: float = TARGET_CONTRAST
+    sigma_spatial: float | None = None   # px; default 2% of the larger side
+    bilateral: BilateralSpec = field(default_factory=BilateralSpec)
+
+    def __post_init__(self):
+        if self.kappa not in ("full", "adaptive"):
+            raise ValueError(f"--kappa must be full or adaptive (got {self.kappa!r})")
+        if len(self.shift_xyz) != 3 or min(self.shift_xyz) < 0:
+            raise ValueError("--shift-scale needs three numbers >= 0 (x,y,z)")
+        if not (0 <= self.gamma <= 1):
+            raise ValueError(f"--night-dim must be in [0, 1] (got {self.gamma})")
+        if not (self.target_contrast > 1):
+            raise ValueError("--target-contrast must be > 1")
+
+    def sigma_px(self, width: int, height: int) -> float:
+        return self.sigma_spatial if self.sigma_spatial else max(1.0, 0.02 * max(width, height))
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["bilateral"] = asdict(self.bilateral)
+        return d
+
+
+def kappas(settings: KirkSettings, L_waR: float) -> tuple[float, float, float]:
+    """(k1, k2, rod_gain): fixed at full scotopic values (the paper), or scaled by
+    the Walraven-Valeton mesopic factor of the frame's scotopic level."""
+    if settings.kappa == "full":
+        return KAPPA1, KAPPA2, 1.0
+    k = float(mesopic_factor(L_waR))
+    return KAPPA1 * k, KAPPA2 * k, k
+
+
+def logmean(x: np.ndarray) -> float:
+    return float(np.exp(np.mean(np.log(np.maximum(np.asarray(x, np.float64), 1e-6)))))
+
+
+def range_reduce(logY: np.ndarray, base: np.ndarray, target_contrast: float) -> np.ndarray:
+    """Durand & Dorsey 2002: log10 of the output luminance relative to display white:
+    the base compressed to ``target_contrast`` with its maximum at white, detail kept."""
+    span = float(base.max() - base.min())
+    c = min(1.0, math.log10(target_contrast) / span) if span > 0 else 1.0
+    return c * (base - base.max()) + (logY - base)
+
+
+def compose_reference(src_rgb, shift_rgb, w, logY, base, settings: KirkSettings,
+                      display: DisplaySpec, blend: bool):
+    """Range reduction of the mesopic image (its own log luminance ``logY``, base
+    ``base``), mesopic dimming, and for RGB input the blend from the source by w:
+    the source's colour at the same output luminance. Display-linear."""
+    logY_out = range_reduce(logY, base, settings.target_contrast)
+    s = 10.0 ** (logY_out - logY)                                    # per-pixel scale
+    dim = np.maximum(1.0 - w / settings.beta, settings.gamma)         # Sec. 3.2 (see docs)
+    out = shift_rgb * (s * dim)[..., None]
+    if blend:
+        t = np.clip(w / settings.beta, 0.0, 1.0)[..., None]
+        ys = np.maximum(np.asarray(src_rgb, np.float64) @ Y_WEIGHTS, Y_FLOOR)
+        out = (1.0 - t) * src_rgb * (10.0 ** logY_out / ys)[..., None] + t * out
+    return np.clip(out * (display.white_cd / display.unit_cd), 0.0, DISPLAY_LINEAR_MAX)
+
+
+@dataclass
+class KirkSummary:
+    area_mm2: float = 0.0
+    k1: float = KAPPA1
+    k2: float = KAPPA2
+    rod_gain: float = 1.0
+    w_mean: float = 0.0
+    fallback_fraction: float = 0.0
+    input: str = "rgb"
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+class KirkObserver:
+    """kirk11 as a local operator of the pipeline (no time course: the paper's
+    model is steady state; the frame's adaptation only sets the pupil)."""
+
+    def __init__(self, settings: KirkSettings, display: DisplaySpec):
+        self.s = settings
+        self.display = display
+        self.summary = KirkSummary()
+        self.D = np.eye(3)     # display primaries (working linear), see set_display_primaries
+        self._dev = None
+        self.wavelengths = None   # set by the pipeline for a spectral frame
+
+    def set_display_primaries(self, D: np.ndarray) -> None:
+        self.D = np.asarray(D, np.float64)
+
+    @property
+    def M(self) -> np.ndarray:
+        """Eq. 14: display RGB -> LMS (the LMS rows of H through the display primaries)."""
+        return lmsr.fitted()["H"][:3] @ self.D
+
+    def pixel_state(self):
+        return None
+
+    def set_pixel_state(self, pixels) -> None:
+        if pixels:
+            raise ValueError("kirk11 keeps no per-pixel state")
+
+    # -- float64 reference ------------------------------------------------------------
+    def _lmsr(self, pixels, scale, wavelengths):
+        if wavelengths is not None:
+            spec, repairs = sanitize(pixels, scale)
+            return None, lmsr.spectral_to_lmsr(wavelengths, spec), repairs
+        rgb, repairs = sanitize(pixels[..., :3], scale)
+        return rgb, lmsr.rgb_to_lmsr(rgb), repairs
+
+    def process_reference(self, pixels, scale, dt, fresh):
+        wavelengths = self.wavelengths
+        src, q, repairs = self._lmsr(pixels, scale, wavelengths)
+        L_wa, L_waR = logmean(q[..., 0] + q[..., 1]), logmean(q[..., 3])
+        area = pupil_area(L_wa)
+        k1, k2, gain = kappas(self.s, L_waR)
+        q_hat, w = purkinje_shift(q, area, k1, k2, self.s.shift_xyz, gain)
+        p, fb = nnls3(self.M, q_hat)
+        shift_rgb = p @ self.D.T
+        # range reduction of the mesopic image's own luminance (rods add to it)
+        logY = np.log10(np.maximum(shift_rgb @ Y_WEIGHTS, Y_FLOOR))
+        h, wd = logY.shape
+        base = bilateral_reference(logY, self.s.sigma_px(wd, h),
+                                   RangeKernel("difference", SIGMA_RANGE_LOG10))
+        out = compose_reference(src if src is not None else shift_rgb, shift_rgb, w, logY, base,
+                                self.s, self.display, blend=src is not None)
+        self.summary = KirkSummary(area, k1, k2, gain, float(w.mean()), float(fb.mean()),
+                                   "spectral" if wavelengths is not None else "rgb")
+        return out.astype(np.float32), repairs, (L_waR, L_wa)
+
+    # -- OpenCL -----------------------------------------------------------------------
+    def process_opencl(self, backend, pixels, scale, dt, fresh):
+        from .kirk11_device import KirkDevice
+        if self._dev is None or self._dev.rt is not backend.rt:
+            self._dev = KirkDevice(backend.rt)
+        return self._dev.process(self, backend, pixels, scale, self.wavelengths)
+
+
+def make_observer(options: dict | None, display: DisplaySpec, preadapt) -> KirkObserver:
+    o = {k: v for k, v in (options or {}).items() if v is not None}
+    known = {"kappa", "shift_xyz", "gamma", "target_contrast", "sigma_spatial", "bilateral",
+             "bilateral_sampling", "rods"}
+    bad = set(o) - known
+    if bad:
+        raise ValueError(f"kirk11 takes no option(s) {', '.join(sorted(bad))}")
+    bil = BilateralSpec.parse(o.pop("bilateral", "auto"), o.pop("bilateral_sampling", None))
+    o.pop("rods", None)
+    return KirkObserver(KirkSettings(bilateral=bil, **o), display)

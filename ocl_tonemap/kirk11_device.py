@@ -1,0 +1,93 @@
+"""kirk11 on the device (kernels/kirk11.cl + the bilateral kernels); whole frames."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import lmsr
+from .bilateral import DeviceBilateral, RangeKernel
+from .kirk11 import (RHO, SIGMA_RANGE_LOG10, KirkSummary, kappas, logmean, pupil_area,
+                     subset_solvers)
+from .photometry import RepairCounts, sanitize
+
+
+class KirkDevice:
+    def __init__(self, rt):
+        import pyopencl as cl
+        self.rt = rt
+        self.cl = cl
+        self.bil = DeviceBilateral(rt)
+        self._k_lmsr = rt.kernel("kirk11.cl", "to_lmsr")
+        self._k_shift = rt.kernel("kirk11.cl", "kirk11_shift")
+        self._k_compose = rt.kernel("kirk11.cl", "kirk11_compose")
+
+    def _buf(self, nbytes: int, host: np.ndarray | None = None):
+        cl = self.cl
+        mf = cl.mem_flags
+        if host is not None:
+            return cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                             hostbuf=np.ascontiguousarray(host, np.float32))
+        return cl.Buffer(self.rt.context, mf.READ_WRITE, max(int(nbytes), 4))
+
+    def process(self, obs, backend, pixels, scale, wavelengths):
+        from .runtime import round_up
+        cl, q_ = self.cl, self.rt.queue
+        h, w = pixels.shape[:2]
+        n = h * w
+        gsz, wg = (round_up(n, 64),), (64,)
+        s = obs.s
+        if wavelengths is None:                          # RGB: the device colour stage
+            repairs = backend._to_working(pixels, scale, count=True)
+            src = backend._bufs["rgb"]
+            W, nc = lmsr.fitted()["H"], 3
+        else:                                            # spectral: host policy, upload
+            spec, repairs = sanitize(pixels, scale)
+            nc = spec.shape[2]
+            src = self._buf(0, spec.reshape(n, nc))
+            W = lmsr.spectrum_weights(wavelengths)
+        q = self._buf(n * 16)
+        logY = self._buf(n * 4)
+        self._k_lmsr(q_, gsz, wg, src, np.int32(nc), np.int32(n), self._buf(0, W), q)
+        qh = np.empty((n, 4), np.float32)
+        cl.enqueue_copy(q_, qh, q)
+        L_wa, L_waR = logmean(qh[:, 0] + qh[:, 1]), logmean(qh[:, 3])
+        area = pupil_area(L_wa)
+        k1, k2, gain = kappas(s, L_waR)
+        par = np.array([area, k1, k2, gain, *s.shift_xyz, *RHO], np.float32)
+        shifted = self._buf(n * 12)
+        wbuf = self._buf(n * 4)
+        fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
+        self._k_shift(q_, gsz, wg, q, np.int32(n), self._buf(0, par),
+                      self._buf(0, subset_solvers(obs.M).reshape(-1)), self._buf(0, obs.M),
+                      self._buf(0, obs.D), shifted, wbuf, logY, fb)
+        # Durand & Dorsey 2002 base layer
+        base = self._buf(n * 4)
+        rk = RangeKernel("difference", SIGMA_RANGE_LOG10)
+        sig = s.sigma_px(w, h)
+        if self.bil.choose(s.bilateral, sig, w, h) == "exact":
+            self.bil.exact(logY, base, w, h, 0, 0, h, sig, rk)
+        else:
+            self.bil.fast(logY, base, w, h, sig, rk, s.bilateral.q_s, s.bilateral.q_r)
+        bh = np.empty(n, np.float32)
+        cl.enqueue_copy(q_, bh, base)
+        bmin, bmax = float(bh.min()), float(bh.max())
+        span = bmax - bmin
+        c = min(1.0, np.log10(s.target_contrast) / span) if span > 0 else 1.0
+        out = self._buf(n * 12)
+        blend = wavelengths is None
+        self._k_compose(q_, gsz, wg, src if blend else shifted, shifted, wbuf, logY, base,
+                        np.int32(n), np.float32(c), np.float32(bmax), np.float32(s.beta),
+                        np.float32(s.gamma),
+                        np.float32(obs.display.white_cd / obs.display.unit_cd),
+                        np.int32(1 if blend else 0), out)
+        res = np.empty((h, w, 3), np.float32)
+        cl.enqueue_copy(q_, res, out)
+        nfb = np.empty(1, np.int32)
+        cl.enqueue_copy(q_, nfb, fb)
+        wh = np.empty(n, np.float32)
+        cl.enqueue_copy(q_, wh, wbuf)
+        obs.summary = KirkSummary(area, k1, k2, gain, float(wh.mean()), float(nfb[0]) / n,
+                                  "spectral" if wavelengths is not None else "rgb")
+        if not isinstance(repairs, RepairCounts):
+            repairs = RepairCounts()
+        return res, repairs, (L_waR, L_wa)
