@@ -63,8 +63,8 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    "decades (Sec. 5; the paper uses 2000); 0 = direct (default)")
     g = p.add_argument_group("kirk11 (spectral EXR input is used when present)")
     g.add_argument("--kappa", choices=["full", "adaptive"],
-                   help="rod mixing: full scotopic values (the paper, default) or following "
-                   "the frame's mesopic level")
+                   help="rod mixing: following the frame's mesopic level (default; photopic "
+                   "scenes unshifted) or fixed at full scotopic values (the paper's choice)")
     g.add_argument("--shift-scale", metavar="X,Y,Z",
                    help="Purkinje shift scales of Eq. 12 (default 15,15,5)")
     g.add_argument("--night-dim", type=float, metavar="GAMMA",

@@ -154,7 +154,7 @@ def nnls3(M: np.ndarray, q_hat: np.ndarray):
 
 @dataclass(frozen=True)
 class KirkSettings:
-    kappa: str = "full"              # full (the paper) | adaptive (mesopic interpolation)
+    kappa: str = "adaptive"          # adaptive (mesopic interpolation) | full (the paper)
     shift_xyz: tuple = SHIFT_XYZ
     gamma: float = GAMMA
     beta: float = BETA

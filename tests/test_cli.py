@@ -240,3 +240,29 @@ def test_adopted_neutral_and_mask_metering(tmp_path):
     assert eff["gains"][2] > 2 * eff["gains"][0]             # tungsten: boost blue
     assert main(["run", *base, str(tmp_path / "x.exr"), "--operator", "durand00", "-q",
                  "--metering", f"mask:{tmp_path / 'nope.exr'}"]) == 2
+
+
+def test_kirk11_spectral_and_rgb_files(tmp_path):
+    """kirk11 reads a spectral EXR as spectra; other operators see its RGB."""
+    from ocl_tonemap.sample import write_spectral_image
+    spec = str(tmp_path / "night.exr")
+    write_spectral_image(spec, "A", 0.05, patch_px=4)
+    out_k, out_p = str(tmp_path / "k.exr"), str(tmp_path / "p.exr")
+    assert main(["run", spec, out_k, "--operator", "kirk11", "--out-bits", "float", "-q"]) == 0
+    assert main(["run", spec, out_p, "--operator", "pattanaik00", "--out-bits", "float",
+                 "-q"]) == 0
+    sk, sp = oiio.ImageBuf(out_k).spec(), oiio.ImageBuf(out_p).spec()
+    assert sk.getattribute("ocltm:input_colorspace").startswith("spectral, 31 channels")
+    assert "from the spectrum" in sp.getattribute("ocltm:input_colorspace")
+    params = json.loads(sk.getattribute("ocltm:params"))
+    assert params["input"] == "spectral" and params["w_mean"] > 1.0    # scotopic
+    px = pixels(out_k)
+    assert px.shape == (16, 24, 3) and np.isfinite(px).all() and px.min() >= 0
+    # RGB input, on a P3 display: the non-negativity is in the display's primaries
+    rgb = str(tmp_path / "rgb.exr")
+    b = oiio.ImageBuf(oiio.ImageSpec(8, 6, 3, oiio.FLOAT))
+    b.set_pixels(oiio.ROI(0, 8, 0, 6, 0, 1, 0, 3), np.full((6, 8, 3), 0.02, np.float32))
+    b.write(rgb)
+    assert main(["run", rgb, str(tmp_path / "r.png"), "--operator", "kirk11",
+                 "--display", "Display P3 - Display", "--kappa", "full", "--night-dim", "0.5",
+                 "-q"]) == 0
