@@ -1,7 +1,7 @@
 """ocl-tonemap: how a human observer would see an HDR scene or shot.
 
 Time-dependent visual adaptation operators (Pattanaik et al. 2000, Ledda et
-al. 2004, Durand & Dorsey 2000; Kirk & O'Brien 2011 to follow) on
+al. 2004, Durand & Dorsey 2000, Kirk & O'Brien 2011) on
 OpenCL, with a float64 NumPy reference, for OpenImageIO/OpenColorIO
 pipelines. See README.md; the Python API is :class:`Tonemapper`.
 """

@@ -1,0 +1,139 @@
+"""Benchmark of kirk11: time per frame beside error, the NNLS fallback rate and cost.
+
+One command:  python benchmarks/bench_kirk.py [--quick]
+Writes benchmarks/results/kirk11.md (and prints it).
+
+1. Whole frame, RGB and spectral (31 channels) input, OpenCL with the fast and the
+   exact bilateral, and the float64 reference (small size only: its brute-force
+   bilateral is slow); error against the reference.
+2. The Purkinje pass alone (kernels/kirk11.cl, kirk11_shift) across exposures:
+   the share of pixels where the unconstrained solve of Eq. 15 went negative
+   and the exact 3-variable NNLS took over, and what that costs.
+Machines are noisy: compare the ratios, not the absolute times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.dirname(__file__))
+
+from benchutil import timeit  # noqa: E402
+
+from ocl_tonemap import kirk11 as ko  # noqa: E402
+from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
+from ocl_tonemap.runtime import describe_device, get_runtime  # noqa: E402
+from ocl_tonemap.sample import spectral_patches  # noqa: E402
+
+
+def rgb_scene(w, h, seed=0):
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:h, 0:w] / max(h, w)
+    lum = 10.0 ** (2.0 * np.sin(6 * x) * np.cos(4 * y))
+    return (lum[..., None] * rng.uniform(0.05, 1.0, (h, w, 3))).astype(np.float32)
+
+
+def spectral_scene(w, h):
+    lam, spectra, _ = spectral_patches("A", 1.0)
+    idx = (np.arange(h)[:, None] * 6 // h) * 4 + (np.arange(w)[None, :] * 4 // w)
+    y, x = np.mgrid[0:h, 0:w] / max(h, w)
+    lum = 10.0 ** (1.5 * np.sin(5 * x) * np.cos(3 * y))
+    return lam, (spectra[idx % 24] * lum[..., None]).astype(np.float32)
+
+
+def table(head, rows):
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    return "\n".join(out + ["| " + " | ".join(str(c) for c in r) + " |" for r in rows])
+
+
+def bench_frames(sizes, ref_size, reps):
+    rows = []
+    for w, h in sizes:
+        img = rgb_scene(w, h)
+        lam, cube = spectral_scene(w, h)
+        for label, frame, kw in (("RGB", img, {}), ("spectral 31", cube, {"wavelengths": lam})):
+            ref = None
+            if (w, h) == ref_size:
+                tr = Tonemapper("kirk11", "reference")
+                ref = tr.process(frame, **kw)
+                t_ref = timeit(lambda: tr.process(frame, dt=0.04, **kw), 1)
+            for method in ("fast", "exact"):
+                if method == "exact" and (w, h) != ref_size:
+                    continue
+                tm = Tonemapper("kirk11", "opencl", options={"bilateral": method})
+                out = tm.process(frame, **kw)
+                t = timeit(lambda: tm.process(frame, dt=0.04, **kw), reps)
+                err = "-" if ref is None else f"{np.max(np.abs(out - ref)):.1e}"
+                ratio = "-" if ref is None else f"{t_ref / t:.0f}x"
+                rows.append((f"{w}x{h}", label, method, f"{t * 1e3:.0f}", ratio, err,
+                             f"{tm.local.summary.fallback_fraction:.1%}"))
+    return table(("size", "input", "bilateral", "OpenCL ms/frame", "float64 / OpenCL",
+                  "max abs err vs float64 (display-linear)", "NNLS fallback"), rows)
+
+
+def bench_nnls(w, h, reps):
+    import pyopencl as cl
+    from ocl_tonemap import lmsr
+    rt = get_runtime()
+    obs = ko.KirkObserver(ko.KirkSettings(kappa="full"), None)
+    k_shift = rt.kernel("kirk11.cl", "kirk11_shift")
+    n = w * h
+    mf = cl.mem_flags
+    rows = []
+    base = rgb_scene(w, h) / np.float32(rgb_scene(w, h).mean())
+    for exposure in (1e5, 1e3, 10.0, 0.1, 1e-3):
+        q = lmsr.rgb_to_lmsr(base.reshape(-1, 3) * exposure).astype(np.float32)
+        area = ko.pupil_area(ko.logmean(q[:, 0] + q[:, 1]))
+        par = np.array([area, ko.KAPPA1, ko.KAPPA2, 1.0, *ko.SHIFT_XYZ, *ko.RHO], np.float32)
+        bufs = {k: cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                             hostbuf=np.ascontiguousarray(v, np.float32))
+                for k, v in (("q", q), ("par", par),
+                             ("sol", ko.subset_solvers(obs.M).reshape(-1)), ("M", obs.M),
+                             ("D", obs.D))}
+        out3 = cl.Buffer(rt.context, mf.READ_WRITE, n * 12)
+        o1, o2 = (cl.Buffer(rt.context, mf.READ_WRITE, n * 4) for _ in range(2))
+        fb = cl.Buffer(rt.context, mf.READ_WRITE, 4)
+
+        def run():
+            cl.enqueue_fill_buffer(rt.queue, fb, np.int32(0), 0, 4)
+            k_shift(rt.queue, (-(-n // 64) * 64,), (64,), bufs["q"], np.int32(n), bufs["par"],
+                    bufs["sol"], bufs["M"], bufs["D"], out3, o1, o2, fb)
+            rt.queue.finish()
+        t = timeit(run, reps)
+        c = np.empty(1, np.int32)
+        cl.enqueue_copy(rt.queue, c, fb)
+        rows.append((f"{exposure:g}", f"{c[0] / n:.1%}", f"{t * 1e3:.2f}", f"{n / t / 1e6:.0f}"))
+    return table(("exposure (x mean 1 cd/m^2)", "NNLS fallback", "shift kernel ms",
+                  "MPix/s"), rows)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    a = ap.parse_args()
+    rt = get_runtime()
+    reps = 3 if a.quick else 5
+    sizes = [(160, 90)] if a.quick else [(160, 90), (640, 360), (1920, 1080)]
+    nw, nh = (320, 180) if a.quick else (1920, 1080)
+    text = "\n".join([
+        "# kirk11 benchmark\n",
+        f"Device: {describe_device(rt.device)}; host: {platform.processor() or platform.machine()}, "
+        f"{os.cpu_count()} CPUs. Command: `python benchmarks/bench_kirk.py"
+        f"{' --quick' if a.quick else ''}`. Median of {reps} runs after a warm-up.\n",
+        "## 1. Whole frame\n", bench_frames(sizes, (160, 90), reps),
+        f"\n## 2. Purkinje shift + Eq. 15 solve alone, {nw}x{nh}, fixed (paper) kappa\n",
+        bench_nnls(nw, nh, reps), ""])
+    out = os.path.join(os.path.dirname(__file__), "results", "kirk11.md")
+    with open(out, "w") as fh:
+        fh.write(text + "\n")
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
