@@ -74,7 +74,9 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("effects (every operator; default auto for durand00, else off)")
     for name, what in (("flare", "glare of light sources (Spencer et al. 1995)"),
                        ("acuity", "loss of acuity in the dark (Shaler 1937)"),
-                       ("chromatic-adaptation", "von Kries adaptation to the illuminant, tau 5 s")):
+                       ("chromatic-adaptation", "von Kries adaptation to the illuminant, tau 5 s"),
+                       ("purkinje", "rod colour shift of kirk11 on the scene's colours "
+                        "(Kirk & O'Brien 2011)")):
         g.add_argument(f"--{name}", choices=["on", "off", "auto"], help=what)
     g.add_argument("--fov", type=float, help="angular width of the image, degrees (default 50)")
     g.add_argument("--illuminant", help="illuminant for chromatic adaptation: x,y or a name "
@@ -111,6 +113,7 @@ def _effects(a):
     from .effects import EffectSettings
     return EffectSettings.for_operator(
         a.operator, flare=a.flare, acuity=a.acuity, chromatic_adaptation=a.chromatic_adaptation,
+        purkinje=a.purkinje,
         fov_deg=a.fov, illuminant=a.illuminant, flare_method=a.flare_method,
         flare_threshold=a.flare_threshold, flare_per_octave=a.flare_sampling)
 

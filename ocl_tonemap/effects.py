@@ -5,7 +5,10 @@
 ``acuity``               loss of acuity in the dark: a Gaussian blur of the
                          displayed image, Eqs. 9-11 with Shaler's Table 1;
 ``chromatic_adaptation`` von Kries gains on the cone signals toward the
-                         illuminant, Eq. 6, filtered with tau = 5 s.
+                         illuminant, Eq. 6, filtered with tau = 5 s;
+``purkinje``             Kirk & O'Brien 2011's rod colour shift (Cao et al. 2008)
+                         on the scene's chromaticity, luminance kept (the
+                         operator models rod luminance itself).
 
 Each takes ``on | off | auto``. ``auto`` runs an effect only where the frame
 needs it (light sources present; cut-off frequency below the pixel
@@ -62,6 +65,7 @@ class EffectSettings:
     flare: str = "off"
     acuity: str = "off"
     chromatic_adaptation: str = "off"
+    purkinje: str = "off"
     fov_deg: float = DEFAULT_FOV
     flare_method: str = "fast"
     flare_threshold: float = fl.DEFAULT_THRESHOLD
@@ -69,7 +73,7 @@ class EffectSettings:
     illuminant: str | None = None
 
     def __post_init__(self):
-        for k in ("flare", "acuity", "chromatic_adaptation"):
+        for k in ("flare", "acuity", "chromatic_adaptation", "purkinje"):
             if getattr(self, k) not in MODES:
                 raise ValueError(f"--{k.replace('_', '-')} must be on, off or auto "
                                  f"(got {getattr(self, k)!r})")
@@ -94,7 +98,8 @@ class EffectSettings:
 
     @property
     def any(self) -> bool:
-        return any(getattr(self, k) != "off" for k in ("flare", "acuity", "chromatic_adaptation"))
+        return any(getattr(self, k) != "off"
+                   for k in ("flare", "acuity", "chromatic_adaptation", "purkinje"))
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -207,6 +212,41 @@ def apply_acuity(img: np.ndarray, L_waR: float, fov_deg: float, blur=None):
     return out.astype(np.float32), info
 
 
+# --- Purkinje shift (Kirk & O'Brien 2011) as an effect ----------------------------------
+
+#: ``auto`` skips the shift when rods carry less than this share (photopic frames).
+PURKINJE_AUTO_GAIN = 0.01
+
+
+def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None):
+    """Shift working RGB (cd/m^2) as kirk11 does with ``--kappa adaptive`` and keep
+    each pixel's photopic luminance. ``device``: a KirkDevice, else float64."""
+    from . import kirk11 as ko
+    from . import lmsr
+    area = ko.pupil_area(G_cone)
+    k1, k2, gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), G_rod)
+    M = lmsr.fitted()["H"][:3]
+    rgb = np.asarray(rgb)
+    if gain <= 0.0:
+        return rgb, {"rod_gain": 0.0, "fallback_fraction": 0.0}
+    if device is not None:
+        p, fb = device.shift_rgb(np.asarray(rgb, np.float32), area, k1, k2, gain, M,
+                                 np.eye(3), ko.SHIFT_XYZ)
+        p = p.astype(np.float64)
+    else:
+        q = lmsr.rgb_to_lmsr(rgb)
+        qh, _ = ko.purkinje_shift(q, area, k1, k2, ko.SHIFT_XYZ, gain)
+        p, fbm = ko.nnls3(M, qh)
+        fb = float(fbm.mean())
+    y_in = np.asarray(rgb, np.float64) @ Y_WEIGHTS
+    y_p = p @ Y_WEIGHTS
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(y_p > 0, y_in / np.where(y_p > 0, y_p, 1.0), 0.0)
+    out = np.where((y_p > 0)[..., None], p * k[..., None], rgb)
+    return out.astype(np.float32), {"rod_gain": float(gain), "k1": float(k1),
+                                    "fallback_fraction": float(fb)}
+
+
 # --- the stage ------------------------------------------------------------------
 
 class Effects:
@@ -246,6 +286,26 @@ class Effects:
                                    self._device_blur(EDGE_ZERO))
         info["ran"] = info["sources"] > 0
         return out.astype(np.float32), info
+
+    # Purkinje shift ---------------------------------------------------------------
+    def purkinje(self, rgb: np.ndarray, G_rod: float, G_cone: float):
+        """(new rgb or None, info): the kirk11 shift with kappa following the frame's
+        mesopic level, applied to chromaticity only (each pixel keeps its Y)."""
+        if self.s.purkinje == "off":
+            return None, {"ran": False}
+        out, info = apply_purkinje(rgb, G_rod, G_cone, self._kirk_device())
+        if self.s.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
+            return None, {"ran": False, "reason": "photopic", **info}
+        info["ran"] = True
+        return out, info
+
+    def _kirk_device(self):
+        if self._blur is None:
+            return None
+        if getattr(self, "_kirk", None) is None:
+            from .kirk11_device import KirkDevice
+            self._kirk = KirkDevice(self.backend.rt)
+        return self._kirk
 
     # chromatic adaptation --------------------------------------------------------
     def illuminant_goal(self, frame_hint, estimate_fn):

@@ -91,3 +91,27 @@ class KirkDevice:
         if not isinstance(repairs, RepairCounts):
             repairs = RepairCounts()
         return res, repairs, (L_waR, L_wa)
+
+    def shift_rgb(self, rgb: np.ndarray, area: float, k1: float, k2: float, gain: float,
+                  M: np.ndarray, D: np.ndarray, xyz) -> tuple[np.ndarray, float]:
+        """Eqs. 10-13 and 15 on working RGB (cd/m^2, host array): the shifted RGB and
+        the NNLS fallback share. Used by the Purkinje effect for other operators."""
+        from .runtime import round_up
+        cl, q_ = self.cl, self.rt.queue
+        h, w = rgb.shape[:2]
+        n = h * w
+        gsz, wg = (round_up(n, 64),), (64,)
+        src = self._buf(0, rgb.reshape(n, 3))
+        q = self._buf(n * 16)
+        self._k_lmsr(q_, gsz, wg, src, np.int32(3), np.int32(n), self._buf(0, lmsr.fitted()["H"]), q)
+        par = np.array([area, k1, k2, gain, *xyz, *RHO], np.float32)
+        out, wbuf, logY = self._buf(n * 12), self._buf(n * 4), self._buf(n * 4)
+        fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
+        self._k_shift(q_, gsz, wg, q, np.int32(n), self._buf(0, par),
+                      self._buf(0, subset_solvers(M).reshape(-1)), self._buf(0, M),
+                      self._buf(0, D), out, wbuf, logY, fb)
+        res = np.empty((h, w, 3), np.float32)
+        cl.enqueue_copy(q_, res, out)
+        nfb = np.empty(1, np.int32)
+        cl.enqueue_copy(q_, nfb, fb)
+        return res, float(nfb[0]) / max(n, 1)

@@ -91,6 +91,8 @@ class Tonemapper:
                                  + (f" (it takes {', '.join(known)})" if known else ""))
         self.options = {k: v for k, v in (options or {}).items() if v is not None}
         self.effects = Effects(effects or EffectSettings.for_operator(operator), self.backend)
+        if getattr(self.op, "SPECTRAL", False) and self.effects.s.purkinje != "off":
+            raise ValueError(f"{operator} models the Purkinje shift itself; leave --purkinje off")
         self.last: FrameInfo | None = None
         self.last_output: np.ndarray | None = None
 
@@ -199,9 +201,9 @@ class Tonemapper:
             raise ValueError(f"operator {self.operator_name} takes RGB frames; spectral "
                              "input needs --operator kirk11")
         fx = self.effects.s
-        if fx.flare != "off" or fx.chromatic_adaptation != "off":
-            raise ValueError("flare and chromatic adaptation need RGB input; switch them off "
-                             "for spectral frames")
+        if fx.flare != "off" or fx.chromatic_adaptation != "off" or fx.purkinje != "off":
+            raise ValueError("flare, chromatic adaptation and the Purkinje effect need RGB "
+                             "input; switch them off for spectral frames")
         pix = np.ascontiguousarray(frame, np.float32)
         lam = np.asarray(wavelengths, np.float64)
         if pix.ndim != 3 or pix.shape[2] != len(lam) or len(lam) < 2:
@@ -229,11 +231,14 @@ class Tonemapper:
         (cd/m^2 with scale 1 when changed) and the repairs of the original."""
         fx = self.effects
         local_chroma = self.local is not None and fx.s.chromatic_adaptation != "off"
-        if fx.s.flare == "off" and not local_chroma:
+        if fx.s.flare == "off" and fx.s.purkinje == "off" and not local_chroma:
             return pix, scale, None
         rgb, repairs, (G_rod, G_cone), estimate = self.backend.working(pix, scale, self.metering)
         changed = False
         new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)
+        if new is not None:
+            rgb, changed = new, True
+        new, eff["purkinje"] = fx.purkinje(rgb, G_rod, G_cone)
         if new is not None:
             rgb, changed = new, True
         if local_chroma:

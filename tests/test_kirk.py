@@ -227,3 +227,30 @@ def test_spectral_input_errors():
                                                    wavelengths=lam)
     with pytest.raises(ValueError):
         ko.KirkSettings(kappa="sometimes")
+
+
+# --- the shift as an effect on other operators ------------------------------------------
+
+def test_purkinje_effect_keeps_luminance_and_shifts_colour(rt):
+    from ocl_tonemap.effects import EffectSettings, apply_purkinje
+    from ocl_tonemap.kirk11_device import KirkDevice
+    from ocl_tonemap.photometry import Y_WEIGHTS
+    rgb = _rgb_scene().astype(np.float64) * 0.01                    # mesopic-scotopic
+    ref, info = apply_purkinje(rgb, 0.02, 0.01)
+    dev, _ = apply_purkinje(rgb, 0.02, 0.01, KirkDevice(rt))
+    np.testing.assert_allclose(dev, ref, rtol=2e-4, atol=1e-9)
+    np.testing.assert_allclose(ref @ Y_WEIGHTS, rgb @ Y_WEIGHTS, rtol=1e-5)   # Y kept
+    assert info["rod_gain"] > 0.9
+    red = rgb[2, 2] / rgb[2, 2].sum()
+    assert (ref[2, 2] / ref[2, 2].sum())[0] < red[0]                 # the red patch loses red
+    day, info = apply_purkinje(rgb * 1e5, 2000.0, 1000.0)
+    np.testing.assert_array_equal(day, rgb * 1e5)
+    assert info["rod_gain"] == 0.0
+    for op in ("pattanaik00", "ledda04"):
+        tm = Tonemapper(op, "opencl", effects=EffectSettings(purkinje="auto"))
+        tm.process((rgb * 1.0).astype(np.float32))
+        assert tm.last.effects["purkinje"]["ran"]
+        tm.process((rgb * 1e5).astype(np.float32), dt=60)
+        assert not tm.last.effects["purkinje"]["ran"]
+    with pytest.raises(ValueError, match="itself"):
+        Tonemapper("kirk11", "reference", effects=EffectSettings(purkinje="on"))
