@@ -206,7 +206,8 @@ def test_durand_sequence_effects_metadata_and_chunks(sample_dir, tmp_path):
         np.testing.assert_array_equal(pixels(frame_path(one, f)), pixels(frame_path(two, f)))
     spec = oiio.ImageBuf(frame_path(one, b)).spec()
     eff = json.loads(spec.getattribute("ocltm:effects"))
-    assert set(eff) == {"flare", "acuity", "chromatic_adaptation"}
+    assert set(eff) == {"flare", "acuity", "chromatic_adaptation", "purkinje"}
+    assert not eff["purkinje"]["ran"]
     assert eff["chromatic_adaptation"]["source"] == "estimate"
     assert spec.getattribute("ocltm:effects_ran") == ",".join(
         k for k, v in eff.items() if v["ran"])
