@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.dirname(__file__))
 
-from benchutil import timeit  # noqa: E402
+from benchutil import table, timeit  # noqa: E402
 
 from ocl_tonemap import durand00 as dd  # noqa: E402
 from ocl_tonemap import flare as fl  # noqa: E402
@@ -56,12 +56,6 @@ def night_street(w, h, seed=0):
     for cx in (0.45, 0.55):
         img[int(0.6 * h):int(0.6 * h) + 2 * s, int(cx * w):int(cx * w) + 3 * s] = 1e5
     return img.astype(np.float32)
-
-
-def table(head, rows):
-    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return "\n".join(out)
 
 
 def bench_operator(sizes, reps):

@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.dirname(__file__))
 
-from benchutil import timeit  # noqa: E402
+from benchutil import table, timeit  # noqa: E402
 
 from ocl_tonemap import kirk11 as ko  # noqa: E402
 from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
@@ -45,11 +45,6 @@ def spectral_scene(w, h):
     y, x = np.mgrid[0:h, 0:w] / max(h, w)
     lum = 10.0 ** (1.5 * np.sin(5 * x) * np.cos(3 * y))
     return lam, (spectra[idx % 24] * lum[..., None]).astype(np.float32)
-
-
-def table(head, rows):
-    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    return "\n".join(out + ["| " + " | ".join(str(c) for c in r) + " |" for r in rows])
 
 
 def bench_frames(sizes, ref_size, reps):

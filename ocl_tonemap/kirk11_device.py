@@ -29,6 +29,17 @@ class KirkDevice:
                              hostbuf=np.ascontiguousarray(host, np.float32))
         return cl.Buffer(self.rt.context, mf.READ_WRITE, max(int(nbytes), 4))
 
+    def _shift(self, q, n: int, area, k1, k2, gain, xyz, M, D):
+        """kirk11_shift on n LMSR pixels: (rgb, w, log10 Y, fallback count) buffers."""
+        from .runtime import round_up
+        par = np.array([area, k1, k2, gain, *xyz, *RHO], np.float32)
+        out, wbuf, logY = self._buf(n * 12), self._buf(n * 4), self._buf(n * 4)
+        fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
+        self._k_shift(self.rt.queue, (round_up(n, 64),), (64,), q, np.int32(n),
+                      self._buf(0, par), self._buf(0, subset_solvers(M).reshape(-1)),
+                      self._buf(0, M), self._buf(0, D), out, wbuf, logY, fb)
+        return out, wbuf, logY, fb
+
     def process(self, obs, backend, pixels, scale, wavelengths):
         from .runtime import round_up
         cl, q_ = self.cl, self.rt.queue
@@ -46,20 +57,14 @@ class KirkDevice:
             src = self._buf(0, spec.reshape(n, nc))
             W = lmsr.spectrum_weights(wavelengths)
         q = self._buf(n * 16)
-        logY = self._buf(n * 4)
         self._k_lmsr(q_, gsz, wg, src, np.int32(nc), np.int32(n), self._buf(0, W), q)
         qh = np.empty((n, 4), np.float32)
         cl.enqueue_copy(q_, qh, q)
         L_wa, L_waR = logmean(qh[:, 0] + qh[:, 1]), logmean(qh[:, 3])
         area = pupil_area(L_wa)
         k1, k2, gain = kappas(s, L_waR)
-        par = np.array([area, k1, k2, gain, *s.shift_xyz, *RHO], np.float32)
-        shifted = self._buf(n * 12)
-        wbuf = self._buf(n * 4)
-        fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
-        self._k_shift(q_, gsz, wg, q, np.int32(n), self._buf(0, par),
-                      self._buf(0, subset_solvers(obs.M).reshape(-1)), self._buf(0, obs.M),
-                      self._buf(0, obs.D), shifted, wbuf, logY, fb)
+        shifted, wbuf, logY, fb = self._shift(q, n, area, k1, k2, gain, s.shift_xyz, obs.M,
+                                              obs.D)
         # Durand & Dorsey 2002 base layer
         base = self._buf(n * 4)
         rk = RangeKernel("difference", SIGMA_RANGE_LOG10)
@@ -104,12 +109,7 @@ class KirkDevice:
         src = self._buf(0, rgb.reshape(n, 3))
         q = self._buf(n * 16)
         self._k_lmsr(q_, gsz, wg, src, np.int32(3), np.int32(n), self._buf(0, lmsr.fitted()["H"]), q)
-        par = np.array([area, k1, k2, gain, *xyz, *RHO], np.float32)
-        out, wbuf, logY = self._buf(n * 12), self._buf(n * 4), self._buf(n * 4)
-        fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
-        self._k_shift(q_, gsz, wg, q, np.int32(n), self._buf(0, par),
-                      self._buf(0, subset_solvers(M).reshape(-1)), self._buf(0, M),
-                      self._buf(0, D), out, wbuf, logY, fb)
+        out, _, _, fb = self._shift(q, n, area, k1, k2, gain, xyz, M, D)
         res = np.empty((h, w, 3), np.float32)
         cl.enqueue_copy(q_, res, out)
         nfb = np.empty(1, np.int32)
