@@ -84,7 +84,7 @@ def bench_nnls(w, h, reps):
     base = rgb_scene(w, h) / np.float32(rgb_scene(w, h).mean())
     for exposure in (1e5, 1e3, 10.0, 0.1, 1e-3):
         q = lmsr.rgb_to_lmsr(base.reshape(-1, 3) * exposure).astype(np.float32)
-        area = ko.pupil_area(ko.logmean(q[:, 0] + q[:, 1]))
+        area = ko.model_scale()
         par = np.array([area, ko.KAPPA1, ko.KAPPA2, 1.0, *ko.SHIFT_XYZ, *ko.RHO], np.float32)
         bufs = {k: cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
                              hostbuf=np.ascontiguousarray(v, np.float32))

@@ -23,7 +23,7 @@ __kernel void to_lmsr(__global const float *in, const int nc, const int n,
     vstore4(acc, i, q);
 }
 
-/* Eqs. 10-13 and 15-16. par: area, k1, k2, rod_gain, x, y, z, rho1..4.
+/* Eqs. 10-13 and 15-16. par: scale (model units per cd/m^2), k1, k2, rod_gain, x, y, z, rho1..4.
  * solvers: 7 (3x3) matrices, full support first; M: display RGB -> LMS;
  * D: display RGB -> working RGB. Output: working RGB (cd/m^2 units), w. */
 __kernel void kirk11_shift(__global const float *q, const int n, __constant float *par,
@@ -36,7 +36,7 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
     if (i >= n) return;
     const float area = par[0], k1 = par[1], k2 = par[2], gain = par[3];
     const float4 qq = vload4(i, q);
-    const float4 qt = qq * area;                                       /* trolands */
+    const float4 qt = qq * area;                                  /* Eq. 10 units */
     const float gl = rsqrt(1.0f + 0.33f * (qt.x + k1 * qt.w));         /* Eq. 10 */
     const float gm = rsqrt(1.0f + 0.33f * (qt.y + k1 * qt.w));
     const float gs = rsqrt(1.0f + 0.33f * (qt.z + k2 * qt.w));

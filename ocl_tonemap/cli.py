@@ -193,6 +193,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--colorconfig")
     p = sub.add_parser("sample", help="write the built-in tunnel-drive sample (EXR, cd/m^2)")
     p.add_argument("outdir")
+    p.add_argument("--spectral", action="store_true",
+                   help="also write a spectral OpenEXR ColorChecker lit by tungsten at "
+                   "0.05 cd/m^2 (colorchecker_spectral.exr, for kirk11)")
     p.add_argument("--size", default="320x180")
     p.add_argument("--seconds", type=float, default=8.0)
     p.add_argument("--fps", type=float, default=30.0)
@@ -245,6 +248,11 @@ def main(argv: list[str] | None = None) -> int:
             w, h = _size(a.size)
             pattern, frames = write_tunnel_sequence(a.outdir, w, h, a.fps, a.seconds)
             print(f"wrote {len(frames)} frames: {pattern} (frames {frames[0]}-{frames[-1]})")
+            if a.spectral:
+                from .sample import write_spectral_image
+                sp = os.path.join(a.outdir, "colorchecker_spectral.exr")
+                write_spectral_image(sp, "A", 0.05, patch_px=24)
+                print(f"wrote {sp}")
             return 0
         if a.cmd == "demo":
             from .sample import write_tunnel_sequence

@@ -223,7 +223,7 @@ def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None):
     each pixel's photopic luminance. ``device``: a KirkDevice, else float64."""
     from . import kirk11 as ko
     from . import lmsr
-    area = ko.pupil_area(G_cone)
+    area = ko.model_scale()
     k1, k2, gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), G_rod)
     M = lmsr.fitted()["H"][:3]
     rgb = np.asarray(rgb)

@@ -7,7 +7,7 @@ Cao, Pokorny, Smith & Zele 2008's model of rod signals in the cone pathways.
 Per pixel::
 
     q = (L, M, S, R)                  from a spectrum (Eq. 8) or RGB via H (Sec. 4)
-    g_L = (1 + 0.33 (q_L + k1 q_R))^-1/2, g_M likewise, g_S with k2   (Eq. 10, trolands)
+    g_L = (1 + 0.33 (q_L + k1 q_R))^-1/2, g_M likewise, g_S with k2   (Eq. 10, K q)
     delta o (Eq. 12), o = A q^ (Eq. 11), q^ = q_LMS + A^-1 delta o    (Eq. 13)
     p* = argmin ||M p - q^||, p >= 0                                   (Eqs. 14-15)
     w = alpha g_L/l_max + (1 - alpha) g_M/m_max                        (Eq. 16)
@@ -22,6 +22,7 @@ device pass. Reconstructions of the seed text are in docs/models.md.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import asdict, dataclass, field
@@ -32,7 +33,6 @@ from . import lmsr
 from .bilateral import BilateralSpec, RangeKernel, bilateral_reference
 from .display import DISPLAY_LINEAR_MAX, DisplaySpec
 from .durand00 import mesopic_factor
-from .flare import pupil_diameter
 from .photometry import Y_WEIGHTS, sanitize
 
 NAME = "kirk11"
@@ -62,17 +62,30 @@ SIGMA_RANGE_LOG10 = 0.4
 Y_FLOOR = 1.0e-10
 
 
-def pupil_area(L_cd: float) -> float:
-    """Pupil area, mm^2, at adaptation luminance ``L_cd`` (Moon & Spencer, flare.py):
-    multiplies cd/m^2 into trolands, the units of Cao et al.'s Eq. 10."""
-    d = float(pupil_diameter(L_cd))
-    return math.pi * d * d / 4.0
+#: CIE mesopic range (CIE 191:2010): 0.005 to 5 cd/m^2.
+MESOPIC_LOWER_CD, MESOPIC_UPPER_CD = 0.005, 5.0
+
+
+@functools.lru_cache(maxsize=1)
+def model_scale() -> float:
+    """Units of Eq. 10 per cd/m^2 of our LMSR. The paper leaves the absolute scale to
+    its exposure control; we fix it so that the paper's own mesopic measure, w of
+    Eq. 16, equals beta = 1 ("fully scotopic") for the working white at the CIE lower
+    mesopic limit, 0.005 cd/m^2. It then falls to 0.04 at the upper limit, 5 cd/m^2
+    (docs/models.md)."""
+    q = lmsr.rgb_to_lmsr(np.full(3, MESOPIC_LOWER_CD))
+    lo, hi = 1e-3, 1e9
+    for _ in range(200):
+        mid = math.sqrt(lo * hi)
+        w = float(mesopic_weight(regulated_signals(q * mid, KAPPA1, KAPPA2)))
+        lo, hi = (mid, hi) if w > BETA else (lo, mid)
+    return math.sqrt(lo * hi)
 
 
 # --- Eqs. 10-13, 16 ----------------------------------------------------------------
 
 def regulated_signals(q_td: np.ndarray, k1: float, k2: float) -> np.ndarray:
-    """g, Eq. 10 (q in trolands, (..., 4) LMSR) -> (..., 3)."""
+    """g, Eq. 10 (q in model units, K x LMSR, (..., 4)) -> (..., 3)."""
     q = np.asarray(q_td, np.float64)
     r = q[..., 3]
     return np.stack([(1.0 + 0.33 * (q[..., 0] + k1 * r)) ** -0.5,
@@ -99,15 +112,15 @@ def opponent_shift(g: np.ndarray, q_rod: np.ndarray, k1: float, xyz=SHIFT_XYZ,
                      z * lum * rod], axis=-1)
 
 
-def purkinje_shift(q: np.ndarray, area_mm2: float, k1: float = KAPPA1, k2: float = KAPPA2,
+def purkinje_shift(q: np.ndarray, scale: float, k1: float = KAPPA1, k2: float = KAPPA2,
                    xyz=SHIFT_XYZ, rod_gain: float = 1.0):
     """Eqs. 10-13 for (..., 4) LMSR in cd/m^2 units: returns (q^ (..., 3) in the
-    same units, w). Trolands (x pupil area) inside, as Cao et al.'s constants need."""
+    same units, w). ``scale``: model units per cd/m^2 (``model_scale()``)."""
     q = np.asarray(q, np.float64)
-    qt = q * area_mm2
+    qt = q * scale
     g = regulated_signals(qt, k1, k2)
     d_o = opponent_shift(g, qt[..., 3], k1, xyz, rod_gain)
-    q_hat = q[..., :3] + (d_o @ A_INV.T) / area_mm2
+    q_hat = q[..., :3] + (d_o @ A_INV.T) / scale
     return q_hat, mesopic_weight(g)
 
 
@@ -220,7 +233,7 @@ def compose_reference(src_rgb, shift_rgb, w, logY, base, settings: KirkSettings,
 
 @dataclass
 class KirkSummary:
-    area_mm2: float = 0.0
+    model_scale: float = 0.0
     k1: float = KAPPA1
     k2: float = KAPPA2
     rod_gain: float = 1.0
@@ -271,7 +284,7 @@ class KirkObserver:
         wavelengths = self.wavelengths
         src, q, repairs = self._lmsr(pixels, scale, wavelengths)
         L_wa, L_waR = logmean(q[..., 0] + q[..., 1]), logmean(q[..., 3])
-        area = pupil_area(L_wa)
+        area = model_scale()
         k1, k2, gain = kappas(self.s, L_waR)
         q_hat, w = purkinje_shift(q, area, k1, k2, self.s.shift_xyz, gain)
         p, fb = nnls3(self.M, q_hat)

@@ -6,7 +6,7 @@ import numpy as np
 
 from . import lmsr
 from .bilateral import DeviceBilateral, RangeKernel
-from .kirk11 import (RHO, SIGMA_RANGE_LOG10, KirkSummary, kappas, logmean, pupil_area,
+from .kirk11 import (RHO, SIGMA_RANGE_LOG10, KirkSummary, kappas, logmean, model_scale,
                      subset_solvers)
 from .photometry import RepairCounts, sanitize
 
@@ -61,7 +61,7 @@ class KirkDevice:
         qh = np.empty((n, 4), np.float32)
         cl.enqueue_copy(q_, qh, q)
         L_wa, L_waR = logmean(qh[:, 0] + qh[:, 1]), logmean(qh[:, 3])
-        area = pupil_area(L_wa)
+        area = model_scale()
         k1, k2, gain = kappas(s, L_waR)
         shifted, wbuf, logY, fb = self._shift(q, n, area, k1, k2, gain, s.shift_xyz, obs.M,
                                               obs.D)

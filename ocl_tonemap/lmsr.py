@@ -9,7 +9,7 @@ Units. Each cone fundamental is scaled to the peak Kirk & O'Brien give for it
 radiance is weighted by 683 lm/W, so that L + M is close to photopic luminance
 (cd/m^2) as in the cone-troland convention of Cao et al. 2008 the constants
 come from; the rod response is scotopic luminance (1700 lm/W x V', scotopic
-cd/m^2). ``kirk11`` turns these into trolands with the pupil area.
+cd/m^2). ``kirk11`` scales them into the units of Eq. 10 (``model_scale``).
 
 From spectral radiance (W sr^-1 m^-2 nm^-1 sampled at wavelengths), Eq. 8 is
 integrated exactly for the piecewise-linear spectrum through the samples.

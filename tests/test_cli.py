@@ -256,7 +256,7 @@ def test_kirk11_spectral_and_rgb_files(tmp_path):
     assert sk.getattribute("ocltm:input_colorspace").startswith("spectral, 31 channels")
     assert "from the spectrum" in sp.getattribute("ocltm:input_colorspace")
     params = json.loads(sk.getattribute("ocltm:params"))
-    assert params["input"] == "spectral" and params["w_mean"] > 1.0    # scotopic
+    assert params["input"] == "spectral" and params["w_mean"] > 0.5    # low mesopic
     px = pixels(out_k)
     assert px.shape == (16, 24, 3) and np.isfinite(px).all() and px.min() >= 0
     # RGB input, on a P3 display: the non-negativity is in the display's primaries
@@ -267,3 +267,20 @@ def test_kirk11_spectral_and_rgb_files(tmp_path):
     assert main(["run", rgb, str(tmp_path / "r.png"), "--operator", "kirk11",
                  "--display", "Display P3 - Display", "--kappa", "full", "--night-dim", "0.5",
                  "-q"]) == 0
+
+
+def test_sample_spectral_and_exposure_control(tmp_path):
+    """`sample --spectral` writes a spectral EXR; lower exposure, dimmer and bluer."""
+    assert main(["sample", str(tmp_path), "--size", "16x9", "--seconds", "0.1",
+                 "--spectral"]) == 0
+    sp = tmp_path / "colorchecker_spectral.exr"
+    outs = {}
+    for ev in ("12", "7", "0"):
+        o = str(tmp_path / f"k{ev}.exr")
+        assert main(["run", str(sp), o, "--operator", "kirk11", "--exposure", ev,
+                     "--out-bits", "float", "-q"]) == 0
+        outs[ev] = pixels(o)
+    red = [outs[e][24 * 2 + 12, 24 * 2 + 12] for e in ("12", "7", "0")]   # the red patch
+    r_share = [p[0] / max(p.sum(), 1e-12) for p in red]
+    assert r_share[0] > 0.6 and r_share[0] > r_share[1] > r_share[2]
+    assert outs["12"].mean() > outs["7"].mean() > outs["0"].mean()
