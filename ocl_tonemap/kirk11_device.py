@@ -45,6 +45,8 @@ class KirkDevice:
         cl, q_ = self.cl, self.rt.queue
         h, w = pixels.shape[:2]
         n = h * w
+        if n > backend.max_band_pixels:
+            return self._process_banded(obs, backend, pixels, scale, wavelengths)
         gsz, wg = (round_up(n, 64),), (64,)
         s = obs.s
         if wavelengths is None:                          # RGB: the device colour stage
@@ -115,3 +117,72 @@ class KirkDevice:
         nfb = np.empty(1, np.int32)
         cl.enqueue_copy(q_, nfb, fb)
         return res, float(nfb[0]) / max(n, 1)
+
+    def _lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
+        """One band to LMSR on the device: (q buffer, source buffer, repairs)."""
+        from .runtime import round_up
+        nr, w = band.shape[:2]
+        n = nr * w
+        if wavelengths is None:
+            rc = backend._to_working(band, scale, count=count)
+            src, W, nc = backend._bufs["rgb"], lmsr.fitted()["H"], 3
+        else:
+            spec, rc = sanitize(band, scale)
+            nc = spec.shape[2]
+            src, W = self._buf(0, spec.reshape(n, nc)), lmsr.spectrum_weights(wavelengths)
+        q = self._buf(n * 16)
+        self._k_lmsr(self.rt.queue, (round_up(n, 64),), (64,), src, np.int32(nc), np.int32(n),
+                     self._buf(0, W), q)
+        return q, src, rc
+
+    def _process_banded(self, obs, backend, pixels, scale, wavelengths):
+        """Frames beyond ``backend.max_band_pixels``: per-pixel passes in row bands,
+        the bilateral base through ``DeviceBilateral.filter_banded``, the final
+        composition on the host (float64, the reference's ``compose_reference``)."""
+        from .kirk11 import compose_reference
+        cl, q_ = self.cl, self.rt.queue
+        h, w = pixels.shape[:2]
+        rows = max(1, backend.max_band_pixels // max(w, 1))
+        bands = [(y0, min(rows, h - y0)) for y0 in range(0, h, rows)]
+        s = obs.s
+        repairs = RepairCounts()
+        sum_lm = sum_r = 0.0
+        for y0, nr in bands:                               # pass 1: the frame's levels
+            qb, _, rc = self._lmsr_band(backend, pixels[y0:y0 + nr], scale, wavelengths, True)
+            repairs += rc
+            qh = np.empty((nr * w, 4), np.float32)
+            cl.enqueue_copy(q_, qh, qb)
+            sum_lm += float(np.log(np.maximum(qh[:, 0].astype(np.float64) + qh[:, 1], 1e-6)).sum())
+            sum_r += float(np.log(np.maximum(qh[:, 3].astype(np.float64), 1e-6)).sum())
+        L_wa, L_waR = float(np.exp(sum_lm / (h * w))), float(np.exp(sum_r / (h * w)))
+        area = model_scale()
+        k1, k2, gain = kappas(s, L_waR)
+        blend = wavelengths is None
+        shifted = np.empty((h, w, 3), np.float32)
+        wh = np.empty((h, w), np.float32)
+        logY = np.empty((h, w), np.float32)
+        src = np.empty((h, w, 3), np.float32) if blend else None
+        nfb = 0
+        for y0, nr in bands:                               # pass 2: shift, per band
+            qb, sb, _ = self._lmsr_band(backend, pixels[y0:y0 + nr], scale, wavelengths, False)
+            ob, wb, lb, fb = self._shift(qb, nr * w, area, k1, k2, gain, s.shift_xyz, obs.M,
+                                         obs.D)
+            cl.enqueue_copy(q_, shifted[y0:y0 + nr], ob)
+            cl.enqueue_copy(q_, wh[y0:y0 + nr], wb)
+            cl.enqueue_copy(q_, logY[y0:y0 + nr], lb)
+            if blend:
+                cl.enqueue_copy(q_, src[y0:y0 + nr], sb)
+            c = np.empty(1, np.int32)
+            cl.enqueue_copy(q_, c, fb)
+            nfb += int(c[0])
+        sig = s.sigma_px(w, h)
+        method = self.bil.choose(s.bilateral, sig, w, h)
+        base = self.bil.filter_banded(logY, sig, RangeKernel("difference", SIGMA_RANGE_LOG10),
+                                      method, backend.max_band_pixels, s.bilateral.q_s,
+                                      s.bilateral.q_r)
+        out = compose_reference(src, shifted.astype(np.float64), wh.astype(np.float64),
+                                logY.astype(np.float64), base.astype(np.float64), s,
+                                obs.display, blend)
+        obs.summary = KirkSummary(area, k1, k2, gain, float(wh.mean()), nfb / (h * w),
+                                  "spectral" if wavelengths is not None else "rgb")
+        return out.astype(np.float32), repairs, (L_waR, L_wa)
