@@ -49,17 +49,7 @@ class KirkDevice:
             return self._process_banded(obs, backend, pixels, scale, wavelengths)
         gsz, wg = (round_up(n, 64),), (64,)
         s = obs.s
-        if wavelengths is None:                          # RGB: the device colour stage
-            repairs = backend._to_working(pixels, scale, count=True)
-            src = backend._bufs["rgb"]
-            W, nc = lmsr.fitted()["H"], 3
-        else:                                            # spectral: host policy, upload
-            spec, repairs = sanitize(pixels, scale)
-            nc = spec.shape[2]
-            src = self._buf(0, spec.reshape(n, nc))
-            W = lmsr.spectrum_weights(wavelengths)
-        q = self._buf(n * 16)
-        self._k_lmsr(q_, gsz, wg, src, np.int32(nc), np.int32(n), self._buf(0, W), q)
+        q, src, repairs = self._lmsr_band(backend, pixels, scale, wavelengths, True)
         qh = np.empty((n, 4), np.float32)
         cl.enqueue_copy(q_, qh, q)
         L_wa, L_waR = logmean(qh[:, 0] + qh[:, 1]), logmean(qh[:, 3])
@@ -119,7 +109,9 @@ class KirkDevice:
         return res, float(nfb[0]) / max(n, 1)
 
     def _lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
-        """One band to LMSR on the device: (q buffer, source buffer, repairs)."""
+        """One band (or a whole frame) to LMSR on the device: (q buffer, source
+        buffer, repairs). RGB goes through the device colour stage; spectra through
+        the host bad-value policy, then uploaded."""
         from .runtime import round_up
         nr, w = band.shape[:2]
         n = nr * w
