@@ -20,7 +20,7 @@ inline void map_one(const int i, __global const float *rgb, __global const float
                     const float log2_sigma_rod, const float log2_sigma_cone,
                     const float B_rod, const float B_cone, const float gain, const float offset,
                     const float dB_rod, const float dB_cone, const float ds_rod, const float ds_cone,
-                    const float colour_k, const float out_scale)
+                    const float colour_k, const float out_black, const float out_scale)
 {
     const float Lc = Y[i];
     const float xc = saturation(Lc, log2_sigma_cone);
@@ -35,7 +35,7 @@ inline void map_one(const int i, __global const float *rgb, __global const float
     const float c = Rd * ds_rod * ds_cone;
     const float disc = sqrt(b * b + 4.0f * a * c);
     const float x = b > 0.0f ? 2.0f * c / (b + disc) : (disc - b) / (2.0f * a);
-    const float Ld = x > 0.0f ? exp2(log2(x) * (1.0f / PN)) : 0.0f;
+    const float Ld = fmax((x > 0.0f ? exp2(log2(x) * (1.0f / PN)) : 0.0f) - out_black, 0.0f);
 
     float4 col = (float4)(vload3(i, rgb), 1.0f);
     float4 ratio = Lc > L_FLOOR ? col / Lc : (float4)(1.0f);
@@ -45,13 +45,14 @@ inline void map_one(const int i, __global const float *rgb, __global const float
 }
 
 #define MAP_ARGS log2_sigma_rod, log2_sigma_cone, B_rod, B_cone, gain, offset, \
-                 dB_rod, dB_cone, ds_rod, ds_cone, colour_k, out_scale
+                 dB_rod, dB_cone, ds_rod, ds_cone, colour_k, out_black, out_scale
 #define MAP_PARAMS const float log2_sigma_rod, const float log2_sigma_cone, \
                    const float B_rod, const float B_cone, const float gain, const float offset, \
                    const float dB_rod, const float dB_cone, \
                    const float ds_rod, const float ds_cone,  /* display sigma^n */ \
                    const float colour_k,                     /* ln10 n B_cone / S_d */ \
-                   const float out_scale                     /* 1 / display unit */
+                   const float out_black,                    /* display black taken out, cd/m^2 */ \
+                   const float out_scale                     /* display-linear per cd/m^2 */
 
 /* Scalar kernel: one pixel per work-item (kept for comparison in benchmarks). */
 __kernel void pattanaik00_map(__global const float *rgb, __global const float *Y,
@@ -86,7 +87,8 @@ __kernel void pattanaik00_map4(__global const float *rgb, __global const float *
     const float4 c = Rd * ds_rod * ds_cone;
     const float4 disc = sqrt(b * b + 4.0f * a * c);
     const float4 x = select((disc - b) / (2.0f * a), 2.0f * c / (b + disc), b > 0.0f);
-    const float4 Ld = select((float4)(0.0f), exp2(log2(x) * (1.0f / PN)), x > 0.0f) * out_scale;
+    const float4 Ld = fmax(select((float4)(0.0f), exp2(log2(x) * (1.0f / PN)), x > 0.0f) - out_black,
+                           0.0f) * out_scale;
 
     /* 12 colour values of 4 pixels: p0 = c0.xyz, p1 = (c0.w, c1.xy), p2 = (c1.zw, c2.x), p3 = c2.yzw */
     __global const float *src = rgb + 12 * q;

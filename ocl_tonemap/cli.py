@@ -20,8 +20,12 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--operator", default="pattanaik00", choices=sorted(REGISTRY))
     p.add_argument("--metering", default="logmean",
                    help="logmean | mean | max | centre[:mean] | spot:X,Y[,SIGMA] | percentile:P")
-    p.add_argument("--luminance-scale", type=float,
-                   help="cd/m^2 of pixel value 1.0 (default: whiteLuminance, else 1)")
+    p.add_argument("--luminance-scale", metavar="S|auto:LEVEL",
+                   help="cd/m^2 of pixel value 1.0, or auto:LEVEL to put the first frame's "
+                   "log-average at LEVEL cd/m^2 (a number, or night 0.01, dusk 1, interior 30, "
+                   "overcast 500, daylight 5000) for files that carry no calibration "
+                   "(default: whiteLuminance, else camera EXIF exposure, else 179 for "
+                   "Radiance .hdr, else 1 with a warning)")
     p.add_argument("--exposure", type=float, default=0.0, help="extra scale in stops (EV)")
     p.add_argument("--colorconfig", help="OCIO config: file, ocio:// URI or 'ocl-tonemap' "
                    "(default: $OCIO, else ocio://default)")
@@ -33,7 +37,19 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    help="display observer: from the chosen display, or Pattanaik 2000's CRT")
     p.add_argument("--display-white", type=float, help="display white, cd/m^2 (default: 100 SDR, "
                    "peak for HDR)")
-    p.add_argument("--display-peak", type=float, default=1000.0, help="HDR display peak, cd/m^2")
+    p.add_argument("--display-peak", type=float, default=1000.0, help="HDR display peak, cd/m^2 "
+                   "(default 1000)")
+    p.add_argument("--display-black", type=float, help="display black, cd/m^2 (default: white/1000 "
+                   "for SDR, 0.005 for HDR)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--unpremult", dest="unpremult", action="store_true", default=None,
+                   help="the input's colour is premultiplied by alpha: divide before tone "
+                   "mapping, multiply after (default: from the file, oiio:UnassociatedAlpha)")
+    g.add_argument("--no-unpremult", dest="unpremult", action="store_false",
+                   help="tone map the colour as stored")
+    p.add_argument("--encode", action="store_true",
+                   help="EXR/HDR outputs: display-encoded code values (tagged with the display "
+                   "colourspace) instead of display-linear light (the default for float outputs)")
     p.add_argument("--preadapt", help="initial adaptation: CD_M2 (fully adapted) or "
                    "CD_M2:SECONDS (exposed that long from dark)")
     p.add_argument("--state-in", help="resume from this adaptation state (JSON)")
@@ -99,7 +115,8 @@ def _options(a, input_, output):
         metering=a.metering, luminance_scale=a.luminance_scale, exposure=a.exposure,
         colorconfig=a.colorconfig, iscolorspace=a.iscolorspace, display=a.display, view=a.view,
         display_model=a.display_model, display_white=a.display_white,
-        display_peak=a.display_peak,
+        display_peak=a.display_peak, display_black=a.display_black, unpremult=a.unpremult,
+        encode=a.encode,
         preadapt=parse_preadapt(a.preadapt) if a.preadapt else None,
         state_in=a.state_in, state_out=a.state_out, backend=a.backend, device=a.device,
         out_bits=a.out_bits, plot=a.plot,

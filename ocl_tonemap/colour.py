@@ -5,19 +5,34 @@ bundled config is available by name (``ocl-tonemap`` or ``bundled``); any
 ``ocio://`` built-in URI and any file path work too. Never silently a raw
 config: an unreadable config is an error.
 
-Input colourspace: ``--iscolorspace`` > the file's ``oiio:ColorSpace`` (when
-the config knows it) > a non-default file rule of the config > the
-``scene_linear`` role. Pixels are converted to the working space, linear
+Input colour (:func:`resolve_input`), first that applies:
+
+1. ``--iscolorspace``;
+2. the file's ``oiio:ColorSpace`` when the config knows it, else when OCIO's
+   built-in config knows it (OIIO's colour interop IDs, ``lin_rec709_scene``...);
+3. the EXR ``chromaticities`` attribute: a matrix to the working space
+   (Bradford adaptation when the white is not D65, as OCIO's configs do);
+4. a file rule of a config the user chose (a file, not an ``ocio://``
+   built-in) when a rule other than the config's default rule matches;
+5. otherwise scene-linear Rec.709, OIIO's and OpenEXR's convention for a file
+   that says nothing -- reported once per run as an assumption.
+
+The built-in configs' file rules (``*.exr -> ACES2065-1`` in ``ocio://default``)
+are the ACES reference pipeline's convention, not knowledge about the file,
+so they are not used. Pixels are converted to the working space, linear
 BT.709/D65, where the papers' luminance formulas hold.
 
-Output: the operators produce display-linear BT.709 light, which OCIO encodes
-with a display/view. The default view is the config's un-tone-mapped one, so
-no second scene tone curve is applied on top of the operator.
+Output: the operators produce display-linear BT.709 light. Integer formats
+get OCIO's display/view encoding (the config's un-tone-mapped view, so no
+second tone curve); float outputs (EXR) default to display-linear light in
+the config's linear colourspace with the display's primaries
+(:meth:`ColourPipeline.linear_output`), tagged with it.
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -48,6 +63,11 @@ def resolve_config_source(colorconfig: str | None = None) -> str:
     return src
 
 
+def is_builtin_source(src: str) -> bool:
+    """An ``ocio://`` built-in config (its file rules are not the user's)."""
+    return str(src).startswith("ocio://")
+
+
 def load_config(colorconfig: str | None = None) -> ocio.Config:
     src = resolve_config_source(colorconfig)
     try:
@@ -75,7 +95,8 @@ def working_space(cfg: ocio.Config) -> str:
 
 def input_colorspace(cfg: ocio.Config, path: str | None, file_cs: str | None,
                      override: str | None) -> tuple[str, str]:
-    """(colourspace, why) for an input file, by the documented precedence."""
+    """(colourspace, why) by the precedence of the OCIO names only (override, file
+    metadata, file rules, the scene_linear role); the CLI uses :func:`resolve_input`."""
     if override:
         if not _has_cs(cfg, override):
             raise ColourError(f"--iscolorspace {override!r} is not in the OCIO config")
@@ -95,6 +116,122 @@ def input_colorspace(cfg: ocio.Config, path: str | None, file_cs: str | None,
         raise ColourError("no input colourspace: the file names none the config knows, "
                           "and the config has no scene_linear role; pass --iscolorspace")
     return role, "scene_linear role"
+
+
+#: EXR/CIE chromaticities (rx, ry, gx, gy, bx, by, wx, wy) of the working space.
+REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
+#: Bradford cone response matrix (Lam 1985), the CAT of OCIO's ACES configs.
+BRADFORD = np.array([[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367],
+                     [0.0389, -0.0685, 1.0296]])
+
+
+def chromaticities_to_xyz(chrom) -> np.ndarray:
+    """RGB -> XYZ matrix (float64) of primaries and white given as xy chromaticities
+    (white normalised to Y = 1), SMPTE RP 177."""
+    c = [float(v) for v in chrom]
+    if len(c) != 8 or not all(np.isfinite(c)):
+        raise ColourError(f"chromaticities need 8 finite numbers (got {chrom!r})")
+    xy = np.array(c).reshape(4, 2)
+    if np.any(xy[:3, 1] == 0) or xy[3, 1] <= 0:       # (AP0's blue primary has y < 0)
+        raise ColourError(f"chromaticities with y = 0 or a white with y <= 0: {chrom!r}")
+    XYZ = np.stack([xy[:, 0] / xy[:, 1], np.ones(4), (1.0 - xy.sum(axis=1)) / xy[:, 1]], axis=1)
+    P = XYZ[:3].T
+    if abs(np.linalg.det(P)) < 1e-9:
+        raise ColourError(f"chromaticities have collinear primaries: {chrom!r}")
+    return P * np.linalg.solve(P, XYZ[3])
+
+
+def xyz_to_chromaticities(M: np.ndarray) -> tuple:
+    """Inverse of :func:`chromaticities_to_xyz`: the xy of the columns and of their sum."""
+    cols = [M[:, 0], M[:, 1], M[:, 2], M.sum(axis=1)]
+    return tuple(float(v) for c in cols for v in (c[0] / c.sum(), c[1] / c.sum()))
+
+
+def chromaticities_to_working(chrom) -> np.ndarray:
+    """Matrix from RGB with these chromaticities to linear BT.709/D65, with a
+    Bradford adaptation from the file's white to D65."""
+    from .photometry import RGB709_TO_XYZ
+    M = chromaticities_to_xyz(chrom)
+    src_w = M.sum(axis=1)
+    dst_w = RGB709_TO_XYZ.sum(axis=1)
+    cat = np.linalg.inv(BRADFORD) @ np.diag((BRADFORD @ dst_w) / (BRADFORD @ src_w)) @ BRADFORD
+    return np.linalg.inv(RGB709_TO_XYZ) @ cat @ M
+
+
+def is_rec709(chrom, tol: float = 1e-3) -> bool:
+    return bool(np.max(np.abs(np.asarray(chrom, np.float64) - REC709_CHROMATICITIES)) < tol)
+
+
+@dataclass(frozen=True)
+class InputColour:
+    """How one input file's RGB becomes working-space RGB.
+
+    kind : ``"ocio"`` (processor from ``colorspace`` of ``config``), ``"matrix"``
+        (``matrix`` from the EXR chromaticities) or ``"working"`` (as it is).
+    why : where the decision came from, for the log and the ``ocltm:`` metadata.
+    assumed : nothing in the file or on the command line said it.
+    """
+
+    kind: str
+    colorspace: str
+    why: str
+    assumed: bool = False
+    matrix: tuple | None = None
+    builtin: bool = False       # the name comes from OCIO's built-in config
+
+    def describe(self) -> str:
+        return f"{self.colorspace} ({self.why})"
+
+
+_BUILTIN: dict = {}
+
+
+def builtin_config() -> ocio.Config:
+    """OCIO's built-in default config (knows OIIO's colour interop IDs)."""
+    if "cfg" not in _BUILTIN:
+        _BUILTIN["cfg"] = ocio.Config.CreateFromFile("ocio://default")
+    return _BUILTIN["cfg"]
+
+
+def resolve_input(cfg: ocio.Config, path: str | None, file_cs: str | None,
+                  override: str | None, chromaticities=None,
+                  rules_from_user_config: bool = True) -> InputColour:
+    """The input colour of one file, by the precedence in the module doc."""
+    work = working_space(cfg)
+    if override:
+        if not _has_cs(cfg, override):
+            raise ColourError(f"--iscolorspace {override!r} is not in the OCIO config")
+        return InputColour("ocio", cfg.getColorSpace(override).getName(), "--iscolorspace")
+    unknown = ""
+    if file_cs:
+        if _has_cs(cfg, file_cs):
+            return InputColour("ocio", cfg.getColorSpace(file_cs).getName(),
+                               "file oiio:ColorSpace")
+        b = builtin_config()
+        if _has_cs(b, file_cs):
+            return InputColour("ocio", b.getColorSpace(file_cs).getName(),
+                               f"file oiio:ColorSpace {file_cs!r}, OCIO built-in config",
+                               builtin=True)
+        unknown = f"the file's oiio:ColorSpace {file_cs!r} is unknown; "
+    if chromaticities is not None:
+        try:
+            if is_rec709(chromaticities):
+                return InputColour("working", work, unknown + "EXR chromaticities: Rec.709/D65")
+            M = chromaticities_to_working(chromaticities)
+        except ColourError as exc:
+            unknown += f"ignored bad chromaticities ({exc}); "
+        else:
+            return InputColour("matrix", "RGB with chromaticities " + ",".join(
+                f"{v:.4g}" for v in chromaticities), unknown + "EXR chromaticities",
+                matrix=tuple(map(tuple, M)))
+    if path and rules_from_user_config and not cfg.filepathOnlyMatchesDefaultRule(path):
+        cs = cfg.getColorSpaceFromFilepath(path)
+        if isinstance(cs, tuple):        # OCIO >= 2.x Python: (name, rule index)
+            cs = cs[0]
+        if _has_cs(cfg, cs):
+            return InputColour("ocio", cfg.getColorSpace(cs).getName(), unknown + "config file rules")
+    return InputColour("working", work, unknown + "untagged: scene-linear Rec.709, the "
+                       "OIIO/OpenEXR convention; --iscolorspace to override", assumed=True)
 
 
 def default_display(cfg: ocio.Config) -> str:
@@ -152,6 +289,99 @@ class ColourPipeline:
             self._in_procs[src_cs] = proc
         _apply(proc, pixels)
         return pixels
+
+    def convert_input(self, pixels: np.ndarray, ic: InputColour) -> np.ndarray:
+        """Working-space RGB of (H, W, C>=3) float32 ``pixels`` described by ``ic``
+        (converted in place where possible; returns the array)."""
+        if ic.kind == "working":
+            return pixels
+        if ic.kind == "matrix":
+            M = np.asarray(ic.matrix, np.float32)
+            pixels[..., :3] = pixels[..., :3] @ M.T
+            return pixels
+        if not ic.builtin:
+            return self.to_working(pixels, ic.colorspace)
+        key = ("builtin", ic.colorspace)
+        proc = self._in_procs.get(key)
+        if proc is None:
+            b = builtin_config()
+            proc = b.getProcessor(ic.colorspace, working_space(b)).getDefaultCPUProcessor()
+            self._in_procs[key] = proc
+        _apply(proc, pixels)
+        return pixels
+
+    def _matrix_from_working(self, cs: str) -> np.ndarray | None:
+        """The 3x3 matrix working -> ``cs`` when OCIO's transform is linear, else None."""
+        try:
+            proc = self.cfg.getProcessor(self.working, cs).getDefaultCPUProcessor()
+        except Exception:  # noqa: BLE001 -- OCIO raises its own Exception type
+            return None
+        probe = np.array([[[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.25, 2.0], [4.0, 8.0, 0.5]]],
+                         np.float32)
+        _apply(proc, probe)
+        M = probe[0, :3].T.astype(np.float64)
+        for v, got in ((np.array([0.5, 0.25, 2.0]), probe[0, 3]),
+                       (np.array([4.0, 8.0, 0.5]), probe[0, 4])):
+            if not np.allclose(M @ v, got, rtol=1e-4, atol=1e-5):
+                return None
+        return M if np.all(np.isfinite(M)) and abs(np.linalg.det(M)) > 1e-6 else None
+
+    def linear_output(self) -> tuple[str, np.ndarray]:
+        """(name, matrix working -> it) of the colourspace that holds display-linear
+        light in the display's primaries: the config's linear colourspace whose
+        primaries and white match the display's (display-linear encodings first);
+        the working space when the config has none."""
+        if getattr(self, "_linear_out", None) is not None:
+            return self._linear_out
+        from .photometry import RGB709_TO_XYZ
+        D = self.display_primaries()
+        target = xyz_to_chromaticities(RGB709_TO_XYZ @ D)
+        best = None
+        for name in self.cfg.getColorSpaceNames():
+            cs = self.cfg.getColorSpace(name)
+            if cs is None or cs.isData():
+                continue
+            enc = cs.getEncoding() if hasattr(cs, "getEncoding") else ""
+            if enc not in ("", "scene-linear", "display-linear"):
+                continue
+            M = self._matrix_from_working(name)
+            if M is None:
+                continue
+            chrom = xyz_to_chromaticities(RGB709_TO_XYZ @ np.linalg.inv(M))
+            if max(abs(a - b) for a, b in zip(chrom, target)) > 2e-3:
+                continue
+            rank = (0 if enc == "display-linear" else 1 if enc == "scene-linear" else 2,
+                    0 if name == self.working else 1)
+            if best is None or rank < best[0]:
+                best = (rank, name, M)
+        if best is None:
+            self._linear_out = (self.working, np.eye(3))
+        else:
+            self._linear_out = (best[1], best[2])
+        return self._linear_out
+
+    def linear(self, display_linear: np.ndarray) -> np.ndarray:
+        """Display-linear working RGB -> display-linear light in :meth:`linear_output`'s
+        colourspace (new array, through OCIO)."""
+        name, M = self.linear_output()
+        out = np.array(display_linear, dtype=np.float32, copy=True, order="C")
+        if name != self.working:
+            key = ("out", name)
+            proc = self._in_procs.get(key)
+            if proc is None:
+                proc = self.cfg.getProcessor(self.working, name).getDefaultCPUProcessor()
+                self._in_procs[key] = proc
+            _apply(proc, out)
+        return out
+
+    def output_chromaticities(self, encoded: bool) -> tuple:
+        """EXR chromaticities of what is written: the display's primaries (encoded
+        output), or those of the linear output colourspace."""
+        from .photometry import RGB709_TO_XYZ
+        if encoded:
+            return xyz_to_chromaticities(RGB709_TO_XYZ @ self.display_primaries())
+        _, M = self.linear_output()
+        return xyz_to_chromaticities(RGB709_TO_XYZ @ np.linalg.inv(M))
 
     def display_primaries(self) -> np.ndarray:
         """(3, 3): column c is the working-space linear RGB of the display's primary c

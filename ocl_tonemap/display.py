@@ -5,13 +5,23 @@ display encoding (100 cd/m^2 for the OCIO display colourspaces, SDR and PQ
 alike), which OCIO then encodes for the chosen display/view.
 
 The display observer is steady-state adapted (Pattanaik 2000, Sec. 4.3):
-reference white is the display white, reference black 1/32 of it (Hunt, as in
-Eq. 8), adaptation luminance one fifth of white ("reference white = 5 x
-adaptation"). For the paper's CRT those are 125, 4 and 25 cd/m^2.
+reference white is the display white, adaptation luminance one fifth of it
+("reference white = 5 x adaptation"). Display black comes from the display:
+white / 1000 for SDR displays (sRGB, Rec.1886, P3, gamma: 1000:1, a typical
+LCD/OLED in a dim room), 0.005 cd/m^2 for HDR (PQ/HLG: the ST 2084 mastering
+black of common HDR monitors); ``--display-black`` sets it. The paper's CRT
+(``--display-model paper-crt``) keeps its printed 125, 4 (= 125/32) and 25 cd/m^2.
+
+Where a model produces an absolute display luminance L (Pattanaik's inverse
+display model), the display's own black is taken out of the signal: a display
+with black b shows code value v at about b + (W - b) v, so
+v = (L - b) / (W - b) (``DisplaySpec.to_signal``). The paper's CRT keeps
+v = L / W, the paper's literal form.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, asdict
 
 #: Largest display-linear value written: 100 x the encoding unit, i.e.
@@ -29,6 +39,8 @@ class DisplaySpec:
     unit_cd  : cd/m^2 of display-linear 1.0 in the OCIO display encoding.
     hdr      : True for PQ/HLG displays.
     paper_crt: use Pattanaik 2000's printed CRT constants verbatim.
+    subtract_black : take the display's black out of absolute display
+        luminances (see the module doc); off for the paper's CRT.
     """
 
     name: str
@@ -38,13 +50,46 @@ class DisplaySpec:
     unit_cd: float = 100.0
     hdr: bool = False
     paper_crt: bool = False
+    subtract_black: bool = False
 
     @classmethod
     def from_white(cls, name: str, white_cd: float, unit_cd: float = 100.0, hdr: bool = False,
-                   contrast: float = 32.0) -> "DisplaySpec":
-        if not (white_cd > 0 and contrast > 1):
-            raise ValueError(f"display white must be > 0 cd/m^2 (got {white_cd}) and contrast > 1")
-        return cls(name, white_cd, white_cd / contrast, white_cd / 5.0, unit_cd, hdr, False)
+                   contrast: float = 32.0, black_cd: float | None = None,
+                   subtract_black: bool = False) -> "DisplaySpec":
+        """A display of white ``white_cd``; black ``black_cd``, else white / ``contrast``."""
+        if not (white_cd > 0 and math.isfinite(white_cd)):
+            raise ValueError(f"display white must be a positive number of cd/m^2 (got {white_cd})")
+        black = white_cd / contrast if black_cd is None else black_cd
+        if not (0 < black < white_cd and math.isfinite(black)):
+            raise ValueError(f"display black must be > 0 and below white ({white_cd:g} cd/m^2); "
+                             f"got {black:g}")
+        return cls(name, white_cd, black, white_cd / 5.0, unit_cd, hdr, False, subtract_black)
+
+    def to_signal(self, L_cd):
+        """Display-linear signal (1.0 = ``unit_cd``) that makes this display show
+        ``L_cd`` cd/m^2: (L - black) / (white - black) x white / unit, or L / unit."""
+        import numpy as np
+        L = np.asarray(L_cd, np.float64)
+        if not self.subtract_black:
+            return L / self.unit_cd
+        return np.maximum(L - self.black_cd, 0.0) * self.signal_gain
+
+    def from_signal(self, v):
+        """Inverse of :meth:`to_signal`: the cd/m^2 the display shows for signal ``v``
+        (its black at 0 when it has one)."""
+        import numpy as np
+        return np.asarray(v, np.float64) / self.signal_gain + self.signal_offset
+
+    @property
+    def signal_offset(self) -> float:
+        """cd/m^2 taken off before :attr:`signal_gain` (the device pass's form)."""
+        return self.black_cd if self.subtract_black else 0.0
+
+    @property
+    def signal_gain(self) -> float:
+        if not self.subtract_black:
+            return 1.0 / self.unit_cd
+        return self.white_cd / ((self.white_cd - self.black_cd) * self.unit_cd)
 
     @classmethod
     def crt_2000(cls) -> "DisplaySpec":
@@ -57,20 +102,35 @@ class DisplaySpec:
 
 
 HDR_KEYS = ("pq", "2100", "st2084", "hdr", "hlg")
+#: Default display contrast (white : black) of SDR displays.
+SDR_CONTRAST = 1000.0
+#: Default black of HDR displays, cd/m^2.
+HDR_BLACK_CD = 0.005
 
 
 def display_for(display_name: str, white_cd: float | None = None, peak_cd: float = 1000.0,
-                model: str = "display") -> DisplaySpec:
+                model: str = "display", black_cd: float | None = None) -> DisplaySpec:
     """The display observer for an OCIO display name.
 
     ``model="paper-crt"`` selects the paper's CRT constants. Otherwise SDR
-    displays get a 100 cd/m^2 white; HDR (PQ/HLG) displays get their peak
-    (``peak_cd``, 1000 by default) as white. ``white_cd`` overrides both.
+    displays get a 100 cd/m^2 white and white/1000 black; HDR (PQ/HLG)
+    displays get their peak (``peak_cd``, 1000 by default) as white and
+    0.005 cd/m^2 black. ``white_cd`` and ``black_cd`` override them.
     """
     if model == "paper-crt":
+        if black_cd is not None or white_cd is not None:
+            raise ValueError("--display-model paper-crt has the paper's white and black "
+                             "(125 and 4 cd/m^2); drop --display-white/--display-black")
         return DisplaySpec.crt_2000()
     if model != "display":
         raise ValueError(f"unknown display model {model!r} (display | paper-crt)")
+    for flag, v in (("--display-white", white_cd), ("--display-peak", peak_cd),
+                    ("--display-black", black_cd)):
+        if v is not None and not (v > 0 and math.isfinite(v)):
+            raise ValueError(f"{flag} must be a positive number of cd/m^2 (got {v})")
     hdr = any(k in display_name.lower() for k in HDR_KEYS)
     white = white_cd if white_cd else (peak_cd if hdr else 100.0)
-    return DisplaySpec.from_white(display_name, white, 100.0, hdr)
+    if black_cd is None:
+        black_cd = HDR_BLACK_CD if hdr else white / SDR_CONTRAST
+    return DisplaySpec.from_white(display_name, white, 100.0, hdr, black_cd=black_cd,
+                                  subtract_black=True)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import glob
 import json
+import math
 import os
 import re
 from dataclasses import dataclass
@@ -26,8 +27,11 @@ _PAT = re.compile(r"(#+|@+|%0?(\d*)d)")
 DEFAULT_BITS = {".exr": "half", ".tif": "16", ".tiff": "16", ".png": "8", ".jpg": "8",
                 ".jpeg": "8", ".hdr": "float", ".dpx": "16"}
 BITS_TYPES = {"8": oiio.UINT8, "16": oiio.UINT16, "half": oiio.HALF, "float": oiio.FLOAT}
-#: Radiance RGBE: pixel value x 179 lm/W = cd/m^2 (WHITE_EFFICACY).
-RADIANCE_EFFICACY = 179.0
+#: Formats whose colour is premultiplied by alpha by definition.
+PREMULTIPLIED_FORMATS = (".exr", ".sxr", ".mxr")
+#: Outputs written as display-linear light by default (float formats);
+#: the others get the display encoding.
+LINEAR_FORMATS = (".exr", ".sxr", ".mxr", ".hdr")
 
 
 class FrameError(RuntimeError):
@@ -120,6 +124,12 @@ class Frame:
     wavelengths: np.ndarray | None = None   # spectral channels (nm), when the file has them
     spectral: np.ndarray | None = None      # (H, W, N) spectral radiance
     rgb_from_spectrum: bool = False         # pixels were computed from the spectrum (working RGB)
+    chromaticities: tuple | None = None     # EXR chromaticities (rx ry gx gy bx by wx wy)
+    unassociated_alpha: bool = False        # the alpha is straight (oiio:UnassociatedAlpha)
+
+    @property
+    def has_alpha(self) -> bool:
+        return self.pixels.ndim == 3 and self.pixels.shape[2] == 4
 
 
 def _fps(spec) -> float | None:
@@ -142,7 +152,12 @@ def read_frame(path: str, frame: int | None = None) -> Frame:
     """Read the RGB (+alpha) of an image OIIO can read, as float32."""
     if not os.path.exists(path):
         raise FrameError(path, frame, "no such file")
-    buf = oiio.ImageBuf(path)
+    # Ask for alpha as the file stores it: straight-alpha formats (PNG, TIFF with
+    # unassociated alpha) then say so in oiio:UnassociatedAlpha, and are not
+    # premultiplied and divided again on the way through (8-bit rounding).
+    hint = oiio.ImageSpec()
+    hint.attribute("oiio:UnassociatedAlpha", 1)
+    buf = oiio.ImageBuf(path, 0, 0, hint)
     if buf.has_error:
         raise FrameError(path, frame, f"cannot read: {buf.geterror().strip()}")
     spec = buf.spec()
@@ -167,10 +182,15 @@ def read_frame(path: str, frame: int | None = None) -> Frame:
     wl = spec.getattribute("whiteLuminance")
     ts = spec.getattribute("ocltm:timestamp")
     fmt = buf.file_format_name
+    chrom = spec.getattribute("chromaticities")
+    if not (isinstance(chrom, (tuple, list)) and len(chrom) == 8):
+        chrom = None
     return Frame(path, frame, pix, spec, spec.getattribute("oiio:ColorSpace") or None,
-                 float(wl) if isinstance(wl, (int, float)) and wl > 0 else None, _fps(spec),
+                 float(wl) if isinstance(wl, (int, float)) and math.isfinite(wl) and wl > 0
+                 else None, _fps(spec),
                  float(ts) if isinstance(ts, (int, float)) else None, fmt, lam, cube,
-                 from_spectrum)
+                 from_spectrum, tuple(float(v) for v in chrom) if chrom else None,
+                 bool(spec.getattribute("oiio:UnassociatedAlpha") or 0))
 
 
 _SPECTRAL_CHANNEL = re.compile(r"^(?:S0\.)?(\d+(?:[.,]\d*)?)\s*nm$|^(\d{3}(?:[.,]\d*)?)$",
@@ -201,17 +221,6 @@ def _spectral_part(spec, pix_all: np.ndarray, path: str, frame):
     return lam, np.ascontiguousarray(pix_all[..., [i for i, _ in chans]], np.float32)
 
 
-def default_scale(fr: Frame) -> tuple[float, str]:
-    """cd/m^2 of pixel value 1.0, and where it came from."""
-    if fr.white_luminance:
-        return fr.white_luminance, "whiteLuminance attribute"
-    if fr.format_name == "hdr":
-        exp = fr.spec.getattribute("Exposure")
-        e = float(exp) if isinstance(exp, (int, float)) and exp > 0 else 1.0
-        return RADIANCE_EFFICACY / e, "Radiance efficacy 179 lm/W"
-    return 1.0, "default (pixel values are cd/m^2)"
-
-
 def same_file(a: str, b: str) -> bool:
     try:
         return os.path.samefile(a, b)
@@ -220,8 +229,18 @@ def same_file(a: str, b: str) -> bool:
 
 
 def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
-                metadata: dict, bits: str | None = None, frame: int | None = None) -> None:
-    """Write display pixels atomically, keeping the input's windows and metadata."""
+                metadata: dict, bits: str | None = None, frame: int | None = None,
+                chromaticities: tuple | None = None, white_luminance: float | None = None,
+                straight_alpha: bool = False) -> None:
+    """Write pixels atomically, keeping the input's windows and metadata.
+
+    ``colorspace`` and ``chromaticities`` say what the pixels hold (the input's
+    own tags are replaced); ``white_luminance``: cd/m^2 of 1.0 for outputs in
+    absolute light (EXR ``whiteLuminance``), else the attribute is dropped.
+    ``straight_alpha``: the colour is not premultiplied by alpha; formats that
+    store premultiplied colour (EXR) get it premultiplied, the others are told
+    (``oiio:UnassociatedAlpha``) so that OIIO writes it as it is.
+    """
     ext = Path(path).suffix.lower()
     bits = bits or DEFAULT_BITS.get(ext, "float")
     if bits not in BITS_TYPES:
@@ -230,15 +249,27 @@ def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
     if ext in (".jpg", ".jpeg") and pix.shape[2] == 4:
         pix = np.ascontiguousarray(pix[..., :3])
     nch = pix.shape[2]
+    if nch == 4 and straight_alpha and ext in PREMULTIPLIED_FORMATS:
+        pix = pix.copy()
+        pix[..., :3] *= pix[..., 3:4]
+        straight_alpha = False
     spec = oiio.ImageSpec(in_spec) if in_spec is not None else \
         oiio.ImageSpec(pix.shape[1], pix.shape[0], nch, oiio.FLOAT)
     spec.nchannels = nch
     spec.channelnames = ("R", "G", "B", "A")[:nch]
     spec.alpha_channel = 3 if nch == 4 else -1
     spec.set_format(BITS_TYPES[bits])
-    for k in ("whiteLuminance", "ocltm:timestamp"):
+    for k in ("whiteLuminance", "ocltm:timestamp", "chromaticities", "oiio:UnassociatedAlpha",
+              "adoptedNeutral"):
         spec.erase_attribute(k)
+    if nch == 4 and straight_alpha:
+        spec.attribute("oiio:UnassociatedAlpha", 1)
     spec.attribute("oiio:ColorSpace", colorspace)
+    if chromaticities is not None:
+        spec.attribute("chromaticities", oiio.TypeDesc("float[8]"),
+                       tuple(float(v) for v in chromaticities))
+    if white_luminance is not None:
+        spec.attribute("whiteLuminance", float(white_luminance))
     for k, v in metadata.items():
         spec.attribute(k, v if isinstance(v, (str, int, float)) else json.dumps(v, sort_keys=True))
     buf = oiio.ImageBuf(spec)

@@ -102,6 +102,8 @@ class DisplayObserver:
     ref_black: float   # response at display black
     S_d: float         # response slope per log10 between black and white
     unit_cd: float
+    signal_offset: float = 0.0   # cd/m^2 of display black taken out (DisplaySpec.to_signal)
+    signal_gain: float = 0.0     # display-linear per cd/m^2 after that (0: 1/unit_cd)
 
     @classmethod
     def from_spec(cls, d: DisplaySpec) -> "DisplayObserver":
@@ -117,7 +119,11 @@ class DisplayObserver:
         k = float(response(d.black_cd, sr, br) + response(d.black_cd, sc, bc))
         # Forward difference of Eq. 2 between display REF_blk and REF_whit.
         s_d = (w - k) / math.log10(d.white_cd / d.black_cd)
-        return cls(sr, sc, br, bc, w, k, s_d, d.unit_cd)
+        return cls(sr, sc, br, bc, w, k, s_d, d.unit_cd, d.signal_offset, d.signal_gain)
+
+    @property
+    def gain(self) -> float:
+        return self.signal_gain or 1.0 / self.unit_cd
 
     def luminance(self, R):
         """Inverse of R = B_r x/(x + s_r) + B_c x/(x + s_c), x = L^n (display sees L
@@ -212,7 +218,8 @@ def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams
         ratio = np.where(Yc > L_FLOOR, rgb / np.where(Yc > L_FLOOR, Yc, 1.0), 1.0)
     # Q_color = ratio^S_color (Eq. 3); display colour ratio C_d = Q_color^(1/S_d).
     c_disp = np.maximum(ratio, RATIO_FLOOR) ** (s_color / p.display.S_d)[..., None]
-    out = L_disp[..., None] * c_disp / p.display.unit_cd
+    L_sig = np.maximum(L_disp - p.display.signal_offset, 0.0) * p.display.gain
+    out = L_sig[..., None] * c_disp
     return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
 
 
@@ -235,7 +242,7 @@ def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParam
         f(math.log2(p.sigma_rod)), f(math.log2(p.sigma_cone)), f(p.B_rod), f(p.B_cone),
         f(p.gain), f(p.offset),
         f(d.B_rod), f(d.B_cone), f(d.sigma_rod ** N), f(d.sigma_cone ** N),
-        f(LN10 * N * p.B_cone / d.S_d), f(1.0 / d.unit_cd))
+        f(LN10 * N * p.B_cone / d.S_d), f(d.signal_offset), f(d.gain))
 
 
 # --- Scheduler hooks --------------------------------------------------------

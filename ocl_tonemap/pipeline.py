@@ -17,7 +17,7 @@ import numpy as np
 
 from .adaptation import AdaptationState
 from .backends import make_backend
-from .display import DisplaySpec
+from .display import DisplaySpec, display_for
 from .effects import EffectSettings, Effects
 from .metering import MeteringSpec
 from .operators import get_operator
@@ -70,7 +70,7 @@ class Tonemapper:
         self.op = get_operator(operator)
         self.backend = make_backend(backend, device, max_band_pixels)
         self.metering = metering if isinstance(metering, MeteringSpec) else MeteringSpec.parse(metering)
-        self.display = display or DisplaySpec.from_white("sRGB - Display", 100.0)
+        self.display = display or display_for("sRGB - Display")
         self.preadapt = preadapt
         if preadapt is not None:
             L, s = preadapt
@@ -95,6 +95,7 @@ class Tonemapper:
             raise ValueError(f"{operator} models the Purkinje shift itself; leave --purkinje off")
         self.last: FrameInfo | None = None
         self.last_output: np.ndarray | None = None
+        self._alpha = None
 
     # -- state -----------------------------------------------------------------
     @property
@@ -114,16 +115,23 @@ class Tonemapper:
         if self.local is not None:
             self.local.set_pixel_state(self._state.pixels)
 
+    def remember(self, key: str, value) -> None:
+        """Keep a JSON-able run value in the state's ``extra`` (saved and resumed)."""
+        self._state.extra[key] = value
+
     # -- frames ----------------------------------------------------------------
     def process(self, frame: np.ndarray, dt: float | None = None, time_s: float | None = None,
                 frame_number: int | None = None, luminance_scale: float = 1.0,
-                illuminant=None, wavelengths=None) -> np.ndarray:
+                illuminant=None, wavelengths=None, premultiplied: bool = True) -> np.ndarray:
         """Tone map one working-space frame (H x W x 3 or 4, float).
 
         ``frame * luminance_scale`` must be cd/m^2. Time advances by ``dt``
         seconds, or to the absolute ``time_s``; the first frame of a fresh
         observer needs neither. Returns display-linear float32 of the same
-        shape; a 4th (alpha) channel is passed through unchanged.
+        shape; a 4th channel is alpha. ``premultiplied`` (OIIO's and OpenEXR's
+        convention): the colour is divided by alpha before tone mapping (the
+        operators are not linear) and multiplied again after; pixels with zero
+        alpha and zero colour stay zero either way. Non-finite alpha is 0.
         ``illuminant``: the frame's own illuminant (working RGB, e.g. from EXR
         ``adoptedNeutral``) for chromatic adaptation, below a user value.
         ``wavelengths``: the frame is spectral radiance (H x W x N, W sr^-1 m^-2
@@ -143,6 +151,9 @@ class Tonemapper:
         if not (math.isfinite(luminance_scale) and luminance_scale > 0):
             raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
         pix = np.ascontiguousarray(pix, np.float32)
+        self._alpha = None
+        if pix.shape[2] == 4:
+            pix, self._alpha = _straight_colour(pix, premultiplied)
 
         st = self._state
         fresh = not st.values
@@ -254,8 +265,16 @@ class Tonemapper:
         return np.ascontiguousarray(rgb, np.float32), 1.0, repairs
 
     def _finish(self, out: np.ndarray, pix: np.ndarray) -> np.ndarray:
-        """Pass alpha through and remember the frame's output."""
-        if pix.shape[2] == 4:
+        """Alpha back on (premultiplied again where it was), remember the output."""
+        if pix.shape[2] == 4 and self._alpha is not None:
+            alpha, empty, premultiplied = self._alpha
+            out = np.array(out[..., :3], np.float32)
+            if premultiplied:
+                a = alpha[..., None]
+                out = np.where(a > 0, out * a, out)
+            out[empty] = 0.0
+            out = np.concatenate([out, alpha[..., None]], axis=2)
+        elif pix.shape[2] == 4:
             out = np.concatenate([out, pix[..., 3:4]], axis=2)
         self.last_output = out
         return out
@@ -284,16 +303,35 @@ class Tonemapper:
         pix = buf.get_pixels(oiio.FLOAT)
         rgb_idx = _rgb_alpha_indices(spec)
         sel = pix[..., rgb_idx]
-        out = self.process(sel, dt=dt, time_s=time_s, luminance_scale=luminance_scale)
+        straight = bool(spec.getattribute("oiio:UnassociatedAlpha") or 0)
+        out = self.process(sel, dt=dt, time_s=time_s, luminance_scale=luminance_scale,
+                           premultiplied=not straight)
         ospec = oiio.ImageSpec(spec)
         ospec.nchannels = out.shape[2]
         ospec.channelnames = ("R", "G", "B", "A")[: out.shape[2]]
         ospec.alpha_channel = 3 if out.shape[2] == 4 else -1
         ospec.set_format(oiio.FLOAT)
+        if out.shape[2] != 4:
+            ospec.erase_attribute("oiio:UnassociatedAlpha")
         res = oiio.ImageBuf(ospec)
         res.set_pixels(oiio.ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height,
                                 spec.z, spec.z + max(spec.depth, 1), 0, out.shape[2]), out)
         return res
+
+
+def _straight_colour(pix: np.ndarray, premultiplied: bool):
+    """(frame with straight colour, (alpha, empty mask, premultiplied)): colour
+    divided by alpha where alpha > 0 when ``premultiplied``; ``empty`` marks
+    zero-alpha pixels with zero colour (they stay zero)."""
+    alpha = np.nan_to_num(pix[..., 3], nan=0.0, posinf=1.0, neginf=0.0).astype(np.float32)
+    rgb = pix[..., :3]
+    empty = (alpha == 0) & np.all(rgb == 0, axis=2)
+    if premultiplied:
+        a = alpha[..., None]
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            rgb = np.where(a > 0, rgb / np.where(a > 0, a, 1.0), rgb)
+        pix = np.concatenate([rgb.astype(np.float32), alpha[..., None]], axis=2)
+    return np.ascontiguousarray(pix, np.float32), (alpha, empty, bool(premultiplied))
 
 
 def _rgb_alpha_indices(spec) -> list[int]:

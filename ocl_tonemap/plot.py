@@ -19,7 +19,7 @@ def mapping_curve(op, state, display, L: np.ndarray, options: dict | None = None
     p = op.frame_params(state, display, **(options or {}))
     rgb = np.repeat(L[:, None], 3, axis=1)
     out = op.map_reference(rgb, L, L * neutral_scotopic_ratio(), p)
-    return out[:, 1] * display.unit_cd
+    return display.from_signal(out[:, 1])
 
 
 def default_plot_frames(infos, count: int = 6) -> list[int]:

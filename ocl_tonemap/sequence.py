@@ -18,10 +18,12 @@ import numpy as np
 
 from . import __version__
 from .adaptation import AdaptationState
-from .colour import ColourPipeline, input_colorspace, load_config
+from .calibration import ASSUMED_HELP, CalibrationRequest, Calibrator
+from .colour import (ColourPipeline, InputColour, is_builtin_source, load_config,
+                     resolve_config_source, resolve_input)
 from .display import display_for
 from .effects import illuminant_from_metadata
-from .imageio import (FrameError, default_scale, find_frames, frame_path, is_sequence,
+from .imageio import (LINEAR_FORMATS, FrameError, find_frames, frame_path, is_sequence,
                       read_frame, same_file, write_frame)
 from .pipeline import Tonemapper
 from .photometry import RepairCounts
@@ -39,7 +41,7 @@ class JobOptions:
     fps: float | None = None
     operator: str = "pattanaik00"
     metering: str = "logmean"
-    luminance_scale: float | None = None
+    luminance_scale: float | str | None = None    # S, or "auto:LEVEL" (calibration.py)
     exposure: float = 0.0
     colorconfig: str | None = None
     iscolorspace: str | None = None
@@ -48,6 +50,9 @@ class JobOptions:
     display_model: str = "display"
     display_white: float | None = None
     display_peak: float = 1000.0
+    display_black: float | None = None
+    unpremult: bool | None = None       # None: from the file (oiio:UnassociatedAlpha)
+    encode: bool = False                # float outputs: display-encoded, not display-linear
     preadapt: tuple[float, float | None] | None = None
     state_in: str | None = None
     state_out: str | None = None
@@ -110,13 +115,65 @@ def _jobs(opts: JobOptions) -> list[tuple[int | None, str, str]]:
     return jobs
 
 
+class _Run:
+    """What one run decides once: colour, display, calibration, and the notices
+    already given (an assumption is reported once per run, not per frame)."""
+
+    def __init__(self, opts: JobOptions, tm_state_extra: dict | None = None):
+        self.opts = opts
+        self.config_source = resolve_config_source(opts.colorconfig)
+        self.cfg = load_config(opts.colorconfig)
+        self.colour = _colour(self.cfg, opts)
+        self.disp = display_for(self.colour.display, opts.display_white, opts.display_peak,
+                                opts.display_model, opts.display_black)
+        if not math.isfinite(opts.exposure) or abs(opts.exposure) > 100:
+            raise ValueError(f"--exposure must be a number of stops in [-100, 100] "
+                             f"(got {opts.exposure})")
+        self.request = CalibrationRequest.parse(opts.luminance_scale)
+        self.calibrator = Calibrator(self.request, (tm_state_extra or {}).get(AUTO_SCALE_KEY))
+        self._said: set = set()
+
+    def once(self, level: int, msg: str, *args) -> None:
+        key = (level, msg % args if args else msg)
+        if key not in self._said:
+            self._said.add(key)
+            log.log(level, msg, *args)
+
+    def input_colour(self, fr, path) -> InputColour:
+        ic = resolve_input(self.cfg, path, fr.colorspace, self.opts.iscolorspace,
+                           fr.chromaticities if fr.format_name == "openexr" else None,
+                           rules_from_user_config=not is_builtin_source(self.config_source))
+        self.once(logging.WARNING if ic.assumed else logging.INFO,
+                  "input colour: %s (%s)", ic.colorspace, ic.why)
+        return ic
+
+    def calibrate(self, fr, pix_fn) -> tuple[float, str]:
+        cal = self.calibrator.frame(fr.spec, fr.format_name, pix_fn)
+        if cal.assumed:
+            self.once(logging.WARNING, "calibration: 1.0 = %.6g cd/m^2 (%s); %s",
+                      cal.scale, cal.source, ASSUMED_HELP)
+        else:
+            self.once(logging.INFO, "calibration: 1.0 = %.6g cd/m^2 (%s)", cal.scale, cal.source)
+        return cal.scale * 2.0 ** self.opts.exposure, cal.source
+
+    def premultiplied(self, fr) -> bool:
+        """Whether the frame's colour is premultiplied (to be divided by alpha)."""
+        if self.opts.unpremult is not None:
+            return bool(self.opts.unpremult)
+        return not fr.unassociated_alpha
+
+
+#: AdaptationState.extra key of the ``auto`` calibration constant of a run.
+AUTO_SCALE_KEY = "luminance_scale_auto"
+
+
 def run_job(opts: JobOptions) -> JobResult:
     t_start = time.perf_counter()
     jobs = _jobs(opts)
-    cfg = load_config(opts.colorconfig)
-    colour = _colour(cfg, opts)
-    disp = display_for(colour.display, opts.display_white, opts.display_peak, opts.display_model)
-    tm = _make_tonemapper(opts, colour)
+    state = AdaptationState.load(opts.state_in) if opts.state_in else None
+    run = _Run(opts, state.extra if state is not None else None)
+    colour, disp = run.colour, run.disp
+    tm = _make_tonemapper(opts, colour, state, disp)
     result = JobResult([], [])
     fps = opts.fps
     t_prev = tm.state.time_s
@@ -137,20 +194,20 @@ def run_job(opts: JobOptions) -> JobResult:
             if t_prev is not None and t < t_prev:
                 raise ValueError(f"frame time {t:.6g} s is before the previous frame's {t_prev:.6g} s "
                                  "(frames out of order, or --state-in from a later chunk)")
-            pix, lam, cs_text = _frame_input(cfg, colour, tm, opts, fr, inp)
-            scale, scale_why = (opts.luminance_scale, "--luminance-scale") if opts.luminance_scale \
-                else default_scale(fr)
-            scale *= 2.0 ** opts.exposure
+            pix, lam, cs_text = _frame_input(run, tm, fr, inp)
+            scale, scale_why = run.calibrate(fr, lambda: pix)
+            _remember_auto(tm, run)
             tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
-                       illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam)
-            info = _write_output(opts, colour, disp, tm, fr, outp, f, t, cs_text,
-                                 scale, scale_why, None)
+                       illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam,
+                       premultiplied=run.premultiplied(fr))
+            info = _write_output(run, tm, fr, outp, f, t, cs_text, scale, scale_why, None)
         except FrameError:
             raise
         except Exception as exc:
             raise FrameError(inp, f, exc) from exc
         if info.repairs.total:
-            log.warning("%s frame %s: repaired bad values (%s)", inp, f, info.repairs.summary())
+            log.warning("%s%s: repaired bad values (%s)", inp, "" if f is None else f" frame {f}",
+                        info.repairs.summary())
         result.repairs += info.repairs
         result.frames.append(f)
         result.outputs.append(outp)
@@ -169,7 +226,13 @@ def run_job(opts: JobOptions) -> JobResult:
     return result
 
 
-def _frame_input(cfg, colour: ColourPipeline, tm: Tonemapper, opts: JobOptions, fr, path):
+def _remember_auto(tm: Tonemapper, run: _Run) -> None:
+    """Keep the run's ``auto`` calibration constant in the state (resume uses it)."""
+    if run.calibrator.auto_scale is not None:
+        tm.remember(AUTO_SCALE_KEY, float(run.calibrator.auto_scale))
+
+
+def _frame_input(run: _Run, tm: Tonemapper, fr, path):
     """(pixels, wavelengths or None, description of the input colour) for one frame:
     the spectrum for an operator that takes spectra, else working-space RGB (from
     the spectrum through the CIE 1931 observer when the file has no RGB)."""
@@ -178,9 +241,9 @@ def _frame_input(cfg, colour: ColourPipeline, tm: Tonemapper, opts: JobOptions, 
         return fr.spectral, lam, (f"spectral, {len(lam)} channels {lam[0]:g}-{lam[-1]:g} nm "
                                   "(radiance, W sr^-1 m^-2 nm^-1)")
     if fr.rgb_from_spectrum:
-        return fr.pixels, None, f"{colour.working} (from the spectrum, CIE 1931 2-degree)"
-    cs, why = input_colorspace(cfg, path, fr.colorspace, opts.iscolorspace)
-    return colour.to_working(fr.pixels, cs), None, f"{cs} ({why})"
+        return fr.pixels, None, f"{run.colour.working} (from the spectrum, CIE 1931 2-degree)"
+    ic = run.input_colour(fr, path)
+    return run.colour.convert_input(fr.pixels, ic), None, ic.describe()
 
 
 def _colour(cfg, opts: JobOptions) -> ColourPipeline:
@@ -191,9 +254,7 @@ def _colour(cfg, opts: JobOptions) -> ColourPipeline:
     return colour
 
 
-def _make_tonemapper(opts: JobOptions, colour: ColourPipeline) -> Tonemapper:
-    disp = display_for(colour.display, opts.display_white, opts.display_peak, opts.display_model)
-    state = AdaptationState.load(opts.state_in) if opts.state_in else None
+def _make_tonemapper(opts: JobOptions, colour: ColourPipeline, state, disp) -> Tonemapper:
     tm = Tonemapper(opts.operator, opts.backend, opts.metering, disp, opts.preadapt, state,
                     opts.device, opts.max_band_pixels, opts.operator_options, opts.effects)
     if hasattr(tm.local, "set_display_primaries"):
@@ -201,24 +262,43 @@ def _make_tonemapper(opts: JobOptions, colour: ColourPipeline) -> Tonemapper:
     log.info("backend: %s", tm.backend.describe())
     log.info("OCIO: working %s, display %r view %r -> %s", colour.working, colour.display,
              colour.view, colour.output_colorspace)
+    log.info("display: white %g cd/m^2, black %g cd/m^2%s", disp.white_cd, disp.black_cd,
+             " (Pattanaik 2000's CRT)" if disp.paper_crt else "")
     return tm
 
 
-def _write_output(opts: JobOptions, colour: ColourPipeline, disp, tm: Tonemapper, fr, outp,
-                  f, t, cs_text, scale, scale_why, extra: dict | None):
+def output_is_linear(opts: JobOptions, path: str) -> bool:
+    """Float outputs (EXR, .hdr) hold display-linear light unless ``--encode``."""
+    from pathlib import Path
+    return (not opts.encode) and Path(path).suffix.lower() in LINEAR_FORMATS
+
+
+def _write_output(run: _Run, tm: Tonemapper, fr, outp, f, t, cs_text, scale, scale_why,
+                  extra: dict | None):
     """Encode the last processed frame for the display and write it with its metadata."""
+    opts, colour, disp = run.opts, run.colour, run.disp
     info = tm.last
     disp_lin = tm.last_output
-    encoded = colour.encode(disp_lin[..., :3])
-    if disp_lin.shape[2] == 4:
-        encoded = np.concatenate([encoded, disp_lin[..., 3:4]], axis=2)
+    linear = output_is_linear(opts, outp)
+    if linear:
+        pixels = colour.linear(disp_lin[..., :3])
+        out_cs = colour.linear_output()[0]
+    else:
+        pixels = colour.encode(disp_lin[..., :3])
+        out_cs = colour.output_colorspace
+    alpha = disp_lin.shape[2] == 4
+    if alpha:
+        pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
+    premult = run.premultiplied(fr)
     meta = {
         "Software": f"ocl-tonemap {__version__}",
         "ocltm:operator": opts.operator,
         "ocltm:backend": opts.backend,
         "ocltm:metering": tm.metering.describe() if tm.local is None else "local (bilateral)",
         "ocltm:input_colorspace": cs_text,
-        "ocltm:output_colorspace": colour.output_colorspace,
+        "ocltm:output_colorspace": out_cs,
+        "ocltm:output_encoding": (f"display-linear light, 1.0 = {disp.unit_cd:g} cd/m^2"
+                                  if linear else "display-encoded (OCIO display/view)"),
         "ocltm:view": f"{colour.display} / {colour.view}",
         "ocltm:luminance_scale": float(scale),
         "ocltm:luminance_scale_source": scale_why,
@@ -231,8 +311,16 @@ def _write_output(opts: JobOptions, colour: ColourPipeline, disp, tm: Tonemapper
         "ocltm:effects": json.dumps(info.effects, sort_keys=True, default=float),
         "ocltm:effects_ran": ",".join(k for k, v in info.effects.items() if v.get("ran")) or "none",
     }
+    if alpha:
+        meta["ocltm:alpha"] = ("premultiplied: colour divided by alpha for the operator, "
+                               "multiplied again" if premult else
+                               ("straight (unassociated)" if fr.unassociated_alpha else
+                                "tone mapped as stored (--no-unpremult)"))
     meta.update(extra or {})
-    write_frame(outp, encoded, fr.spec, colour.output_colorspace, meta, opts.out_bits, f)
+    write_frame(outp, pixels, fr.spec, out_cs, meta, opts.out_bits, f,
+                chromaticities=colour.output_chromaticities(encoded=not linear),
+                white_luminance=disp.unit_cd if linear else None,
+                straight_alpha=alpha and not premult)
     return info
 
 
@@ -279,32 +367,31 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
     for _, o in outs:
         if same_file(o, opts.input):
             raise FrameError(o, None, "output would overwrite the input file; choose another OUTPUT")
-    cfg = load_config(opts.colorconfig)
-    colour = _colour(cfg, opts)
-    disp = display_for(colour.display, opts.display_white, opts.display_peak, opts.display_model)
-    tm = _make_tonemapper(opts, colour)
+    state = AdaptationState.load(opts.state_in) if opts.state_in else None
+    run = _Run(opts, state.extra if state is not None else None)
+    tm = _make_tonemapper(opts, run.colour, state, run.disp)
     fr = read_frame(opts.input, None)
     result = JobResult([], [])
     try:
-        pix, lam, cs_text = _frame_input(cfg, colour, tm, opts, fr, opts.input)
-        scale, scale_why = (opts.luminance_scale, "--luminance-scale") if opts.luminance_scale \
-            else default_scale(fr)
-        scale *= 2.0 ** opts.exposure
+        pix, lam, cs_text = _frame_input(run, tm, fr, opts.input)
+        scale, scale_why = run.calibrate(fr, lambda: pix)
+        _remember_auto(tm, run)
         t_now = 0.0
         hint = illuminant_from_metadata(fr.spec)
+        pm = run.premultiplied(fr)
         tm.process(pix, time_s=0.0, luminance_scale=scale, illuminant=hint,
-                   wavelengths=lam)                                     # the switch
+                   wavelengths=lam, premultiplied=pm)                   # the switch
         order = sorted(range(len(times)), key=lambda k: times[k])
         for k in order:
             t = times[k]
             if t > t_now:
                 tm.process(pix, time_s=t, luminance_scale=scale, illuminant=hint,
-                           wavelengths=lam)
+                           wavelengths=lam, premultiplied=pm)
                 t_now = t
             f, outp = outs[k]
-            info = _write_output(opts, colour, disp, tm, fr, outp, f, t, cs_text,
-                                 scale, scale_why, {"ocltm:elapsed_s": float(t),
-                                                    "ocltm:preadapt": json.dumps(opts.preadapt)})
+            info = _write_output(run, tm, fr, outp, f, t, cs_text, scale, scale_why,
+                                 {"ocltm:elapsed_s": float(t),
+                                  "ocltm:preadapt": json.dumps(opts.preadapt)})
             result.frames.append(f)
             result.outputs.append(outp)
             result.infos.append(info)

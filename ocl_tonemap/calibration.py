@@ -1,0 +1,186 @@
+"""Absolute calibration: how many cd/m^2 a pixel value of 1.0 is.
+
+The models need absolute luminance: the same picture is a daylight scene at
+5000 cd/m^2 and a moonlit one at 0.01. The scale comes from, first that applies:
+
+1. ``--luminance-scale S`` (a number): 1.0 = S cd/m^2;
+2. the EXR ``whiteLuminance`` attribute (cd/m^2 of RGB 1,1,1);
+3. camera metadata (EXIF ``ExposureTime`` t, ``FNumber`` N and
+   ``ISOSpeedRatings``/``ExposureIndex`` S): the reflected-light meter
+   equation (ISO 2720) N^2 / t = L S / K with K = 12.5 gives the scene
+   luminance L = K N^2 / (t S) that the camera exposed to mid-grey, and
+   scene-linear mid-grey is 0.18, so 1.0 = L / 0.18 cd/m^2;
+4. ``--luminance-scale auto:LEVEL``: the scale that puts the log-average
+   luminance of the first frame of the run at LEVEL cd/m^2 (a number or a
+   named level, :data:`NAMED_LEVELS`); one constant for the whole sequence;
+5. Radiance ``.hdr``: 179 lm/W, the format's definition of its radiance
+   units (photographs saved as .hdr are seldom absolute: reported);
+6. 1 cd/m^2 per unit, with a warning naming the assumption and the flags.
+
+Absolute sources (2, 3) are read per frame: they describe each frame (a
+camera's auto-exposure is undone). The ``auto`` level is fixed once per run
+(and kept in the adaptation state, so a resumed chunk uses the same constant):
+scaling every frame to the same level would erase the adaptation the tool
+exists to show.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: ISO 2720 reflected-light meter calibration constant K (cd s m^-2 ISO).
+METER_K = 12.5
+#: Scene-linear value a camera exposes a metered (mid-grey) surface to.
+MID_GREY = 0.18
+#: Radiance RGBE: 1.0 = 179 cd/m^2 (WHITE_EFFICACY, lm/W).
+RADIANCE_EFFICACY = 179.0
+
+#: Named log-average scene luminances, cd/m^2: an 18% grey surface under the
+#: typical illuminance E (lux), L = 0.18 E / pi, rounded:
+#: full moon 0.2 lx; deep civil twilight ~20 lx; a lit interior 500 lx (EN 12464
+#: offices); an overcast day 10 000 lx; direct sun + sky ~90 000 lx.
+NAMED_LEVELS = {"night": 0.01, "dusk": 1.0, "interior": 30.0, "overcast": 500.0,
+                "daylight": 5000.0}
+
+
+@dataclass(frozen=True)
+class CalibrationRequest:
+    """What the user asked for: a fixed ``scale``, an ``auto_level`` (cd/m^2), or neither."""
+
+    scale: float | None = None
+    auto_level: float | None = None
+    auto_name: str | None = None
+
+    @classmethod
+    def parse(cls, text: str | float | None) -> "CalibrationRequest":
+        """``S`` (cd/m^2 of 1.0) or ``auto:LEVEL`` (cd/m^2 or a named level)."""
+        if text is None:
+            return cls()
+        if isinstance(text, (int, float)):
+            return cls(scale=_positive(float(text), "--luminance-scale"))
+        t = str(text).strip()
+        if t.lower().startswith("auto"):
+            _, _, lvl = t.partition(":")
+            lvl = lvl.strip().lower()
+            if not lvl:
+                raise ValueError("--luminance-scale auto needs a level: auto:LEVEL with LEVEL "
+                                 f"in cd/m^2 or one of {', '.join(NAMED_LEVELS)}")
+            if lvl in NAMED_LEVELS:
+                return cls(auto_level=NAMED_LEVELS[lvl], auto_name=lvl)
+            return cls(auto_level=_positive(_float(lvl, "--luminance-scale auto:"),
+                                            "--luminance-scale auto:"))
+        return cls(scale=_positive(_float(t, "--luminance-scale"), "--luminance-scale"))
+
+
+def _float(text: str, flag: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"bad {flag} {text!r}: use a number of cd/m^2, or auto:LEVEL with LEVEL "
+                         f"a number or one of {', '.join(NAMED_LEVELS)}") from None
+
+
+def _positive(v: float, flag: str) -> float:
+    if not (math.isfinite(v) and 0 < v < 1e30):
+        raise ValueError(f"{flag} must be a positive finite number of cd/m^2 (got {v:g})")
+    return v
+
+
+def _attr_number(spec, *names) -> float | None:
+    for n in names:
+        v = spec.getattribute(n)
+        if isinstance(v, (tuple, list)) and v:
+            v = v[0]
+        try:
+            f = float(v)
+        except (TypeError, ValueError):
+            continue
+        if math.isfinite(f) and f > 0:
+            return f
+    return None
+
+
+def camera_scale(spec) -> tuple[float, str] | None:
+    """(cd/m^2 of 1.0, description) from EXIF exposure metadata, or None."""
+    if spec is None:
+        return None
+    t = _attr_number(spec, "ExposureTime", "Exif:ExposureTime")
+    N = _attr_number(spec, "FNumber", "Exif:FNumber")
+    S = _attr_number(spec, "Exif:ISOSpeedRatings", "Exif:PhotographicSensitivity",
+                     "Exif:ExposureIndex", "ISOSpeedRatings", "ExposureIndex")
+    if t is None or N is None or S is None:
+        return None
+    L = METER_K * N * N / (t * S)
+    return L / MID_GREY, (f"camera metadata: t = {t:g} s, N = f/{N:g}, ISO {S:g} -> "
+                          f"mid-grey {L:.4g} cd/m^2 (K = {METER_K}, mid-grey {MID_GREY})")
+
+
+def log_average(rgb: np.ndarray, max_samples: int = 1 << 20) -> float | None:
+    """exp(mean(ln Y)) of the positive, finite photopic luminances of working RGB
+    (a strided subsample of large frames); None when no pixel has light."""
+    from .photometry import Y_WEIGHTS
+    a = np.asarray(rgb)[..., :3]
+    flat = a.reshape(-1, 3)
+    step = max(1, flat.shape[0] // max_samples)
+    Y = flat[::step].astype(np.float64) @ Y_WEIGHTS
+    Y = Y[np.isfinite(Y) & (Y > 0)]
+    if Y.size == 0:
+        return None
+    return float(np.exp(np.mean(np.log(Y))))
+
+
+@dataclass
+class Calibration:
+    """The scale of one frame: value, where it came from, and whether it was assumed."""
+
+    scale: float
+    source: str
+    assumed: bool = False
+
+
+class Calibrator:
+    """Applies the precedence of the module doc to the frames of one run.
+
+    ``auto_scale``: the constant of an ``auto:LEVEL`` request, fixed by the first
+    frame that needs it (give it to resume a run with the same constant).
+    """
+
+    def __init__(self, request: CalibrationRequest, auto_scale: float | None = None):
+        self.request = request
+        self.auto_scale = auto_scale
+
+    def frame(self, spec, format_name: str, working_rgb_fn) -> Calibration:
+        """The calibration of one frame. ``working_rgb_fn()`` returns its working RGB
+        (only called for ``auto`` on the first frame)."""
+        r = self.request
+        if r.scale is not None:
+            return Calibration(r.scale, "--luminance-scale")
+        wl = _attr_number(spec, "whiteLuminance") if spec is not None else None
+        if wl is not None:
+            return Calibration(wl, "whiteLuminance attribute")
+        cam = camera_scale(spec)
+        if cam is not None:
+            return Calibration(cam[0], cam[1])
+        if r.auto_level is not None:
+            if self.auto_scale is None:
+                la = log_average(working_rgb_fn())
+                if la is None:
+                    raise ValueError("--luminance-scale auto: the first frame has no light to "
+                                     "meter (all pixels <= 0); give a number instead")
+                self.auto_scale = r.auto_level / la
+            name = f" ({r.auto_name})" if r.auto_name else ""
+            return Calibration(self.auto_scale, f"auto: first frame's log-average = "
+                               f"{r.auto_level:g} cd/m^2{name}")
+        if format_name == "hdr":
+            exp = spec.getattribute("Exposure") if spec is not None else None
+            e = float(exp) if isinstance(exp, (int, float)) and exp > 0 else 1.0
+            return Calibration(RADIANCE_EFFICACY / e, "Radiance efficacy 179 lm/W (the .hdr "
+                               "format's units; photographs are seldom absolute)", assumed=True)
+        return Calibration(1.0, "assumed: pixel values are cd/m^2", assumed=True)
+
+
+ASSUMED_HELP = ("set --luminance-scale S (1.0 = S cd/m^2) or --luminance-scale auto:LEVEL "
+                f"(LEVEL cd/m^2 or {'|'.join(NAMED_LEVELS)}), or write whiteLuminance into the file")
