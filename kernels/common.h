@@ -17,3 +17,14 @@
 /* x^e for x > 0 as exp2(e*log2(x)): PoCL's scalar pow() is much slower. */
 inline float powp(float x, float e) { return exp2(e * log2(x)); }
 inline float4 powp4(float4 x, float4 e) { return exp2(e * log2(x)); }
+
+/* Hue-preserving highlight shoulder (ocl_tonemap/display.py, apply_shoulder):
+ * channels scaled by S(m)/m, m = max channel / white; S is identity up to the
+ * knee, then knee + (1-knee) t/(1+t), t = (m-knee)/(1-knee). knee <= 0: none. */
+inline float3 shoulder3(float3 c, const float inv_white, const float knee)
+{
+    const float m = fmax(fmax(c.x, c.y), c.z) * inv_white;
+    if (!(knee > 0.0f) || !(m > knee)) return c;
+    const float t = (m - knee) / (1.0f - knee);
+    return c * ((knee + (1.0f - knee) * t / (1.0f + t)) / m);
+}

@@ -4,18 +4,20 @@
  * apply_gains). Reference: ocl_tonemap/durand00.py (map_reference). */
 
 #define DISPLAY_LINEAR_MAX 100.0f
+#define SIGNAL_CEILING 1.0e6f
 
 __kernel void durand00_map(__global const float *rgb, __global const float *Ys,
                            __global float *out, const int n,
                            const float m_cone,                 /* m_C / display unit */
-                           const float rod_r, const float rod_g, const float rod_b)
+                           const float rod_r, const float rod_g, const float rod_b,
+                           const float inv_white, const float knee)   /* highlight shoulder */
 {
     const int i = get_global_id(0);
     if (i >= n) return;
     const float3 c = vload3(i, rgb);
     const float s = Ys[i];
-    const float3 o = m_cone * c + s * (float3)(rod_r, rod_g, rod_b);
-    vstore3(clamp(o, 0.0f, DISPLAY_LINEAR_MAX), i, out);
+    const float3 o = fmin(m_cone * c + s * (float3)(rod_r, rod_g, rod_b), SIGNAL_CEILING);
+    vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
 }
 
 /* Sec. 5: the same through per-frame tables T_C (entries 0..n-1) and T_R
@@ -33,7 +35,8 @@ __kernel void durand00_map_lut(__global const float *rgb, __global const float *
                                __global float *out, const int n,
                                __global const float *tables, const int nlut,
                                const float lo, const float inv_step,
-                               const float tint_r, const float tint_g, const float tint_b)
+                               const float tint_r, const float tint_g, const float tint_b,
+                               const float inv_white, const float knee)
 {
     const int i = get_global_id(0);
     if (i >= n) return;
@@ -43,6 +46,6 @@ __kernel void durand00_map_lut(__global const float *rgb, __global const float *
     o.x = lut_at(tables, nlut, lo, inv_step, c.x);
     o.y = lut_at(tables, nlut, lo, inv_step, c.y);
     o.z = lut_at(tables, nlut, lo, inv_step, c.z);
-    o += rod * (float3)(tint_r, tint_g, tint_b);
-    vstore3(clamp(o, 0.0f, DISPLAY_LINEAR_MAX), i, out);
+    o = fmin(o + rod * (float3)(tint_r, tint_g, tint_b), SIGNAL_CEILING);
+    vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
 }

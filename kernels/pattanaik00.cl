@@ -7,6 +7,7 @@
 #define L_FLOOR 1.0e-10f
 #define RATIO_FLOOR 1.0e-12f
 #define DISPLAY_LINEAR_MAX 100.0f
+#define SIGNAL_CEILING 1.0e6f
 
 /* L^n/(L^n + sigma^n) = 1/(1 + 2^(n (log2 sigma - log2 L))) */
 inline float saturation(float L, float log2_sigma)
@@ -20,7 +21,8 @@ inline void map_one(const int i, __global const float *rgb, __global const float
                     const float log2_sigma_rod, const float log2_sigma_cone,
                     const float B_rod, const float B_cone, const float gain, const float offset,
                     const float dB_rod, const float dB_cone, const float ds_rod, const float ds_cone,
-                    const float colour_k, const float out_black, const float out_scale)
+                    const float colour_k, const float out_black, const float out_scale,
+                    const float inv_white, const float knee, const float chroma)
 {
     const float Lc = Y[i];
     const float xc = saturation(Lc, log2_sigma_cone);
@@ -35,24 +37,30 @@ inline void map_one(const int i, __global const float *rgb, __global const float
     const float c = Rd * ds_rod * ds_cone;
     const float disc = sqrt(b * b + 4.0f * a * c);
     const float x = b > 0.0f ? 2.0f * c / (b + disc) : (disc - b) / (2.0f * a);
-    const float Ld = fmax((x > 0.0f ? exp2(log2(x) * (1.0f / PN)) : 0.0f) - out_black, 0.0f);
+    const float Ld = fmin(fmax((x > 0.0f ? exp2(log2(x) * (1.0f / PN)) : 0.0f) - out_black, 0.0f)
+                          * out_scale, SIGNAL_CEILING);
 
     float4 col = (float4)(vload3(i, rgb), 1.0f);
     float4 ratio = Lc > L_FLOOR ? col / Lc : (float4)(1.0f);
-    float4 cd = powp4(fmax(ratio, (float4)(RATIO_FLOOR)), (float4)(e));      /* Q_color^(1/S_d) */
-    float4 o = clamp(Ld * out_scale * cd, 0.0f, DISPLAY_LINEAR_MAX);
-    vstore3(o.xyz, i, out);
+    float4 cd = colour_k > 0.0f
+        ? powp4(fmax(ratio, (float4)(RATIO_FLOOR)), (float4)(e))                /* Q_color^(1/S_d) */
+        : fmax(1.0f + chroma * (ratio - 1.0f), 0.0f);                         /* default mode */
+    float3 o = shoulder3(Ld * cd.xyz, inv_white, knee);
+    vstore3(clamp(o, 0.0f, DISPLAY_LINEAR_MAX), i, out);
 }
 
 #define MAP_ARGS log2_sigma_rod, log2_sigma_cone, B_rod, B_cone, gain, offset, \
-                 dB_rod, dB_cone, ds_rod, ds_cone, colour_k, out_black, out_scale
+                 dB_rod, dB_cone, ds_rod, ds_cone, colour_k, out_black, out_scale, inv_white, knee, chroma
 #define MAP_PARAMS const float log2_sigma_rod, const float log2_sigma_cone, \
                    const float B_rod, const float B_cone, const float gain, const float offset, \
                    const float dB_rod, const float dB_cone, \
                    const float ds_rod, const float ds_cone,  /* display sigma^n */ \
                    const float colour_k,                     /* ln10 n B_cone / S_d */ \
                    const float out_black,                    /* display black taken out, cd/m^2 */ \
-                   const float out_scale                     /* display-linear per cd/m^2 */
+                   const float out_scale,                    /* display-linear per cd/m^2 */ \
+                   const float inv_white,                    /* 1 / display white signal */ \
+                   const float knee,                         /* shoulder knee, 0: none */ \
+                   const float chroma                        /* default colour scale */
 
 /* Scalar kernel: one pixel per work-item (kept for comparison in benchmarks). */
 __kernel void pattanaik00_map(__global const float *rgb, __global const float *Y,
@@ -87,8 +95,8 @@ __kernel void pattanaik00_map4(__global const float *rgb, __global const float *
     const float4 c = Rd * ds_rod * ds_cone;
     const float4 disc = sqrt(b * b + 4.0f * a * c);
     const float4 x = select((disc - b) / (2.0f * a), 2.0f * c / (b + disc), b > 0.0f);
-    const float4 Ld = fmax(select((float4)(0.0f), exp2(log2(x) * (1.0f / PN)), x > 0.0f) - out_black,
-                           0.0f) * out_scale;
+    const float4 Ld = fmin(fmax(select((float4)(0.0f), exp2(log2(x) * (1.0f / PN)), x > 0.0f)
+                                - out_black, 0.0f) * out_scale, SIGNAL_CEILING);
 
     /* 12 colour values of 4 pixels: p0 = c0.xyz, p1 = (c0.w, c1.xy), p2 = (c1.zw, c2.x), p3 = c2.yzw */
     __global const float *src = rgb + 12 * q;
@@ -100,7 +108,29 @@ __kernel void pattanaik00_map4(__global const float *rgb, __global const float *
     const float4 r1 = select((float4)(1.0f), c1 / L1, L1 > L_FLOOR);
     const float4 r2 = select((float4)(1.0f), c2 / L2, L2 > L_FLOOR);
     __global float *dst = out + 12 * q;
-    vstore4(clamp(D0 * powp4(fmax(r0, RATIO_FLOOR), e0), 0.0f, DISPLAY_LINEAR_MAX), 0, dst);
-    vstore4(clamp(D1 * powp4(fmax(r1, RATIO_FLOOR), e1), 0.0f, DISPLAY_LINEAR_MAX), 1, dst);
-    vstore4(clamp(D2 * powp4(fmax(r2, RATIO_FLOOR), e2), 0.0f, DISPLAY_LINEAR_MAX), 2, dst);
+    float4 o0, o1, o2;
+    if (colour_k > 0.0f) {
+        o0 = D0 * powp4(fmax(r0, RATIO_FLOOR), e0);
+        o1 = D1 * powp4(fmax(r1, RATIO_FLOOR), e1);
+        o2 = D2 * powp4(fmax(r2, RATIO_FLOOR), e2);
+    } else {
+        o0 = D0 * fmax(1.0f + chroma * (r0 - 1.0f), 0.0f);
+        o1 = D1 * fmax(1.0f + chroma * (r1 - 1.0f), 0.0f);
+        o2 = D2 * fmax(1.0f + chroma * (r2 - 1.0f), 0.0f);
+    }
+    if (knee > 0.0f) {                         /* per pixel: max over its 3 channels */
+        const float4 mx = fmax(fmax((float4)(o0.x, o0.w, o1.z, o2.y),
+                                    (float4)(o0.y, o1.x, o1.w, o2.z)),
+                               (float4)(o0.z, o1.y, o2.x, o2.w)) * inv_white;
+        const float4 t = fmax(mx - knee, 0.0f) / (1.0f - knee);
+        const float4 g = select((float4)(1.0f), (knee + (1.0f - knee) * t / (1.0f + t)) / mx,
+                                mx > knee);
+        vstore4(clamp(o0 * g.xxxy, 0.0f, DISPLAY_LINEAR_MAX), 0, dst);
+        vstore4(clamp(o1 * g.yyzz, 0.0f, DISPLAY_LINEAR_MAX), 1, dst);
+        vstore4(clamp(o2 * g.zwww, 0.0f, DISPLAY_LINEAR_MAX), 2, dst);
+        return;
+    }
+    vstore4(clamp(o0, 0.0f, DISPLAY_LINEAR_MAX), 0, dst);
+    vstore4(clamp(o1, 0.0f, DISPLAY_LINEAR_MAX), 1, dst);
+    vstore4(clamp(o2, 0.0f, DISPLAY_LINEAR_MAX), 2, dst);
 }

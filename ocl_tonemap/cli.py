@@ -18,6 +18,9 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fps", type=float, help="frames per second (default: FramesPerSecond "
                    "metadata, else 24)")
     p.add_argument("--operator", default="pattanaik00", choices=sorted(REGISTRY))
+    p.add_argument("--mode", choices=["default", "paper"],
+                   help="default: the operator as it looks right on photographs; paper: its "
+                   "paper taken literally (docs/models.md says where they differ)")
     p.add_argument("--metering", default="logmean",
                    help="logmean | mean | max | centre[:mean] | spot:X,Y[,SIGMA] | percentile:P")
     p.add_argument("--luminance-scale", metavar="S|auto:LEVEL",
@@ -147,8 +150,9 @@ def _triple(text: str, flag: str) -> tuple:
 
 def _operator_options(a) -> dict | None:
     from .operators import get_operator
+    mode = {"mode": a.mode} if a.mode else {}
     if a.operator == "durand00":
-        opts = {"lut": a.lut}
+        opts = {"lut": a.lut, **mode}
         if a.lut and not (2 <= a.lut <= 1 << 20):
             raise ValueError(f"--lut must be 0 or 2 .. 1048576 entries (got {a.lut})")
         if a.blue_shift:
@@ -163,9 +167,9 @@ def _operator_options(a) -> dict | None:
             log.warning("%s is a global operator: %s ignored", a.operator,
                         ", ".join(given + [x for x, v in (("--bilateral", a.bilateral),
                                                           ("--rods", a.rods)) if v != "auto"]))
-        return None
+        return mode or None
     opts = {"sigma_spatial": a.sigma_spatial, "bilateral": a.bilateral,
-            "bilateral_sampling": a.bilateral_sampling, "rods": a.rods}
+            "bilateral_sampling": a.bilateral_sampling, "rods": a.rods, **mode}
     kirk = {"kappa": a.kappa, "gamma": a.night_dim, "target_contrast": a.target_contrast,
             "shift_xyz": _triple(a.shift_scale, "--shift-scale") if a.shift_scale else None}
     if a.operator == "kirk11":

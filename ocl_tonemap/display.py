@@ -134,3 +134,36 @@ def display_for(display_name: str, white_cd: float | None = None, peak_cd: float
         black_cd = HDR_BLACK_CD if hdr else white / SDR_CONTRAST
     return DisplaySpec.from_white(display_name, white, 100.0, hdr, black_cd=black_cd,
                                   subtract_black=True)
+
+
+# --- highlights ------------------------------------------------------------------
+
+#: Default knee of the highlight shoulder, as a fraction of display white.
+SHOULDER_KNEE = 0.7
+
+
+def shoulder_curve(m, knee: float = SHOULDER_KNEE):
+    """The highlight shoulder on a value relative to display white: identity up to
+    ``knee``, then ``knee + (1 - knee) t / (1 + t)`` with ``t = (m - knee)/(1 - knee)``
+    (Reinhard's x/(1+x) on the part above the knee): continuous with slope 1 at the
+    knee, monotone, and approaching display white without reaching it (0.999 of
+    white at ~90x white for the default knee)."""
+    import numpy as np
+    m = np.asarray(m, np.float64)
+    t = np.maximum(m - knee, 0.0) / (1.0 - knee)
+    return np.where(m > knee, knee + (1.0 - knee) * t / (1.0 + t), m)
+
+
+def apply_shoulder(rgb, white_signal: float, knee: float = SHOULDER_KNEE):
+    """Hue-preserving highlight shoulder of display-linear ``rgb`` (..., 3): every
+    channel is scaled by S(m)/m, m = the largest channel / ``white_signal``, so
+    that no channel reaches display white and colour ratios are kept. ``knee``
+    <= 0 or >= 1: unchanged (a hard clip follows at display white)."""
+    import numpy as np
+    rgb = np.asarray(rgb, np.float64)
+    if not (0.0 < knee < 1.0):
+        return rgb
+    m = np.max(rgb, axis=-1) / white_signal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.where(m > knee, shoulder_curve(m, knee) / np.where(m > knee, m, 1.0), 1.0)
+    return rgb * g[..., None]

@@ -33,7 +33,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .adaptation import exponential_step
-from .display import DISPLAY_LINEAR_MAX, DisplaySpec
+from .display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder
 from .photometry import neutral_scotopic_ratio
 
 NAME = "durand00"
@@ -48,10 +48,15 @@ BLUE_SHIFT = (1.05, 0.97, 1.27)
 LA_FLOOR = 1.0e-10
 #: Ferwerda et al. 1996: the display observer is adapted to half the display's maximum.
 DISPLAY_ADAPT_FRACTION = 0.5
+#: Display-linear values are capped here before the shoulder (finite maths).
+SIGNAL_CEILING = 1.0e6
 #: Look-up tables span 12 decades (Sec. 5), centred on the adaptation level here.
 LUT_DECADES = 12.0
 #: Options a caller may pass to ``frame_params`` (``Tonemapper(options=...)``).
-OPTIONS = ("tint", "lut")
+OPTIONS = ("tint", "lut", "mode")
+#: ``mode``: "default" (display adaptation following the scene's key, highlight
+#: shoulder) or "paper" (L_da = L_dmax/2 for every scene, hard clip at white).
+MODES = ("default", "paper")
 
 
 # --- Threshold-versus-intensity (Ferwerda et al. 1996), Eqs. 1-2 -----------------
@@ -81,9 +86,34 @@ def threshold_cone(L_aC):
     return 10.0 ** log_threshold_cone(L_aC)
 
 
-def display_adaptation(display: DisplaySpec) -> float:
-    """L_da, cd/m^2: Ferwerda et al.'s display observer, adapted to L_dmax / 2."""
-    return DISPLAY_ADAPT_FRACTION * display.white_cd
+def display_adaptation(display: DisplaySpec, L_adapted: float | None = None) -> float:
+    """L_da, cd/m^2: Ferwerda et al.'s display observer, adapted to L_dmax / 2; with
+    ``L_adapted`` (the default mode), L_dmax times the key of a scene adapted to it
+    (:func:`scene_key`), so brighter scenes are shown brighter."""
+    if L_adapted is None:
+        return DISPLAY_ADAPT_FRACTION * display.white_cd
+    return float(scene_key(L_adapted)) * display.white_cd
+
+
+def scene_key(L_adapted):
+    """Krawczyk, Myszkowski & Seidel 2005's key (lightness perception in tone
+    reproduction): a = 1.03 - 2 / (2 + log10(L + 1)), the display level, as a
+    fraction of white, at which a scene adapted to L cd/m^2 is shown: 0.03 at
+    0.01, 0.16 at 1, 0.53 at 100 (Ferwerda's L_dmax/2), 0.70 at 10^4 cd/m^2.
+    Floored at 0.02 (an adaptation below 0.01 cd/m^2 still shows something)."""
+    L = np.maximum(np.asarray(L_adapted, np.float64), 0.0)
+    return np.maximum(1.03 - 2.0 / (2.0 + np.log10(L + 1.0)), 0.02)
+
+
+def adapted_cone_luminance(inv_eps_cone: float) -> float:
+    """The cone adaptation level (cd/m^2) whose threshold (Eq. 2) is 1/``inv_eps_cone``:
+    Eq. 2 inverted (its flat scotopic branch maps to its end, 10^-2.6)."""
+    le = -math.log10(max(inv_eps_cone, 1e-300))
+    if le >= 1.9 - 1.255:
+        return 10.0 ** (le + 1.255)
+    if le <= -0.72 + 1e-12:
+        return 10.0 ** -2.6
+    return 10.0 ** (((le + 0.72) ** (1.0 / 2.7) - 0.65) / 0.249)
 
 
 def scale_factors(L_wa, L_waR, L_da):
@@ -150,6 +180,9 @@ class FrameParams:
     L_waR: float           # ... rod (scotopic)
     unit_cd: float         # cd/m^2 of display-linear 1.0
     lut: int = 0           # look-up table entries (0: direct evaluation)
+    mode: str = "default"
+    shoulder_knee: float = SHOULDER_KNEE   # 0: hard clip at display white (paper)
+    white_signal: float = 1.0              # display-linear value of display white
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -160,13 +193,23 @@ class FrameParams:
         return self.k * self.m_rod * np.asarray(self.tint, np.float64) / self.unit_cd
 
 
-def frame_params(state, display: DisplaySpec, tint=BLUE_SHIFT, lut: int = 0) -> FrameParams:
+def frame_params(state, display: DisplaySpec, tint=BLUE_SHIFT, lut: int = 0,
+                 mode: str = "default") -> FrameParams:
+    """Per-frame scalars. ``mode="paper"``: L_da = L_dmax/2 and a hard clip at
+    display white; default: L_da from the key of the adapted level, and the
+    highlight shoulder (docs/models.md)."""
+    if mode not in MODES:
+        raise ValueError(f"durand00 mode must be one of {', '.join(MODES)} (got {mode!r})")
     v = state.values
-    L_da = display_adaptation(display)
+    paper = mode == "paper"
+    L_da = display_adaptation(display, None if paper
+                              else adapted_cone_luminance(v["inv_eps_cone"]))
     e_d = float(threshold_cone(L_da))
     return FrameParams(e_d * v["inv_eps_cone"], e_d * v["inv_eps_rod"],
                        float(mesopic_factor(v["L_waR"])), tuple(float(t) for t in tint), L_da,
-                       v["L_wa"], v["L_waR"], display.unit_cd, int(lut))
+                       v["L_wa"], v["L_waR"], display.unit_cd, int(lut), mode,
+                       0.0 if paper else SHOULDER_KNEE,
+                       float(display.white_cd / display.unit_cd))
 
 
 def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams) -> np.ndarray:
@@ -177,7 +220,9 @@ def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams
     rod = np.asarray(Ys, np.float64)[..., None] * p.rod_rgb
     if p.lut:
         cone, rod = _lut_reference(rgb, Ys, p)
-    return np.clip(cone + rod, 0.0, DISPLAY_LINEAR_MAX)
+    out = apply_shoulder(np.minimum(cone + rod, SIGNAL_CEILING), p.white_signal,
+                         p.shoulder_knee)
+    return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
 
 
 def lut_range(p: FrameParams) -> tuple[float, float]:
@@ -223,7 +268,8 @@ def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParam
     if not p.lut:
         knl = rt.kernel("durand00.cl", "durand00_map")
         knl(rt.queue, gsz, (wg,), rgb_buf, ys_buf, out_buf, np.int32(n_pixels),
-            f(p.m_cone / p.unit_cd), f(rod[0]), f(rod[1]), f(rod[2]))
+            f(p.m_cone / p.unit_cd), f(rod[0]), f(rod[1]), f(rod[2]),
+            f(1.0 / p.white_signal), f(p.shoulder_knee))
         return
     import pyopencl as cl
     tc, tr, lo, step = lut_tables(p)
@@ -232,7 +278,8 @@ def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParam
     cl.enqueue_copy(rt.queue, buf, tables)
     knl = rt.kernel("durand00.cl", "durand00_map_lut")
     knl(rt.queue, gsz, (wg,), rgb_buf, ys_buf, out_buf, np.int32(n_pixels), buf,
-        np.int32(p.lut), f(lo), f(1.0 / step), f(p.tint[0]), f(p.tint[1]), f(p.tint[2]))
+        np.int32(p.lut), f(lo), f(1.0 / step), f(p.tint[0]), f(p.tint[1]), f(p.tint[2]),
+        f(1.0 / p.white_signal), f(p.shoulder_knee))
 
 
 _LUT_BUFS: dict = {}

@@ -17,7 +17,7 @@ from dataclasses import dataclass, asdict
 import numpy as np
 
 from .adaptation import AdaptationState, bleaching_step, exponential_step
-from .display import DISPLAY_LINEAR_MAX, DisplaySpec
+from .display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder
 from .photometry import neutral_scotopic_ratio
 
 NAME = "pattanaik00"
@@ -42,11 +42,30 @@ LN10 = math.log(10.0)
 
 # --- Static response model (Sec. 4.1.1) ---------------------------------------
 
-def sigma_rod(A_rod):
-    """Half-saturation of rods, Eq. 4 (cd/m^2 scotopic). j = 1/(5e5*A + 1)."""
+#: Eq. 4's numerator: Hunt's 2^(1/n) x (reference white = 5 A) = 12.9223, as in
+#: Eq. 5; the printed 2.5874 drops the 5 (docs/models.md, reconstruction 6).
+SIGMA_ROD_HUNT, SIGMA_ROD_PRINTED = 12.9223, 2.5874
+#: Amplitude of the rod response in the default mode: Hunt's rod bleaching factor
+#: B_S = 0.5/(1 + 0.3 (5 L_AS/2.26 S/S_W)^0.3) + 0.5/(1 + 5 (5 L_AS/2.26)); Eq. 6
+#: keeps only the adaptation term, 0.04/(0.04 + A), at amplitude 1 where Hunt's is
+#: 0.5 (docs/models.md, reconstruction 7). The paper mode uses 1.
+ROD_AMPLITUDE = 0.5
+#: ``mode``: "default" (Hunt's rod sigma and amplitude, highlight shoulder) or
+#: "paper" (Eqs. 4 and 6 as printed, hard clip at display white).
+MODES = ("default", "paper")
+OPTIONS = ("mode",)
+
+
+def sigma_rod(A_rod, printed: bool = False):
+    """Half-saturation of rods, Eq. 4 (cd/m^2 scotopic). j = 1/(5e5*A + 1).
+
+    Default: Hunt's rod sigma, 12.9223 A / (...), which gives the paper's own
+    display value sigma_rod(25) = 722 (Sec. 4.3); ``printed``: Eq. 4's
+    numerator as printed, 2.5874 A (144.7 at 25)."""
     A = np.maximum(np.asarray(A_rod, np.float64), A_FLOOR)
     j2 = (1.0 / (5.0e5 * A + 1.0)) ** 2
-    return 2.5874 * A / (19000.0 * j2 * A + 0.2615 * (1.0 - j2) ** 4 * A ** (1.0 / 6.0))
+    c = SIGMA_ROD_PRINTED if printed else SIGMA_ROD_HUNT
+    return c * A / (19000.0 * j2 * A + 0.2615 * (1.0 - j2) ** 4 * A ** (1.0 / 6.0))
 
 
 def sigma_cone(A_cone):
@@ -106,15 +125,15 @@ class DisplayObserver:
     signal_gain: float = 0.0     # display-linear per cd/m^2 after that (0: 1/unit_cd)
 
     @classmethod
-    def from_spec(cls, d: DisplaySpec) -> "DisplayObserver":
+    def from_spec(cls, d: DisplaySpec, rod_amplitude: float = 1.0) -> "DisplayObserver":
         if d.paper_crt:
-            # Printed constants, verbatim (sigma_rod = 722 is not Eq. 4 at
-            # A = 25, which gives 144.7; see docs/models.md).
+            # Printed constants, verbatim (sigma_rod = 722 is Hunt's form of
+            # Eq. 4 at A = 25; the printed Eq. 4 gives 144.7; docs/models.md).
             sr, sc, br, bc = 722.0, 646.0, 0.0016, 1.0
         else:
             A = d.adapt_cd
             sr, sc = float(sigma_rod(A)), float(sigma_cone(A))
-            br, bc = float(bleach_rod_static(A)), float(bleach_cone_static(A))
+            br, bc = float(bleach_rod_static(A)) * rod_amplitude, float(bleach_cone_static(A))
         w = float(response(d.white_cd, sr, br) + response(d.white_cd, sc, bc))
         k = float(response(d.black_cd, sr, br) + response(d.black_cd, sc, bc))
         # Forward difference of Eq. 2 between display REF_blk and REF_whit.
@@ -144,23 +163,37 @@ class DisplayObserver:
 
 # --- Appearance model and its inverse (Secs. 4.2, 4.3) -----------------------
 
-def reference_responses(v: dict):
+def reference_responses(v: dict, printed: bool = False, rod_amplitude: float = 1.0):
     """Scene REF_whit and REF_blk, Eq. 8: responses at 5*A and 5/32*A."""
-    sr, sc = sigma_rod(v["A_rod"]), sigma_cone(v["A_cone"])
-    white = (response(5.0 * v["A_rod"], sr, v["B_rod"])
+    sr, sc = sigma_rod(v["A_rod"], printed), sigma_cone(v["A_cone"])
+    br = v["B_rod"] * rod_amplitude
+    white = (response(5.0 * v["A_rod"], sr, br)
              + response(5.0 * v["A_cone"], sc, v["B_cone"]))
-    black = (response(5.0 / 32.0 * v["A_rod"], sr, v["B_rod"])
+    black = (response(5.0 / 32.0 * v["A_rod"], sr, br)
              + response(5.0 / 32.0 * v["A_cone"], sc, v["B_cone"]))
     return float(white), float(black)
 
 
-def appearance_map(scene_white, scene_black, disp: DisplayObserver):
+#: Default mode: a scene white response above the display's maps to the display
+#: white response times (scene white / display white)^STEVENS (docs/models.md).
+STEVENS = 0.25
+
+
+def appearance_map(scene_white, scene_black, disp: DisplayObserver, stevens: float = 0.0):
     """Inverse appearance model, Sec. 4.3 rules 1-4, as R_display = gain*R_lum + offset.
 
     Q_lum = R_lum - REF_blk (Sec. 4.2); Q_span = white - black, Q_mid = mean.
+    ``stevens`` > 0 (the default mode): a scene whose white response exceeds the
+    display's keeps part of the excess, its white mapped to the display white
+    response times (scene white / display white)^stevens (below the display's
+    saturation), so brighter scenes stay brighter (the Stevens effect the
+    response model carries); the highlight shoulder then rolls it off.
     Returns (gain, offset, rule).
     """
     dw, dk = disp.ref_white, disp.ref_black
+    if stevens > 0.0 and scene_white > dw:
+        rmax = disp.B_rod + disp.B_cone
+        dw = min(dw * (scene_white / dw) ** stevens, dw + 0.5 * (rmax - dw))
     span_s, span_d = scene_white - scene_black, dw - dk
     if scene_black >= dk and scene_white <= dw:          # rule 1: reproduce directly
         return 1.0, 0.0, 1
@@ -170,6 +203,31 @@ def appearance_map(scene_white, scene_black, disp: DisplayObserver):
     if 0.5 * (scene_white + scene_black) > 0.5 * (dw + dk):  # rule 3: offset down
         return 1.0, dw - scene_white, 3
     return 1.0, dk - scene_black, 4                        # rule 4: offset up
+
+
+# --- Colour in the default mode -----------------------------------------------------
+
+#: Display-linear values are capped here before the shoulder (the inverse display
+#: response diverges as a response nears the display's saturation).
+SIGNAL_CEILING = 1.0e6
+
+
+def luminance_level_adaptation_factor(L_A):
+    """F_L of CIECAM02 / Hunt (CIE 159:2004): 0.2 k^4 (5 L_A) + 0.1 (1 - k^4)^2
+    (5 L_A)^(1/3), k = 1/(5 L_A + 1); L_A in cd/m^2. (Eq. 5 is 12.9223 A / F_L.)"""
+    L = np.maximum(np.asarray(L_A, np.float64), A_FLOOR)
+    k4 = (1.0 / (5.0 * L + 1.0)) ** 4
+    return 0.2 * k4 * 5.0 * L + 0.1 * (1.0 - k4) ** 2 * np.cbrt(5.0 * L)
+
+
+def chroma_scale(A_cone, A_display):
+    """Default mode's colour: chroma of the scene relative to the display observer's,
+    (F_L(A_cone) / F_L(A_display))^(1/4), CIECAM02's colourfulness M = C F_L^(1/4)
+    (the Hunt effect: colours look more colourful in brighter light, and fade as
+    cones lose their response at night), applied as a hue-preserving scale of
+    the colour ratios about neutral. 1 when scene and display adaptation match."""
+    return (luminance_level_adaptation_factor(A_cone)
+            / luminance_level_adaptation_factor(A_display)) ** 0.25
 
 
 # --- Per-frame scalars for the per-pixel pass ---------------------------------------
@@ -186,6 +244,10 @@ class FrameParams:
     offset: float
     rule: int
     display: DisplayObserver
+    mode: str = "default"
+    shoulder_knee: float = SHOULDER_KNEE   # 0: hard clip at display white (paper)
+    white_signal: float = 1.0              # display-linear value of display white
+    chroma: float | None = None            # default mode's chroma scale; None: Eq. 3
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -193,13 +255,23 @@ class FrameParams:
         return d
 
 
-def frame_params(state: AdaptationState, display: DisplaySpec) -> FrameParams:
+def frame_params(state: AdaptationState, display: DisplaySpec,
+                 mode: str = "default") -> FrameParams:
+    """Per-frame scalars. ``mode="paper"``: Eq. 4 as printed and a hard clip at
+    display white; default: Hunt's rod sigma and the highlight shoulder."""
+    if mode not in MODES:
+        raise ValueError(f"pattanaik00 mode must be one of {', '.join(MODES)} (got {mode!r})")
+    printed = mode == "paper"
+    amp = 1.0 if printed else ROD_AMPLITUDE
     v = state.values
-    disp = DisplayObserver.from_spec(display)
-    w, k = reference_responses(v)
-    gain, offset, rule = appearance_map(w, k, disp)
-    return FrameParams(float(sigma_rod(v["A_rod"])), float(sigma_cone(v["A_cone"])),
-                       v["B_rod"], v["B_cone"], gain, offset, rule, disp)
+    disp = DisplayObserver.from_spec(display, amp)
+    w, k = reference_responses(v, printed, amp)
+    gain, offset, rule = appearance_map(w, k, disp, 0.0 if printed else STEVENS)
+    return FrameParams(float(sigma_rod(v["A_rod"], printed)), float(sigma_cone(v["A_cone"])),
+                       v["B_rod"] * amp, v["B_cone"], gain, offset, rule, disp, mode,
+                       0.0 if printed else SHOULDER_KNEE,
+                       float(display.to_signal(display.white_cd)),
+                       None if printed else float(chroma_scale(v["A_cone"], display.adapt_cd)))
 
 
 def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams) -> np.ndarray:
@@ -217,9 +289,13 @@ def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(Yc > L_FLOOR, rgb / np.where(Yc > L_FLOOR, Yc, 1.0), 1.0)
     # Q_color = ratio^S_color (Eq. 3); display colour ratio C_d = Q_color^(1/S_d).
-    c_disp = np.maximum(ratio, RATIO_FLOOR) ** (s_color / p.display.S_d)[..., None]
-    L_sig = np.maximum(L_disp - p.display.signal_offset, 0.0) * p.display.gain
-    out = L_sig[..., None] * c_disp
+    if p.chroma is None:       # paper: Q_color^(1/S_d) = ratio^(S_color/S_d)
+        c_disp = np.maximum(ratio, RATIO_FLOOR) ** (s_color / p.display.S_d)[..., None]
+    else:                      # default: CIECAM02 colourfulness, hue kept (docs/models.md)
+        c_disp = np.maximum(1.0 + p.chroma * (ratio - 1.0), 0.0)
+    L_sig = np.minimum(np.maximum(L_disp - p.display.signal_offset, 0.0) * p.display.gain,
+                       SIGNAL_CEILING)
+    out = apply_shoulder(L_sig[..., None] * c_disp, p.white_signal, p.shoulder_knee)
     return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
 
 
@@ -242,7 +318,9 @@ def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParam
         f(math.log2(p.sigma_rod)), f(math.log2(p.sigma_cone)), f(p.B_rod), f(p.B_cone),
         f(p.gain), f(p.offset),
         f(d.B_rod), f(d.B_cone), f(d.sigma_rod ** N), f(d.sigma_cone ** N),
-        f(LN10 * N * p.B_cone / d.S_d), f(d.signal_offset), f(d.gain))
+        f(LN10 * N * p.B_cone / d.S_d if p.chroma is None else 0.0),
+        f(d.signal_offset), f(d.gain), f(1.0 / p.white_signal), f(p.shoulder_knee),
+        f(p.chroma if p.chroma is not None else 0.0))
 
 
 # --- Scheduler hooks --------------------------------------------------------

@@ -25,9 +25,11 @@ def test_paper_display_slope_S_d():
     assert d.S_d == pytest.approx(0.1383, rel=3e-3)
 
 
-def test_sigma_rod_printed_722_is_not_eq4():
-    # Documented discrepancy: Eq. 4 at 25 cd/m^2 gives 144.7; the paper prints 722.
-    assert P.sigma_rod(25.0) == pytest.approx(144.66, rel=1e-3)
+def test_sigma_rod_printed_722_is_hunts_form_of_eq4():
+    # Eq. 4 as printed gives 144.7 at 25 cd/m^2; the paper's display value is 722,
+    # which is Hunt's form (numerator 12.9223 A, as Eq. 5): the default.
+    assert P.sigma_rod(25.0, printed=True) == pytest.approx(144.66, rel=1e-3)
+    assert P.sigma_rod(25.0) == pytest.approx(722.0, rel=1e-3)
 
 
 def test_sigma_limits_at_zero_are_finite():
