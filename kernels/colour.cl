@@ -19,16 +19,6 @@ inline float repair_value(float x, int *kind)
     return x;
 }
 
-inline float scotopic_luminance(float r, float g, float b)
-{
-    /* Ward-Larson et al. 1997: Y' = Y (1.33 (1 + (Y+Z)/X) - 1.68) */
-    float X = M_XR * r + M_XG * g + M_XB * b;
-    float Y = M_YR * r + M_YG * g + M_YB * b;
-    float Z = M_ZR * r + M_ZG * g + M_ZB * b;
-    if (!(X > 0.0f)) return 0.0f;
-    return fmax(Y * (1.33f * (1.0f + (Y + Z) / X) - 1.68f), 0.0f);
-}
-
 /* src: n pixels of `channels` floats (RGB first); rgb out: n*3 floats.
  * Repairs are counted for pixels [count_lo, count_hi) only (a band's halo
  * rows are another band's own). */

@@ -15,20 +15,26 @@
 #define T_DONE 1.0e9f
 #define NSTATE 9   /* sigma_in/fin/anchor cone, sigma_in/fin/anchor rod, t, E, K */
 #define DISPLAY_LINEAR_MAX 100.0f
+#define SIGNAL_CEILING 1.0e6f
 
-/* Eqs. 6-7; Y' clamped at 0. */
+/* Eqs. 6-7; Y' clamped at 0. ward: Y' of Ward-Larson et al. 1997 instead of
+ * Eq. 7 (the default mode; ocl_tonemap/ledda04.py, luminances). */
 inline float ledda_Y(float3 c) { return 0.256f * c.x + 0.67f * c.y + 0.065f * c.z; }
-inline float ledda_Ys(float3 c) { return fmax(-0.702f * c.x + 1.039f * c.y + 0.433f * c.z, 0.0f); }
+inline float ledda_Ys(float3 c, const int ward)
+{
+    return ward ? scotopic_luminance(c.x, c.y, c.z)
+                : fmax(-0.702f * c.x + 1.039f * c.y + 0.433f * c.z, 0.0f);
+}
 
 /* The signals the bilateral filter sees: Y and Y', floored at V_FLOOR. */
 __kernel void ledda04_luminance(__global const float *rgb, const int n,
-                                __global float *Y, __global float *Ys)
+                                __global float *Y, __global float *Ys, const int ward)
 {
     const int i = get_global_id(0);
     if (i >= n) return;
     float3 c = vload3(i, rgb);
     Y[i] = fmax(ledda_Y(c), V_FLOOR);
-    Ys[i] = fmax(ledda_Ys(c), V_FLOOR);
+    Ys[i] = fmax(ledda_Ys(c, ward), V_FLOOR);
 }
 
 inline float sigma_of(float I, float beta) { return beta * powp(fmax(I, V_FLOOR), ALPHA); }
@@ -77,7 +83,11 @@ __kernel void ledda04_step_map(__global const float *rgb, const int rgb_off,
                                const int n, const float dt, const int init, const float E_init,
                                const float change_log2, const float sigma_disp,
                                const float inv_unit, __global float *out,
-                               __global int *counts)
+                               __global int *counts,
+                               const float strength,   /* local share of the level (1: paper) */
+                               const float ln_global_c, const float ln_global_r,
+                               const float inv_white, const float knee,   /* shoulder */
+                               const int ward)          /* Y' of Ward (default) or Eq. 7 */
 {
     __local int lrestart;
     if (get_local_id(0) == 0) lrestart = 0;
@@ -85,8 +95,13 @@ __kernel void ledda04_step_map(__global const float *rgb, const int rgb_off,
     const int i = get_global_id(0);
     if (i < n) {
         __global float *s = state + i;
-        const float ic = Ic[i];
-        const float ir = rod_from_cone ? rod_scale * ic : Ir[i];
+        float ic = Ic[i];
+        float ir = rod_from_cone ? rod_scale * ic : Ir[i];
+        if (strength < 1.0f) {                 /* I_local^s G^(1-s) (default mode) */
+            ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
+            ir = rod_from_cone ? rod_scale * ic
+                               : exp(strength * log(fmax(ir, V_FLOOR)) + (1.0f - strength) * ln_global_r);
+        }
         const float gc = sigma_of(ic, BETA_CONE), gr = sigma_of(ir, BETA_ROD);
         float sic, sfc, sac, sir, sfr, sar, t, E, K;
         if (init) {
@@ -123,9 +138,9 @@ __kernel void ledda04_step_map(__global const float *rgb, const int rgb_off,
         const float mes = u * u * (3.0f - 2.0f * u);                         /* Eq. 11 */
         const float3 c = vload3(rgb_off + i, rgb);
         const float cone_gain = mes * sigma_disp / sc * inv_unit;            /* Eq. 12 */
-        const float rod_out = (1.0f - mes) * sigma_disp * ledda_Ys(c) / sr * inv_unit; /* Eq. 13 */
-        float3 o = c * cone_gain + rod_out;
-        vstore3(clamp(o, 0.0f, DISPLAY_LINEAR_MAX), i, out);
+        const float rod_out = (1.0f - mes) * sigma_disp * ledda_Ys(c, ward) / sr * inv_unit; /* Eq. 13 */
+        float3 o = fmin(c * cone_gain + rod_out, SIGNAL_CEILING);
+        vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     if (get_local_id(0) == 0 && lrestart) atomic_add(&counts[0], lrestart);

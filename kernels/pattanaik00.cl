@@ -118,19 +118,15 @@ __kernel void pattanaik00_map4(__global const float *rgb, __global const float *
         o1 = D1 * fmax(1.0f + chroma * (r1 - 1.0f), 0.0f);
         o2 = D2 * fmax(1.0f + chroma * (r2 - 1.0f), 0.0f);
     }
-    if (knee > 0.0f) {                         /* per pixel: max over its 3 channels */
-        const float4 mx = fmax(fmax((float4)(o0.x, o0.w, o1.z, o2.y),
-                                    (float4)(o0.y, o1.x, o1.w, o2.z)),
-                               (float4)(o0.z, o1.y, o2.x, o2.w)) * inv_white;
-        const float4 t = fmax(mx - knee, 0.0f) / (1.0f - knee);
-        const float4 g = select((float4)(1.0f), (knee + (1.0f - knee) * t / (1.0f + t)) / mx,
-                                mx > knee);
-        vstore4(clamp(o0 * g.xxxy, 0.0f, DISPLAY_LINEAR_MAX), 0, dst);
-        vstore4(clamp(o1 * g.yyzz, 0.0f, DISPLAY_LINEAR_MAX), 1, dst);
-        vstore4(clamp(o2 * g.zwww, 0.0f, DISPLAY_LINEAR_MAX), 2, dst);
-        return;
-    }
     vstore4(clamp(o0, 0.0f, DISPLAY_LINEAR_MAX), 0, dst);
     vstore4(clamp(o1, 0.0f, DISPLAY_LINEAR_MAX), 1, dst);
     vstore4(clamp(o2, 0.0f, DISPLAY_LINEAR_MAX), 2, dst);
+    if (knee > 0.0f) {                         /* the shoulder mixes a pixel's channels */
+        for (int k = 0; k < 4; ++k) {
+            const float3 v = (float3)(k == 0 ? o0.x : k == 1 ? o0.w : k == 2 ? o1.z : o2.y,
+                                      k == 0 ? o0.y : k == 1 ? o1.x : k == 2 ? o1.w : o2.z,
+                                      k == 0 ? o0.z : k == 1 ? o1.y : k == 2 ? o2.x : o2.w);
+            vstore3(clamp(shoulder3(v, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i0 + k, out);
+        }
+    }
 }

@@ -74,6 +74,11 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    "is slower and closer to exact)")
     g.add_argument("--rods", choices=["auto", "always"], default="auto",
                    help="auto: skip the rod filter on all-photopic frames")
+    g.add_argument("--local-strength", type=float, metavar="S",
+                   help="ledda04: share of the local (bilateral) level in each pixel's "
+                   "adaptation, 0 (global) .. 1 (the paper's fully local); default 0.5")
+    g.add_argument("--ledda-mode", choices=["default", "paper"],
+                   help="ledda04: the same as --mode")
     g = p.add_argument_group("durand00")
     g.add_argument("--blue-shift", metavar="R,G,B",
                    help="colour of rod signals (Eq. 5; default 1.05,0.97,1.27; 1,1,1 for none)")
@@ -170,6 +175,13 @@ def _operator_options(a) -> dict | None:
         return mode or None
     opts = {"sigma_spatial": a.sigma_spatial, "bilateral": a.bilateral,
             "bilateral_sampling": a.bilateral_sampling, "rods": a.rods, **mode}
+    if a.operator == "ledda04":
+        if a.ledda_mode:
+            opts["mode"] = a.ledda_mode
+        opts["local_strength"] = a.local_strength
+    elif a.local_strength is not None or a.ledda_mode:
+        log.warning("--local-strength and --ledda-mode belong to ledda04: ignored for %s",
+                    a.operator)
     kirk = {"kappa": a.kappa, "gamma": a.night_dim, "target_contrast": a.target_contrast,
             "shift_xyz": _triple(a.shift_scale, "--shift-scale") if a.shift_scale else None}
     if a.operator == "kirk11":

@@ -22,6 +22,8 @@ v = L / W, the paper's literal form.
 from __future__ import annotations
 
 import math
+
+import numpy as np
 from dataclasses import dataclass, asdict
 
 #: Largest display-linear value written: 100 x the encoding unit, i.e.
@@ -136,6 +138,19 @@ def display_for(display_name: str, white_cd: float | None = None, peak_cd: float
                                   subtract_black=True)
 
 
+# --- where an adapted scene sits on the display ---------------------------------
+
+def scene_key(L_adapted):
+    """The display level, as a fraction of display white, at which a scene adapted
+    to L cd/m^2 shows its adaptation level: Krawczyk, Myszkowski & Seidel 2005's
+    key a = 1.03 - 2 / (2 + log10(L + 1)) (floored at 0.02), put on the display
+    as Reinhard et al. 2002's photographic operator puts it, a / (1 + a):
+    0.02 at 0.001, 0.03 at 0.01, 0.14 at 1, 0.35 at 100, 0.41 at 10^4 cd/m^2."""
+    L = np.maximum(np.asarray(L_adapted, np.float64), 0.0)
+    a = np.maximum(1.03 - 2.0 / (2.0 + np.log10(L + 1.0)), 0.02)
+    return a / (1.0 + a)
+
+
 # --- highlights ------------------------------------------------------------------
 
 #: Default knee of the highlight shoulder, as a fraction of display white.
@@ -155,15 +170,27 @@ def shoulder_curve(m, knee: float = SHOULDER_KNEE):
 
 
 def apply_shoulder(rgb, white_signal: float, knee: float = SHOULDER_KNEE):
-    """Hue-preserving highlight shoulder of display-linear ``rgb`` (..., 3): every
-    channel is scaled by S(m)/m, m = the largest channel / ``white_signal``, so
-    that no channel reaches display white and colour ratios are kept. ``knee``
-    <= 0 or >= 1: unchanged (a hard clip follows at display white)."""
-    import numpy as np
+    """Highlight shoulder of display-linear working RGB (..., 3), luminance first:
+    the luminance Y goes through :func:`shoulder_curve` (relative to
+    ``white_signal``), so the order of luminances is kept (no gradient reversal);
+    then, where the largest channel m would still exceed its own shoulder value
+    S(m), the colour is desaturated toward that luminance until it does (hue
+    kept, luminance kept; channels use a later knee, (1 + knee)/2). No channel
+    reaches display white. ``knee`` <= 0 or
+    >= 1: unchanged (a hard clip follows at display white)."""
     rgb = np.asarray(rgb, np.float64)
     if not (0.0 < knee < 1.0):
         return rgb
-    m = np.max(rgb, axis=-1) / white_signal
+    from .photometry import Y_WEIGHTS
+    c = np.maximum(rgb / white_signal, 0.0)
+    Y = c @ Y_WEIGHTS
+    m = np.max(c, axis=-1)
+    Ys = shoulder_curve(Y, knee)
     with np.errstate(divide="ignore", invalid="ignore"):
-        g = np.where(m > knee, shoulder_curve(m, knee) / np.where(m > knee, m, 1.0), 1.0)
-    return rgb * g[..., None]
+        g = np.where(Y > 0, Ys / np.where(Y > 0, Y, 1.0), 0.0)
+        top = m * g                                   # the largest channel after scaling
+        cap = shoulder_curve(m, 0.5 * (1.0 + knee))    # channels: a later knee
+        t = np.where(top > cap, (cap - Ys) / np.where(top > Ys, top - Ys, 1.0), 1.0)
+    t = np.clip(t, 0.0, 1.0)
+    out = Ys[..., None] + (c * g[..., None] - Ys[..., None]) * t[..., None]
+    return out * white_signal

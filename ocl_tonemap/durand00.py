@@ -33,7 +33,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .adaptation import exponential_step
-from .display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder
+from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder,
+                      scene_key)
 from .photometry import neutral_scotopic_ratio
 
 NAME = "durand00"
@@ -89,20 +90,10 @@ def threshold_cone(L_aC):
 def display_adaptation(display: DisplaySpec, L_adapted: float | None = None) -> float:
     """L_da, cd/m^2: Ferwerda et al.'s display observer, adapted to L_dmax / 2; with
     ``L_adapted`` (the default mode), L_dmax times the key of a scene adapted to it
-    (:func:`scene_key`), so brighter scenes are shown brighter."""
+    (:func:`display.scene_key`), so brighter scenes are shown brighter."""
     if L_adapted is None:
         return DISPLAY_ADAPT_FRACTION * display.white_cd
     return float(scene_key(L_adapted)) * display.white_cd
-
-
-def scene_key(L_adapted):
-    """Krawczyk, Myszkowski & Seidel 2005's key (lightness perception in tone
-    reproduction): a = 1.03 - 2 / (2 + log10(L + 1)), the display level, as a
-    fraction of white, at which a scene adapted to L cd/m^2 is shown: 0.03 at
-    0.01, 0.16 at 1, 0.53 at 100 (Ferwerda's L_dmax/2), 0.70 at 10^4 cd/m^2.
-    Floored at 0.02 (an adaptation below 0.01 cd/m^2 still shows something)."""
-    L = np.maximum(np.asarray(L_adapted, np.float64), 0.0)
-    return np.maximum(1.03 - 2.0 / (2.0 + np.log10(L + 1.0)), 0.02)
 
 
 def adapted_cone_luminance(inv_eps_cone: float) -> float:

@@ -30,7 +30,7 @@ from dataclasses import dataclass, asdict, field
 import numpy as np
 
 from .bilateral import LEDDA_RANGE, V_FLOOR, BilateralSpec, bilateral_reference
-from .display import DISPLAY_LINEAR_MAX, DisplaySpec
+from .display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder, scene_key
 
 NAME = "ledda04"
 LOCAL = True
@@ -58,8 +58,18 @@ DISPLAY_ADAPT_FRACTION = 0.4
 #: moves more than this many log10 units from the goal that started the
 #: current course (Sec. 5.2, last paragraph; our threshold).
 CHANGE_LOG10 = 0.1
+#: Display-linear values are capped here before the shoulder (finite maths).
+SIGNAL_CEILING = 1.0e6
 #: "Long ago": t of a pixel whose course has finished, s.
 T_DONE = 1.0e9
+
+#: ``mode``: "default" (adaptation to a blend of the local and the frame's global
+#: level, display anchored to the scene's key, highlight shoulder) or "paper"
+#: (fully local, the fixed display sigma, hard clip): docs/models.md.
+MODES = ("default", "paper")
+#: Default share of the local (bilateral) level in the adaptation level
+#: (Reinhard & Devlin 2005's light-adaptation mix; 1 = the paper's fully local).
+LOCAL_STRENGTH = 0.5
 
 #: Per-pixel state planes, in this order (float32 on the device).
 STATE_CHANNELS = ("sigma_in_cone", "sigma_fin_cone", "sigma_anchor_cone",
@@ -69,14 +79,27 @@ STATE_CHANNELS = ("sigma_in_cone", "sigma_fin_cone", "sigma_anchor_cone",
 
 # --- static model (Sec. 4) -------------------------------------------------------
 
-def luminances(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def luminances(rgb: np.ndarray, ward: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Photopic Y and scotopic Y' of working RGB (cd/m^2), Eqs. 6-7.
 
-    Eq. 7 has a negative red weight; Y' < 0 (saturated reds) is clamped to 0."""
+    Eq. 7 has a negative red weight; Y' < 0 (every orange and red) is clamped to
+    0. ``ward`` (the default mode): Y' of Ward-Larson et al. 1997
+    (``photometry.scotopic_luminance``), positive like V'(lambda) (docs/models.md)."""
     rgb = np.asarray(rgb, np.float64)
     Y = rgb @ np.array(Y_COEFFS)
+    if ward:
+        from .photometry import scotopic_luminance
+        return Y, scotopic_luminance(rgb)
     Ys = np.maximum(rgb @ np.array(YS_COEFFS), 0.0)
     return Y, Ys
+
+
+def neutral_rod_ratio(ward: bool) -> float:
+    """Y'/Y of a neutral grey: 0.777 for Eqs. 6-7, 2.57 for Ward's Y' over Eq. 6's Y."""
+    if ward:
+        from .photometry import neutral_scotopic_ratio
+        return neutral_scotopic_ratio() / sum(Y_COEFFS)
+    return sum(YS_COEFFS) / sum(Y_COEFFS)
 
 
 def sigma_of(I_A, beta: float):
@@ -170,12 +193,30 @@ class LeddaSettings:
     bilateral : exact | fast | auto, and the grid sampling (see bilateral.py).
     display_adapt_cd : display adaptation level for sigma_disp (default 0.4 x white).
     change_log10 : restart threshold of the time course (log10 of sigma).
+    mode : "default" or "paper" (:data:`MODES`).
+    local_strength : share of the local level in each pixel's adaptation level,
+        0 (global) .. 1 (the paper's fully local); None: 0.5, or 1 in paper mode.
     """
 
     sigma_spatial: float | None = None
     bilateral: BilateralSpec = field(default_factory=BilateralSpec)
     display_adapt_cd: float | None = None
     change_log10: float = CHANGE_LOG10
+    mode: str = "default"
+    local_strength: float | None = None
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise ValueError(f"ledda04 mode must be one of {', '.join(MODES)} (got {self.mode!r})")
+        ls = self.local_strength
+        if ls is not None and not (0.0 <= ls <= 1.0):
+            raise ValueError(f"--local-strength must be between 0 and 1 (got {ls})")
+
+    @property
+    def strength(self) -> float:
+        if self.local_strength is not None:
+            return float(self.local_strength)
+        return 1.0 if self.mode == "paper" else LOCAL_STRENGTH
 
     def sigma_px(self, width: int, height: int) -> float:
         if self.sigma_spatial is not None:
@@ -197,11 +238,11 @@ def initial_state(I_c, I_r, E) -> dict:
             "K": K_of_energy(E)}
 
 
-def preadapted_state(L_cd: float, seconds: float | None, shape) -> dict:
+def preadapted_state(L_cd: float, seconds: float | None, shape, ward: bool = False) -> dict:
     """Uniform state after looking at a neutral field of ``L_cd`` cd/m^2 for
     ``seconds`` (None: for long, E at its ceiling). Y' of a neutral field is
-    Y * (sum of Eq. 7's weights / sum of Eq. 6's)."""
-    ratio = sum(YS_COEFFS) / sum(Y_COEFFS)
+    Y * :func:`neutral_rod_ratio`."""
+    ratio = neutral_rod_ratio(ward)
     E = E_MAX if seconds is None else L_cd * seconds
     return initial_state(np.full(shape, float(L_cd)), np.full(shape, L_cd * ratio), E)
 
@@ -248,9 +289,11 @@ def current_sigmas(state: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 def map_reference(rgb: np.ndarray, Ys: np.ndarray, I_c: np.ndarray, sigma_c, sigma_r,
-                  sigma_disp: float, unit_cd: float) -> np.ndarray:
+                  sigma_disp: float, unit_cd: float, white_signal: float = 1.0,
+                  knee: float = 0.0) -> np.ndarray:
     """Eqs. 11-13: display-linear RGB from scene rgb (cd/m^2), Y', the cone
-    adaptation luminance (for mes) and the current sigmas.
+    adaptation luminance (for mes) and the current sigmas; then the highlight
+    shoulder when ``knee`` > 0.
 
     Y_coneO / Y = mes sigma_disp / sigma_cone because (R/(1-R))^(1/n) = Y/sigma
     exactly (Eq. 2); using the quotient form keeps R -> 1 from cancelling.
@@ -259,7 +302,30 @@ def map_reference(rgb: np.ndarray, Ys: np.ndarray, I_c: np.ndarray, sigma_c, sig
     cone_gain = mes * sigma_disp / np.asarray(sigma_c, np.float64)
     rod_out = (1.0 - mes) * sigma_disp * np.asarray(Ys, np.float64) / np.asarray(sigma_r, np.float64)
     out = (np.asarray(rgb, np.float64) * cone_gain[..., None] + rod_out[..., None]) / unit_cd
+    out = apply_shoulder(np.minimum(out, SIGNAL_CEILING), white_signal, knee)
     return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
+
+
+def blend_levels(I_local, G: float, strength: float):
+    """Each pixel's adaptation level in the default mode: the geometric blend
+    I_local^s G^(1-s) of its local (bilateral) level and the frame's global
+    log-average G (Reinhard & Devlin 2005's local/global light-adaptation mix, in
+    log luminance as the bilateral filter works)."""
+    if strength >= 1.0:
+        return np.asarray(I_local, np.float64)
+    lI = np.log(np.maximum(np.asarray(I_local, np.float64), V_FLOOR))
+    return np.exp(strength * lI + (1.0 - strength) * math.log(max(G, V_FLOOR)))
+
+
+def anchored_sigma(display: DisplaySpec, G_cone: float, G_rod: float) -> float:
+    """The default mode's display sigma: the one that shows a uniform field at the
+    frame's global levels (G_cone, G_rod) at the scene's key on the display,
+    ``display.scene_key(G_cone)`` x white (Eqs. 11-13 solved for sigma_disp), so a
+    brighter scene is brighter and a uniform adapted field never exceeds white."""
+    Gc, Gr = max(G_cone, V_FLOOR), max(G_rod, V_FLOOR)
+    mes = float(mesopic_factor(Gc))
+    f = mes * Gc / float(sigma_of(Gc, BETA_CONE)) + (1.0 - mes) * Gr / float(sigma_of(Gr, BETA_ROD))
+    return float(scene_key(Gc)) * display.white_cd / f
 
 
 def adaptation_maps_reference(rgb: np.ndarray, sigma_s: float):
@@ -276,6 +342,10 @@ class FrameSummary:
     bilateral: str
     sigma_disp: float
     rods_modelled: bool
+    mode: str
+    local_strength: float
+    global_cone: float          # the frame's log-average (Eq. 6 Y), cd/m^2
+    global_rod: float
     restarted_fraction: float
     logmean_I_A_cone: float
     logmean_I_A_rod: float
@@ -315,6 +385,8 @@ class LeddaObserver:
         self.preadapt = preadapt
         self.rods = rods
         self.sigma_disp = display_sigma(display, settings.display_adapt_cd)
+        self.ward = settings.mode != "paper"
+        self.rod_ratio = neutral_rod_ratio(self.ward)
         self._host: dict | None = None      # authoritative when _dev is None
         self._dev = None                    # (cl.Buffer, (h, w)) authoritative on device
         self._bufs = {}
@@ -358,7 +430,8 @@ class LeddaObserver:
         state (preadapted for a fresh observer)."""
         if fresh:
             if self.preadapt is not None:
-                return "step", preadapted_state(self.preadapt[0], self.preadapt[1], shape)
+                return "step", preadapted_state(self.preadapt[0], self.preadapt[1], shape,
+                                                self.ward)
             return "init", None
         have = self._shape()
         if have is None:
@@ -370,16 +443,27 @@ class LeddaObserver:
         return "step", None
 
     # -- reference ---------------------------------------------------------------
+    def frame_mapping(self, G_cone: float, G_rod: float) -> tuple[float, float, float]:
+        """(display sigma, white signal, shoulder knee) of one frame."""
+        white = self.display.white_cd / self.display.unit_cd
+        if self.settings.mode == "paper":
+            return self.sigma_disp, white, 0.0
+        return anchored_sigma(self.display, G_cone, G_rod), white, SHOULDER_KNEE
+
     def process_reference(self, pixels: np.ndarray, scale: float, dt: float, fresh: bool):
+        from .metering import MeteringSpec, reference_goal
         from .photometry import sanitize
         h, w = pixels.shape[:2]
         rgb, repairs = sanitize(pixels[..., :3], scale)
-        Y, Ys = luminances(rgb)
+        Y, Ys = luminances(rgb, self.ward)
+        G_rod, G_cone = reference_goal(np.maximum(Y, V_FLOOR), np.maximum(Ys, V_FLOOR),
+                                       MeteringSpec.parse("logmean"))
         sig = self.settings.sigma_px(w, h)
-        I_c = bilateral_reference(Y, sig, LEDDA_RANGE)
+        st_ = self.settings.strength
+        I_c = blend_levels(bilateral_reference(Y, sig, LEDDA_RANGE), G_cone, st_)
         rods = self.rods == "always" or I_c.min() < PHOTOPIC_FLOOR
-        I_r = bilateral_reference(Ys, sig, LEDDA_RANGE) if rods else \
-            np.maximum(I_c * NEUTRAL_ROD_RATIO, V_FLOOR)
+        I_r = blend_levels(bilateral_reference(Ys, sig, LEDDA_RANGE), G_rod, st_) if rods else \
+            np.maximum(I_c * self.rod_ratio, V_FLOOR)
         mode, pre = self._start(fresh, (h, w))
         if mode == "init":
             st = initial_state(I_c, I_r, E_MAX)
@@ -390,8 +474,10 @@ class LeddaObserver:
             restarted = float(np.mean(st["t_course"] == 0.0))
         self._host, self._dev = st, None
         s_c, s_r = current_sigmas(st)
-        out = map_reference(rgb, Ys, I_c, s_c, s_r, self.sigma_disp, self.display.unit_cd)
-        self.summary = FrameSummary(sig, "exact (float64)", self.sigma_disp, bool(rods), restarted,
+        sd, white, knee = self.frame_mapping(G_cone, G_rod)
+        out = map_reference(rgb, Ys, I_c, s_c, s_r, sd, self.display.unit_cd, white, knee)
+        self.summary = FrameSummary(sig, "exact (float64)", sd, bool(rods),
+                                    self.settings.mode, st_, G_cone, G_rod, restarted,
                                     logmean(I_c), logmean(I_r))
         return out.astype(np.float32), repairs, (logmean(I_r), logmean(I_c))
 
@@ -439,18 +525,32 @@ class LeddaObserver:
             n = (b - a) * w
             yl = self._buf(rt, "Yl", n * 4)
             ysl = self._buf(rt, "Ysl", n * 4)
-            lum_k(q, (round_up(n, 64),), (64,), backend._bufs["rgb"], i32(n), yl, ysl)
+            lum_k(q, (round_up(n, 64),), (64,), backend._bufs["rgb"], i32(n), yl, ysl,
+                  i32(self.ward))
             return rc, n, yl, ysl
 
+        # the frame's global log-averages (default mode's blend and anchor): one
+        # band is coloured once and stays resident; banded frames take a pass
+        resident = colour_and_lum(0, h, (0, h)) if not banded else None
+        gsums = None
+        for y0, nr in ([(0, h)] if not banded else bands):
+            _, n, yl, ysl = resident if resident is not None else \
+                colour_and_lum(y0, y0 + nr, None)
+            gs = backend.meter.band_sums(yl, ysl, n, w, h, y0, logmean_spec)
+            if gsums is None:
+                gsums = gs
+            else:
+                gsums.add(gs)
+        G_rod_g, G_cone_g = gsums.goal(logmean_spec)
+        strength = self.settings.strength
+        sd, white, knee = self.frame_mapping(G_cone_g, G_rod_g)
         geoms = None
-        resident = None                              # one-band fast path: colour done once
         if method == "fast":
             zr = [[np.inf, -np.inf], [np.inf, -np.inf]]
             for y0, nr in bands:                    # pass A: z ranges of Y and Y'
                 if banded:
                     _, n, yl, ysl = colour_and_lum(y0, y0 + nr, None)
                 else:
-                    resident = colour_and_lum(0, h, (0, h))
                     _, n, yl, ysl = resident
                 for k, (flt, buf) in enumerate(((fc, yl), (fr, ysl))):
                     lo, hi = flt.z_range(buf, n, LEDDA_RANGE)
@@ -480,6 +580,7 @@ class LeddaObserver:
             a, b = max(0, y0 - halo), min(h, y0 + nr + halo)
             if resident is not None:
                 rc, _, yl, ysl = resident
+                resident = (RepairCounts(), *resident[1:])     # count the repairs once
             else:
                 rc, _, yl, ysl = colour_and_lum(a, b, (y0 - a, y0 - a + nr))
             repairs += rc
@@ -511,10 +612,13 @@ class LeddaObserver:
                     planes = np.stack([self._host[k] for k in STATE_CHANNELS])
                     cl.enqueue_copy(q, st, np.ascontiguousarray(planes, np.float32))
             map_k(q, (round_up(n, 64),), (64,), backend._bufs["rgb"], i32((y0 - a) * w), ic, ir,
-                  i32(0 if rods_needed else 1), f32(NEUTRAL_ROD_RATIO), st, i32(n), i32(n),
+                  i32(0 if rods_needed else 1), f32(self.rod_ratio), st, i32(n), i32(n),
                   f32(dt), i32(1 if mode == "init" else 0), f32(E_MAX),
-                  f32(self.settings.change_log10 * math.log2(10.0)), f32(self.sigma_disp),
-                  f32(1.0 / self.display.unit_cd), backend._bufs["out"], counts)
+                  f32(self.settings.change_log10 * math.log2(10.0)), f32(sd),
+                  f32(1.0 / self.display.unit_cd), backend._bufs["out"], counts,
+                  f32(strength), f32(math.log(max(G_cone_g, V_FLOOR))),
+                  f32(math.log(max(G_rod_g, V_FLOOR))), f32(1.0 / white), f32(knee),
+                  i32(self.ward))
             cl.enqueue_copy(q, out[y0:y0 + nr], backend._bufs["out"])
             s = backend.meter.band_sums(ic, ir if rods_needed else ic, n, w, h, y0, logmean_spec)
             if sums is None:
@@ -530,15 +634,15 @@ class LeddaObserver:
                 self._dev, self._host = (st, (h, w), rt), None
         G_rod, G_cone = sums.goal(logmean_spec)
         if not rods_used:
-            G_rod = max(G_cone * NEUTRAL_ROD_RATIO, V_FLOOR)
+            G_rod = max(G_cone * self.rod_ratio, V_FLOOR)
         nres = np.empty(1, np.int32)
         cl.enqueue_copy(q, nres, counts)
         grid = ""
         if method == "fast":
             g = geoms[0]
             grid = f" (q_s={sig / g.s_s:.3g}, q_r={LEDDA_RANGE.z_width() / g.s_r:.3g})"
-        self.summary = FrameSummary(sig, method + grid,
-                                    self.sigma_disp, bool(rods_used),
+        self.summary = FrameSummary(sig, method + grid, sd, bool(rods_used),
+                                    self.settings.mode, strength, G_cone_g, G_rod_g,
                                     float(nres[0]) / (h * w) if mode != "init" else 0.0,
                                     G_cone, G_rod)
         return out, repairs, (G_rod, G_cone)
@@ -547,11 +651,13 @@ class LeddaObserver:
 def make_observer(options: dict | None, display: DisplaySpec,
                   preadapt: tuple[float, float | None] | None) -> LeddaObserver:
     """Observer from operator options: sigma_spatial (px), bilateral (exact|fast|auto),
-    bilateral_sampling ("Q" or "QS,QR"), display_adapt_cd, change_log10, rods."""
-    o = dict(options or {})
+    bilateral_sampling ("Q" or "QS,QR"), display_adapt_cd, change_log10, rods, mode
+    (default|paper), local_strength (0..1)."""
+    o = {k: v for k, v in (options or {}).items() if v is not None}
     spec = BilateralSpec.parse(o.pop("bilateral", "auto") or "auto", o.pop("bilateral_sampling", None))
     settings = LeddaSettings(o.pop("sigma_spatial", None), spec, o.pop("display_adapt_cd", None),
-                             o.pop("change_log10", CHANGE_LOG10))
+                             o.pop("change_log10", CHANGE_LOG10), o.pop("mode", "default"),
+                             o.pop("local_strength", None))
     rods = o.pop("rods", "auto")
     if o:
         raise ValueError(f"unknown ledda04 option(s): {', '.join(sorted(o))}")
