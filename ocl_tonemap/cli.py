@@ -81,7 +81,8 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    help="ledda04: the same as --mode")
     g = p.add_argument_group("durand00")
     g.add_argument("--blue-shift", metavar="R,G,B",
-                   help="colour of rod signals (Eq. 5; default 1.05,0.97,1.27; 1,1,1 for none)")
+                   help="colour of rod signals (Eq. 5): default a 480 nm blue, xy 0.289,0.308 "
+                   "(the paper's 1.05,0.97,1.27 with --mode paper); 1,1,1 for none")
     g.add_argument("--lut", type=int, default=0, metavar="N",
                    help="evaluate the mapping through per-frame tables of N entries over 12 "
                    "decades (Sec. 5; the paper uses 2000); 0 = direct (default)")

@@ -45,6 +45,10 @@ TAU_ROD, TAU_CONE = 0.4, 0.1
 SIGMA_MESOPIC = 100.0
 #: Blue shift of rod signals, Eq. 5: Hunt's scotopic white x = y = 0.3 on an NTSC display.
 BLUE_SHIFT = (1.05, 0.97, 1.27)
+#: Default mode: the same excitation purity as Hunt's (0.3, 0.3) but at a dominant
+#: wavelength of 480 nm, xy (0.289, 0.308): CIELAB hue 260 (blue) where Hunt's
+#: white is at 302 (violet; docs/models.md). Working (BT.709) RGB, luminance 1.
+BLUE_SHIFT_DEFAULT_XY = (0.2890, 0.3080)
 #: Floor on adaptation luminances before the log, cd/m^2 (below every branch point).
 LA_FLOOR = 1.0e-10
 #: Ferwerda et al. 1996: the display observer is adapted to half the display's maximum.
@@ -184,7 +188,16 @@ class FrameParams:
         return self.k * self.m_rod * np.asarray(self.tint, np.float64) / self.unit_cd
 
 
-def frame_params(state, display: DisplaySpec, tint=BLUE_SHIFT, lut: int = 0,
+def blue_shift(mode: str = "default") -> tuple:
+    """The rod signal colour of Eq. 5: the paper's (1.05, 0.97, 1.27), or in the
+    default mode the 480 nm tint of :data:`BLUE_SHIFT_DEFAULT_XY`."""
+    if mode == "paper":
+        return BLUE_SHIFT
+    from .effects import xy_to_rgb
+    return tuple(float(v) for v in xy_to_rgb(*BLUE_SHIFT_DEFAULT_XY))
+
+
+def frame_params(state, display: DisplaySpec, tint=None, lut: int = 0,
                  mode: str = "default") -> FrameParams:
     """Per-frame scalars. ``mode="paper"``: L_da = L_dmax/2 and a hard clip at
     display white; default: L_da from the key of the adapted level, and the
@@ -193,6 +206,8 @@ def frame_params(state, display: DisplaySpec, tint=BLUE_SHIFT, lut: int = 0,
         raise ValueError(f"durand00 mode must be one of {', '.join(MODES)} (got {mode!r})")
     v = state.values
     paper = mode == "paper"
+    if tint is None:
+        tint = blue_shift(mode)
     L_da = display_adaptation(display, None if paper
                               else adapted_cone_luminance(v["inv_eps_cone"]))
     e_d = float(threshold_cone(L_da))

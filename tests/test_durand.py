@@ -71,8 +71,12 @@ def _xy(rgb):
 
 def test_blue_shift_makes_scotopic_white_bluish():
     white = np.full((8, 8, 3), 1e-3, np.float32)     # a white at starlight levels
-    out = Tonemapper("durand00", "reference", effects=NO_FX).process(white)
+    out = Tonemapper("durand00", "reference", effects=NO_FX,
+                     options={"mode": "paper"}).process(white)
     assert tuple(_xy(out[0, 0])) == pytest.approx((0.30, 0.30), abs=0.002)   # Hunt's white
+    # default: the same purity toward 480 nm (blue, not violet)
+    out = Tonemapper("durand00", "reference", effects=NO_FX).process(white)
+    assert tuple(_xy(out[0, 0])) == pytest.approx(dd.BLUE_SHIFT_DEFAULT_XY, abs=0.002)
     plain = Tonemapper("durand00", "reference", effects=NO_FX,
                        options={"tint": (1, 1, 1)}).process(white)
     assert tuple(_xy(plain[0, 0])) == pytest.approx((0.3127, 0.3290), abs=0.002)  # D65
