@@ -45,10 +45,10 @@ TAU_ROD, TAU_CONE = 0.4, 0.1
 SIGMA_MESOPIC = 100.0
 #: Blue shift of rod signals, Eq. 5: Hunt's scotopic white x = y = 0.3 on an NTSC display.
 BLUE_SHIFT = (1.05, 0.97, 1.27)
-#: Default mode: the same excitation purity as Hunt's (0.3, 0.3) but at a dominant
-#: wavelength of 480 nm, xy (0.289, 0.308): CIELAB hue 260 (blue) where Hunt's
-#: white is at 302 (violet; docs/models.md). Working (BT.709) RGB, luminance 1.
-BLUE_SHIFT_DEFAULT_XY = (0.2890, 0.3080)
+#: Default mode: half the excitation purity of Hunt's (0.3, 0.3), at a dominant
+#: wavelength of 480 nm, xy (0.3009, 0.3185): CIELAB hue 260 (blue) where Hunt's
+#: white is at 302 (violet), chroma 3.6 where Hunt's is 9 (docs/models.md).
+BLUE_SHIFT_DEFAULT_XY = (0.3009, 0.3185)
 #: Floor on adaptation luminances before the log, cd/m^2 (below every branch point).
 LA_FLOOR = 1.0e-10
 #: Ferwerda et al. 1996: the display observer is adapted to half the display's maximum.

@@ -1,0 +1,754 @@
+"""Appearance benchmark: what a person sees from each operator, on real HDR photographs.
+
+One command:  python benchmarks/appearance.py [--quick] [--operators a,b]
+                  [--images a,b] [--size W] [--out DIR] [--photos DIR]
+
+Real photographs: six Poly Haven HDRIs (CC0) fetched once from the PyPI wheel
+viser==0.2.23 (benchmarks/photos.py, cached in ~/.cache/ocl-tonemap/photos or
+$OCLTM_PHOTOS), resized to W pixels wide; plus three small generated scenes
+(benchmarks/appearance_scenes.py). Each image is calibrated so that its
+log-average photopic luminance is L cd/m^2 for L in 1e-3 ... 1e4 and shown to a
+fresh observer, steady-state adapted to the still, of every operator (all
+effects off, SDR sRGB display, 1.0 = 100 cd/m^2). The reference is the plain
+OCIO rendering of the same scene exposure-matched (log-average -> 0.18 of
+display white, no tone curve).
+
+Writes:
+  benchmarks/results/appearance.md     metric tables (worst case over images), targets
+  benchmarks/results/appearance.json   the raw numbers
+  DIR/<image>.png                       contact sheet per image (rows: reference +
+                                        operators, columns: levels)
+  DIR/readme_sheet.png                  4 photos at their natural levels x operators
+(DIR defaults to benchmarks/results/appearance/.) Metrics: benchmarks/appearance_metrics.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import statistics
+import sys
+import time
+import warnings
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, ".."))
+sys.path.insert(0, HERE)
+
+import appearance_metrics as am  # noqa: E402
+import appearance_scenes as scenes  # noqa: E402
+import photos as ph  # noqa: E402
+
+LEVELS = [1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4]
+QUICK_LEVELS = [1e-3, 0.1, 10.0, 1e3]
+DEFAULT_IMAGES = [n[:-3] for n in ph.PHOTOS] + list(scenes.SCENES)
+QUICK_IMAGES = ["rooitou_park", "st_fagans_interior", "dikhololo_night", "patches"]
+#: README sheet: (photo, level cd/m^2, label)
+README_SHEET = [("rooitou_park", 5000.0, "daylight"), ("st_fagans_interior", 30.0, "interior"),
+                ("kiara_1_dawn", 1.0, "dusk"), ("dikhololo_night", 0.01, "night")]
+LOCAL_OPS = ("ledda04", "kirk11")
+DISPLAY = "sRGB - Display"
+REF = "OCIO (exposure-matched)"
+
+CLIP_TARGET, HUE_TARGET, REV_TARGET, RHO_TARGET = 0.02, 5.0, 0.01, 0.9
+HUE_MIN_LEVEL, SCOTOPIC_MAX_LEVEL = 100.0, 0.01
+VISIBLE_TOL = math.log10(1.01)      # a reversal of > 1% contrast (about a JND) is "visible"
+TILE_W = 256
+
+
+def short(name: str) -> str:
+    return name[:-3] if name.endswith("_1k") else name
+
+
+def lvl(L: float) -> str:
+    return f"{L:g}"
+
+
+# --- images ----------------------------------------------------------------------
+
+def load_photo(path, width: int) -> np.ndarray:
+    import OpenImageIO as oiio
+    buf = oiio.ImageBuf(str(path))
+    if buf.has_error:
+        raise RuntimeError(f"cannot read {path}: {buf.geterror()}")
+    spec = buf.spec()
+    h = max(1, int(round(spec.height * width / spec.width)))
+    if width != spec.width:
+        # box (area) filter: a windowed-sinc filter rings around the sun (negative lobes
+        # of -3000 next to 60 000) and would paint black halos into the scene
+        buf = oiio.ImageBufAlgo.resize(buf, filtername="box",
+                                       roi=oiio.ROI(0, width, 0, h, 0, 1, 0, spec.nchannels))
+    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)[..., :3]
+    px = np.nan_to_num(px, nan=0.0, posinf=0.0, neginf=0.0)
+    return np.ascontiguousarray(np.maximum(px, 0.0))
+
+
+def log_average(rgb) -> float:
+    try:
+        from ocl_tonemap.calibration import log_average as la
+        v = la(rgb)
+    except ImportError:
+        Y = am.luminance(rgb)
+        Y = Y[Y > 0]
+        v = float(np.exp(np.mean(np.log(Y)))) if Y.size else None
+    if not v:
+        raise ValueError("image has no light")
+    return float(v)
+
+
+def resolve_images(names, photo_paths, size):
+    """name -> dict(rgb, kind, natural, source)."""
+    by_stem = {short(p.stem): p for p in photo_paths}
+    out = {}
+    for n in names:
+        n = short(n.strip())
+        if not n:
+            continue
+        if n in scenes.SCENES:
+            fn, what, nat = scenes.SCENES[n]
+            w = max(64, size // 2)
+            out[n] = dict(rgb=fn(w, w // 2), kind=what, natural=nat, source="generated")
+        elif n in by_stem:
+            what, nat = ph.PHOTOS.get(n + "_1k", ("photograph", None))
+            out[n] = dict(rgb=load_photo(by_stem[n], size), kind="photo: " + what, natural=nat,
+                          source=f"Poly Haven {n}_1k.hdr (CC0, via {ph.WHEEL})")
+        else:
+            raise ValueError(f"unknown image {n!r}; photos: "
+                             f"{', '.join(sorted(by_stem))}; scenes: {', '.join(scenes.SCENES)}")
+    return out
+
+
+# --- running -----------------------------------------------------------------------
+
+class Runner:
+    def __init__(self):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            from ocl_tonemap import Tonemapper
+            from ocl_tonemap.colour import ColourPipeline, load_config
+            from ocl_tonemap.display import display_for
+            from ocl_tonemap.effects import EffectSettings
+        self.Tonemapper, self.display_for, self.EffectSettings = Tonemapper, display_for, EffectSettings
+        self.cp = ColourPipeline(load_config("ocl-tonemap"), DISPLAY)
+        self.times: dict[str, list[float]] = {}
+
+    def tonemap(self, op: str, rgb_cd: np.ndarray):
+        """(display-linear output or None, error text or None)."""
+        try:
+            tm = self.Tonemapper(op, backend="opencl", display=self.display_for(DISPLAY),
+                                 effects=self.EffectSettings())
+            t = time.perf_counter()
+            out = tm.process(rgb_cd, luminance_scale=1.0)
+            self.times.setdefault(op, []).append(time.perf_counter() - t)
+            out = np.asarray(out, np.float32)[..., :3]
+            if out.shape != rgb_cd.shape or not np.all(np.isfinite(out)):
+                return None, f"bad output (shape {out.shape}, finite {np.isfinite(out).all()})"
+            return out, None
+        except Exception as e:  # noqa: BLE001 -- record and go on
+            return None, f"{type(e).__name__}: {e}".splitlines()[0][:200]
+
+    def tile(self, display_linear) -> np.ndarray:
+        """What the display shows: clipped to white, downsized to TILE_W, OCIO-encoded."""
+        a = np.clip(np.asarray(display_linear, np.float32), 0.0, 1.0)
+        h, w = a.shape[:2]
+        if w > TILE_W:
+            import OpenImageIO as oiio
+            th = max(1, int(round(h * TILE_W / w)))
+            buf = oiio.ImageBuf(oiio.ImageSpec(w, h, 3, oiio.FLOAT))
+            buf.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, 3), np.ascontiguousarray(a))
+            buf = oiio.ImageBufAlgo.resize(buf, filtername="box",
+                                           roi=oiio.ROI(0, TILE_W, 0, th, 0, 1, 0, 3))
+            a = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
+        return np.clip(self.cp.encode(np.ascontiguousarray(a, np.float32)), 0.0, 1.0)
+
+
+def provenance() -> str:
+    """Which operator code was measured: git HEAD, the modified files under
+    ocl_tonemap/ and kernels/ (read-only git calls), and a hash of their contents."""
+    import hashlib
+    import subprocess
+    root = os.path.join(HERE, "..")
+
+    def git(*args):
+        try:
+            r = subprocess.run(["git", "--no-optional-locks", *args], cwd=root,
+                               capture_output=True, text=True, timeout=30)
+            return r.stdout.rstrip() if r.returncode == 0 else None
+        except (OSError, subprocess.TimeoutExpired):
+            return None
+    head = git("rev-parse", "--short", "HEAD") or "unknown"
+    dirty = git("status", "--porcelain", "--", "ocl_tonemap", "kernels")
+    h = hashlib.sha256()
+    for sub in ("ocl_tonemap", "kernels"):
+        for dp, _, fs in sorted(os.walk(os.path.join(root, sub))):
+            for f in sorted(fs):
+                if f.endswith((".py", ".cl", ".h")):
+                    with open(os.path.join(dp, f), "rb") as fh:
+                        h.update(f.encode() + b"\0" + fh.read())
+    mods = [ln[3:] for ln in (dirty or "").splitlines() if ln.strip()]
+    return (f"git {head}" + (f" + uncommitted changes in {', '.join(mods)}" if mods else "")
+            + f"; ocl_tonemap/ + kernels/ sources sha256 {h.hexdigest()[:12]}")
+
+
+def run_image(R: Runner, name: str, info: dict, ops, levels):
+    base = info["rgb"]
+    la0 = log_average(base)
+    ref = base * np.float32(0.18 / la0)                 # exposure-matched, display-linear
+    res = {"ref": {"clip": am.clip_fraction(ref, am.luminance(base) / la0, 1.0)}, "ops": {}}
+    tiles = {REF: [R.tile(ref)] * len(levels)}
+    for op in ops:
+        outs, per = [], {}
+        tiles[op] = []
+        for L in levels:
+            rgb_cd = np.ascontiguousarray(base * np.float32(L / la0))
+            sY = am.luminance(rgb_cd)
+            out, err = R.tonemap(op, rgb_cd)
+            outs.append(out)
+            m = {"level": L}
+            if err:
+                m["error"] = err
+                tiles[op].append(None)
+            else:
+                oY = am.luminance(out)
+                m["mean_Y"] = float(oY.mean())
+                m["clip"] = am.clip_fraction(out, sY, L)
+                g = am.gradient_reversal(sY, oY)
+                m["reversal"] = g["all"]
+                m["reversal_by_scale"] = {str(k): v for k, v in g.items() if k != "all"}
+                m["reversal_visible"] = am.gradient_reversal(sY, oY, out_tol=VISIBLE_TOL)["all"]
+                m["spearman"] = am.spearman(sY, oY)
+                # the same against the luminance a person at this level orders by
+                # (CIE 191 mesopic: V' at night, V by day): Purkinje is not an artefact
+                sM = am.mesopic_luminance(rgb_cd)
+                m["reversal_mesopic"] = am.gradient_reversal(sM, oY)["all"]
+                m["spearman_mesopic"] = am.spearman(sM, oY)
+                if L >= HUE_MIN_LEVEL:
+                    m["hue_deg"] = am.hue_difference_deg(out, ref, mask=~am.light_source_mask(sY, L))
+                tiles[op].append(R.tile(out))
+            per[lvl(L)] = m
+        means, inc = am.brightness_means(outs)
+        day = next((o for o in reversed(outs) if o is not None), None)
+        day_L = next((L for L, o in zip(reversed(levels), reversed(outs)) if o is not None), None)
+        for L, out in zip(levels, outs):
+            if L <= SCOTOPIC_MAX_LEVEL and out is not None and day is not None and day_L > L:
+                per[lvl(L)]["scotopic"] = am.scotopic_colour(out, day, base)
+                per[lvl(L)]["scotopic"]["day_level"] = day_L
+        res["ops"][op] = {"levels": per, "brightness_means": means, "brightness_increasing": inc}
+        print(f"  {name:20s} {op:12s} " + " ".join(
+            "ERR" if "error" in per[lvl(L)] else f"{per[lvl(L)]['clip']:5.1%}" for L in levels)
+            + f"  bright-order {'ok' if inc else 'NO'}", flush=True)
+    return res, tiles
+
+
+# --- pictures ------------------------------------------------------------------------
+
+def _show(ax, img, text=None, text_colour="white", shape=None):
+    if img is None:
+        ax.imshow(np.full(tuple(shape or (128, TILE_W)) + (3,), 0.5))
+        ax.text(0.5, 0.5, "error", ha="center", va="center", transform=ax.transAxes,
+                fontsize=11, color="red")
+    else:
+        ax.imshow(img, interpolation="nearest")
+    if text:
+        ax.text(0.02, 0.04, text, transform=ax.transAxes, fontsize=7, color=text_colour,
+                va="bottom", ha="left",
+                bbox=dict(boxstyle="square,pad=0.15", fc=(0, 0, 0, 0.55), ec="none"))
+    ax.set_xticks([])
+    ax.set_yticks([])
+    for s in ax.spines.values():
+        s.set_visible(False)
+
+
+def _figure(nrows, ncols, tile_h, tile_w=TILE_W, left=1.25, top=0.75, dpi=100):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    tw, th = tile_w / dpi, tile_h / dpi
+    gap = 0.06
+    W = left + ncols * (tw + gap) + 0.1
+    H = top + nrows * (th + 0.22) + 0.1
+    fig, axes = plt.subplots(nrows, ncols, figsize=(W, H), dpi=dpi, squeeze=False)
+    fig.subplots_adjust(left=left / W, right=1 - 0.1 / W, top=1 - top / H, bottom=0.1 / H,
+                        wspace=gap / tw, hspace=0.22 / th)
+    return plt, fig, axes
+
+
+def contact_sheet(path, name, info, tiles, res, ops, levels):
+    rows = [REF] + list(ops)
+    t0 = tiles[REF][0]
+    th = int(round(TILE_W * t0.shape[0] / t0.shape[1]))
+    plt, fig, axes = _figure(len(rows), len(levels), th)
+    for i, r in enumerate(rows):
+        for j, L in enumerate(levels):
+            ax = axes[i][j]
+            text, col = None, "white"
+            if r != REF:
+                m = res["ops"][r]["levels"][lvl(L)]
+                if "error" not in m:
+                    bad = m["clip"] >= CLIP_TARGET or m["reversal"] >= REV_TARGET
+                    text = f"clip {m['clip']:.1%}  rev {m['reversal']:.1%}"
+                    if "hue_deg" in m and np.isfinite(m["hue_deg"]):
+                        text += f"  dh {m['hue_deg']:.0f}°"
+                        bad = bad or m["hue_deg"] >= HUE_TARGET
+                    col = "#ff8080" if bad else "white"
+            _show(ax, tiles[r][j], text, col, t0.shape[:2])
+            if i == 0:
+                ax.set_title(f"{lvl(L)} cd/m²", fontsize=11)
+            if j == 0:
+                ax.set_ylabel(r if r != REF else "OCIO\nexposure-\nmatched", fontsize=11,
+                              rotation=0, ha="right", va="center", labelpad=8)
+    nat = info.get("natural")
+    fig.suptitle(f"{name} ({info['kind']}; natural level ~{lvl(nat)} cd/m²)" if nat else name,
+                 fontsize=13, x=0.5, y=1 - 0.12 / fig.get_figheight())
+    fig.text(0.5, 1 - 0.42 / fig.get_figheight(),
+             "scene log-average luminance; sRGB display, white 100 cd/m², steady-state observer, "
+             "effects off; red labels miss a target (clip >= 2%, reversal >= 1%, hue >= 5°)",
+             ha="center", fontsize=8.5)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def readme_sheet(path, R: Runner, photos_rgb: dict, ops):
+    cols = [(n, L, lab) for n, L, lab in README_SHEET if n in photos_rgb]
+    tiles = {}
+    for n, L, _ in cols:
+        base = photos_rgb[n]
+        rgb_cd = np.ascontiguousarray(base * np.float32(L / log_average(base)))
+        for op in ops:
+            out, _ = R.tonemap(op, rgb_cd)
+            tiles[(op, n)] = None if out is None else R.tile(out)
+    t0 = next((t for t in tiles.values() if t is not None), np.zeros((128, TILE_W, 3)))
+    th = int(round(TILE_W * t0.shape[0] / t0.shape[1]))
+    plt, fig, axes = _figure(len(ops), len(cols), th, left=1.1, top=0.55)
+    for i, op in enumerate(ops):
+        for j, (n, L, lab) in enumerate(cols):
+            ax = axes[i][j]
+            _show(ax, tiles[(op, n)], shape=t0.shape[:2])
+            if i == 0:
+                ax.set_title(f"{lab}: {n.replace('_', ' ')}\n{lvl(L)} cd/m²", fontsize=10)
+            if j == 0:
+                ax.set_ylabel(op, fontsize=11, rotation=0, ha="right", va="center", labelpad=8)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+# --- report ----------------------------------------------------------------------------
+
+def md_table(head, rows):
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    return "\n".join(out + ["| " + " | ".join(str(c) for c in r) + " |" for r in rows])
+
+
+def worst(results, op, L, key, pick=max, fmt="{:.1%}", sub=None):
+    """Worst value over images and the image it comes from, as a cell."""
+    vals = []
+    for name, r in results.items():
+        m = r["ops"].get(op, {}).get("levels", {}).get(lvl(L))
+        if m is None:
+            continue
+        if "error" in m:
+            return "error", None
+        v = m.get(key) if sub is None else (m.get(key) or {}).get(sub)
+        if v is not None and np.isfinite(v):
+            vals.append((v, name))
+    if not vals:
+        return "-", None
+    v, n = pick(vals)
+    return (f"{fmt.format(v)} ({n})" if v != 0 else fmt.format(v)), v
+
+
+def report(results, images, ops, levels, meta) -> tuple[str, dict]:
+    L_hue = [L for L in levels if L >= HUE_MIN_LEVEL]
+    L_sco = [L for L in levels if L <= SCOTOPIC_MAX_LEVEL]
+    verdict = {op: {} for op in ops}
+    parts = [
+        "# Appearance benchmark",
+        "",
+        f"Command: `{meta['command']}`. Run time {meta['run_time_s']:.0f} s "
+        f"({meta['date']}). Machine: {meta['machine']}; OpenCL: {meta['opencl']}.",
+        "",
+        f"Code measured: {meta['code']}.",
+        "",
+        "Each image is calibrated so that its log-average photopic luminance is the level "
+        "(cd/m²), and shown to a fresh observer of each operator, steady-state adapted to "
+        "the still (`Tonemapper(op, backend='opencl', display=sRGB, effects off)`). Output: "
+        "display-linear Rec.709, 1.0 = display white 100 cd/m². Reference: the plain OCIO "
+        "rendering of the scene exposure-matched (log-average -> 0.18 of white, no tone "
+        "curve). Metrics: `benchmarks/appearance_metrics.py`. Contact sheets: "
+        f"`{meta['sheets_dir']}/<image>.png` (rows: reference + operators, columns: levels).",
+        "",
+        "**Tables give the worst case over the images** (the image in brackets).",
+        "",
+        "## Images",
+        "",
+        md_table(("image", "what", "size", "natural level cd/m²", "source"),
+                 [(n, i["kind"], f"{i['rgb'].shape[1]}x{i['rgb'].shape[0]}",
+                   lvl(i["natural"]) if i.get("natural") else "-", i["source"])
+                  for n, i in images.items()]),
+        "",
+    ]
+
+    def fails(op, key, bad, levels_):
+        fl = []
+        for L in levels_:
+            for name, r in results.items():
+                m = r["ops"][op]["levels"].get(lvl(L), {})
+                if "error" in m or bad(m):
+                    fl.append(lvl(L))
+                    break
+        return fl
+
+    # targets
+    rows = []
+    for op in ops:
+        def cell(fl):
+            return "PASS" if not fl else "FAIL at " + ", ".join(fl)
+        br = [short(n) for n, r in results.items() if not r["ops"][op]["brightness_increasing"]]
+        v = {
+            "brightness": "PASS" if not br else "FAIL (" + ", ".join(br) + ")",
+            "clip": cell(fails(op, "clip", lambda m: m["clip"] >= CLIP_TARGET, levels)),
+            "hue": cell(fails(op, "hue", lambda m: np.isfinite(m.get("hue_deg", np.nan))
+                              and m["hue_deg"] >= HUE_TARGET, L_hue)) if L_hue else "-",
+            "desat": cell(fails(op, "desat", lambda m: "scotopic" in m
+                                and not m["scotopic"]["chroma_lower"], L_sco)) if L_sco else "-",
+            "bluehue": cell(fails(op, "bluehue", lambda m: "scotopic" in m
+                                  and np.isfinite(m["scotopic"]["neutral_hue"])
+                                  and not m["scotopic"]["neutral_blue"], L_sco)) if L_sco else "-",
+            "rev": cell(fails(op, "rev", lambda m: m["reversal"] >= REV_TARGET, levels)),
+            "rev_mes": cell(fails(op, "rev_mes", lambda m: m["reversal_mesopic"] >= REV_TARGET,
+                                  levels)),
+            "rho": (cell(fails(op, "rho", lambda m: m["spearman"] < RHO_TARGET, levels))
+                    if op in LOCAL_OPS else "n/a (global)"),
+            "rho_mes": (cell(fails(op, "rho_mes", lambda m: m["spearman_mesopic"] < RHO_TARGET,
+                                   levels)) if op in LOCAL_OPS else "n/a (global)"),
+        }
+        verdict[op] = v
+        rows.append([op] + list(v.values()))
+    parts += ["## Targets", "",
+              "A target fails at a level when any image misses it there.", "",
+              md_table(("operator", "brightness rises with level (all images)",
+                        f"clipping < {CLIP_TARGET:.0%} (light sources excluded)",
+                        f"photopic hue < {HUE_TARGET:g}° (levels >= {HUE_MIN_LEVEL:g})",
+                        f"scotopic: less chroma than at {lvl(levels[-1])} (levels <= "
+                        f"{SCOTOPIC_MAX_LEVEL:g})",
+                        "scotopic: neutrals tinted 180-300° (blue)",
+                        f"gradient reversal < {REV_TARGET:.0%} (photopic Y)",
+                        f"gradient reversal < {REV_TARGET:.0%} (mesopic Y, CIE 191)",
+                        f"Spearman >= {RHO_TARGET} (local ops; photopic Y)",
+                        f"Spearman >= {RHO_TARGET} (local ops; mesopic Y)"), rows), "",
+              "The artefact targets are given twice: against photopic luminance Y (the "
+              "brief's literal metric) and against the CIE 191:2010 mesopic luminance of "
+              "the scene at its level (scotopic V' at night, V by day; m from the frame's "
+              "log-averages). At night a person orders surfaces by V' -- reds darken, blues "
+              "lighten (the Purkinje shift the papers model) -- so a faithful operator "
+              "*must* reorder some photopic luminances there; the mesopic columns count only "
+              "what no observer would see (halos, noise).", ""]
+
+    head = ["operator"] + [f"{lvl(L)}" for L in levels]
+    # 1 brightness
+    names = list(results)
+    parts += ["## 1. Brightness order", "",
+              "Does the mean output luminance strictly increase with the scene level? "
+              "(per image; the means are in the per-image detail)", "",
+              md_table(["operator"] + names,
+                       [[op] + [_order_cell(results[n]["ops"][op], levels)
+                                for n in names] for op in ops]), "",
+              "Median over images of the mean output luminance (cd/m² on the display = 100 x Y):", "",
+              md_table(head, [[op] + [
+                  _fmt_cd(statistics.median([r["ops"][op]["brightness_means"][k] for r in results.values()]))
+                  for k in range(len(levels))] for op in ops]), ""]
+    # 2 clipping
+    parts += ["## 2. Clipping", "",
+              "Share of pixels with a channel >= 0.999 of display white, light sources (scene "
+              f"luminance > 30x the log-average) excluded; worst image. Target < {CLIP_TARGET:.0%}. "
+              "(The exposure-matched reference clips "
+              + ", ".join(f"{short(n)} {r['ref']['clip']:.1%}" for n, r in results.items()) + ".)",
+              "", md_table(head, [[op] + [_mark(*worst(results, op, L, "clip"), CLIP_TARGET)
+                                          for L in levels] for op in ops]), ""]
+    # 3 hue
+    if L_hue:
+        hh = ["operator"] + [lvl(L) for L in L_hue]
+        parts += ["## 3. Photopic hue", "",
+                  "Median |CIELAB hue difference| (degrees) to the exposure-matched OCIO rendering "
+                  "over pixels with reference C*ab > 10, light sources excluded (both images "
+                  "normalised to log-average Y 0.18; the output before the display clips it); "
+                  f"worst image. Target < {HUE_TARGET:g}°.", "",
+                  md_table(hh, [[op] + [_mark(*worst(results, op, L, "hue_deg", fmt="{:.1f}°"),
+                                              HUE_TARGET) for L in L_hue] for op in ops]), ""]
+    # 4 scotopic
+    if L_sco:
+        def ratio_cell(op, L):
+            vals = []
+            for n, r in results.items():
+                s = r["ops"][op]["levels"][lvl(L)].get("scotopic")
+                if s:
+                    vals.append((s["chroma"] / s["chroma_day"] if s["chroma_day"] > 0 else np.inf, n,
+                                 s["chroma"], s["chroma_day"], s["chroma_scene"]))
+            if not vals:
+                return "-"
+            v, n, c, cd, cs = max(vals)
+            t = f"{v:.2f} ({c:.1f}/{cd:.1f}, scene {cs:.1f}, {n})"
+            return f"**{t}**" if v >= 1 else t
+
+        def hue_cell(op, L):
+            hs = []
+            for n, r in results.items():
+                s = r["ops"][op]["levels"][lvl(L)].get("scotopic")
+                if s and np.isfinite(s["neutral_hue"]):
+                    hs.append((s["neutral_hue"], n, s["neutral_blue"]))
+            if not hs:
+                return "- (no tinted neutrals)"
+            inn = sum(1 for h in hs if h[2])
+            t = ", ".join(f"{n} {h:.0f}" for h, n, _ in hs)
+            return f"{inn}/{len(hs)} in range: {t}" if inn == len(hs) else f"**{inn}/{len(hs)}** in range: {t}"
+
+        parts += ["## 4. Scotopic colour", "",
+                  f"Chroma: median C*ab of the output at the level / at {lvl(levels[-1])} cd/m² "
+                  "(same operator and image, both normalised to log-average Y 0.18); worst "
+                  "(largest) ratio over images, with the two chromas and the scene's own; "
+                  "expect < 1. (A day output that clips to white has little chroma itself.)", "",
+                  md_table(["operator"] + [lvl(L) for L in L_sco],
+                           [[op] + [ratio_cell(op, L) for L in L_sco] for op in ops]), "",
+                  "Hue of the scene's near-neutral pixels (scene C* < 5) where the output has "
+                  "C* > 2 (reported when those are >= 1% of the image): circular median hue "
+                  "angle per image; expected 180-300° (blue-green to blue).", "",
+                  md_table(["operator"] + [lvl(L) for L in L_sco],
+                           [[op] + [hue_cell(op, L) for L in L_sco] for op in ops]), "",
+                  "Share of pixels pushed toward magenta (output hue 300-30° with C* > 5 where the "
+                  "scene's was not); worst image.", "",
+                  md_table(["operator"] + [lvl(L) for L in L_sco],
+                           [[op] + [worst(results, op, L, "scotopic", sub="magenta_share")[0]
+                                    for L in L_sco] for op in ops]), ""]
+    # 5 artefacts
+    parts += ["## 5. Artefacts", "",
+              "Gradient reversal: among horizontal/vertical pixel pairs 1, 4 and 16 px apart whose "
+              "scene log10 luminance differs by > 0.05, the share whose output difference has the "
+              f"opposite sign (by > 0.001 decades); worst image. Target < {REV_TARGET:.0%}.", "",
+              md_table(head, [[op] + [_mark(*worst(results, op, L, "reversal", fmt="{:.2%}"),
+                                            REV_TARGET) for L in levels] for op in ops]), "",
+              "The same counting only reversals of more than 1% contrast in the output "
+              "(about a just-noticeable difference):", "",
+              md_table(head, [[op] + [_mark(*worst(results, op, L, "reversal_visible",
+                                                   fmt="{:.2%}"), REV_TARGET)
+                                      for L in levels] for op in ops]), "",
+              "Gradient reversal against the scene's CIE 191 mesopic luminance (what an "
+              "observer at the level orders by); worst image:", "",
+              md_table(head, [[op] + [_mark(*worst(results, op, L, "reversal_mesopic",
+                                                   fmt="{:.2%}"), REV_TARGET)
+                                      for L in levels] for op in ops]), "",
+              "Spearman against the mesopic luminance; worst image:", "",
+              md_table(head, [[op] + [_mark(*worst(results, op, L, "spearman_mesopic", pick=min,
+                                                   fmt="{:.3f}"), RHO_TARGET, low=True)
+                                      if op in LOCAL_OPS else
+                                      worst(results, op, L, "spearman_mesopic", pick=min,
+                                            fmt="{:.3f}")[0]
+                                      for L in levels] for op in ops]), "",
+              "Spearman rank correlation of scene and output luminance; worst (lowest) image. "
+              f"Target >= {RHO_TARGET} for the local operators ({', '.join(LOCAL_OPS)}).", "",
+              md_table(head, [[op] + [_mark(*worst(results, op, L, "spearman", pick=min,
+                                                   fmt="{:.3f}"), RHO_TARGET, low=True)
+                                      if op in LOCAL_OPS else
+                                      worst(results, op, L, "spearman", pick=min, fmt="{:.3f}")[0]
+                                      for L in levels] for op in ops]), ""]
+    # timing
+    t_rows = []
+    for op in ops:
+        ts = meta["times"].get(op, [])
+        if ts:
+            t_rows.append((op, len(ts), f"{statistics.median(ts) * 1e3:.0f}", f"{max(ts) * 1e3:.0f}",
+                           f"{sum(ts):.1f}"))
+    parts += ["## Timing", "",
+              f"Benchmark run time {meta['run_time_s']:.0f} s in all (photos "
+              f"{meta['photo_size']}, scenes {meta['scene_size']}; the time per frame includes "
+              "the first-frame set-up of a fresh observer).", "",
+              md_table(("operator", "frames", "median ms/frame", "max ms/frame", "total s"), t_rows),
+              ""]
+    # detail
+    parts += ["## Per-image detail", ""]
+    for n, r in results.items():
+        parts += [f"<details><summary>{n}</summary>", "",
+                  "Cells: clip / gradient reversal / Spearman / hue° (levels >= 100) / scotopic "
+                  "chroma ratio, neutral hue, magenta share (levels <= 0.01); last column: mean "
+                  "output luminance per level (cd/m²).", ""]
+        rows = []
+        for op in ops:
+            o = r["ops"][op]
+            cells = []
+            for L in levels:
+                m = o["levels"][lvl(L)]
+                if "error" in m:
+                    cells.append("error: " + m["error"].replace("|", "/"))
+                    continue
+                c = f"{m['clip']:.1%} / {m['reversal']:.2%} / {m['spearman']:.3f}"
+                if "hue_deg" in m:
+                    c += f" / {m['hue_deg']:.1f}°"
+                s = m.get("scotopic")
+                if s:
+                    ratio = s["chroma"] / s["chroma_day"] if s["chroma_day"] > 0 else float("inf")
+                    c += (f" / x{ratio:.2f}, {s['neutral_hue']:.0f}°, {s['magenta_share']:.1%}")
+                cells.append(c)
+            means = ", ".join(_fmt_cd(v) for v in o["brightness_means"])
+            rows.append([op] + cells + [means + (" (rises)" if o["brightness_increasing"]
+                                                 else " (**not increasing**)")])
+        parts += [md_table(head + ["mean output cd/m²"], rows), "", "</details>", ""]
+    return "\n".join(parts), verdict
+
+
+def _order_cell(o, levels):
+    """'yes', or where the mean output luminance drops (by > 0.1%) or stays flat
+    (does not rise, drops by <= 0.1%)."""
+    if o["brightness_increasing"]:
+        return "yes"
+    m, bad = o["brightness_means"], []
+    for k in range(1, len(m)):
+        if not (np.isfinite(m[k]) and np.isfinite(m[k - 1])):
+            bad.append(f"error {lvl(levels[k - 1])}→{lvl(levels[k])}")
+        elif m[k] < m[k - 1] * (1 - 1e-3):
+            bad.append(f"drops {lvl(levels[k - 1])}→{lvl(levels[k])}")
+        elif m[k] <= m[k - 1]:
+            bad.append(f"flat {lvl(levels[k - 1])}→{lvl(levels[k])}")
+    return "**NO**: " + ", ".join(bad)
+
+
+def _fmt_cd(Y):
+    return "nan" if not np.isfinite(Y) else f"{100 * Y:.3g}"
+
+
+def _mark(cell, v, target, low=False):
+    if v is None:
+        return cell
+    bad = v < target if low else v >= target
+    return f"**{cell}**" if bad else cell
+
+
+def _json_safe(o):
+    if isinstance(o, dict):
+        return {str(k): _json_safe(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_json_safe(v) for v in o]
+    if isinstance(o, (np.floating, float)):
+        return float(o) if math.isfinite(o) else None
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, np.bool_):
+        return bool(o)
+    return o
+
+
+# --- main ------------------------------------------------------------------------------
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="4 levels, 4 images, 256 px")
+    ap.add_argument("--operators", help="comma list (default: every operator in the registry)")
+    ap.add_argument("--images", help="comma list of photos (rooitou_park, ...) and scenes "
+                    "(tunnel, patches, lamp)")
+    ap.add_argument("--size", type=int, help="photo width in pixels (default 512, --quick 256)")
+    ap.add_argument("--out", default=os.path.join(HERE, "results", "appearance"),
+                    help="folder of the contact sheets")
+    ap.add_argument("--results", default=os.path.join(HERE, "results"),
+                    help="folder of appearance.md / appearance.json")
+    ap.add_argument("--photos", help="photo cache folder (default $OCLTM_PHOTOS or "
+                    "~/.cache/ocl-tonemap/photos)")
+    ap.add_argument("--no-readme-sheet", action="store_true")
+    a = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    warnings.filterwarnings("ignore", module="colour")
+    code = provenance()
+
+    from ocl_tonemap.operators import REGISTRY
+    ops = [o.strip() for o in a.operators.split(",")] if a.operators else list(REGISTRY)
+    bad = [o for o in ops if o not in REGISTRY]
+    if bad:
+        print(f"appearance ERROR: unknown operator(s) {', '.join(bad)}; available: "
+              f"{', '.join(REGISTRY)}", file=sys.stderr)
+        return 2
+    levels = QUICK_LEVELS if a.quick else LEVELS
+    size = a.size or (256 if a.quick else 512)
+    names = a.images.split(",") if a.images else (QUICK_IMAGES if a.quick else DEFAULT_IMAGES)
+    try:
+        paths = ph.fetch_photos(a.photos)
+    except ph.PhotoFetchError as e:
+        print(f"appearance ERROR: {e}", file=sys.stderr)
+        return 2
+    try:
+        images = resolve_images(names, paths, size)
+    except (ValueError, RuntimeError) as e:
+        print(f"appearance ERROR: {e}", file=sys.stderr)
+        return 2
+    os.makedirs(a.out, exist_ok=True)
+    os.makedirs(a.results, exist_ok=True)
+
+    from ocl_tonemap.runtime import describe_device, get_runtime
+    try:
+        opencl = describe_device(get_runtime().device)
+    except Exception as e:  # noqa: BLE001
+        print(f"appearance ERROR: no OpenCL device: {e}", file=sys.stderr)
+        return 2
+    R = Runner()
+    print(f"appearance: {len(images)} images x {len(ops)} operators x {len(levels)} levels; "
+          f"OpenCL {opencl}", flush=True)
+    print(f"  {'image':20s} {'operator':12s} clipping at " + " ".join(f"{lvl(L):>5s}" for L in levels))
+    results, sheets = {}, []
+    for n, info in images.items():
+        res, tiles = run_image(R, n, info, ops, levels)
+        results[n] = res
+        p = os.path.join(a.out, f"{n}.png")
+        contact_sheet(p, n, info, tiles, res, ops, levels)
+        sheets.append(p)
+    if not a.no_readme_sheet:
+        photos_rgb = {n: (images[n]["rgb"] if n in images else None) for n, _, _ in README_SHEET}
+        by_stem = {short(p.stem): p for p in paths}
+        for n in photos_rgb:
+            if photos_rgb[n] is None and n in by_stem:
+                photos_rgb[n] = load_photo(by_stem[n], size)
+        photos_rgb = {k: v for k, v in photos_rgb.items() if v is not None}
+        p = os.path.join(a.out, "readme_sheet.png")
+        readme_sheet(p, R, photos_rgb, ops)
+        sheets.append(p)
+
+    run_time = time.perf_counter() - t0
+    cmd = "python benchmarks/appearance.py" + ("" if not argv and len(sys.argv) <= 1
+                                               else " " + " ".join(argv if argv else sys.argv[1:]))
+    scene_sizes = {f"{i['rgb'].shape[1]}x{i['rgb'].shape[0]}" for i in images.values()
+                   if i["source"] == "generated"}
+    photo_sizes = {f"{i['rgb'].shape[1]}x{i['rgb'].shape[0]}" for i in images.values()
+                   if i["source"] != "generated"}
+    meta = {
+        "command": cmd, "date": time.strftime("%Y-%m-%d %H:%M"),
+        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
+                   f"{platform.system()} {platform.release()}, Python {platform.python_version()}",
+        "opencl": opencl, "code": code, "run_time_s": run_time, "times": R.times,
+        "sheets_dir": os.path.relpath(a.out, os.path.join(HERE, "..")),
+        "photo_size": ", ".join(sorted(photo_sizes)) or "-",
+        "scene_size": ", ".join(sorted(scene_sizes)) or "-",
+    }
+    md, verdict = report(results, images, ops, levels, meta)
+    md_path = os.path.join(a.results, "appearance.md")
+    with open(md_path, "w") as fh:
+        fh.write(md + "\n")
+    js = {"meta": {k: v for k, v in meta.items() if k != "times"},
+          "timing_s": R.times, "levels": levels, "operators": ops,
+          "images": {n: {"kind": i["kind"], "natural_level": i.get("natural"),
+                         "source": i["source"], "size": list(i["rgb"].shape[:2])}
+                     for n, i in images.items()},
+          "targets": {"clip": CLIP_TARGET, "hue_deg": HUE_TARGET, "reversal": REV_TARGET,
+                      "spearman_local": RHO_TARGET},
+          "verdict": verdict, "results": results}
+    js_path = os.path.join(a.results, "appearance.json")
+    with open(js_path, "w") as fh:
+        json.dump(_json_safe(js), fh, indent=1)
+    print(f"\nappearance: {run_time:.0f} s; wrote {md_path}, {js_path} and "
+          f"{len(sheets)} sheets in {a.out}")
+    for op, v in verdict.items():
+        print(f"  {op:12s} " + "; ".join(f"{k}: {x}" for k, x in v.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
