@@ -6,7 +6,7 @@ One command:  python benchmarks/appearance.py [--quick] [--operators a,b]
 Real photographs: six Poly Haven HDRIs (CC0) fetched once from the PyPI wheel
 viser==0.2.23 (benchmarks/photos.py, cached in ~/.cache/ocl-tonemap/photos or
 $OCLTM_PHOTOS), resized to W pixels wide; plus three small generated scenes
-(benchmarks/appearance_scenes.py). Each image is calibrated so that its
+(ocl_tonemap/appearance_scenes.py). Each image is calibrated so that its
 log-average photopic luminance is L cd/m^2 for L in 1e-3 ... 1e4 and shown to a
 fresh observer, steady-state adapted to the still, of every operator (all
 effects off, SDR sRGB display, 1.0 = 100 cd/m^2). The reference is the plain
@@ -19,7 +19,7 @@ Writes:
   DIR/<image>.png                       contact sheet per image (rows: reference +
                                         operators, columns: levels)
   DIR/readme_sheet.png                  4 photos at their natural levels x operators
-(DIR defaults to benchmarks/results/appearance/.) Metrics: benchmarks/appearance_metrics.py.
+(DIR defaults to benchmarks/results/appearance/.) Metrics: ocl_tonemap/appearance_metrics.py.
 """
 
 from __future__ import annotations
@@ -40,8 +40,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 
-import appearance_metrics as am  # noqa: E402
-import appearance_scenes as scenes  # noqa: E402
+from ocl_tonemap import appearance_metrics as am  # noqa: E402
+from ocl_tonemap import appearance_scenes as scenes  # noqa: E402
 import photos as ph  # noqa: E402
 
 LEVELS = [1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4]
@@ -379,7 +379,7 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
         "the still (`Tonemapper(op, backend='opencl', display=sRGB, effects off)`). Output: "
         "display-linear Rec.709, 1.0 = display white 100 cd/m². Reference: the plain OCIO "
         "rendering of the scene exposure-matched (log-average -> 0.18 of white, no tone "
-        "curve). Metrics: `benchmarks/appearance_metrics.py`. Contact sheets: "
+        "curve). Metrics: `ocl_tonemap/appearance_metrics.py`. Contact sheets: "
         f"`{meta['sheets_dir']}/<image>.png` (rows: reference + operators, columns: levels).",
         "",
         "**Tables give the worst case over the images** (the image in brackets).",

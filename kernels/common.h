@@ -31,8 +31,10 @@ inline float4 powp4(float4 x, float4 e) { return exp2(e * log2(x)); }
 /* Highlight shoulder (ocl_tonemap/display.py, apply_shoulder): luminance through
  * S (identity up to the knee, then knee + (1-knee) t/(1+t), t = (x-knee)/(1-knee)),
  * then desaturation toward it where the largest channel would exceed S'(max),
- * S' with the later knee (1 + knee)/2.
+ * S' with the later knee CHANNEL_KNEE.
  * Values relative to white (inv_white); knee <= 0: none. */
+#define CHANNEL_KNEE 0.9f
+
 inline float shoulder_curve(const float x, const float knee)
 {
     if (!(x > knee)) return x;
@@ -50,7 +52,7 @@ inline float3 shoulder3(float3 c, const float inv_white, const float knee)
     if (!(Y > 0.0f)) return (float3)(0.0f);
     const float Ys = shoulder_curve(Y, knee);
     const float g = Ys / Y;
-    const float top = m * g, cap = shoulder_curve(m, 0.5f * (1.0f + knee));
+    const float top = m * g, cap = shoulder_curve(m, CHANNEL_KNEE);
     const float t = top > cap ? clamp((cap - Ys) / fmax(top - Ys, 1.0e-30f), 0.0f, 1.0f) : 1.0f;
     return (Ys + (c * g - Ys) * t) / inv_white;
 }

@@ -23,11 +23,16 @@ __kernel void to_lmsr(__global const float *in, const int nc, const int n,
     vstore4(acc, i, q);
 }
 
-/* Eqs. 10-13 and 15-16. par: scale (model units per cd/m^2), k1, k2, rod_gain, x, y, z, rho1..4.
- * solvers: 7 (3x3) matrices, full support first; M: display RGB -> LMS;
- * D: display RGB -> working RGB. Output: working RGB (cd/m^2 units), w. */
+/* Eqs. 10-13 and 15-16. par: scale (model units per cd/m^2), k1, k2, rod_gain, x, y, z,
+ * rho1..4, then D_W (L, M, S: the white-referenced opponent space, kirk11.white_norm;
+ * 1,1,1 in the paper mode), then exact (1: Eq. 15's NNLS over the 7 supports,
+ * kirk11.nnls3; 0: the gamut map, kirk11.gamut_map).
+ * Minv: M^-1 (3x3); solvers: 7 (3x3), full support first; M: display RGB -> LMS
+ * (its row sums give the neutral); D: display RGB -> working RGB.
+ * Output: working RGB (cd/m^2 units), w. */
 __kernel void kirk11_shift(__global const float *q, const int n, __constant float *par,
-                           __constant float *solvers, __constant float *M,
+                           __constant float *Minv, __constant float *solvers,
+                           __constant float *M,
                            __constant float *D, __global float *rgb_out,
                            __global float *w_out, __global float *logY,
                            __global int *fallbacks)
@@ -36,7 +41,8 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
     if (i >= n) return;
     const float area = par[0], k1 = par[1], k2 = par[2], gain = par[3];
     const float4 qq = vload4(i, q);
-    const float4 qt = qq * area;                                  /* Eq. 10 units */
+    const float4 dw = (float4)(par[11], par[12], par[13], 1.0f);
+    const float4 qt = qq * dw * area;                             /* Eq. 10 units */
     const float gl = rsqrt(1.0f + 0.33f * (qt.x + k1 * qt.w));         /* Eq. 10 */
     const float gm = rsqrt(1.0f + 0.33f * (qt.y + k1 * qt.w));
     const float gs = rsqrt(1.0f + 0.33f * (qt.z + k2 * qt.w));
@@ -47,31 +53,48 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
     const float d1 = par[5] * (par[9] * ns - par[10] * lum) * rod;
     const float d2 = par[6] * lum * rod;
     /* A^-1 of Eq. 11 (o = A q^): rows from the host-checked closed form */
-    const float inv_area = 1.0f / area;
     float3 qh;
-    qh.x = qq.x + (-0.5f * d0 + 0.5f * d2) * inv_area;
-    qh.y = qq.y + (0.5f * d0 + 0.5f * d2) * inv_area;
-    qh.z = qq.z + (d1 + d2) * inv_area;
-    /* Eq. 15: unconstrained first, then the best feasible smaller support */
-    float3 best = (float3)(0.0f);
-    float best_res = dot(qh, qh);
-    int fb = 0;
-    for (int k = 0; k < 7; ++k) {
-        __constant float *P = solvers + 9 * k;
-        float3 p = (float3)(P[0] * qh.x + P[1] * qh.y + P[2] * qh.z,
-                            P[3] * qh.x + P[4] * qh.y + P[5] * qh.z,
-                            P[6] * qh.x + P[7] * qh.y + P[8] * qh.z);
-        const float tol = -1e-6f * fmax(fmax(fabs(qh.x), fabs(qh.y)), fabs(qh.z));
-        if (p.x < tol || p.y < tol || p.z < tol) { if (k == 0) fb = 1; continue; }
-        p = fmax(p, (float3)(0.0f));
-        float3 r = (float3)(M[0] * p.x + M[1] * p.y + M[2] * p.z,
-                            M[3] * p.x + M[4] * p.y + M[5] * p.z,
-                            M[6] * p.x + M[7] * p.y + M[8] * p.z) - qh;
-        const float res = dot(r, r);
-        if (k == 0) { best = p; best_res = res; break; }
-        if (res < best_res) { best = p; best_res = res; }
+    qh.x = qq.x + (-0.5f * d0 + 0.5f * d2) / (dw.x * area);
+    qh.y = qq.y + (0.5f * d0 + 0.5f * d2) / (dw.y * area);
+    qh.z = qq.z + (d1 + d2) / (dw.z * area);
+    const float3 p = (float3)(Minv[0] * qh.x + Minv[1] * qh.y + Minv[2] * qh.z,
+                              Minv[3] * qh.x + Minv[4] * qh.y + Minv[5] * qh.z,
+                              Minv[6] * qh.x + Minv[7] * qh.y + Minv[8] * qh.z);
+    float3 best;
+    if (par[14] > 0.5f) {
+        /* Eq. 15 as printed: unconstrained first, then the best feasible smaller support */
+        best = (float3)(0.0f);
+        float best_res = dot(qh, qh);
+        int fb = 0;
+        for (int k = 0; k < 7; ++k) {
+            __constant float *P = solvers + 9 * k;
+            float3 pk = (float3)(P[0] * qh.x + P[1] * qh.y + P[2] * qh.z,
+                                 P[3] * qh.x + P[4] * qh.y + P[5] * qh.z,
+                                 P[6] * qh.x + P[7] * qh.y + P[8] * qh.z);
+            const float tol = -1e-6f * fmax(fmax(fabs(qh.x), fabs(qh.y)), fabs(qh.z));
+            if (pk.x < tol || pk.y < tol || pk.z < tol) { if (k == 0) fb = 1; continue; }
+            pk = fmax(pk, (float3)(0.0f));
+            float3 r = (float3)(M[0] * pk.x + M[1] * pk.y + M[2] * pk.z,
+                                M[3] * pk.x + M[4] * pk.y + M[5] * pk.z,
+                                M[6] * pk.x + M[7] * pk.y + M[8] * pk.z) - qh;
+            const float res = dot(r, r);
+            if (k == 0) { best = pk; best_res = res; break; }
+            if (res < best_res) { best = pk; best_res = res; }
+        }
+        if (fb) atomic_inc(fallbacks);
+    } else {
+        /* the unconstrained solve; outside the gamut, toward the neutral of the
+         * same L + M until it enters (kirk11.gamut_map) */
+        const float pn = fmax(qh.x + qh.y, 0.0f)
+                         / (M[0] + M[1] + M[2] + M[3] + M[4] + M[5]);
+        float t = 1.0f;
+        if (p.x < 0.0f) t = fmin(t, pn / (pn - p.x));
+        if (p.y < 0.0f) t = fmin(t, pn / (pn - p.y));
+        if (p.z < 0.0f) t = fmin(t, pn / (pn - p.z));
+        t = clamp(t, 0.0f, 1.0f);
+        best = fmax((float3)(pn) + t * (p - (float3)(pn)), (float3)(0.0f));
+        if (p.x < 0.0f || p.y < 0.0f || p.z < 0.0f) atomic_inc(fallbacks);
     }
-    if (fb) atomic_inc(fallbacks);
     const float3 o = (float3)(D[0] * best.x + D[1] * best.y + D[2] * best.z,
                               D[3] * best.x + D[4] * best.y + D[5] * best.z,
                               D[6] * best.x + D[7] * best.y + D[8] * best.z);
@@ -86,7 +109,8 @@ __kernel void kirk11_compose(__global const float *src, __global const float *sh
                              __global const float *w, __global const float *logY,
                              __global const float *base, const int n, const float c,
                              const float base_max, const float beta, const float gamma,
-                             const float out_scale, const int blend, __global float *out)
+                             const float out_scale, const int blend, __global float *out,
+                             const int dim_all)
 {
     const int i = get_global_id(0);
     if (i >= n) return;
@@ -95,12 +119,14 @@ __kernel void kirk11_compose(__global const float *src, __global const float *sh
     const float s = exp10(ly_out - ly);
     const float wi = w[i];
     const float dim = fmax(1.0f - wi / beta, gamma);
-    float3 o = vload3(i, shifted) * (s * dim);
+    float3 o = vload3(i, shifted) * (dim_all ? s : s * dim);
     if (blend) {
         const float t = clamp(wi / beta, 0.0f, 1.0f);
         const float3 sc = vload3(i, src);
         const float ys = fmax(M_YR * sc.x + M_YG * sc.y + M_YB * sc.z, Y_FLOOR);
         o = (1.0f - t) * sc * (exp10(ly_out) / ys) + t * o;
     }
-    vstore3(clamp(o * out_scale, 0.0f, DISPLAY_LINEAR_MAX), i, out);
+    /* default mode: the whole pixel dimmed; the absolute-level gain
+     * (kirk11.KirkObserver.finish) and the clamp follow on the host */
+    vstore3(fmax(o * ((dim_all ? dim : 1.0f) * out_scale), (float3)(0.0f)), i, out);
 }

@@ -155,6 +155,9 @@ def scene_key(L_adapted):
 
 #: Default knee of the highlight shoulder, as a fraction of display white.
 SHOULDER_KNEE = 0.7
+#: Knee of the per-channel cap after the luminance shoulder: colours are desaturated
+#: only where a channel would pass 0.9 of white (kernels/common.h: CHANNEL_KNEE).
+CHANNEL_KNEE = 0.9
 
 
 def shoulder_curve(m, knee: float = SHOULDER_KNEE):
@@ -175,7 +178,7 @@ def apply_shoulder(rgb, white_signal: float, knee: float = SHOULDER_KNEE):
     ``white_signal``), so the order of luminances is kept (no gradient reversal);
     then, where the largest channel m would still exceed its own shoulder value
     S(m), the colour is desaturated toward that luminance until it does (hue
-    kept, luminance kept; channels use a later knee, (1 + knee)/2). No channel
+    kept, luminance kept; channels use the later :data:`CHANNEL_KNEE`). No channel
     reaches display white. ``knee`` <= 0 or
     >= 1: unchanged (a hard clip follows at display white)."""
     rgb = np.asarray(rgb, np.float64)
@@ -189,7 +192,7 @@ def apply_shoulder(rgb, white_signal: float, knee: float = SHOULDER_KNEE):
     with np.errstate(divide="ignore", invalid="ignore"):
         g = np.where(Y > 0, Ys / np.where(Y > 0, Y, 1.0), 0.0)
         top = m * g                                   # the largest channel after scaling
-        cap = shoulder_curve(m, 0.5 * (1.0 + knee))    # channels: a later knee
+        cap = shoulder_curve(m, CHANNEL_KNEE)        # channels: a later knee
         t = np.where(top > cap, (cap - Ys) / np.where(top > Ys, top - Ys, 1.0), 1.0)
     t = np.clip(t, 0.0, 1.0)
     out = Ys[..., None] + (c * g[..., None] - Ys[..., None]) * t[..., None]

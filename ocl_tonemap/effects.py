@@ -218,13 +218,17 @@ def apply_acuity(img: np.ndarray, L_waR: float, fov_deg: float, blur=None):
 PURKINJE_AUTO_GAIN = 0.01
 
 
-def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None):
+def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None,
+                   sensitivity: float = 1.0):
     """Shift working RGB (cd/m^2) as kirk11 does with ``--kappa adaptive`` and keep
-    each pixel's photopic luminance. ``device``: a KirkDevice, else float64."""
+    each pixel's photopic luminance. ``G_rod``: the (adapted) scotopic level;
+    ``sensitivity``: how far the rods are dark adapted (0..1, scales the rods'
+    share). ``device``: a KirkDevice, else float64."""
     from . import kirk11 as ko
     from . import lmsr
     area = ko.model_scale()
     k1, k2, gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), G_rod)
+    k1, k2, gain = k1 * sensitivity, k2 * sensitivity, gain * sensitivity
     M = lmsr.fitted()["H"][:3]
     rgb = np.asarray(rgb)
     if gain <= 0.0:
@@ -236,7 +240,7 @@ def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None):
     else:
         q = lmsr.rgb_to_lmsr(rgb)
         qh, _ = ko.purkinje_shift(q, area, k1, k2, ko.SHIFT_XYZ, gain)
-        p, fbm = ko.nnls3(M, qh)
+        p, fbm = ko.gamut_map(M, qh)
         fb = float(fbm.mean())
     y_in = np.asarray(rgb, np.float64) @ Y_WEIGHTS
     y_p = p @ Y_WEIGHTS
@@ -288,12 +292,31 @@ class Effects:
         return out.astype(np.float32), info
 
     # Purkinje shift ---------------------------------------------------------------
-    def purkinje(self, rgb: np.ndarray, G_rod: float, G_cone: float):
-        """(new rgb or None, info): the kirk11 shift with kappa following the frame's
-        mesopic level, applied to chromaticity only (each pixel keeps its Y)."""
+    LEVELS_KEY = "purkinje_levels"
+
+    def purkinje(self, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
+                 dt: float = 0.0, fresh: bool = True, preadapt=None):
+        """(new rgb or None, info): the kirk11 shift applied to chromaticity only (each
+        pixel keeps its Y), its strength from the shared receptor scheduler: the
+        adapted scotopic level and the rods' dark adaptation (``extra`` keeps the
+        levels in the adaptation state; without it, steady state at the frame)."""
         if self.s.purkinje == "off":
             return None, {"ran": False}
-        out, info = apply_purkinje(rgb, G_rod, G_cone, self._kirk_device())
+        from .adaptation import (receptor_levels_advance, receptor_levels_preadapted,
+                                 receptor_levels_steady, rod_sensitivity)
+        from .photometry import neutral_scotopic_ratio
+        prev = (extra or {}).get(self.LEVELS_KEY)
+        if prev is None or fresh:
+            lv = (receptor_levels_preadapted(preadapt[0] * neutral_scotopic_ratio(),
+                                             preadapt[0], preadapt[1])
+                  if (fresh and preadapt is not None) else receptor_levels_steady(G_rod, G_cone))
+        else:
+            lv = receptor_levels_advance(prev, G_rod, G_cone, dt)
+        if extra is not None:
+            extra[self.LEVELS_KEY] = {k: float(v) for k, v in lv.items()}
+        sens = rod_sensitivity(lv)
+        out, info = apply_purkinje(rgb, lv["A_rod"], lv["A_cone"], self._kirk_device(), sens)
+        info.update({"A_rod": lv["A_rod"], "rod_sensitivity": sens})
         if self.s.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
             return None, {"ran": False, "reason": "photopic", **info}
         info["ran"] = True

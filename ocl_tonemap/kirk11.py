@@ -31,7 +31,9 @@ import numpy as np
 
 from . import lmsr
 from .bilateral import BilateralSpec, RangeKernel, bilateral_reference
-from .display import DISPLAY_LINEAR_MAX, DisplaySpec
+from .adaptation import (receptor_levels_advance, receptor_levels_preadapted,
+                         receptor_levels_steady, rod_sensitivity)
+from .display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder, scene_key
 from .durand00 import mesopic_factor
 from .photometry import Y_WEIGHTS, sanitize
 
@@ -44,8 +46,26 @@ KAPPA1, KAPPA2 = 0.25, 0.4
 #: Eq. 12 constants (Cao et al. 2008 fits).
 RHO = (1.111, 0.939, 0.4, 0.15)
 ALPHA = 0.619
-#: Shift scales x, y, z (the paper's examples use 15, 15, 5).
-SHIFT_XYZ = (15.0, 15.0, 5.0)
+#: Shift scales x, y, z. The paper's examples use 15, 15, 5 in its own units; in the
+#: white-referenced opponent space below, x = y = 15 still puts the rod signal of any
+#: colour outside the spectral locus (L/(L+M) 0.24 < 0.475) once g -> 1, so x = y are
+#: recalibrated: 1.5 is the largest value for which the unconstrained solve of Eq. 15
+#: holds at every level from 1e-3 to 1e4 cd/m^2 for every ColorChecker patch (D65)
+#: that is inside sRGB in daylight ("in most cases", as the paper reports). The
+#: default takes a third of that, 0.5: a neutral at 1e-3 cd/m^2 then turns a
+#: desaturated blue-green (CIELAB C* 5, hue 181; 15.5 at 1.5), as pale as durand00's
+#: blue shift, so night pictures are less colourful than day ones. z unchanged.
+SHIFT_XYZ = (0.5, 0.5, 5.0)
+#: The paper's shift scales (``--mode paper``).
+SHIFT_XYZ_PAPER = (15.0, 15.0, 5.0)
+#: ``mode``: "default" (white-referenced opponent space, recalibrated x = y, gamut map
+#: for Eq. 15, display anchored to the adapted level with the receptor scheduler's
+#: time course, highlight shoulder) or "paper" (Eqs. 10-16 as printed, fixed kappa,
+#: exact NNLS, each frame's base maximum at white, steady state).
+MODES = ("default", "paper")
+#: Naka-Rushton exponent of the transient response (Hunt's n): a frame at L seen
+#: while adapted to A shows at (L/A)^n of its steady level.
+TRANSIENT_N = 0.73
 #: Eq. 11: o = A q^ with rows red/green, blue/yellow, luminance.
 A = np.array([[-1.0, 1.0, 0.0],
               [-1.0, -1.0, 1.0],
@@ -57,13 +77,33 @@ BETA, GAMMA = 1.0, 0.25
 #: Durand & Dorsey 2002: base-layer contrast after compression, and the range
 #: sigma of their bilateral filter on log10 luminance.
 TARGET_CONTRAST = 5.0
+#: Default mode: base contrast kept 100:1 (the display's shoulder takes the rest); at
+#: 5:1 the base compression reordered luminances (Spearman 0.73, gradient reversal
+#: 8% on photographs; 100:1: 0.93 and 1.4%, docs/models.md).
+TARGET_CONTRAST_DEFAULT = 100.0
 SIGMA_RANGE_LOG10 = 0.4
 #: Floor on luminances before the log, cd/m^2.
 Y_FLOOR = 1.0e-10
+#: Display-linear values are capped here before the shoulder.
+SIGNAL_CEILING = 1.0e6
+
 
 
 #: CIE mesopic range (CIE 191:2010): 0.005 to 5 cd/m^2.
 MESOPIC_LOWER_CD, MESOPIC_UPPER_CD = 0.005, 5.0
+
+
+@functools.lru_cache(maxsize=1)
+def white_norm() -> np.ndarray:
+    """D_W (4,): the per-receptor scale under which the working white is the zero of
+    Eq. 11's chromatic rows: D_W q_W = (Y_W/2, Y_W/2, Y_W, R_W) with Y_W = L_W + M_W.
+    o_RG = M - L and o_BY = S - (L + M) measure redness and blueness, so a neutral
+    must give zero; in our LMS units (L + M = luminance) the white has L = 1.9 M and
+    S = 0.89 (L + M), and the printed A would make Eq. 12's luminance term (the
+    largest, z w q_R) add a saturated cyan (L = M, S = L + M), not light."""
+    w = lmsr.rgb_to_lmsr(np.ones(3))
+    y = w[0] + w[1]
+    return np.array([y / (2.0 * w[0]), y / (2.0 * w[1]), y / w[2], 1.0])
 
 
 @functools.lru_cache(maxsize=1)
@@ -73,7 +113,7 @@ def model_scale() -> float:
     Eq. 16, equals beta = 1 ("fully scotopic") for the working white at the CIE lower
     mesopic limit, 0.005 cd/m^2. It then falls to 0.04 at the upper limit, 5 cd/m^2
     (docs/models.md)."""
-    q = lmsr.rgb_to_lmsr(np.full(3, MESOPIC_LOWER_CD))
+    q = lmsr.rgb_to_lmsr(np.full(3, MESOPIC_LOWER_CD)) * white_norm()
     lo, hi = 1e-3, 1e9
     for _ in range(200):
         mid = math.sqrt(lo * hi)
@@ -113,14 +153,17 @@ def opponent_shift(g: np.ndarray, q_rod: np.ndarray, k1: float, xyz=SHIFT_XYZ,
 
 
 def purkinje_shift(q: np.ndarray, scale: float, k1: float = KAPPA1, k2: float = KAPPA2,
-                   xyz=SHIFT_XYZ, rod_gain: float = 1.0):
+                   xyz=SHIFT_XYZ, rod_gain: float = 1.0, white: bool = True):
     """Eqs. 10-13 for (..., 4) LMSR in cd/m^2 units: returns (q^ (..., 3) in the
-    same units, w). ``scale``: model units per cd/m^2 (``model_scale()``)."""
+    same units, w). ``scale``: model units per cd/m^2 (``model_scale()``). Eqs. 10-13
+    run on D_W q (``white_norm``), so that Eq. 12's luminance row adds light of the
+    white's colour and only the red/green and blue/yellow rows tint."""
     q = np.asarray(q, np.float64)
-    qt = q * scale
+    d = white_norm() if white else np.ones(4)
+    qt = q * (d * scale)
     g = regulated_signals(qt, k1, k2)
     d_o = opponent_shift(g, qt[..., 3], k1, xyz, rod_gain)
-    q_hat = q[..., :3] + (d_o @ A_INV.T) / scale
+    q_hat = q[..., :3] + (d_o @ A_INV.T) / (d[:3] * scale)
     return q_hat, mesopic_weight(g)
 
 
@@ -163,19 +206,69 @@ def nnls3(M: np.ndarray, q_hat: np.ndarray):
     return best, fallback
 
 
+def gamut_map(M: np.ndarray, q_hat: np.ndarray):
+    """Eq. 15 where the unconstrained solve p = M^-1 q^ is non-negative (the paper's
+    "most cases"); elsewhere, instead of the least-squares point in LMS (which drops a
+    channel and changes the hue: a teal for every colour in the dark), the point where
+    the line from the neutral of the same L + M to M^-1 q^ enters the display gamut:
+    cone luminance and hue line kept, chroma reduced. Returns (p, used_fallback)."""
+    q = np.asarray(q_hat, np.float64)
+    p = q @ np.linalg.inv(M).T
+    wm = M @ np.ones(3)
+    pn = (np.maximum(q[..., 0] + q[..., 1], 0.0) / (wm[0] + wm[1]))[..., None]
+    neg = p < 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(neg, pn / (pn - p), 1.0)
+    t = np.clip(np.min(t, axis=-1), 0.0, 1.0)
+    return np.maximum(pn + t[..., None] * (p - pn), 0.0), np.any(neg, axis=-1)
+
+
+def solve_display(M: np.ndarray, q_hat: np.ndarray, exact: bool):
+    """Eq. 15: the paper's exact NNLS (``exact``) or the hue-keeping gamut map."""
+    return nnls3(M, q_hat) if exact else gamut_map(M, q_hat)
+
+
+def anchor_gain(Y_out: np.ndarray, L_wa: float, A_cone: float | None = None) -> float:
+    """Absolute level: the factor that brings the log-average display luminance
+    (relative to white) down to display.scene_key(L_wa) (Krawczyk et al. 2005's key,
+    as durand00 and ledda04 use). Without ``A_cone`` (kept for comparison) at most 1: a
+    range-reduced frame is then never brightened. The range reduction maps every
+    frame's base maximum to white
+    whatever its level; without this a 0.1 cd/m^2 scene is shown at 0.86x its
+    daylight brightness. With ``A_cone`` (the scheduler's adapted level), a frame
+    seen before the eye has adapted to it shows at (L_wa/A_cone)^n of that: darker
+    entering a tunnel, brighter (dazzle) leaving it."""
+    la = float(np.exp(np.mean(np.log(np.maximum(np.asarray(Y_out, np.float64), 1e-6)))))
+    if A_cone is None:
+        return min(1.0, float(scene_key(L_wa)) / la)
+    g = float(scene_key(A_cone)) / la
+    return g * (max(L_wa, 1e-10) / max(A_cone, 1e-10)) ** TRANSIENT_N
+
+
 # --- settings and the per-frame pieces -------------------------------------------------
 
 @dataclass(frozen=True)
 class KirkSettings:
-    kappa: str = "adaptive"          # adaptive (mesopic interpolation) | full (the paper)
-    shift_xyz: tuple = SHIFT_XYZ
+    kappa: str | None = None         # adaptive (mesopic) | full (the paper); None: by mode
+    shift_xyz: tuple | None = None   # None: by mode
     gamma: float = GAMMA
     beta: float = BETA
-    target_contrast: float = TARGET_CONTRAST
+    target_contrast: float | None = None   # None: 5 (paper) or 100 (default)
     sigma_spatial: float | None = None   # px; default 2% of the larger side
     bilateral: BilateralSpec = field(default_factory=BilateralSpec)
+    mode: str = "default"
 
     def __post_init__(self):
+        if self.mode not in MODES:
+            raise ValueError(f"kirk11 mode must be one of {', '.join(MODES)} (got {self.mode!r})")
+        if self.kappa is None:
+            object.__setattr__(self, "kappa", "full" if self.mode == "paper" else "adaptive")
+        if self.target_contrast is None:
+            object.__setattr__(self, "target_contrast",
+                               TARGET_CONTRAST if self.mode == "paper" else TARGET_CONTRAST_DEFAULT)
+        if self.shift_xyz is None:
+            object.__setattr__(self, "shift_xyz",
+                               SHIFT_XYZ_PAPER if self.mode == "paper" else SHIFT_XYZ)
         if self.kappa not in ("full", "adaptive"):
             raise ValueError(f"--kappa must be full or adaptive (got {self.kappa!r})")
         if len(self.shift_xyz) != 3 or min(self.shift_xyz) < 0:
@@ -187,6 +280,10 @@ class KirkSettings:
 
     def sigma_px(self, width: int, height: int) -> float:
         return self.sigma_spatial if self.sigma_spatial else max(1.0, 0.02 * max(width, height))
+
+    @property
+    def paper(self) -> bool:
+        return self.mode == "paper"
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -218,17 +315,21 @@ def range_reduce(logY: np.ndarray, base: np.ndarray, target_contrast: float) -> 
 def compose_reference(src_rgb, shift_rgb, w, logY, base, settings: KirkSettings,
                       display: DisplaySpec, blend: bool):
     """Range reduction of the mesopic image (its own log luminance ``logY``, base
-    ``base``), mesopic dimming, and for RGB input the blend from the source by w:
-    the source's colour at the same output luminance. Display-linear."""
+    ``base``), for RGB input the blend from the source by w (the source's colour at
+    the same output luminance), the mesopic dimming of the pixel (Sec. 3.2: "a pixel
+    with mesopic factor w is linearly mapped into [0, x]", the blended pixel, not only
+    its mesopic part), and the absolute level (``anchor_gain``). Display-linear."""
     logY_out = range_reduce(logY, base, settings.target_contrast)
     s = 10.0 ** (logY_out - logY)                                    # per-pixel scale
     dim = np.maximum(1.0 - w / settings.beta, settings.gamma)         # Sec. 3.2 (see docs)
-    out = shift_rgb * (s * dim)[..., None]
+    out = shift_rgb * (s if not settings.paper else s * dim)[..., None]
     if blend:
         t = np.clip(w / settings.beta, 0.0, 1.0)[..., None]
         ys = np.maximum(np.asarray(src_rgb, np.float64) @ Y_WEIGHTS, Y_FLOOR)
         out = (1.0 - t) * src_rgb * (10.0 ** logY_out / ys)[..., None] + t * out
-    return np.clip(out * (display.white_cd / display.unit_cd), 0.0, DISPLAY_LINEAR_MAX)
+    if not settings.paper:
+        out = out * dim[..., None]
+    return np.maximum(out * (display.white_cd / display.unit_cd), 0.0)
 
 
 @dataclass
@@ -246,16 +347,55 @@ class KirkSummary:
 
 
 class KirkObserver:
-    """kirk11 as a local operator of the pipeline (no time course: the paper's
-    model is steady state; the frame's adaptation only sets the pupil)."""
+    """kirk11 as a local operator of the pipeline. The paper's model is steady
+    state; the default mode takes its adaptation from the shared receptor
+    scheduler (``adaptation.receptor_levels_*``): the rods' mixing (kappa) follows
+    the adapted scotopic level and the rods' dark adaptation, and the display
+    anchor the adapted cone level, so a tunnel blinds on entry and dazzles on exit.
+    ``levels``: the scheduler's state (A_rod, A_cone, B_rod, B_cone)."""
 
-    def __init__(self, settings: KirkSettings, display: DisplaySpec):
+    def __init__(self, settings: KirkSettings, display: DisplaySpec, preadapt=None):
         self.s = settings
         self.display = display
+        self.preadapt = preadapt
         self.summary = KirkSummary()
         self.D = np.eye(3)     # display primaries (working linear), see set_display_primaries
         self._dev = None
         self.wavelengths = None   # set by the pipeline for a spectral frame
+        self.levels: dict | None = None
+        self._frame_L = None
+
+    # -- time course (default mode) ------------------------------------------------------
+    def begin_frame(self, L_waR: float, L_wa: float, dt: float, fresh: bool):
+        """Advance the receptor levels to this frame's goals; returns (k1, k2, rod gain)."""
+        self._frame_L = (L_waR, L_wa)
+        if self.s.paper:
+            self.levels = None
+            return kappas(self.s, L_waR)
+        if fresh or self.levels is None:
+            if fresh and self.preadapt is not None:
+                L, sec = self.preadapt
+                w = lmsr.rgb_to_lmsr(np.ones(3))          # a neutral: rod goal per cone goal
+                self.levels = receptor_levels_preadapted(L * w[3] / (w[0] + w[1]), L, sec)
+            else:
+                self.levels = receptor_levels_steady(L_waR, L_wa)
+        else:
+            self.levels = receptor_levels_advance(self.levels, L_waR, L_wa, dt)
+        k1, k2, gain = kappas(self.s, self.levels["A_rod"])
+        sens = rod_sensitivity(self.levels)
+        return k1 * sens, k2 * sens, gain * sens
+
+    def finish(self, out: np.ndarray) -> np.ndarray:
+        """The absolute level (:func:`anchor_gain`) and, in the default mode, the
+        highlight shoulder; display-linear in, display-linear out."""
+        u = self.display.white_cd / self.display.unit_cd
+        out = np.asarray(out, np.float64)
+        L_wa = self._frame_L[1]
+        if self.s.paper:
+            return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
+        g = anchor_gain(out @ Y_WEIGHTS / u, L_wa, self.levels["A_cone"])
+        out = apply_shoulder(np.minimum(out * g, SIGNAL_CEILING), u, SHOULDER_KNEE)
+        return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
 
     def set_display_primaries(self, D: np.ndarray) -> None:
         self.D = np.asarray(D, np.float64)
@@ -285,17 +425,19 @@ class KirkObserver:
         src, q, repairs = self._lmsr(pixels, scale, wavelengths)
         L_wa, L_waR = logmean(q[..., 0] + q[..., 1]), logmean(q[..., 3])
         area = model_scale()
-        k1, k2, gain = kappas(self.s, L_waR)
-        q_hat, w = purkinje_shift(q, area, k1, k2, self.s.shift_xyz, gain)
-        p, fb = nnls3(self.M, q_hat)
+        k1, k2, gain = self.begin_frame(L_waR, L_wa, dt, fresh)
+        q_hat, w = purkinje_shift(q, area, k1, k2, self.s.shift_xyz, gain,
+                                  white=not self.s.paper)
+        p, fb = solve_display(self.M, q_hat, self.s.paper)
         shift_rgb = p @ self.D.T
         # range reduction of the mesopic image's own luminance (rods add to it)
         logY = np.log10(np.maximum(shift_rgb @ Y_WEIGHTS, Y_FLOOR))
         h, wd = logY.shape
         base = bilateral_reference(logY, self.s.sigma_px(wd, h),
                                    RangeKernel("difference", SIGMA_RANGE_LOG10))
-        out = compose_reference(src if src is not None else shift_rgb, shift_rgb, w, logY, base,
-                                self.s, self.display, blend=src is not None)
+        out = self.finish(compose_reference(src if src is not None else shift_rgb, shift_rgb,
+                                            w, logY, base, self.s, self.display,
+                                            blend=src is not None))
         self.summary = KirkSummary(area, k1, k2, gain, float(w.mean()), float(fb.mean()),
                                    "spectral" if wavelengths is not None else "rgb")
         return out.astype(np.float32), repairs, (L_waR, L_wa)
@@ -305,16 +447,16 @@ class KirkObserver:
         from .kirk11_device import KirkDevice
         if self._dev is None or self._dev.rt is not backend.rt:
             self._dev = KirkDevice(backend.rt)
-        return self._dev.process(self, backend, pixels, scale, self.wavelengths)
+        return self._dev.process(self, backend, pixels, scale, self.wavelengths, dt, fresh)
 
 
 def make_observer(options: dict | None, display: DisplaySpec, preadapt) -> KirkObserver:
     o = {k: v for k, v in (options or {}).items() if v is not None}
     known = {"kappa", "shift_xyz", "gamma", "target_contrast", "sigma_spatial", "bilateral",
-             "bilateral_sampling", "rods"}
+             "bilateral_sampling", "rods", "mode"}
     bad = set(o) - known
     if bad:
         raise ValueError(f"kirk11 takes no option(s) {', '.join(sorted(bad))}")
     bil = BilateralSpec.parse(o.pop("bilateral", "auto"), o.pop("bilateral_sampling", None))
     o.pop("rods", None)
-    return KirkObserver(KirkSettings(bilateral=bil, **o), display)
+    return KirkObserver(KirkSettings(bilateral=bil, **o), display, preadapt)

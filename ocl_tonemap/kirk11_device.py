@@ -6,8 +6,8 @@ import numpy as np
 
 from . import lmsr
 from .bilateral import DeviceBilateral, RangeKernel
-from .kirk11 import (RHO, SIGMA_RANGE_LOG10, KirkSummary, kappas, logmean, model_scale,
-                     subset_solvers)
+from .kirk11 import (RHO, SIGMA_RANGE_LOG10, KirkSummary, logmean, subset_solvers,
+                     model_scale, white_norm)
 from .photometry import RepairCounts, sanitize
 
 
@@ -29,24 +29,29 @@ class KirkDevice:
                              hostbuf=np.ascontiguousarray(host, np.float32))
         return cl.Buffer(self.rt.context, mf.READ_WRITE, max(int(nbytes), 4))
 
-    def _shift(self, q, n: int, area, k1, k2, gain, xyz, M, D):
-        """kirk11_shift on n LMSR pixels: (rgb, w, log10 Y, fallback count) buffers."""
+    def _shift(self, q, n: int, area, k1, k2, gain, xyz, M, D, paper: bool = False):
+        """kirk11_shift on n LMSR pixels: (rgb, w, log10 Y, fallback count) buffers.
+        ``paper``: the printed opponent space (no white normalisation) and Eq. 15's
+        exact NNLS; else D_W and the gamut map."""
         from .runtime import round_up
-        par = np.array([area, k1, k2, gain, *xyz, *RHO], np.float32)
+        dw = np.ones(3) if paper else white_norm()[:3]
+        par = np.array([area, k1, k2, gain, *xyz, *RHO, *dw, 1.0 if paper else 0.0], np.float32)
         out, wbuf, logY = self._buf(n * 12), self._buf(n * 4), self._buf(n * 4)
         fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
         self._k_shift(self.rt.queue, (round_up(n, 64),), (64,), q, np.int32(n),
-                      self._buf(0, par), self._buf(0, subset_solvers(M).reshape(-1)),
+                      self._buf(0, par), self._buf(0, np.linalg.inv(M).reshape(-1)),
+                      self._buf(0, subset_solvers(M).reshape(-1)),
                       self._buf(0, M), self._buf(0, D), out, wbuf, logY, fb)
         return out, wbuf, logY, fb
 
-    def process(self, obs, backend, pixels, scale, wavelengths):
+    def process(self, obs, backend, pixels, scale, wavelengths, dt: float = 0.0,
+                fresh: bool = True):
         from .runtime import round_up
         cl, q_ = self.cl, self.rt.queue
         h, w = pixels.shape[:2]
         n = h * w
         if n > backend.max_band_pixels:
-            return self._process_banded(obs, backend, pixels, scale, wavelengths)
+            return self._process_banded(obs, backend, pixels, scale, wavelengths, dt, fresh)
         gsz, wg = (round_up(n, 64),), (64,)
         s = obs.s
         q, src, repairs = self._lmsr_band(backend, pixels, scale, wavelengths, True)
@@ -54,9 +59,9 @@ class KirkDevice:
         cl.enqueue_copy(q_, qh, q)
         L_wa, L_waR = logmean(qh[:, 0] + qh[:, 1]), logmean(qh[:, 3])
         area = model_scale()
-        k1, k2, gain = kappas(s, L_waR)
+        k1, k2, gain = obs.begin_frame(L_waR, L_wa, dt, fresh)
         shifted, wbuf, logY, fb = self._shift(q, n, area, k1, k2, gain, s.shift_xyz, obs.M,
-                                              obs.D)
+                                              obs.D, s.paper)
         # Durand & Dorsey 2002 base layer
         base = self._buf(n * 4)
         rk = RangeKernel("difference", SIGMA_RANGE_LOG10)
@@ -76,9 +81,10 @@ class KirkDevice:
                         np.int32(n), np.float32(c), np.float32(bmax), np.float32(s.beta),
                         np.float32(s.gamma),
                         np.float32(obs.display.white_cd / obs.display.unit_cd),
-                        np.int32(1 if blend else 0), out)
+                        np.int32(1 if blend else 0), out, np.int32(0 if s.paper else 1))
         res = np.empty((h, w, 3), np.float32)
         cl.enqueue_copy(q_, res, out)
+        res = obs.finish(res).astype(np.float32)
         nfb = np.empty(1, np.int32)
         cl.enqueue_copy(q_, nfb, fb)
         wh = np.empty(n, np.float32)
@@ -127,7 +133,7 @@ class KirkDevice:
                      self._buf(0, W), q)
         return q, src, rc
 
-    def _process_banded(self, obs, backend, pixels, scale, wavelengths):
+    def _process_banded(self, obs, backend, pixels, scale, wavelengths, dt, fresh):
         """Frames beyond ``backend.max_band_pixels``: per-pixel passes in row bands,
         the bilateral base through ``DeviceBilateral.filter_banded``, the final
         composition on the host (float64, the reference's ``compose_reference``)."""
@@ -148,7 +154,7 @@ class KirkDevice:
             sum_r += float(np.log(np.maximum(qh[:, 3].astype(np.float64), 1e-6)).sum())
         L_wa, L_waR = float(np.exp(sum_lm / (h * w))), float(np.exp(sum_r / (h * w)))
         area = model_scale()
-        k1, k2, gain = kappas(s, L_waR)
+        k1, k2, gain = obs.begin_frame(L_waR, L_wa, dt, fresh)
         blend = wavelengths is None
         shifted = np.empty((h, w, 3), np.float32)
         wh = np.empty((h, w), np.float32)
@@ -158,7 +164,7 @@ class KirkDevice:
         for y0, nr in bands:                               # pass 2: shift, per band
             qb, sb, _ = self._lmsr_band(backend, pixels[y0:y0 + nr], scale, wavelengths, False)
             ob, wb, lb, fb = self._shift(qb, nr * w, area, k1, k2, gain, s.shift_xyz, obs.M,
-                                         obs.D)
+                                         obs.D, s.paper)
             cl.enqueue_copy(q_, shifted[y0:y0 + nr], ob)
             cl.enqueue_copy(q_, wh[y0:y0 + nr], wb)
             cl.enqueue_copy(q_, logY[y0:y0 + nr], lb)
@@ -172,9 +178,9 @@ class KirkDevice:
         base = self.bil.filter_banded(logY, sig, RangeKernel("difference", SIGMA_RANGE_LOG10),
                                       method, backend.max_band_pixels, s.bilateral.q_s,
                                       s.bilateral.q_r)
-        out = compose_reference(src, shifted.astype(np.float64), wh.astype(np.float64),
-                                logY.astype(np.float64), base.astype(np.float64), s,
-                                obs.display, blend)
+        out = obs.finish(compose_reference(src, shifted.astype(np.float64),
+                                           wh.astype(np.float64), logY.astype(np.float64),
+                                           base.astype(np.float64), s, obs.display, blend))
         obs.summary = KirkSummary(area, k1, k2, gain, float(wh.mean()), nfb / (h * w),
                                   "spectral" if wavelengths is not None else "rgb")
         return out.astype(np.float32), repairs, (L_waR, L_wa)

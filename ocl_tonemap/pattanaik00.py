@@ -16,7 +16,8 @@ from dataclasses import dataclass, asdict
 
 import numpy as np
 
-from .adaptation import AdaptationState, bleaching_step, exponential_step
+from .adaptation import (AdaptationState, receptor_levels_advance, receptor_levels_preadapted,
+                         receptor_levels_steady)
 from .display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder
 from .photometry import neutral_scotopic_ratio
 
@@ -24,12 +25,8 @@ NAME = "pattanaik00"
 
 #: Eq. 2 exponent (Hunt's n, Sec. 4.1.1).
 N = 0.73
-#: Neural time constants t0, s (Sec. 4.1.2).
-T0_ROD, T0_CONE = 0.150, 0.080
-#: Pigment regeneration time constants tau, s (Sec. 4.1.2).
-TAU_ROD, TAU_CONE = 400.0, 110.0
-#: Bleaching half-rate constants of Eq. 7 (J = T*B*G/k), cd/m^2.
-K_ROD, K_CONE = 16.0, 2.2e8
+#: Neural t0, pigment tau and Eq. 7's k (Sec. 4.1.2): the shared scheduler's.
+from .adaptation import K_CONE, K_ROD, T0_CONE, T0_ROD, TAU_CONE, TAU_ROD  # noqa: E402,F401
 #: Floor on luminance inside the response (cd/m^2): far below the absolute
 #: threshold of vision (~1e-6) and far above float32 denormals.
 L_FLOOR = 1.0e-10
@@ -327,8 +324,7 @@ def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParam
 
 def steady_state(G_rod: float, G_cone: float) -> dict:
     """Fully adapted state: A = G, B = Hunt's static B (Eq. 6)."""
-    return {"A_rod": float(G_rod), "A_cone": float(G_cone),
-            "B_rod": float(bleach_rod_static(G_rod)), "B_cone": float(bleach_cone_static(G_cone))}
+    return receptor_levels_steady(G_rod, G_cone)
 
 
 def advance(values: dict, G_rod: float, G_cone: float, dt: float) -> dict:
@@ -337,12 +333,7 @@ def advance(values: dict, G_rod: float, G_cone: float, dt: float) -> dict:
     A: exact exponential filters (t0 = 150 ms rods, 80 ms cones).
     B: exact solution of Eq. 7's kinetics (see adaptation.bleaching_step).
     """
-    return {
-        "A_rod": exponential_step(values["A_rod"], G_rod, dt, T0_ROD),
-        "A_cone": exponential_step(values["A_cone"], G_cone, dt, T0_CONE),
-        "B_rod": bleaching_step(values["B_rod"], G_rod, dt, K_ROD, TAU_ROD),
-        "B_cone": bleaching_step(values["B_cone"], G_cone, dt, K_CONE, TAU_CONE),
-    }
+    return receptor_levels_advance(values, G_rod, G_cone, dt)
 
 
 def preadapted(L_cd: float, seconds: float | None) -> dict:
@@ -352,8 +343,4 @@ def preadapted(L_cd: float, seconds: float | None) -> dict:
     dark-adapted (A at the floor, B = 1, full pigment) and exposed for that
     long, so longer exposure leaves more pigment bleached.
     """
-    G_rod, G_cone = L_cd * neutral_scotopic_ratio(), L_cd
-    if seconds is None:
-        return steady_state(G_rod, G_cone)
-    dark = {"A_rod": A_FLOOR, "A_cone": A_FLOOR, "B_rod": 1.0, "B_cone": 1.0}
-    return advance(dark, G_rod, G_cone, seconds)
+    return receptor_levels_preadapted(L_cd * neutral_scotopic_ratio(), L_cd, seconds)

@@ -249,7 +249,8 @@ class Tonemapper:
         new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)
         if new is not None:
             rgb, changed = new, True
-        new, eff["purkinje"] = fx.purkinje(rgb, G_rod, G_cone)
+        new, eff["purkinje"] = fx.purkinje(rgb, G_rod, G_cone, self._state.extra, dt, fresh,
+                                           self.preadapt)
         if new is not None:
             rgb, changed = new, True
         if local_chroma:
@@ -282,6 +283,11 @@ class Tonemapper:
     def _process_local(self, pix, orig, scale, dt, fresh, time_s, frame_number, eff,
                        pre_repairs):
         st = self._state
+        scheduled = hasattr(self.local, "levels")     # local operators with receptor levels
+        if scheduled:
+            keys = ("A_rod", "A_cone", "B_rod", "B_cone")
+            self.local.levels = ({k: float(st.values[k]) for k in keys}
+                                 if not fresh and all(k in st.values for k in keys) else None)
         if self.backend.name == "reference":
             out, repairs, (G_rod, G_cone) = self.local.process_reference(pix, scale, dt, fresh)
         else:
@@ -290,6 +296,8 @@ class Tonemapper:
         out, eff["acuity"] = self.effects.acuity(out, G_rod)
         summ = self.local.summary.as_dict()
         st.values = {"logmean_I_A_cone": float(G_cone), "logmean_I_A_rod": float(G_rod)}
+        if scheduled and self.local.levels is not None:
+            st.values.update({k: float(v) for k, v in self.local.levels.items()})
         st.time_s, st.frame, st.pixels = float(time_s), frame_number, None
         self.last = FrameInfo(frame_number, float(time_s), dt, G_rod, G_cone,
                               pre_repairs or repairs, st.copy(), summ, eff)

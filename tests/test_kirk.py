@@ -103,14 +103,15 @@ def test_photopic_scene_is_unchanged_by_the_shift():
     assert 2.0 < rel_full[1] / rel_full[2] < 4.5               # ~ sqrt(10) per decade
 
 
-def _shifted(exposure, kappa="adaptive"):
+def _shifted(exposure, kappa="adaptive", xyz=(1.5, 1.5, 5.0)):
     """Per ColorChecker patch: (rgb chromaticity after shift + NNLS, relative shift
-    |q^ - q| / (L + M), w) -- before range reduction."""
+    |q^ - q| / (L + M), w) -- before range reduction. ``xyz``: the gamut-limit
+    calibration of the shift scales (the default is a third of it)."""
     lam, spectra, _ = spectral_patches("D65", exposure)
     q = lmsr.spectral_to_lmsr(lam, spectra)
     obs = ko.KirkObserver(ko.KirkSettings(kappa=kappa), None)
     k1, k2, gain = ko.kappas(obs.s, ko.logmean(q[:, 3]))
-    qh, w = ko.purkinje_shift(q, ko.model_scale(), k1, k2, rod_gain=gain)
+    qh, w = ko.purkinje_shift(q, ko.model_scale(), k1, k2, xyz, rod_gain=gain)
     p, _ = ko.nnls3(obs.M, qh)
     rel = np.abs(qh - q[:, :3]).max(axis=1) / (q[:, 0] + q[:, 1])
     return p / np.maximum(p.sum(axis=1, keepdims=True), 1e-300), rel, w
@@ -121,13 +122,19 @@ def test_scotopic_scene_shifts_to_blue_green_and_loses_red(kappa):
     exposures = [1e4, 1e3, 1e2, 10.0, 1.0, 0.1, 0.01, 1e-3]
     runs = [_shifted(e, kappa) for e in exposures]
     red = np.array([c[RED, 0] for c, _, _ in runs])
-    assert np.all(np.diff(red) <= 1e-12) and red[-1] < 0.2 * red[0] + 1e-9   # reds lose red
+    assert np.all(np.diff(red) <= 1e-12) and red[-1] < 0.4 * red[0]     # reds lose red
     grey = runs[-1][0][WHITE]
-    assert grey[1] > 2 * grey[0] and grey[2] > 2 * grey[0]          # white turns blue-green
+    assert grey[1] > 1.5 * grey[0] and grey[2] > 1.5 * grey[0]           # white: blue-green
+    assert grey.min() > 0.15                                             # ... a pale one
     # the shift and w grow monotonically as exposure falls
     shift = [np.median(r) for _, r, _ in runs]
     ws = [w.mean() for _, _, w in runs]
     assert np.all(np.diff(shift) >= 0) and shift[-1] > shift[0] and np.all(np.diff(ws) > 0)
+    # the default scales: the same direction, a third as strong
+    red_d = np.array([_shifted(e, kappa, ko.SHIFT_XYZ)[0][RED, 0] for e in exposures])
+    assert np.all(np.diff(red_d) <= 1e-12) and red[-1] < red_d[-1] < 0.6 * red_d[0]
+    grey_d = _shifted(1e-3, kappa, ko.SHIFT_XYZ)[0][WHITE]
+    assert grey_d[1] > grey_d[0] and grey_d[2] > grey_d[0]
 
 
 def test_metamers_differ_only_when_scotopic(rt):
@@ -200,9 +207,9 @@ def test_dark_scenes_look_dim_and_single_exposure_control(rt):
     img = _rgb_scene()
     means = [Tonemapper("kirk11", "opencl").process(img * np.float32(e)).mean()
              for e in (1e3, 1.0, 1e-3)]
-    assert means[0] > means[1] > means[2] > 0
-    no_dim = Tonemapper("kirk11", "opencl", options={"gamma": 1.0}).process(img * 1e-3).mean()
-    assert no_dim > means[2] * 2                                     # the dimming did it
+    # the display anchor (the scene's key) makes night dark; --night-dim only sets
+    # the contrast of scotopic against photopic pixels within a frame
+    assert means[0] > means[1] > means[2] > 0 and means[2] < 0.25 * means[0]
 
 
 def test_extremes(rt):

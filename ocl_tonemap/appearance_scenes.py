@@ -1,6 +1,6 @@
 """Small generated scenes for the appearance benchmark (linear Rec.709, relative units).
 
-Each function returns an (H, W, 3) float32 array; ``benchmarks/appearance.py``
+Each function returns an (H, W, 3) float32 array; ``benchmarks/appearance.py`` and the tests
 scales it to the level under test, so only ratios matter.
 
 * ``tunnel``: the built-in sample (Pattanaik 2000, Fig. 7) on the approach: a
