@@ -96,7 +96,7 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    help="range kept by fully scotopic pixels (default 0.25; 1 = no dimming)")
     g.add_argument("--target-contrast", type=float,
                    help="base-layer contrast after Durand & Dorsey 2002 compression (default "
-                   "100; the paper's 5 with --mode paper)")
+                   "300; the paper's 5 with --mode paper)")
     g = p.add_argument_group("effects (every operator; default auto for durand00, else off)")
     for name, what in (("flare", "glare of light sources (Spencer et al. 1995)"),
                        ("acuity", "loss of acuity in the dark (Shaler 1937)"),
