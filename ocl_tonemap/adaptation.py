@@ -152,36 +152,97 @@ class AdaptationState:
         if doc.get("format") != STATE_FORMAT:
             raise ValueError(f"not an ocl-tonemap adaptation state (format {doc.get('format')!r}, "
                              f"expected {STATE_FORMAT!r})")
-        vals = {k: float(v) for k, v in doc["values"].items()}
+        try:
+            vals = {str(k): float(v) for k, v in dict(doc.get("values") or {}).items()}
+            op = str(doc["operator"])
+            t = doc.get("time_s")
+            t = None if t is None else float(t)
+            frame = doc.get("frame")
+            frame = None if frame is None else int(frame)
+            extra = dict(doc.get("extra") or {})
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"malformed adaptation state ({exc!r})") from None
         for k, v in vals.items():
             if not math.isfinite(v):
                 raise ValueError(f"state value {k} is not finite ({v})")
-        return cls(doc["operator"], vals, doc.get("time_s"), doc.get("frame"), doc.get("extra") or {})
+        if t is not None and not math.isfinite(t):
+            raise ValueError(f"state time {t} is not finite")
+        return cls(op, vals, t, frame, extra)
 
-    def save(self, path: str | os.PathLike) -> None:
+    def save(self, path: str | os.PathLike, checkpoint: bool = False) -> None:
         """Write atomically (temp file in the same folder, then rename); per-pixel
-        state goes first to ``<stem>.pixels.exr`` beside it, named in ``extra``."""
+        state goes first to a side file beside it, named in ``extra``:
+        ``<stem>.pixels.exr``, or with ``checkpoint`` ``<stem>.pixels.<n>.exr``, a new
+        name each time, so that the JSON and its planes always belong together
+        whenever the writer is killed; older side files are removed after the
+        JSON is replaced."""
         path = Path(path)
         doc = self.to_json()
+        stem = path.name[:-len(path.suffix)] if path.suffix else path.name
         if self.pixels is not None:
-            side = path.with_name(path.stem + ".pixels.exr")
+            if checkpoint:
+                n = 0
+                while path.with_name(f"{stem}.pixels.{n}.exr").exists():
+                    n += 1
+                side = path.with_name(f"{stem}.pixels.{n}.exr")
+            else:
+                side = path.with_name(stem + ".pixels.exr")
             _write_planes(side, self.pixels)
             doc["extra"] = dict(doc["extra"], pixel_state=side.name)
         tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
         tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
         os.replace(tmp, path)
+        keep = doc["extra"].get("pixel_state")
+        for old in path.parent.glob(f"{glob_escape(stem)}.pixels.*.exr"):
+            if old.name != keep:
+                try:
+                    old.unlink()
+                except OSError:
+                    pass
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "AdaptationState":
+        """From a state JSON (with its per-pixel side file), or from an output frame
+        of ocl-tonemap, whose ``ocltm:state`` attribute holds the scalar state."""
+        p = Path(path)
         try:
-            doc = json.loads(Path(path).read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ValueError(f"cannot read adaptation state {path}: {exc}") from exc
+            raw = p.read_bytes()
+        except OSError as exc:
+            raise ValueError(f"cannot read adaptation state {path}: {exc.strerror or exc}") from None
+        try:
+            doc = json.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            doc = _state_from_image(p)
+        if not isinstance(doc, dict):
+            raise ValueError(f"{path} is not an ocl-tonemap adaptation state")
         st = cls.from_json(doc)
         side = st.extra.get("pixel_state")
         if side:
-            st.pixels = _read_planes(Path(path).with_name(side))
+            st.pixels = _read_planes(p.with_name(side))
         return st
+
+
+def glob_escape(text: str) -> str:
+    import glob
+    return glob.escape(text)
+
+
+def _state_from_image(path: Path) -> dict:
+    """The ``ocltm:state`` attribute of an image ocl-tonemap wrote."""
+    import OpenImageIO as oiio
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise ValueError(f"{path} is neither a state JSON nor an image with ocltm:state")
+    try:
+        v = inp.spec().getattribute("ocltm:state")
+    finally:
+        inp.close()
+    if not v:
+        raise ValueError(f"{path} has no ocltm:state attribute (not an ocl-tonemap output?)")
+    try:
+        return json.loads(v)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: its ocltm:state is not JSON ({exc})") from None
 
 
 def _write_planes(path: Path, planes: dict) -> None:

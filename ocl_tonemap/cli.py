@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import sys
 
@@ -17,12 +18,14 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", help="frame range for sequence patterns: A-B, A-BxSTEP, or a list")
     p.add_argument("--fps", type=float, help="frames per second (default: FramesPerSecond "
                    "metadata, else 24)")
-    p.add_argument("--operator", default="pattanaik00", choices=sorted(REGISTRY))
+    p.add_argument("--operator", default="pattanaik00", choices=sorted(REGISTRY),
+                   help="the model (default pattanaik00)")
     p.add_argument("--mode", choices=["default", "paper"],
                    help="default: the operator as it looks right on photographs; paper: its "
                    "paper taken literally (docs/models.md says where they differ)")
     p.add_argument("--metering", default="logmean",
-                   help="logmean | mean | max | centre[:mean] | spot:X,Y[,SIGMA] | percentile:P")
+                   help="logmean (default) | mean | max | centre[:mean] | spot:X,Y[,SIGMA] | "
+                   "percentile:P | mask:WEIGHTS.exr")
     p.add_argument("--luminance-scale", metavar="S|auto:LEVEL",
                    help="cd/m^2 of pixel value 1.0, or auto:LEVEL to put the first frame's "
                    "log-average at LEVEL cd/m^2 (a number, or night 0.01, dusk 1, interior 30, "
@@ -37,7 +40,8 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--display", help="OCIO display (default: the config's default)")
     p.add_argument("--view", help="OCIO view (default: the un-tone-mapped view)")
     p.add_argument("--display-model", default="display", choices=["display", "paper-crt"],
-                   help="display observer: from the chosen display, or Pattanaik 2000's CRT")
+                   help="display observer: from the chosen display (default), or Pattanaik "
+                   "2000's CRT")
     p.add_argument("--display-white", type=float, help="display white, cd/m^2 (default: 100 SDR, "
                    "peak for HDR)")
     p.add_argument("--display-peak", type=float, default=1000.0, help="HDR display peak, cd/m^2 "
@@ -55,12 +59,25 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    "colourspace) instead of display-linear light (the default for float outputs)")
     p.add_argument("--preadapt", help="initial adaptation: CD_M2 (fully adapted) or "
                    "CD_M2:SECONDS (exposed that long from dark)")
-    p.add_argument("--state-in", help="resume from this adaptation state (JSON)")
-    p.add_argument("--state-out", help="write the final adaptation state (JSON)")
+    p.add_argument("--state-in", help="start from this adaptation state: a state JSON, or an "
+                   "output frame of ocl-tonemap (its ocltm:state; global operators)")
+    p.add_argument("--state-out", help="write the adaptation state here, after every frame and "
+                   "at the end (default checkpoint: OUTPUT without frame number + .state.json)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted run from its checkpoint: frames up to the "
+                   "checkpoint's are kept, the rest rendered as one run would")
+    p.add_argument("--no-checkpoint", dest="checkpoint", action="store_false",
+                   help="do not write the state after every frame")
+    p.add_argument("--missing", choices=["error", "hold", "skip"], default="error",
+                   help="a frame missing inside a sequence: error (default, before any frame "
+                   "is processed), hold (repeat the previous frame at its time) or skip")
     p.add_argument("--backend", default="opencl", choices=["opencl", "reference"])
     p.add_argument("--device", help="OpenCL device: P:D index, gpu, cpu or a name substring")
     p.add_argument("--out-bits", choices=["8", "16", "half", "float"],
-                   help="output sample type (default by extension)")
+                   help="output sample type (default by extension: EXR half, TIFF 16, PNG/JPEG 8)")
+    p.add_argument("--channels", metavar="R,G,B",
+                   help="input channels to use as R,G,B (or one name: luminance); default the "
+                   "R, G, B channels by name")
     p.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
     p.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
     p.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
@@ -132,11 +149,19 @@ def _options(a, input_, output):
         out_bits=a.out_bits, plot=a.plot,
         plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
         max_band_pixels=a.max_band_pixels, operator_options=_operator_options(a),
-        effects=_effects(a),
+        effects=_effects(a), missing=a.missing, resume=a.resume, checkpoint=a.checkpoint,
+        channels=[c.strip() for c in a.channels.split(",")] if a.channels else None,
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
 
 
 def _effects(a):
+    from .effects import EffectSettings
+    fx = _effect_settings(a)
+    _check_effect_flags(a, fx)
+    return fx
+
+
+def _effect_settings(a):
     from .effects import EffectSettings
     return EffectSettings.for_operator(
         a.operator, flare=a.flare, acuity=a.acuity, chromatic_adaptation=a.chromatic_adaptation,
@@ -155,43 +180,68 @@ def _triple(text: str, flag: str) -> tuple:
         raise ValueError(f"bad {flag} {text!r}: three non-negative numbers a,b,c") from None
 
 
+#: Options that belong to some operators: (flag, argparse dest, default, operators,
+#: operator option name, converter). One rule for all of them: given for another
+#: operator, a warning says so and the option is ignored.
+OPERATOR_FLAGS = (
+    ("--lut", "lut", 0, ("durand00",), "lut", None),
+    ("--blue-shift", "blue_shift", None, ("durand00",), "tint",
+     lambda v: _triple(v, "--blue-shift")),
+    ("--sigma-spatial", "sigma_spatial", None, ("ledda04", "kirk11"), "sigma_spatial", None),
+    ("--bilateral", "bilateral", "auto", ("ledda04", "kirk11"), "bilateral", None),
+    ("--bilateral-sampling", "bilateral_sampling", None, ("ledda04", "kirk11"),
+     "bilateral_sampling", None),
+    ("--rods", "rods", "auto", ("ledda04",), "rods", None),
+    ("--local-strength", "local_strength", None, ("ledda04",), "local_strength", None),
+    ("--ledda-mode", "ledda_mode", None, ("ledda04",), "mode", None),
+    ("--kappa", "kappa", None, ("kirk11",), "kappa", None),
+    ("--night-dim", "night_dim", None, ("kirk11",), "gamma", None),
+    ("--target-contrast", "target_contrast", None, ("kirk11",), "target_contrast", None),
+    ("--shift-scale", "shift_scale", None, ("kirk11",), "shift_xyz",
+     lambda v: _triple(v, "--shift-scale")),
+)
+
+
+def _ignored(flag: str, where: str, operator: str) -> None:
+    log.warning("%s applies to %s: ignored for %s", flag, where, operator)
+
+
 def _operator_options(a) -> dict | None:
-    from .operators import get_operator
-    mode = {"mode": a.mode} if a.mode else {}
-    if a.operator == "durand00":
-        opts = {"lut": a.lut, **mode}
-        if a.lut and not (2 <= a.lut <= 1 << 20):
-            raise ValueError(f"--lut must be 0 or 2 .. 1048576 entries (got {a.lut})")
-        if a.blue_shift:
-            opts["tint"] = _triple(a.blue_shift, "--blue-shift")
-        return opts
-    if a.lut or a.blue_shift:
-        log.warning("--lut and --blue-shift belong to durand00: ignored for %s", a.operator)
-    if not getattr(get_operator(a.operator), "LOCAL", False):
-        given = [f for f, v in (("--sigma-spatial", a.sigma_spatial),
-                                ("--bilateral-sampling", a.bilateral_sampling)) if v is not None]
-        if given or a.bilateral != "auto" or a.rods != "auto":
-            log.warning("%s is a global operator: %s ignored", a.operator,
-                        ", ".join(given + [x for x, v in (("--bilateral", a.bilateral),
-                                                          ("--rods", a.rods)) if v != "auto"]))
-        return mode or None
-    opts = {"sigma_spatial": a.sigma_spatial, "bilateral": a.bilateral,
-            "bilateral_sampling": a.bilateral_sampling, "rods": a.rods, **mode}
-    if a.operator == "ledda04":
-        if a.ledda_mode:
-            opts["mode"] = a.ledda_mode
-        opts["local_strength"] = a.local_strength
-    elif a.local_strength is not None or a.ledda_mode:
-        log.warning("--local-strength and --ledda-mode belong to ledda04: ignored for %s",
-                    a.operator)
-    kirk = {"kappa": a.kappa, "gamma": a.night_dim, "target_contrast": a.target_contrast,
-            "shift_xyz": _triple(a.shift_scale, "--shift-scale") if a.shift_scale else None}
-    if a.operator == "kirk11":
-        opts.update(kirk)
-    elif any(v is not None for v in kirk.values()):
-        log.warning("--kappa, --night-dim, --target-contrast and --shift-scale belong to "
-                    "kirk11: ignored for %s", a.operator)
-    return opts
+    if a.lut and not (2 <= a.lut <= 1 << 20):
+        raise ValueError(f"--lut must be 0 or 2 .. 1048576 entries (got {a.lut})")
+    if a.sigma_spatial is not None and not (math.isfinite(a.sigma_spatial)
+                                            and 0 < a.sigma_spatial <= 1e5):
+        raise ValueError(f"--sigma-spatial must be a positive number of pixels (got "
+                         f"{a.sigma_spatial:g})")
+    if a.max_band_pixels is not None and a.max_band_pixels < 1:
+        raise ValueError("--max-band-pixels must be >= 1")
+    opts = {"mode": a.mode} if a.mode else {}
+    for flag, dest, default, ops, key, conv in OPERATOR_FLAGS:
+        v = getattr(a, dest)
+        if v is None or v == default:
+            continue
+        if a.operator not in ops:
+            _ignored(flag, " and ".join(ops), a.operator)
+            continue
+        opts[key] = conv(v) if conv else v
+    if a.operator in ("ledda04", "kirk11") and a.metering != "logmean":
+        _ignored("--metering", "the global operators (pattanaik00, durand00); "
+                 f"{a.operator} adapts locally", a.operator)
+    return opts or None
+
+
+def _check_effect_flags(a, fx) -> None:
+    """Effect parameters given for an effect that is off: the same one rule."""
+    for flag, v, on in (("--flare-method", a.flare_method, fx.flare != "off"),
+                        ("--flare-threshold", a.flare_threshold, fx.flare != "off"),
+                        ("--flare-sampling", a.flare_sampling, fx.flare != "off"),
+                        ("--illuminant", a.illuminant, fx.chromatic_adaptation != "off"),
+                        ("--fov", a.fov, fx.flare != "off" or fx.acuity != "off")):
+        if v is not None and not on:
+            log.warning("%s applies to an effect that is off: ignored (switch it on with "
+                        "--flare/--acuity/--chromatic-adaptation on|auto)", flag)
+    if a.plot_frames and not a.plot:
+        log.warning("--plot-frames applies to --plot: ignored")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -311,16 +361,27 @@ def main(argv: list[str] | None = None) -> int:
                 for t, o in zip(parse_times(a.at), res.outputs):
                     print(f"t = {t:g} s -> {o}")
             return 0
-        from .sequence import run_job
-        res = run_job(_options(a, a.input, a.output))
+        from .sequence import Interrupted, run_job
+        try:
+            res = run_job(_options(a, a.input, a.output))
+        except Interrupted as e:
+            import shlex
+            again = [x for x in (argv if argv is not None else sys.argv[1:]) if x != "--resume"]
+            print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of {e.total} "
+                  f"written; state in {e.checkpoint}). Resume with:\n  ocl-tonemap "
+                  + " ".join(shlex.quote(x) for x in again) + " --resume", file=sys.stderr)
+            return e.exit_code
         if not a.quiet:
             rep = f"; repaired values: {res.repairs.summary()}" if res.repairs.total else ""
             print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s{rep}")
         return 0
     except FrameError as e:
-        print(f"ocl-tonemap ERROR: {e.path} frame {e.frame if e.frame is not None else '-'}: {e.why}",
-              file=sys.stderr)
+        where = e.path if e.frame is None else f"{e.path} frame {e.frame}"
+        print(f"ocl-tonemap ERROR: {where}: {e.why}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("ocl-tonemap: interrupted; the frame in flight was discarded", file=sys.stderr)
+        return 130
     except (ValueError, RuntimeError, OSError) as e:
         print(f"ocl-tonemap ERROR: {e}", file=sys.stderr)
         return 2

@@ -39,7 +39,7 @@ class FrameError(RuntimeError):
 
     def __init__(self, path, frame, why):
         self.path, self.frame, self.why = str(path), frame, str(why)
-        super().__init__(f"{self.path} frame {frame if frame is not None else '-'}: {why}")
+        super().__init__(f"{self.path}{'' if frame is None else f' frame {frame}'}: {why}")
 
 
 def is_sequence(pattern: str) -> bool:
@@ -126,6 +126,7 @@ class Frame:
     rgb_from_spectrum: bool = False         # pixels were computed from the spectrum (working RGB)
     chromaticities: tuple | None = None     # EXR chromaticities (rx ry gx gy bx by wx wy)
     unassociated_alpha: bool = False        # the alpha is straight (oiio:UnassociatedAlpha)
+    channel_note: str | None = None         # what select_channels assumed, if anything
 
     @property
     def has_alpha(self) -> bool:
@@ -148,8 +149,64 @@ def _fps(spec) -> float | None:
         return None
 
 
-def read_frame(path: str, frame: int | None = None) -> Frame:
-    """Read the RGB (+alpha) of an image OIIO can read, as float32."""
+def _oiio_error(text: str) -> str:
+    """OIIO's error text without its repeated lines, on one line."""
+    seen = []
+    for line in (text or "").splitlines():
+        line = line.strip()
+        if line and line not in seen:
+            seen.append(line)
+    return "; ".join(seen[:3]) or "unknown error"
+
+
+def select_channels(spec, channels: list[str] | None = None) -> tuple[list[int], str | None]:
+    """(indices of R, G, B [, alpha], note) for a file's channels.
+
+    R, G, B by name (``layer.R`` too) when the file has them; ``channels`` (names
+    or numbers, 1 or 3 of them; ``--channels``) otherwise or to override; one
+    channel is luminance (grey); three or more unnamed channels are taken in
+    order. Two channels (R, G without B; a UV map) are refused: there is no
+    honest way to make light of them. The note says what was assumed."""
+    names = list(spec.channelnames)
+    short = [n.split(".")[-1].upper() for n in names]
+    alpha = spec.alpha_channel if spec.alpha_channel >= 0 else (short.index("A") if "A" in short else -1)
+    note = None
+
+    def find(c):
+        if c.isdigit() and int(c) < len(names):
+            return int(c)
+        for i, n in enumerate(names):
+            if n == c or short[i] == c.upper():
+                return i
+        raise ValueError(f"--channels: the file has no channel {c!r} (it has {', '.join(names)})")
+
+    if channels:
+        idx = [find(c) for c in channels]
+        if len(idx) == 1:
+            idx = idx * 3
+        elif len(idx) != 3:
+            raise ValueError("--channels takes one name (luminance) or three (R,G,B)")
+        note = f"channels {', '.join(names[i] for i in dict.fromkeys(idx))} used as R, G, B"
+    elif all(c in short for c in "RGB"):
+        idx = [short.index(c) for c in "RGB"]
+    elif spec.nchannels == 1 or (len(short) >= 1 and short[0] == "Y" and "Y" in short
+                                 and spec.nchannels - (alpha >= 0) == 1):
+        idx = [short.index("Y") if "Y" in short else 0] * 3
+        note = f"1 channel ({names[idx[0]]}): taken as luminance"
+    elif spec.nchannels - (alpha >= 0) == 2 or spec.nchannels == 2:
+        raise ValueError(f"2 channels ({', '.join(names)}) are not a colour image; give the "
+                         "channels to use with --channels (one name for luminance, or R,G,B)")
+    else:
+        idx = [i for i in range(spec.nchannels) if i != alpha][:3]
+        note = f"no R, G, B channels: {', '.join(names[i] for i in idx)} used as R, G, B"
+    if alpha >= 0 and alpha not in idx:
+        idx.append(alpha)
+    return idx, note
+
+
+def read_frame(path: str, frame: int | None = None, channels: list[str] | None = None) -> Frame:
+    """Read the RGB (+alpha) of an image OIIO can read, as float32 (channels by
+    :func:`select_channels`; what was assumed is in ``Frame.channel_note``)."""
     if not os.path.exists(path):
         raise FrameError(path, frame, "no such file")
     # Ask for alpha as the file stores it: straight-alpha formats (PNG, TIFF with
@@ -158,12 +215,26 @@ def read_frame(path: str, frame: int | None = None) -> Frame:
     hint = oiio.ImageSpec()
     hint.attribute("oiio:UnassociatedAlpha", 1)
     buf = oiio.ImageBuf(path, 0, 0, hint)
+    return frame_from_imagebuf(buf, path, frame, channels)
+
+
+def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
+                        channels: list[str] | None = None) -> Frame:
+    """A :class:`Frame` from an OIIO ImageBuf (the file's or the caller's)."""
     if buf.has_error:
-        raise FrameError(path, frame, f"cannot read: {buf.geterror().strip()}")
-    spec = buf.spec()
+        raise FrameError(path, frame, f"cannot read: {_oiio_error(buf.geterror())}")
+    try:
+        spec = buf.spec()
+    except Exception as exc:  # noqa: BLE001 -- an ImageBuf of a file that is not there
+        raise FrameError(path, frame, f"cannot read: {exc}") from None
+    if not buf.initialized:
+        raise FrameError(path, frame, "cannot read: the ImageBuf holds no image")
+    if spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
+        raise FrameError(path, frame, f"empty image ({spec.width}x{spec.height}, "
+                         f"{spec.nchannels} channels)")
     pix = buf.get_pixels(oiio.FLOAT)
     if buf.has_error or pix is None:
-        raise FrameError(path, frame, f"cannot read pixels: {buf.geterror().strip()}")
+        raise FrameError(path, frame, f"cannot read pixels: {_oiio_error(buf.geterror())}")
     pix = np.asarray(pix, np.float32)
     if pix.ndim == 4:  # volume images: take the first slice
         pix = pix[0]
@@ -176,12 +247,16 @@ def read_frame(path: str, frame: int | None = None) -> Frame:
         from .lmsr import spectral_to_rgb
         pix = spectral_to_rgb(lam, cube).astype(np.float32)     # working RGB, cd/m^2
         from_spectrum = True
-    else:
-        from .pipeline import _rgb_alpha_indices
-        pix = np.ascontiguousarray(pix[..., _rgb_alpha_indices(spec)])
+    note = None
+    if not from_spectrum:
+        try:
+            idx, note = select_channels(spec, channels)
+        except ValueError as exc:
+            raise FrameError(path, frame, exc) from None
+        pix = np.ascontiguousarray(pix[..., idx])
     wl = spec.getattribute("whiteLuminance")
     ts = spec.getattribute("ocltm:timestamp")
-    fmt = buf.file_format_name
+    fmt = buf.file_format_name or ""
     chrom = spec.getattribute("chromaticities")
     if not (isinstance(chrom, (tuple, list)) and len(chrom) == 8):
         chrom = None
@@ -190,7 +265,7 @@ def read_frame(path: str, frame: int | None = None) -> Frame:
                  else None, _fps(spec),
                  float(ts) if isinstance(ts, (int, float)) else None, fmt, lam, cube,
                  from_spectrum, tuple(float(v) for v in chrom) if chrom else None,
-                 bool(spec.getattribute("oiio:UnassociatedAlpha") or 0))
+                 bool(spec.getattribute("oiio:UnassociatedAlpha") or 0), note)
 
 
 _SPECTRAL_CHANNEL = re.compile(r"^(?:S0\.)?(\d+(?:[.,]\d*)?)\s*nm$|^(\d{3}(?:[.,]\d*)?)$",

@@ -39,6 +39,18 @@ class FrameInfo:
     effects: dict = field(default_factory=dict)
 
 
+def as_float_pixels(frame) -> np.ndarray:
+    """Pixels as float32, integers normalised as OIIO does (unsigned: 0..max -> 0..1,
+    signed: -max..max -> -1..1); booleans, complex and non-numeric arrays refused."""
+    a = np.asarray(frame)
+    if a.dtype == bool or not (np.issubdtype(a.dtype, np.number)) or \
+            np.issubdtype(a.dtype, np.complexfloating):
+        raise ValueError(f"frame pixels must be real numbers (got dtype {a.dtype})")
+    if np.issubdtype(a.dtype, np.integer):
+        return (a.astype(np.float64) / float(np.iinfo(a.dtype).max)).astype(np.float32)
+    return a
+
+
 class Tonemapper:
     """Time-dependent tone mapping of frames for one observer.
 
@@ -128,7 +140,8 @@ class Tonemapper:
         ``frame * luminance_scale`` must be cd/m^2. Time advances by ``dt``
         seconds, or to the absolute ``time_s``; the first frame of a fresh
         observer needs neither. Returns display-linear float32 of the same
-        shape; a 4th channel is alpha. ``premultiplied`` (OIIO's and OpenEXR's
+        shape (H x W or H x W x 1 in: the output's luminance); a 4th channel is
+        alpha. Integer pixels are normalised as OIIO does (uint8 255 -> 1.0). ``premultiplied`` (OIIO's and OpenEXR's
         convention): the colour is divided by alpha before tone mapping (the
         operators are not linear) and multiplied again after; pixels with zero
         alpha and zero colour stay zero either way. Non-finite alpha is 0.
@@ -141,13 +154,25 @@ class Tonemapper:
         if wavelengths is not None:
             return self._process_spectral(frame, dt, time_s, frame_number, luminance_scale,
                                           wavelengths)
-        pix = np.asarray(frame)
+        pix = as_float_pixels(frame)
+        grey = None                                   # the input's own grey layout
         if pix.ndim == 2:
-            pix = pix[..., None]
+            pix, grey = pix[..., None], "2d"
         if pix.ndim != 3 or pix.shape[2] not in (1, 3, 4) or pix.shape[0] < 1 or pix.shape[1] < 1:
-            raise ValueError(f"frame must be H x W x 3 or 4 (got shape {np.shape(frame)})")
+            raise ValueError(f"frame must be H x W (luminance), H x W x 1, 3 or 4 "
+                             f"(got shape {np.shape(frame)})")
         if pix.shape[2] == 1:
-            pix = np.repeat(pix, 3, axis=2)
+            pix, grey = np.repeat(pix, 3, axis=2), grey or "1"
+        out = self._process_rgb(pix, dt, time_s, frame_number, luminance_scale, illuminant,
+                                premultiplied)
+        if grey is not None:                          # luminance in, luminance out
+            from .photometry import Y_WEIGHTS
+            y = (np.asarray(out[..., :3], np.float64) @ Y_WEIGHTS).astype(np.float32)
+            return y if grey == "2d" else y[..., None]
+        return out
+
+    def _process_rgb(self, pix, dt, time_s, frame_number, luminance_scale, illuminant,
+                     premultiplied):
         if not (math.isfinite(luminance_scale) and luminance_scale > 0):
             raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
         pix = np.ascontiguousarray(pix, np.float32)
@@ -304,26 +329,66 @@ class Tonemapper:
         return self._finish(out, orig)
 
     def process_imagebuf(self, buf, dt: float | None = None, time_s: float | None = None,
-                         luminance_scale: float = 1.0):
-        """ImageBuf in (working space), ImageBuf out (display-linear float, same spec)."""
+                         luminance_scale=None, colorconfig: str | None = None,
+                         iscolorspace: str | None = None, encode: bool = False,
+                         unpremult: bool | None = None, frame_number: int | None = None,
+                         channels: list[str] | None = None):
+        """ImageBuf in, ImageBuf out: the same front door as the command line.
+
+        The input's colourspace (``oiio:ColorSpace``, EXR ``chromaticities``, else
+        scene-linear Rec.709; ``iscolorspace`` overrides), its calibration
+        (``luminance_scale`` S or ``"auto:LEVEL"`` > ``whiteLuminance`` > EXIF
+        exposure > ...; see ``calibration.py``) and its alpha
+        (``oiio:UnassociatedAlpha``; ``unpremult`` overrides) are read as the CLI
+        reads them, with the OCIO config ``colorconfig`` (> $OCIO > ocio://default).
+        The result is float display-linear light in the display's linear
+        colourspace (``encode``: display code values), tagged and carrying the same
+        ``ocltm:*`` attributes as the CLI's outputs."""
         import OpenImageIO as oiio
-        spec = buf.spec()
-        pix = buf.get_pixels(oiio.FLOAT)
-        rgb_idx = _rgb_alpha_indices(spec)
-        sel = pix[..., rgb_idx]
-        straight = bool(spec.getattribute("oiio:UnassociatedAlpha") or 0)
-        out = self.process(sel, dt=dt, time_s=time_s, luminance_scale=luminance_scale,
-                           premultiplied=not straight)
+        from .imageio import frame_from_imagebuf
+        from .sequence import JobOptions, _Run, frame_input, render_output
+        fr = frame_from_imagebuf(buf, "<ImageBuf>", frame_number, channels)
+        key = (colorconfig, iscolorspace, luminance_scale, unpremult)
+        if getattr(self, "_front", None) is None or self._front[0] != key:
+            opts = JobOptions("<ImageBuf>", "<ImageBuf>", operator=self.operator_name,
+                              luminance_scale=luminance_scale, colorconfig=colorconfig,
+                              iscolorspace=iscolorspace, display=self.display.name
+                              if self.display.name and not self.display.paper_crt else None,
+                              unpremult=unpremult, encode=encode, checkpoint=False)
+            try:
+                run = _Run(opts, self._state.extra)
+            except Exception:  # noqa: BLE001 -- a display name the config lacks
+                opts.display = None
+                run = _Run(opts, self._state.extra)
+            self._front = (key, run)
+        run = self._front[1]
+        pix, lam, cs_text, scale, why = frame_input(run, self, fr, "<ImageBuf>")
+        self.process(pix, dt=dt, time_s=time_s, frame_number=frame_number,
+                     luminance_scale=scale, wavelengths=lam,
+                     premultiplied=run.premultiplied(fr))
+        t = self.last.time_s
+        r = render_output(run, self, fr, t, cs_text, scale, why, None, linear=not encode)
+        spec = fr.spec
+        nch = r.pixels.shape[2]
         ospec = oiio.ImageSpec(spec)
-        ospec.nchannels = out.shape[2]
-        ospec.channelnames = ("R", "G", "B", "A")[: out.shape[2]]
-        ospec.alpha_channel = 3 if out.shape[2] == 4 else -1
+        ospec.nchannels = nch
+        ospec.channelnames = ("R", "G", "B", "A")[:nch]
+        ospec.alpha_channel = 3 if nch == 4 else -1
         ospec.set_format(oiio.FLOAT)
-        if out.shape[2] != 4:
-            ospec.erase_attribute("oiio:UnassociatedAlpha")
+        for k in ("whiteLuminance", "chromaticities", "oiio:UnassociatedAlpha", "adoptedNeutral"):
+            ospec.erase_attribute(k)
+        ospec.attribute("oiio:ColorSpace", r.colorspace)
+        ospec.attribute("chromaticities", oiio.TypeDesc("float[8]"), tuple(r.chromaticities))
+        if r.white_luminance is not None:
+            ospec.attribute("whiteLuminance", float(r.white_luminance))
+        if nch == 4 and r.straight_alpha:
+            ospec.attribute("oiio:UnassociatedAlpha", 1)
+        for k, v in r.metadata.items():
+            ospec.attribute(k, v)
         res = oiio.ImageBuf(ospec)
         res.set_pixels(oiio.ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height,
-                                spec.z, spec.z + max(spec.depth, 1), 0, out.shape[2]), out)
+                                spec.z, spec.z + max(spec.depth, 1), 0, nch),
+                       np.ascontiguousarray(r.pixels, np.float32))
         return res
 
 
@@ -340,20 +405,3 @@ def _straight_colour(pix: np.ndarray, premultiplied: bool):
             rgb = np.where(a > 0, rgb / np.where(a > 0, a, 1.0), rgb)
         pix = np.concatenate([rgb.astype(np.float32), alpha[..., None]], axis=2)
     return np.ascontiguousarray(pix, np.float32), (alpha, empty, bool(premultiplied))
-
-
-def _rgb_alpha_indices(spec) -> list[int]:
-    """Channel indices of R, G, B (by name, else the first three) and alpha if any."""
-    names = [n.split(".")[-1].upper() for n in spec.channelnames]
-    idx = []
-    for want in ("R", "G", "B"):
-        if want in names:
-            idx.append(names.index(want))
-    if len(idx) != 3:
-        if spec.nchannels < 3:
-            idx = [0, 0, 0]
-        else:
-            idx = [0, 1, 2]
-    if spec.alpha_channel >= 0 and spec.alpha_channel not in idx:
-        idx.append(spec.alpha_channel)
-    return idx

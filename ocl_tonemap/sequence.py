@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import logging
 import math
+import os
+import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -29,8 +31,25 @@ from .pipeline import Tonemapper
 from .photometry import RepairCounts
 
 log = logging.getLogger("ocl_tonemap")
+#: A frame-number token in a file name (imageio's pattern), with a separator before it.
+_PAT_TOKEN = re.compile(r"[._-]?(#+|@+|%0?\d*d)")
 
 DEFAULT_FPS = 24.0
+#: What a gap in a sequence does (``--missing``).
+MISSING_POLICIES = ("error", "hold", "skip")
+
+
+class Interrupted(RuntimeError):
+    """A run stopped by SIGINT/SIGTERM after a complete frame (checkpoint written)."""
+
+    def __init__(self, signum: int, done: int, total: int, last_frame, checkpoint: str | None):
+        self.signum, self.done, self.total = signum, done, total
+        self.last_frame, self.checkpoint = last_frame, checkpoint
+        super().__init__(f"interrupted after {done} of {total} frame(s)")
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + int(self.signum)
 
 
 @dataclass
@@ -65,6 +84,21 @@ class JobOptions:
     progress: bool = False
     operator_options: dict | None = None
     effects: object | None = None   # effects.EffectSettings; None: the operator's defaults
+    missing: str = "error"          # a gap in a sequence: error | hold | skip
+    channels: list[str] | None = None   # --channels: names used as R,G,B (or one: luminance)
+    resume: bool = False            # continue from the checkpoint of an earlier run
+    checkpoint: bool = True         # write the state after every frame
+
+    def __post_init__(self):
+        if self.fps is not None and not (math.isfinite(self.fps) and 0 < self.fps <= 1e6):
+            raise ValueError(f"--fps must be a positive number of frames per second, at most "
+                             f"1e6 (got {self.fps:g})")
+        if not math.isfinite(self.exposure) or abs(self.exposure) > 100:
+            raise ValueError(f"--exposure must be a number of stops in [-100, 100] "
+                             f"(got {self.exposure:g})")
+        if self.missing not in MISSING_POLICIES:
+            raise ValueError(f"--missing must be one of {', '.join(MISSING_POLICIES)} "
+                             f"(got {self.missing!r})")
 
 
 @dataclass
@@ -91,28 +125,104 @@ def parse_preadapt(text: str) -> tuple[float, float | None]:
     return L, s
 
 
-def _jobs(opts: JobOptions) -> list[tuple[int | None, str, str]]:
-    """(frame, input path, output path) for every frame to process."""
-    if is_sequence(opts.input):
-        frames = opts.frames if opts.frames is not None else find_frames(opts.input)
-        if not frames:
+def _sequence_frames(opts: JobOptions) -> tuple[list[int], list[int]]:
+    """(frames to render, the missing ones among them) for a sequence input: the
+    --frames list, or every frame between the first and last on disk (step: the
+    common step of those present)."""
+    present = set(find_frames(opts.input))
+    if opts.frames is not None:
+        frames = list(opts.frames)
+    else:
+        if not present:
             raise FrameError(opts.input, None, "no frames found for this pattern")
+        have = sorted(present)
+        step = 0
+        for a, b in zip(have, have[1:]):
+            step = math.gcd(step, b - a)
+        step = step or 1
+        frames = list(range(have[0], have[-1] + 1, step))
+    missing = [f for f in frames if f not in present and not os.path.exists(frame_path(opts.input, f))]
+    return frames, missing
+
+
+def _jobs(opts: JobOptions) -> list[tuple[int | None, str, str, bool]]:
+    """(frame, input path, output path, held) for every frame to render; ``held``:
+    the input is the previous frame's (``--missing hold``). Every input is
+    checked before the first frame is processed."""
+    if is_sequence(opts.input):
         if not is_sequence(opts.output):
             raise FrameError(opts.output, None, "input is a sequence, so the output needs a "
                              "frame pattern too (#, @ or %04d)")
-        jobs = [(f, frame_path(opts.input, f), frame_path(opts.output, f)) for f in frames]
+        frames, missing = _sequence_frames(opts)
+        if missing and opts.missing == "error":
+            more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+            raise FrameError(frame_path(opts.input, missing[0]), missing[0],
+                             f"missing frame{more} between {frames[0]} and {frames[-1]}; nothing "
+                             "was processed. --missing hold repeats the previous frame, "
+                             "--missing skip leaves the gap (time still follows frame numbers)")
+        jobs, prev = [], None
+        gone = set(missing)
+        for f in frames:
+            if f in gone:
+                if opts.missing == "skip":
+                    log.warning("%s: missing, skipped (--missing skip)", frame_path(opts.input, f))
+                    continue
+                if prev is None:
+                    raise FrameError(frame_path(opts.input, f), f, "missing, and no earlier frame "
+                                     "to hold (--missing hold)")
+                log.warning("%s: missing, frame %d held (--missing hold)",
+                            frame_path(opts.input, f), prev)
+                jobs.append((f, frame_path(opts.input, prev), frame_path(opts.output, f), True))
+                continue
+            jobs.append((f, frame_path(opts.input, f), frame_path(opts.output, f), False))
+            prev = f
+        if not jobs:
+            raise FrameError(opts.input, None, "no frames to process")
     else:
         if opts.frames is not None and len(opts.frames) != 1:
             raise FrameError(opts.input, None, "--frames needs a sequence pattern in INPUT")
+        if not os.path.exists(opts.input):
+            raise FrameError(opts.input, None, "no such file")
         f = opts.frames[0] if opts.frames else None
         jobs = [(f, opts.input, frame_path(opts.output, f) if (f is not None and is_sequence(opts.output))
-                 else opts.output)]
-    inputs = [i for _, i, _ in jobs]
-    for f, i, o in jobs:
+                 else opts.output, False)]
+    inputs = {i for _, i, _, _ in jobs}
+    for f, _, o, _ in jobs:
         for j in inputs:
             if same_file(o, j):
                 raise FrameError(o, f, "output would overwrite an input file; choose another OUTPUT")
     return jobs
+
+
+def checkpoint_path(opts: JobOptions) -> str:
+    """Where the state is checkpointed after every frame: ``--state-out``, else the
+    output name without its frame number and extension + ``.state.json``
+    (``out/shot.####.png`` -> ``out/shot.state.json``)."""
+    if opts.state_out:
+        return opts.state_out
+    d, b = os.path.split(opts.output)
+    b = _PAT_TOKEN.sub("", b)
+    root = b.rsplit(".", 1)[0] if "." in b else b
+    root = root.rstrip("._-") or "ocl-tonemap"
+    return os.path.join(d, root + ".state.json")
+
+
+def _resume_point(opts: JobOptions, jobs, ckpt: str, operator: str):
+    """(state to start from, jobs still to do) for ``--resume``."""
+    if not os.path.exists(ckpt):
+        log.warning("--resume: no checkpoint %s; starting from the first frame", ckpt)
+        return None, jobs
+    st = AdaptationState.load(ckpt)
+    if st.operator != operator:
+        raise ValueError(f"--resume: the checkpoint {ckpt} belongs to operator {st.operator!r}, "
+                         f"not {operator!r}")
+    if st.frame is None:
+        raise ValueError(f"--resume: the checkpoint {ckpt} has no frame number (a still); "
+                         "run it again")
+    todo = [j for j in jobs if j[0] is not None and j[0] > st.frame]
+    log.warning("resuming after frame %d from %s: %d of %d frame(s) left", st.frame, ckpt,
+                len(todo), len(jobs))
+    return st, todo
 
 
 class _Run:
@@ -126,9 +236,6 @@ class _Run:
         self.colour = _colour(self.cfg, opts)
         self.disp = display_for(self.colour.display, opts.display_white, opts.display_peak,
                                 opts.display_model, opts.display_black)
-        if not math.isfinite(opts.exposure) or abs(opts.exposure) > 100:
-            raise ValueError(f"--exposure must be a number of stops in [-100, 100] "
-                             f"(got {opts.exposure})")
         self.request = CalibrationRequest.parse(opts.luminance_scale)
         self.calibrator = Calibrator(self.request, (tm_state_extra or {}).get(AUTO_SCALE_KEY))
         self._said: set = set()
@@ -168,54 +275,69 @@ AUTO_SCALE_KEY = "luminance_scale_auto"
 
 
 def run_job(opts: JobOptions) -> JobResult:
+    """The main job. Writes the state after every frame (``checkpoint_path``); SIGINT
+    and SIGTERM end it after the frame in flight (:class:`Interrupted`)."""
     t_start = time.perf_counter()
     jobs = _jobs(opts)
+    _remove_stale_temps(jobs)
+    ckpt = checkpoint_path(opts) if (opts.checkpoint or opts.resume) else None
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
+    if opts.resume:
+        st, jobs = _resume_point(opts, jobs, ckpt, opts.operator)
+        state = st if st is not None else state
     run = _Run(opts, state.extra if state is not None else None)
     colour, disp = run.colour, run.disp
+    _check_output_depth(opts, disp, jobs)
     tm = _make_tonemapper(opts, colour, state, disp)
     result = JobResult([], [])
     fps = opts.fps
     t_prev = tm.state.time_s
     n = len(jobs)
-    for k, (f, inp, outp) in enumerate(jobs):
-        fr = read_frame(inp, f)
-        try:
-            if fps is None:
-                fps = fr.fps or DEFAULT_FPS
-                if fr.fps is None:
-                    log.info("no --fps and no FramesPerSecond metadata: %g fps", fps)
-            if fr.timestamp is not None:
-                t = fr.timestamp
-            elif f is not None:
-                t = f / fps
-            else:
-                t = t_prev if t_prev is not None else 0.0
-            if t_prev is not None and t < t_prev:
-                raise ValueError(f"frame time {t:.6g} s is before the previous frame's {t_prev:.6g} s "
-                                 "(frames out of order, or --state-in from a later chunk)")
-            pix, lam, cs_text = _frame_input(run, tm, fr, inp)
-            scale, scale_why = run.calibrate(fr, lambda: pix)
-            _remember_auto(tm, run)
-            tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
-                       illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam,
-                       premultiplied=run.premultiplied(fr))
-            info = _write_output(run, tm, fr, outp, f, t, cs_text, scale, scale_why, None)
-        except FrameError:
-            raise
-        except Exception as exc:
-            raise FrameError(inp, f, exc) from exc
-        if info.repairs.total:
-            log.warning("%s%s: repaired bad values (%s)", inp, "" if f is None else f" frame {f}",
-                        info.repairs.summary())
-        result.repairs += info.repairs
-        result.frames.append(f)
-        result.outputs.append(outp)
-        result.infos.append(info)
-        t_prev = t
-        if opts.progress:
-            _progress(k + 1, n, time.perf_counter() - t_start)
-    if opts.progress:
+    with _StopSignals() as stop:
+        for k, (f, inp, outp, held) in enumerate(jobs):
+            fr = read_frame(inp, f, opts.channels)
+            try:
+                if fps is None:
+                    fps = fr.fps or DEFAULT_FPS
+                    if fr.fps is None:
+                        log.info("no --fps and no FramesPerSecond metadata: %g fps", fps)
+                if fr.timestamp is not None and not held:
+                    t = fr.timestamp
+                elif f is not None:
+                    t = f / fps
+                else:
+                    t = t_prev if t_prev is not None else 0.0
+                if t_prev is not None and t < t_prev:
+                    raise ValueError(f"frame time {t:.6g} s is before the previous frame's "
+                                     f"{t_prev:.6g} s (frames out of order, or --state-in from a "
+                                     "later chunk)")
+                pix, lam, cs_text, scale, scale_why = frame_input(run, tm, fr, inp)
+                tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
+                           illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam,
+                           premultiplied=run.premultiplied(fr))
+                extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
+                info = _write_output(run, tm, fr, outp, f, t, cs_text, scale, scale_why, extra)
+                if ckpt:
+                    tm.state.save(ckpt, checkpoint=True)
+            except FrameError:
+                raise
+            except Exception as exc:
+                raise FrameError(inp, f, exc) from exc
+            if info.repairs.total:
+                log.warning("%s%s: repaired bad values (%s)", inp,
+                            "" if f is None else f" frame {f}", info.repairs.summary())
+            result.repairs += info.repairs
+            result.frames.append(f)
+            result.outputs.append(outp)
+            result.infos.append(info)
+            t_prev = t
+            if opts.progress:
+                _progress(k + 1, n, time.perf_counter() - t_start)
+            if stop.signum is not None and k + 1 < n:
+                if opts.progress:
+                    sys.stderr.write("\n")
+                raise Interrupted(stop.signum, k + 1, n, f, ckpt)
+    if opts.progress and n:
         sys.stderr.write("\n")
     if opts.state_out:
         tm.state.save(opts.state_out)
@@ -224,6 +346,74 @@ def run_job(opts: JobOptions) -> JobResult:
         plot_adaptation(opts.plot, result.infos, tm, opts.plot_frames)
     result.seconds = time.perf_counter() - t_start
     return result
+
+
+def _check_output_depth(opts: JobOptions, disp, jobs) -> None:
+    """An HDR (PQ/HLG) encoding in 8 bits bands visibly: say so."""
+    from pathlib import Path
+    from .imageio import DEFAULT_BITS
+    if not jobs or not disp.hdr:
+        return
+    out = jobs[0][2]
+    bits = opts.out_bits or DEFAULT_BITS.get(Path(out).suffix.lower(), "float")
+    if bits == "8" and not output_is_linear(opts, out):
+        log.warning("%s: an HDR display encoding (%s) in 8 bits bands in smooth gradients; "
+                    "use --out-bits 16 (PNG, TIFF) or EXR", out, disp.name)
+
+
+class _StopSignals:
+    """SIGINT / SIGTERM set ``signum``; the run stops after the frame in flight. A
+    second signal stops at once (the frame in flight is discarded: outputs are
+    written to temporary files and renamed, so nothing partial is left)."""
+
+    def __init__(self):
+        self.signum = None
+        self._old = {}
+
+    def _handler(self, signum, frame):
+        if self.signum is not None:
+            raise KeyboardInterrupt
+        self.signum = signum
+
+    def __enter__(self):
+        import signal
+        import threading
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        import signal
+        for sig, h in self._old.items():
+            signal.signal(sig, h)
+        return False
+
+
+def _remove_stale_temps(jobs) -> None:
+    """Temporary files a killed earlier run may have left beside the outputs
+    (``.<name>.tmp<pid><ext>``, only ours: the pid must not be running)."""
+    import re
+    dirs = {os.path.dirname(os.path.abspath(o)) for _, _, o, _ in jobs}
+    rx = re.compile(r"^\..+\.tmp(\d+)(\.[A-Za-z0-9]+)?$")
+    for d in dirs:
+        try:
+            names = os.listdir(d)
+        except OSError:
+            continue
+        for name in names:
+            m = rx.match(name)
+            if not m or int(m.group(1)) == os.getpid():
+                continue
+            try:
+                os.kill(int(m.group(1)), 0)
+                continue                       # that process is alive: not ours to remove
+            except (ProcessLookupError, PermissionError, OverflowError):
+                pass
+            try:
+                os.unlink(os.path.join(d, name))
+            except OSError:
+                pass
 
 
 def _remember_auto(tm: Tonemapper, run: _Run) -> None:
@@ -273,13 +463,26 @@ def output_is_linear(opts: JobOptions, path: str) -> bool:
     return (not opts.encode) and Path(path).suffix.lower() in LINEAR_FORMATS
 
 
-def _write_output(run: _Run, tm: Tonemapper, fr, outp, f, t, cs_text, scale, scale_why,
-                  extra: dict | None):
-    """Encode the last processed frame for the display and write it with its metadata."""
-    opts, colour, disp = run.opts, run.colour, run.disp
+@dataclass
+class Rendered:
+    """The last processed frame, ready to write: pixels in the output colourspace
+    and what to tag them with (shared by the CLI and ``Tonemapper.process_imagebuf``)."""
+
+    pixels: np.ndarray
+    colorspace: str
+    metadata: dict
+    chromaticities: tuple
+    white_luminance: float | None
+    straight_alpha: bool
+
+
+def render_output(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
+                  extra: dict | None, linear: bool) -> Rendered:
+    """Encode the last processed frame (display-linear light in the display's
+    linear colourspace, or the display encoding) with its ``ocltm:*`` metadata."""
+    opts, colour, disp = run.opts, run.colour, tm.display
     info = tm.last
     disp_lin = tm.last_output
-    linear = output_is_linear(opts, outp)
     if linear:
         pixels = colour.linear(disp_lin[..., :3])
         out_cs = colour.linear_output()[0]
@@ -292,8 +495,8 @@ def _write_output(run: _Run, tm: Tonemapper, fr, outp, f, t, cs_text, scale, sca
     premult = run.premultiplied(fr)
     meta = {
         "Software": f"ocl-tonemap {__version__}",
-        "ocltm:operator": opts.operator,
-        "ocltm:backend": opts.backend,
+        "ocltm:operator": tm.operator_name,
+        "ocltm:backend": tm.backend.name,
         "ocltm:metering": tm.metering.describe() if tm.local is None else "local (bilateral)",
         "ocltm:input_colorspace": cs_text,
         "ocltm:output_colorspace": out_cs,
@@ -311,17 +514,39 @@ def _write_output(run: _Run, tm: Tonemapper, fr, outp, f, t, cs_text, scale, sca
         "ocltm:effects": json.dumps(info.effects, sort_keys=True, default=float),
         "ocltm:effects_ran": ",".join(k for k, v in info.effects.items() if v.get("ran")) or "none",
     }
+    if fr.channel_note:
+        meta["ocltm:channels"] = fr.channel_note
     if alpha:
         meta["ocltm:alpha"] = ("premultiplied: colour divided by alpha for the operator, "
                                "multiplied again" if premult else
                                ("straight (unassociated)" if fr.unassociated_alpha else
                                 "tone mapped as stored (--no-unpremult)"))
     meta.update(extra or {})
-    write_frame(outp, pixels, fr.spec, out_cs, meta, opts.out_bits, f,
-                chromaticities=colour.output_chromaticities(encoded=not linear),
-                white_luminance=disp.unit_cd if linear else None,
-                straight_alpha=alpha and not premult)
-    return info
+    return Rendered(pixels, out_cs, meta, colour.output_chromaticities(encoded=not linear),
+                    disp.unit_cd if linear else None, alpha and not premult)
+
+
+def _write_output(run: _Run, tm: Tonemapper, fr, outp, f, t, cs_text, scale, scale_why,
+                  extra: dict | None):
+    """Encode the last processed frame for the display and write it with its metadata."""
+    r = render_output(run, tm, fr, t, cs_text, scale, scale_why, extra,
+                      output_is_linear(run.opts, outp))
+    write_frame(outp, r.pixels, fr.spec, r.colorspace, r.metadata, run.opts.out_bits, f,
+                chromaticities=r.chromaticities, white_luminance=r.white_luminance,
+                straight_alpha=r.straight_alpha)
+    return tm.last
+
+
+def frame_input(run: _Run, tm: Tonemapper, fr, path):
+    """The front door for one frame: its pixels in the working space (or spectrum),
+    the description of its colour, and its calibration. Returns
+    (pixels, wavelengths or None, colour text, scale, scale source)."""
+    if fr.channel_note:
+        run.once(logging.WARNING, "%s: %s", path, fr.channel_note)
+    pix, lam, cs_text = _frame_input(run, tm, fr, path)
+    scale, why = run.calibrate(fr, lambda: pix)
+    _remember_auto(tm, run)
+    return pix, lam, cs_text, scale, why
 
 
 def parse_times(text: str) -> list[float]:
@@ -370,12 +595,10 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
     run = _Run(opts, state.extra if state is not None else None)
     tm = _make_tonemapper(opts, run.colour, state, run.disp)
-    fr = read_frame(opts.input, None)
+    fr = read_frame(opts.input, None, opts.channels)
     result = JobResult([], [])
     try:
-        pix, lam, cs_text = _frame_input(run, tm, fr, opts.input)
-        scale, scale_why = run.calibrate(fr, lambda: pix)
-        _remember_auto(tm, run)
+        pix, lam, cs_text, scale, scale_why = frame_input(run, tm, fr, opts.input)
         t_now = 0.0
         hint = illuminant_from_metadata(fr.spec)
         pm = run.premultiplied(fr)
