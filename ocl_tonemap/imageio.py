@@ -204,6 +204,17 @@ def select_channels(spec, channels: list[str] | None = None) -> tuple[list[int],
     return idx, note
 
 
+def max_frame_bytes() -> float:
+    """The largest frame read whole, as float32: a quarter of physical memory (the
+    pipeline holds a few copies). Larger declared sizes are refused before any
+    allocation (a corrupt header must not exhaust memory)."""
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        total = 16 * 2**30
+    return 0.25 * float(total)
+
+
 def read_frame(path: str, frame: int | None = None, channels: list[str] | None = None) -> Frame:
     """Read the RGB (+alpha) of an image OIIO can read, as float32 (channels by
     :func:`select_channels`; what was assumed is in ``Frame.channel_note``)."""
@@ -232,6 +243,12 @@ def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
     if spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
         raise FrameError(path, frame, f"empty image ({spec.width}x{spec.height}, "
                          f"{spec.nchannels} channels)")
+    need = float(spec.width) * spec.height * max(spec.depth, 1) * spec.nchannels * 4
+    if need > max_frame_bytes():
+        raise FrameError(path, frame, f"{spec.width}x{spec.height}x{spec.nchannels} would take "
+                         f"{need / 2**30:.1f} GiB as float32, more than this machine can hold "
+                         f"({max_frame_bytes() / 2**30:.1f} GiB allowed); a corrupt header, or "
+                         "split the image")
     pix = buf.get_pixels(oiio.FLOAT)
     if buf.has_error or pix is None:
         raise FrameError(path, frame, f"cannot read pixels: {_oiio_error(buf.geterror())}")

@@ -159,3 +159,109 @@ def test_state_in_from_an_output_frame(shot, tmp_path, capsys):
                "--frames", f"{a + 2}-{a + 3}", "--state-in", frame_path(led, a + 1), "-q"])
     err = capsys.readouterr().err
     assert rc == 2 and "per-pixel state" in err and "Traceback" not in err
+
+
+# --- the front door: arguments, channels, API -------------------------------------------
+
+def _exr(path, pix, names=None, **attrs):
+    h, w, c = pix.shape
+    spec = oiio.ImageSpec(w, h, c, oiio.FLOAT)
+    if names:
+        spec.channelnames = tuple(names)
+    for k, v in attrs.items():
+        spec.attribute(k, v)
+    buf = oiio.ImageBuf(spec)
+    buf.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, c), np.ascontiguousarray(pix, np.float32))
+    assert buf.write(str(path))
+    return str(path)
+
+
+@pytest.mark.parametrize("args, why", [
+    (["--fps", "0"], "--fps must be a positive"), (["--fps", "-1"], "--fps must be a positive"),
+    (["--fps", "nan"], "--fps must be a positive"), (["--fps", "inf"], "--fps must be a positive"),
+    (["--exposure", "2000"], "--exposure must be"), (["--luminance-scale", "0"], "--luminance-scale"),
+    (["--luminance-scale", "-5"], "--luminance-scale"), (["--sigma-spatial", "0"], "--sigma-spatial"),
+    (["--display-white", "-1"], "--display-white"),
+    (["--operator", "ledda04", "--local-strength", "2"], "--local-strength"),
+])
+def test_bad_numbers_fail_before_the_first_frame(shot, tmp_path, capsys, args, why):
+    pattern, _ = shot
+    rc = main(["run", pattern, str(tmp_path / "o.#.png"), *args, "-q"])
+    err = capsys.readouterr().err
+    assert rc == 2 and why in err and "Traceback" not in err
+    assert not list(tmp_path.iterdir())                      # nothing written
+
+
+def test_channel_rules(tmp_path, capsys, caplog):
+    import logging
+    rg = _exr(tmp_path / "rg.exr", np.ones((4, 4, 2)), ("R", "G"))
+    assert main(["run", rg, str(tmp_path / "o.png"), "-q"]) == 2
+    assert "2 channels (R, G)" in capsys.readouterr().err
+    assert main(["run", rg, str(tmp_path / "o.png"), "--channels", "R,G,G", "-q"]) == 0
+    y = _exr(tmp_path / "y.exr", np.full((4, 4, 1), 5.0), ("Y",))
+    with caplog.at_level(logging.WARNING, logger="ocl_tonemap"):
+        assert main(["run", y, str(tmp_path / "y.exr.png").replace(".exr", ""),
+                     "--luminance-scale", "1"]) == 0
+    assert any("taken as luminance" in r.getMessage() for r in caplog.records)
+
+
+def test_misplaced_options_warn_by_one_rule(shot, tmp_path, caplog):
+    import logging
+    pattern, frames = shot
+    with caplog.at_level(logging.WARNING, logger="ocl_tonemap"):
+        assert main(["run", pattern, str(tmp_path / "a.#.png"), "--frames", str(frames[0]),
+                     "--kappa", "full"]) == 0
+        assert main(["run", pattern, str(tmp_path / "b.#.png"), "--frames", str(frames[0]),
+                     "--operator", "ledda04", "--metering", "spot:0.5,0.5"]) == 0
+        assert main(["run", pattern, str(tmp_path / "c.#.png"), "--frames", str(frames[0]),
+                     "--display", "Rec.2100-PQ - Display"]) == 0
+    msgs = " | ".join(r.getMessage() for r in caplog.records)
+    assert "--kappa applies to kirk11: ignored for pattanaik00" in msgs
+    assert "--metering applies to" in msgs and "ignored for ledda04" in msgs
+    assert "in 8 bits" in msgs
+
+
+def test_help_names_every_metering_and_the_defaults(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    out = capsys.readouterr().out
+    assert "mask:" in out and "default pattanaik00" in out and "(default 1000)" in out
+
+
+def test_api_dtypes_and_shapes(rt):
+    from ocl_tonemap import Tonemapper
+    tm = Tonemapper("pattanaik00")
+    u8 = np.full((4, 6, 3), 255, np.uint8)
+    f = np.ones((4, 6, 3), np.float32)
+    np.testing.assert_array_equal(Tonemapper("pattanaik00").process(u8),
+                                  Tonemapper("pattanaik00").process(f))   # as OIIO normalises
+    grey = tm.process(np.full((4, 6), 50.0, np.float32))
+    assert grey.shape == (4, 6)
+    assert Tonemapper("pattanaik00").process(np.full((4, 6, 1), 50.0)).shape == (4, 6, 1)
+    with pytest.raises(ValueError, match="real numbers"):
+        Tonemapper("pattanaik00").process(np.ones((2, 2, 3), bool))
+    with pytest.raises(ValueError, match="H x W"):
+        Tonemapper("pattanaik00").process(np.ones((2, 2, 2), np.float32))
+
+
+def test_process_imagebuf_is_the_clis_front_door(tmp_path, rt):
+    """The same calibration, colour and metadata as the command line."""
+    from ocl_tonemap import Tonemapper
+    from ocl_tonemap.imageio import FrameError
+    pix = np.random.default_rng(1).uniform(0.1, 2.0, (6, 8, 3)).astype(np.float32)
+    p = _exr(tmp_path / "in.exr", pix, None, whiteLuminance=300.0)
+    cli_out = tmp_path / "o.exr"
+    assert main(["run", p, str(cli_out), "--out-bits", "float", "-q"]) == 0
+    res = Tonemapper("pattanaik00").process_imagebuf(oiio.ImageBuf(p))
+    cli = oiio.ImageBuf(str(cli_out))
+    np.testing.assert_allclose(res.get_pixels(oiio.FLOAT), cli.get_pixels(oiio.FLOAT), rtol=1e-6)
+    for k in ("ocltm:luminance_scale", "ocltm:luminance_scale_source", "ocltm:input_colorspace",
+              "whiteLuminance", "ocltm:output_encoding", "ocltm:state"):
+        assert res.spec().getattribute(k) == cli.spec().getattribute(k), k
+    from ocl_tonemap.colour import load_config
+    cfg = load_config(None)                       # (OIIO writes its interop ID into files)
+    assert cfg.getColorSpace(res.spec().getattribute("oiio:ColorSpace")).getName() == \
+        cfg.getColorSpace(cli.spec().getattribute("oiio:ColorSpace")).getName()
+    assert res.spec().getattribute("ocltm:luminance_scale") == 300.0
+    with pytest.raises(FrameError, match="cannot read"):
+        Tonemapper("pattanaik00").process_imagebuf(oiio.ImageBuf(str(tmp_path / "nope.exr")))
