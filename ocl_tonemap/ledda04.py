@@ -401,11 +401,19 @@ class LeddaObserver:
             buf, (h, w), rt = self._dev
             a = np.empty((len(STATE_CHANNELS), h, w), np.float32)
             cl.enqueue_copy(rt.queue, a, buf)
-            self._host = {k: a[i] for i, k in enumerate(STATE_CHANNELS)}
-            self._dev = None
+            # the device copy stays authoritative (and resident for the next frame);
+            # the host copy is a snapshot for checkpoints
+            return {k: np.array(a[i]) for i, k in enumerate(STATE_CHANNELS)}
         if self._host is None:
             return None
         return {k: np.array(v, copy=True) for k, v in self._host.items()}
+
+    def _take_host_state(self) -> dict | None:
+        """Move the state to the host (it becomes authoritative there)."""
+        if self._dev is not None:
+            self._host = self.pixel_state()
+            self._dev = None
+        return self._host
 
     def set_pixel_state(self, pixels: dict | None) -> None:
         if pixels is not None:
@@ -469,7 +477,7 @@ class LeddaObserver:
             st = initial_state(I_c, I_r, E_MAX)
             restarted = 0.0
         else:
-            prev = pre if pre is not None else self.pixel_state()
+            prev = pre if pre is not None else self._take_host_state()
             st = step_reference(prev, I_c, I_r, dt, self.settings.change_log10)
             restarted = float(np.mean(st["t_course"] == 0.0))
         self._host, self._dev = st, None
@@ -572,7 +580,7 @@ class LeddaObserver:
         out = np.empty((h, w, 3), np.float32)
         rods_used = True
         if banded and self._dev is not None:
-            self.pixel_state()                       # banded frames keep state on the host
+            self._take_host_state()                  # banded frames keep state on the host
         if banded and mode == "init":
             self._host = {k: np.empty((h, w), np.float32) for k in STATE_CHANNELS}
         nstate = len(STATE_CHANNELS)

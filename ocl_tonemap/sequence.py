@@ -86,8 +86,10 @@ class JobOptions:
     effects: object | None = None   # effects.EffectSettings; None: the operator's defaults
     missing: str = "error"          # a gap in a sequence: error | hold | skip
     channels: list[str] | None = None   # --channels: names used as R,G,B (or one: luminance)
+    png_level: int = 1                  # zlib level of PNG outputs (imageio.PNG_LEVEL)
     resume: bool = False            # continue from the checkpoint of an earlier run
-    checkpoint: bool = True         # write the state after every frame
+    checkpoint: bool = True         # write the state after every frame ...
+    checkpoint_every: int = 1       # ... or every N frames (local operators: per-pixel planes)
 
     def __post_init__(self):
         if self.fps is not None and not (math.isfinite(self.fps) and 0 < self.fps <= 1e6):
@@ -96,6 +98,10 @@ class JobOptions:
         if not math.isfinite(self.exposure) or abs(self.exposure) > 100:
             raise ValueError(f"--exposure must be a number of stops in [-100, 100] "
                              f"(got {self.exposure:g})")
+        if not (isinstance(self.checkpoint_every, int) and self.checkpoint_every >= 1):
+            raise ValueError(f"--checkpoint-every must be >= 1 (got {self.checkpoint_every})")
+        if not (isinstance(self.png_level, int) and 0 <= self.png_level <= 9):
+            raise ValueError(f"--png-level must be 0..9 (got {self.png_level})")
         if self.missing not in MISSING_POLICIES:
             raise ValueError(f"--missing must be one of {', '.join(MISSING_POLICIES)} "
                              f"(got {self.missing!r})")
@@ -317,7 +323,8 @@ def run_job(opts: JobOptions) -> JobResult:
                            premultiplied=run.premultiplied(fr))
                 extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
                 info = _write_output(run, tm, fr, outp, f, t, cs_text, scale, scale_why, extra)
-                if ckpt:
+                if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
+                             or stop.signum is not None):
                     tm.state.save(ckpt, checkpoint=True)
             except FrameError:
                 raise
@@ -533,7 +540,7 @@ def _write_output(run: _Run, tm: Tonemapper, fr, outp, f, t, cs_text, scale, sca
                       output_is_linear(run.opts, outp))
     write_frame(outp, r.pixels, fr.spec, r.colorspace, r.metadata, run.opts.out_bits, f,
                 chromaticities=r.chromaticities, white_luminance=r.white_luminance,
-                straight_alpha=r.straight_alpha)
+                straight_alpha=r.straight_alpha, png_level=run.opts.png_level)
     return tm.last
 
 

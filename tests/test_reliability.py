@@ -118,6 +118,25 @@ def test_interrupted_and_resumed_equals_one_run(op, shot, tmp_path):
                                           err_msg=f"{op} {sig!r} frame {f}")
 
 
+def test_sparse_checkpoints_resume_to_the_same_frames(shot, tmp_path):
+    """--checkpoint-every 7: a killed run re-renders the frames after the last
+    checkpoint, identically."""
+    pattern, frames = shot
+    common = ["--operator", "ledda04", "--out-bits", "float", "-q", "--checkpoint-every", "7"]
+    whole = str(tmp_path / "w.####.exr")
+    assert main(["run", pattern, whole, *common]) == 0
+    part = str(tmp_path / "p.####.exr")
+    _interrupt_after(["run", pattern, part, *common], str(tmp_path / "p.*.exr"), 20,
+                     signal.SIGKILL)
+    ck = json.loads((tmp_path / "p.state.json").read_text())
+    assert ck["frame"] % 7 == 0 or ck["frame"] == frames[-1]
+    p = _run(["run", pattern, part, *common, "--resume"])
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 0, err
+    for f in frames:
+        np.testing.assert_array_equal(pixels(frame_path(part, f)), pixels(frame_path(whole, f)))
+
+
 def test_ctrl_c_exits_130_with_the_checkpoint(shot, tmp_path):
     pattern, frames = shot
     out = str(tmp_path / "o.####.png")
