@@ -84,6 +84,30 @@ __kernel void bilateral_exact(__global const float *v, const int width, const in
 
 inline float grid_z(float v, int ratio) { return ratio ? log(v) : v; }
 
+/* z of n values once per pixel, four at a time (log2 on float4; the splat then
+ * reads z instead of taking a log on each of the ~4 cells that visit a pixel). */
+__kernel void grid_z_map(__global const float *v, const int n, const int ratio,
+                         __global float *z)
+{
+    const int q = get_global_id(0), i0 = 4 * q;
+    if (i0 >= n) return;
+    if (i0 + 4 <= n) {
+        const float4 x = vload4(q, v);
+        vstore4(ratio ? log2(x) * M_LN2_F : x, q, z);
+        return;
+    }
+    /* the tail the same way (float4, padded), so a pixel's z does not depend on
+     * where a band boundary falls */
+    float4 x = (float4)(1.0f);
+    x.x = v[i0];
+    if (i0 + 1 < n) x.y = v[i0 + 1];
+    if (i0 + 2 < n) x.z = v[i0 + 2];
+    const float4 r = ratio ? log2(x) * M_LN2_F : x;
+    z[i0] = r.x;
+    if (i0 + 1 < n) z[i0 + 1] = r.y;
+    if (i0 + 2 < n) z[i0 + 2] = r.z;
+}
+
 /* Per-work-group min and max of z over n values -> partial[2*group + {0,1}]. */
 __kernel void z_minmax(__global const float *v, const int n, const int ratio,
                        __global float *partial, __local float *scratch)
@@ -119,7 +143,8 @@ __kernel void z_minmax(__global const float *v, const int n, const int ratio,
 __kernel void grid_splat(__global const float *v, const int width, const int rows_in,
                          const int in_y0, const int ratio, const float s_s,
                          const float z0, const float inv_s_r, const int gw, const int cy0,
-                         const int nz, __global float2 *grid)
+                         const int nz, __global float2 *grid,
+                         __global const float *zv)     /* z of v (grid_z_map) */
 {
     const int cx = get_global_id(0), cy = cy0 + get_global_id(1);
     if (cx >= gw) return;
@@ -133,11 +158,12 @@ __kernel void grid_splat(__global const float *v, const int width, const int row
         const float wy = 1.0f - fabs(y * inv_s - cy);
         if (wy <= 0.0f) continue;
         __global const float *row = v + (size_t)(y - in_y0) * width;
+        __global const float *zrow = zv + (size_t)(y - in_y0) * width;
         for (int x = xa; x <= xb; ++x) {
             const float wxy = wy * (1.0f - fabs(x * inv_s - cx));
             if (wxy <= 0.0f) continue;
             const float val = row[x];
-            float gz = (grid_z(val, ratio) - z0) * inv_s_r;
+            float gz = (zrow[x] - z0) * inv_s_r;
             gz = clamp(gz, 0.0f, (float)(nz - 1));
             const int iz = min((int)gz, nz - 2 >= 0 ? nz - 2 : 0);
             const float fz = nz > 1 ? gz - iz : 0.0f;

@@ -255,6 +255,8 @@ class DeviceBilateral:
         self._splat = rt.kernel("bilateral.cl", "grid_splat")
         self._blur = rt.kernel("bilateral.cl", "grid_blur")
         self._slice = rt.kernel("bilateral.cl", "grid_slice")
+        self._zmap = rt.kernel("bilateral.cl", "grid_z_map")
+        self._zbuf = None
         self._cl = cl
         self._grid = None
         self._grid_bytes = 0
@@ -327,12 +329,18 @@ class DeviceBilateral:
         cy_lo = max(0, int(math.floor(in_y0 / geom.s_s)) - 1)
         cy_hi = min(geom.gh - 1, int(math.floor((in_y0 + rows_in - 1) / geom.s_s)) + 1)
         ncy = cy_hi - cy_lo + 1
+        n = width * rows_in
+        cl = self._cl
+        if self._zbuf is None or self._zbuf.size < n * 4:
+            self._zbuf = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, max(n * 4, 16))
+        self._zmap(self.rt.queue, (round_up(-(-n // 4), 64),), (64,), v_buf, np.int32(n),
+                   np.int32(1 if rk.ratio else 0), self._zbuf)
         wg = (16, 1)
         self._splat(self.rt.queue, (round_up(geom.gw, wg[0]), ncy), wg,
                     v_buf, np.int32(width), np.int32(rows_in), np.int32(in_y0),
                     np.int32(1 if rk.ratio else 0), np.float32(geom.s_s), np.float32(geom.z0),
                     np.float32(1.0 / geom.s_r), np.int32(geom.gw), np.int32(cy_lo),
-                    np.int32(geom.nz), self._grid[0])
+                    np.int32(geom.nz), self._grid[0], self._zbuf)
 
     def blur(self, geom: GridGeometry, rk: RangeKernel):
         """Blur the grid: Gaussian in x and y, the range kernel in z. Result in grid[0]."""
