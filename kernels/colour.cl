@@ -55,6 +55,32 @@ __kernel void scene_to_working(__global const float *src, const int channels, co
     if (lid < NREPAIR && lc[lid]) atomic_add(&counts[lid], lc[lid]);
 }
 
+/* The bad-value policy and the scale on n values in place (any number of
+ * channels: spectral frames), counting repairs as scene_to_working does. */
+__kernel void repair_scale(__global float *v, const int n, const float scale,
+                           __global int *counts)
+{
+    __local int lc[NREPAIR];
+    const int lid = get_local_id(0);
+    if (lid < NREPAIR) lc[lid] = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const int i = get_global_id(0);
+    if (i < n) {
+        int kind;
+        float x = repair_value(v[i], &kind);
+        if (kind >= 0) atomic_inc(&lc[kind]);
+        if (kind == 1) {
+            x = L_MAX;
+        } else {
+            x *= scale;
+            if (x > L_MAX) { atomic_inc(&lc[5]); x = L_MAX; }
+        }
+        v[i] = x;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid < NREPAIR && lc[lid]) atomic_add(&counts[lid], lc[lid]);
+}
+
 /* Von Kries chromatic adaptation of the cone signals (Durand & Dorsey 2000,
  * Eq. 6): rgb *= gains, photopic Y recomputed; the rod signal Y' is left as
  * it was (rods do not adapt chromatically). */

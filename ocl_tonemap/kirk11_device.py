@@ -8,7 +8,7 @@ from . import lmsr
 from .bilateral import DeviceBilateral, RangeKernel
 from .kirk11 import (RHO, SIGMA_RANGE_LOG10, KirkSummary, logmean, subset_solvers,
                      model_scale, white_norm)
-from .photometry import RepairCounts, sanitize
+from .photometry import RepairCounts
 
 
 class KirkDevice:
@@ -114,20 +114,41 @@ class KirkDevice:
         cl.enqueue_copy(q_, nfb, fb)
         return res, float(nfb[0]) / max(n, 1)
 
+    def _repair(self, buf, n: int, scale: float, count: bool) -> RepairCounts:
+        """photometry.sanitize on the device, in place (kernels/colour.cl repair_scale)."""
+        from .runtime import round_up
+        cl, q_ = self.cl, self.rt.queue
+        if getattr(self, "_k_repair", None) is None:
+            self._k_repair = self.rt.kernel("colour.cl", "repair_scale")
+            self._counts = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, 8 * 4)
+        cl.enqueue_fill_buffer(q_, self._counts, np.int32(0), 0, 8 * 4)
+        self._k_repair(q_, (round_up(max(n, 1), 64),), (64,), buf, np.int32(n),
+                       np.float32(scale), self._counts)
+        rc = RepairCounts()
+        if count:
+            c = np.empty(8, np.int32)
+            cl.enqueue_copy(q_, c, self._counts)
+            for k, v in zip(RepairCounts.KEYS, c):
+                setattr(rc, k, int(v))
+        return rc
+
     def _lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
         """One band (or a whole frame) to LMSR on the device: (q buffer, source
-        buffer, repairs). RGB goes through the device colour stage; spectra through
-        the host bad-value policy, then uploaded."""
+        buffer, repairs). RGB goes through the device colour stage; spectra are
+        uploaded as they are and repaired on the device (``_repair``)."""
         from .runtime import round_up
         nr, w = band.shape[:2]
         n = nr * w
         if wavelengths is None:
             rc = backend._to_working(band, scale, count=count)
             src, W, nc = backend._bufs["rgb"], lmsr.fitted()["H"], 3
-        else:
-            spec, rc = sanitize(band, scale)
-            nc = spec.shape[2]
-            src, W = self._buf(0, spec.reshape(n, nc)), lmsr.spectrum_weights(wavelengths)
+        else:                                     # repaired and scaled on the device
+            nc = band.shape[2]
+            mf = self.cl.mem_flags
+            src = self.cl.Buffer(self.rt.context, mf.READ_WRITE | mf.COPY_HOST_PTR,
+                                 hostbuf=np.ascontiguousarray(band, np.float32).reshape(n, nc))
+            W = lmsr.spectrum_weights(wavelengths)
+            rc = self._repair(src, n * nc, scale, count)
         q = self._buf(n * 16)
         self._k_lmsr(self.rt.queue, (round_up(n, 64),), (64,), src, np.int32(nc), np.int32(n),
                      self._buf(0, W), q)
