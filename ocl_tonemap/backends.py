@@ -170,15 +170,20 @@ class OpenCLBackend:
         _, repairs, G, illum = self._meter_pass(pixels, scale, spec, True, rgb)
         return rgb, repairs, G, lambda: illum[:3]
 
-    def process(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec, op,
-                step: StepFn):
+    def process(self, pixels, scale: float, spec: met.MeteringSpec, op, step: StepFn,
+                sink=None):
+        """Meter, step, map. ``pixels`` may be any object with ``shape`` whose row
+        slices give bands (a band source reading a file); with ``sink(y0, band)``
+        each mapped band goes there instead of into a whole output frame (None is
+        returned for it): host memory then stays at a few bands."""
         import pyopencl as cl
         from .runtime import round_up
         h, w, c = pixels.shape
         bands, repairs, (G_rod, G_cone), illum = self._meter_pass(
             pixels, scale, spec, getattr(step, "wants_illuminant", False), None)
+        self.last_repairs = repairs
         params, gains = step(G_rod, G_cone, lambda: illum[:3])
-        out = np.empty((h, w, 3), np.float32)
+        out = np.empty((h, w, 3), np.float32) if sink is None else None
         for i, (y0, nr) in enumerate(bands):              # pass 2: per-pixel operator
             if len(bands) > 1:
                 self._to_working(pixels[y0:y0 + nr], scale, count=False)
@@ -189,7 +194,12 @@ class OpenCLBackend:
                 self._gains(self.rt.queue, (round_up(n, 64),), (64,), b["rgb"], b["Y"],
                             np.int32(n), g[0], g[1], g[2])
             op.map_opencl(self.rt, b["rgb"], b["Y"], b["Ys"], b["out"], n, params)
-            cl.enqueue_copy(self.rt.queue, out[y0:y0 + nr], b["out"])
+            if sink is None:
+                cl.enqueue_copy(self.rt.queue, out[y0:y0 + nr], b["out"])
+            else:
+                band = np.empty((nr, w, 3), np.float32)
+                cl.enqueue_copy(self.rt.queue, band, b["out"])
+                sink(y0, band)
         return out, repairs, (G_rod, G_cone)
 
 

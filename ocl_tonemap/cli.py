@@ -79,6 +79,10 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", help="OpenCL device: P:D index, gpu, cpu or a name substring")
     p.add_argument("--out-bits", choices=["8", "16", "half", "float"],
                    help="output sample type (default by extension: EXR half, TIFF 16, PNG/JPEG 8)")
+    p.add_argument("--max-memory", type=float, metavar="MIB",
+                   help="host memory budget: frames that would take more whole are read, "
+                   "mapped and written in row bands (global operators without flare/acuity; "
+                   "default: stream only frames larger than a quarter of the machine's memory)")
     p.add_argument("--png-level", type=int, default=1, metavar="0-9",
                    help="zlib level of PNG outputs (default 1: 3.5x faster to write than 6, "
                    "files ~13%% larger)")
@@ -159,7 +163,7 @@ def _options(a, input_, output):
         effects=_effects(a), missing=a.missing, resume=a.resume, checkpoint=a.checkpoint,
         checkpoint_every=a.checkpoint_every,
         channels=[c.strip() for c in a.channels.split(",")] if a.channels else None,
-        png_level=a.png_level,
+        png_level=a.png_level, max_memory=a.max_memory,
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
 
 

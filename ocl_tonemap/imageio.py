@@ -340,16 +340,45 @@ def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
     bits = bits or DEFAULT_BITS.get(ext, "float")
     if bits not in BITS_TYPES:
         raise FrameError(path, frame, f"unknown output bit depth {bits!r} (8, 16, half, float)")
+    pix, straight_alpha = _alpha_for_format(pixels, ext, straight_alpha)
+    nch = pix.shape[2]
+    spec = _output_spec(in_spec, pix.shape[1], pix.shape[0], nch, ext, bits, colorspace,
+                        metadata, chromaticities, white_luminance, straight_alpha, png_level)
+    buf = oiio.ImageBuf(spec)
+    roi = oiio.ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height, 0, 1, 0, nch)
+    if not buf.set_pixels(roi, pix):
+        raise FrameError(path, frame, f"cannot set pixels: {buf.geterror()}")
+    d = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(d):
+        raise FrameError(path, frame, f"output folder {d} does not exist")
+    tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{ext}")
+    try:
+        if not buf.write(tmp, BITS_TYPES[bits]):
+            raise FrameError(path, frame, f"cannot write: {buf.geterror().strip()}")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _alpha_for_format(pixels, ext: str, straight_alpha: bool):
+    """(pixels as the format stores them, still straight?): JPEG drops alpha;
+    premultiplied formats (EXR) get straight colour premultiplied."""
     pix = np.ascontiguousarray(pixels, np.float32)
     if ext in (".jpg", ".jpeg") and pix.shape[2] == 4:
         pix = np.ascontiguousarray(pix[..., :3])
-    nch = pix.shape[2]
-    if nch == 4 and straight_alpha and ext in PREMULTIPLIED_FORMATS:
+    if pix.shape[2] == 4 and straight_alpha and ext in PREMULTIPLIED_FORMATS:
         pix = pix.copy()
         pix[..., :3] *= pix[..., 3:4]
         straight_alpha = False
+    return pix, straight_alpha
+
+
+def _output_spec(in_spec, width, height, nch, ext, bits, colorspace, metadata,
+                 chromaticities, white_luminance, straight_alpha, png_level):
+    """The output's ImageSpec: the input's windows and metadata, the output's tags."""
     spec = oiio.ImageSpec(in_spec) if in_spec is not None else \
-        oiio.ImageSpec(pix.shape[1], pix.shape[0], nch, oiio.FLOAT)
+        oiio.ImageSpec(width, height, nch, oiio.FLOAT)
     spec.nchannels = nch
     spec.channelnames = ("R", "G", "B", "A")[:nch]
     spec.alpha_channel = 3 if nch == 4 else -1
@@ -369,18 +398,119 @@ def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
         spec.attribute("png:compressionLevel", int(png_level))
     for k, v in metadata.items():
         spec.attribute(k, v if isinstance(v, (str, int, float)) else json.dumps(v, sort_keys=True))
-    buf = oiio.ImageBuf(spec)
-    roi = oiio.ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height, 0, 1, 0, nch)
-    if not buf.set_pixels(roi, pix):
-        raise FrameError(path, frame, f"cannot set pixels: {buf.geterror()}")
-    d = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(d):
-        raise FrameError(path, frame, f"output folder {d} does not exist")
-    tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{ext}")
-    try:
-        if not buf.write(tmp, BITS_TYPES[bits]):
-            raise FrameError(path, frame, f"cannot write: {buf.geterror().strip()}")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    return spec
+
+
+class BandReader:
+    """A file read in row bands (OIIO scanline reads): ``header`` is the Frame
+    without pixels; ``read(y0, y1)`` gives rows [y0, y1) of the selected
+    channels (R, G, B [, A]) as float32."""
+
+    def __init__(self, path: str, frame: int | None = None, channels: list[str] | None = None):
+        if not os.path.exists(path):
+            raise FrameError(path, frame, "no such file")
+        hint = oiio.ImageSpec()
+        hint.attribute("oiio:UnassociatedAlpha", 1)
+        self.path, self.frame = path, frame
+        self.inp = oiio.ImageInput.open(path, hint)
+        if self.inp is None:
+            raise FrameError(path, frame, f"cannot read: {_oiio_error(oiio.geterror())}")
+        spec = self.inp.spec()
+        if spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
+            raise FrameError(path, frame, "empty image")
+        try:
+            self.idx, note = select_channels(spec, channels)
+        except ValueError as exc:
+            raise FrameError(path, frame, exc) from None
+        self.spec = spec
+        wl = spec.getattribute("whiteLuminance")
+        ts = spec.getattribute("ocltm:timestamp")
+        chrom = spec.getattribute("chromaticities")
+        self.header = Frame(path, frame, np.zeros((0, 0, len(self.idx)), np.float32), spec,
+                            spec.getattribute("oiio:ColorSpace") or None,
+                            float(wl) if isinstance(wl, (int, float)) and math.isfinite(wl)
+                            and wl > 0 else None, _fps(spec),
+                            float(ts) if isinstance(ts, (int, float)) else None,
+                            self.inp.format_name(), None, None, False,
+                            tuple(float(v) for v in chrom)
+                            if isinstance(chrom, (tuple, list)) and len(chrom) == 8 else None,
+                            bool(spec.getattribute("oiio:UnassociatedAlpha") or 0), note)
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return self.spec.height, self.spec.width, len(self.idx)
+
+    def read(self, y0: int, y1: int) -> np.ndarray:
+        s = self.spec
+        data = self.inp.read_scanlines(0, 0, s.y + y0, s.y + y1, 0, 0, s.nchannels, oiio.FLOAT)
+        if data is None:
+            raise FrameError(self.path, self.frame,
+                             f"cannot read rows {y0}-{y1}: {_oiio_error(self.inp.geterror())}")
+        data = np.asarray(data, np.float32).reshape(y1 - y0, s.width, s.nchannels)
+        return np.ascontiguousarray(data[..., self.idx])
+
+    def close(self) -> None:
+        if self.inp is not None:
+            self.inp.close()
+            self.inp = None
+
+
+class BandWriter:
+    """An output written in row bands (OIIO scanline writes) to a temporary file,
+    renamed over the target by :meth:`commit` (nothing partial is ever left)."""
+
+    def __init__(self, path: str, in_spec, nch: int, colorspace: str, metadata: dict,
+                 bits: str | None = None, frame: int | None = None,
+                 chromaticities: tuple | None = None, white_luminance: float | None = None,
+                 straight_alpha: bool = False, png_level: int = PNG_LEVEL):
+        self.path, self.frame = path, frame
+        self.ext = Path(path).suffix.lower()
+        bits = bits or DEFAULT_BITS.get(self.ext, "float")
+        if bits not in BITS_TYPES:
+            raise FrameError(path, frame, f"unknown output bit depth {bits!r} (8, 16, half, float)")
+        if self.ext in (".jpg", ".jpeg"):
+            nch = min(nch, 3)
+        self.straight = straight_alpha and not (nch == 4 and self.ext in PREMULTIPLIED_FORMATS)
+        self.premultiply = nch == 4 and straight_alpha and self.ext in PREMULTIPLIED_FORMATS
+        self.nch = nch
+        self.spec = _output_spec(in_spec, in_spec.width, in_spec.height, nch, self.ext, bits,
+                                 colorspace, metadata, chromaticities, white_luminance,
+                                 self.straight, png_level)
+        d = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(d):
+            raise FrameError(path, frame, f"output folder {d} does not exist")
+        self.tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{self.ext}")
+        self.out = oiio.ImageOutput.create(self.tmp)
+        if self.out is None or not self.out.open(self.tmp, self.spec):
+            err = _oiio_error(oiio.geterror() if self.out is None else self.out.geterror())
+            self.abort()
+            raise FrameError(path, frame, f"cannot write: {err}")
+
+    def write(self, y0: int, pixels: np.ndarray) -> None:
+        pix = np.ascontiguousarray(pixels[..., :self.nch], np.float32)
+        if self.premultiply:
+            pix = pix.copy()
+            pix[..., :3] *= pix[..., 3:4]
+        s = self.spec
+        if not self.out.write_scanlines(s.y + y0, s.y + y0 + pix.shape[0], 0, pix):
+            err = _oiio_error(self.out.geterror())
+            self.abort()
+            raise FrameError(self.path, self.frame, f"cannot write rows from {y0}: {err}")
+
+    def commit(self) -> None:
+        ok = self.out.close()
+        self.out = None
+        if not ok:
+            self.abort()
+            raise FrameError(self.path, self.frame, "cannot finish writing")
+        os.replace(self.tmp, self.path)
+
+    def abort(self) -> None:
+        if getattr(self, "out", None) is not None:
+            try:
+                self.out.close()
+            except Exception:  # noqa: BLE001
+                pass
+            self.out = None
+        if os.path.exists(self.tmp):
+            os.unlink(self.tmp)

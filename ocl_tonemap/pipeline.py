@@ -181,6 +181,30 @@ class Tonemapper:
             pix, self._alpha = _straight_colour(pix, premultiplied)
 
         st = self._state
+        time_s, step_dt, fresh = self._frame_time(dt, time_s)
+        orig = pix
+        eff: dict = {}
+        pre_repairs = None
+        pix, luminance_scale, pre_repairs = self._pre_effects(pix, luminance_scale, eff, step_dt,
+                                                              fresh, illuminant)
+        if self.local is not None:
+            return self._process_local(pix, orig, luminance_scale, step_dt, fresh, time_s,
+                                       frame_number, eff, pre_repairs)
+        holder = {}
+        fx = self.effects
+        step = self._global_step(fresh, step_dt, time_s, frame_number, illuminant, eff, holder)
+        out, repairs, (G_rod, G_cone) = self.backend.process(pix, luminance_scale, self.metering,
+                                                             self.op, step)
+        out, eff["acuity"] = fx.acuity(out, G_rod)
+        p = holder["params"]
+        self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone,
+                              pre_repairs or repairs, st.copy(),
+                              p.as_dict() if hasattr(p, "as_dict") else {}, eff)
+        return self._finish(out, orig)
+
+    def _frame_time(self, dt, time_s):
+        """(time of this frame, step since the last one, fresh observer?)."""
+        st = self._state
         fresh = not st.values
         if time_s is None:
             if fresh:
@@ -193,16 +217,13 @@ class Tonemapper:
         if not math.isfinite(step_dt) or step_dt < 0:
             raise ValueError(f"time goes backwards or is not finite: last frame at {st.time_s} s, "
                              f"this one at {time_s} s")
-        orig = pix
-        eff: dict = {}
-        pre_repairs = None
-        pix, luminance_scale, pre_repairs = self._pre_effects(pix, luminance_scale, eff, step_dt,
-                                                              fresh, illuminant)
-        if self.local is not None:
-            return self._process_local(pix, orig, luminance_scale, step_dt, fresh, time_s,
-                                       frame_number, eff, pre_repairs)
-        holder = {}
-        fx = self.effects
+        return time_s, step_dt, fresh
+
+    def _global_step(self, fresh, step_dt, time_s, frame_number, illuminant, eff, holder):
+        """The host scheduler's step for a global operator, called by the backend
+        between metering and mapping: advance the state, the frame's parameters,
+        chromatic adaptation's gains."""
+        st, fx = self._state, self.effects
 
         def step(G_rod: float, G_cone: float, estimate):
             if fresh:
@@ -220,17 +241,55 @@ class Tonemapper:
                 goal, src = fx.illuminant_goal(illuminant, estimate)
                 gains, eff["chromatic_adaptation"] = fx.chromatic(
                     st.extra, goal, src, step_dt, fresh, self.preadapt is not None)
+            holder["G"] = (G_rod, G_cone)
             return p, gains
 
         step.wants_illuminant = fx.s.chromatic_adaptation != "off"
-        out, repairs, (G_rod, G_cone) = self.backend.process(pix, luminance_scale, self.metering,
-                                                             self.op, step)
-        out, eff["acuity"] = fx.acuity(out, G_rod)
-        p = holder["params"]
-        self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone,
-                              pre_repairs or repairs, st.copy(),
-                              p.as_dict() if hasattr(p, "as_dict") else {}, eff)
-        return self._finish(out, orig)
+        return step
+
+    def can_stream(self) -> str | None:
+        """Why frames cannot be streamed in bands (None: they can): global operators
+        whose effects need no whole frame (flare, acuity and the Purkinje effect do)."""
+        if self.local is not None:
+            return f"{self.operator_name} adapts locally"
+        if self.backend.name != "opencl":
+            return "the reference backend works on whole frames"
+        fx = self.effects.s
+        for name in ("flare", "acuity", "purkinje"):
+            if getattr(fx, name) != "off":
+                return f"the {name} effect needs the whole frame"
+        return None
+
+    def process_stream(self, source, sink, dt: float | None = None,
+                       time_s: float | None = None, frame_number: int | None = None,
+                       luminance_scale: float = 1.0, illuminant=None) -> None:
+        """One frame in row bands, never whole in memory: ``source[y0:y1]`` gives
+        working-space bands (straight colour), ``source.shape`` is (H, W, C);
+        ``sink(y0, band)`` receives the display-linear bands (3 channels) after
+        the state has advanced (``self.last`` is set before the first band comes).
+        Global operators without whole-frame effects (:meth:`can_stream`)."""
+        why = self.can_stream()
+        if why:
+            raise ValueError(f"cannot stream this frame: {why}")
+        if not (math.isfinite(luminance_scale) and luminance_scale > 0):
+            raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
+        time_s, step_dt, fresh = self._frame_time(dt, time_s)
+        holder, eff = {}, {}
+        step = self._global_step(fresh, step_dt, time_s, frame_number, illuminant, eff, holder)
+        first = [True]
+
+        def band_out(y0, band):
+            if first[0]:
+                first[0] = False
+                G_rod, G_cone = holder["G"]
+                p = holder["params"]
+                self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone,
+                                      self.backend.last_repairs, self._state.copy(),
+                                      p.as_dict() if hasattr(p, "as_dict") else {}, eff)
+            sink(y0, band)
+
+        self.last_output = None
+        self.backend.process(source, luminance_scale, self.metering, self.op, step, band_out)
 
     def _process_spectral(self, frame, dt, time_s, frame_number, scale, wavelengths):
         if self.local is None or not getattr(self.op, "SPECTRAL", False):

@@ -87,6 +87,7 @@ class JobOptions:
     missing: str = "error"          # a gap in a sequence: error | hold | skip
     channels: list[str] | None = None   # --channels: names used as R,G,B (or one: luminance)
     png_level: int = 1                  # zlib level of PNG outputs (imageio.PNG_LEVEL)
+    max_memory: float | None = None     # MiB: frames that would take more stream in bands
     resume: bool = False            # continue from the checkpoint of an earlier run
     checkpoint: bool = True         # write the state after every frame ...
     checkpoint_every: int = 1       # ... or every N frames (local operators: per-pixel planes)
@@ -98,6 +99,9 @@ class JobOptions:
         if not math.isfinite(self.exposure) or abs(self.exposure) > 100:
             raise ValueError(f"--exposure must be a number of stops in [-100, 100] "
                              f"(got {self.exposure:g})")
+        if self.max_memory is not None and not (math.isfinite(self.max_memory)
+                                                and self.max_memory >= 8):
+            raise ValueError(f"--max-memory must be at least 8 MiB (got {self.max_memory:g})")
         if not (isinstance(self.checkpoint_every, int) and self.checkpoint_every >= 1):
             raise ValueError(f"--checkpoint-every must be >= 1 (got {self.checkpoint_every})")
         if not (isinstance(self.png_level, int) and 0 <= self.png_level <= 9):
@@ -301,6 +305,23 @@ def run_job(opts: JobOptions) -> JobResult:
     n = len(jobs)
     with _StopSignals() as stop:
         for k, (f, inp, outp, held) in enumerate(jobs):
+            rows = _stream_rows(opts, tm, inp, f)
+            if rows:
+                t, info = _stream_frame(run, tm, inp, outp, f, held, rows, fps, t_prev)
+                fps = fps or DEFAULT_FPS
+                if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
+                             or stop.signum is not None):
+                    tm.state.save(ckpt, checkpoint=True)
+                result.repairs += info.repairs
+                result.frames.append(f)
+                result.outputs.append(outp)
+                result.infos.append(info)
+                t_prev = t
+                if opts.progress:
+                    _progress(k + 1, n, time.perf_counter() - t_start)
+                if stop.signum is not None and k + 1 < n:
+                    raise Interrupted(stop.signum, k + 1, n, f, ckpt)
+                continue
             fr = read_frame(inp, f, opts.channels)
             try:
                 if fps is None:
@@ -366,6 +387,141 @@ def _check_output_depth(opts: JobOptions, disp, jobs) -> None:
     if bits == "8" and not output_is_linear(opts, out):
         log.warning("%s: an HDR display encoding (%s) in 8 bits bands in smooth gradients; "
                     "use --out-bits 16 (PNG, TIFF) or EXR", out, disp.name)
+
+
+#: Host memory of the whole-frame path, in frames of float32 RGB (measured: 12x for
+#: pattanaik00 and durand00 at 6000x4000, PoCL's device buffers included), and of the
+#: streaming path per pixel of a band (reads, colour, device buffers, encode, write).
+WHOLE_FRAME_COPIES = 12.0
+STREAM_BYTES_PER_PIXEL = 160.0
+
+
+def _stream_rows(opts: JobOptions, tm: Tonemapper, inp: str, f) -> int | None:
+    """Rows per band when this frame is to be streamed, else None: when it would
+    take more than ``--max-memory`` whole (or more than the machine can hold),
+    for operators that can stream (``Tonemapper.can_stream``)."""
+    from .imageio import max_frame_bytes
+    if opts.max_memory is None and not os.path.exists(inp):
+        return None
+    try:
+        import OpenImageIO as oiio
+        i = oiio.ImageInput.open(inp)
+        if i is None:
+            return None
+        spec = i.spec()
+        i.close()
+    except Exception:  # noqa: BLE001 -- read_frame reports it properly
+        return None
+    frame_bytes = float(spec.width) * spec.height * 12.0
+    budget = opts.max_memory * 2**20 if opts.max_memory else max_frame_bytes()
+    if WHOLE_FRAME_COPIES * frame_bytes <= budget or spec.width < 1:
+        return None
+    why = tm.can_stream()
+    if why:
+        log.warning("%s: %.0f MiB would be needed whole, over the budget of %.0f MiB, but it "
+                    "cannot be streamed (%s)", inp, WHOLE_FRAME_COPIES * frame_bytes / 2**20,
+                    budget / 2**20, why)
+        return None
+    rows = int(max(1, min(spec.height, (budget / 4) // (STREAM_BYTES_PER_PIXEL * spec.width))))
+    log.info("%s: streamed in bands of %d rows (budget %.0f MiB)", inp, rows, budget / 2**20)
+    return rows
+
+
+class _WorkingBands:
+    """A frame file as working-space bands for ``Tonemapper.process_stream``: rows
+    read on demand, colour converted, colour straightened (divided by alpha)
+    where it was premultiplied; the alpha of the last bands is kept for the sink."""
+
+    def __init__(self, reader, colour, ic, premultiplied: bool):
+        self.reader, self.colour, self.ic = reader, colour, ic
+        self.premultiplied = premultiplied
+        self.shape = reader.shape
+        self._alpha: dict = {}
+
+    def __getitem__(self, sl: slice) -> np.ndarray:
+        from .pipeline import _straight_colour
+        y0, y1 = sl.start or 0, sl.stop
+        band = self.colour.convert_input(self.reader.read(y0, y1), self.ic)
+        if band.shape[2] == 4:
+            band, alpha = _straight_colour(band, self.premultiplied)
+            self._alpha = {y0: alpha}
+        return band
+
+    def alpha(self, y0: int):
+        return self._alpha.get(y0)
+
+
+def _stream_frame(run: _Run, tm: Tonemapper, inp, outp, f, held, rows, fps, t_prev):
+    """One frame read, mapped and written in bands of ``rows`` rows; returns (time, info)."""
+    from .calibration import log_average
+    from .imageio import BandReader, BandWriter
+    reader = BandReader(inp, f, run.opts.channels)
+    writer = None
+    try:
+        fr = reader.header
+        fps = fps or fr.fps or DEFAULT_FPS
+        t = (fr.timestamp if (fr.timestamp is not None and not held) else
+             (f / fps if f is not None else (t_prev if t_prev is not None else 0.0)))
+        if t_prev is not None and t < t_prev:
+            raise ValueError(f"frame time {t:.6g} s is before the previous frame's {t_prev:.6g} s")
+        ic = run.input_colour(fr, inp)
+        if fr.channel_note:
+            run.once(logging.WARNING, "%s: %s", inp, fr.channel_note)
+        h, w, _ = reader.shape
+
+        def logavg():                 # auto:LEVEL: the log-average, band by band
+            tot, cnt = 0.0, 0
+            for y0 in range(0, h, rows):
+                b = run.colour.convert_input(reader.read(y0, min(h, y0 + rows)), ic)
+                Y = b[..., :3].astype(np.float64) @ np.array([0.2126390058715104,
+                                                              0.7151686787677560,
+                                                              0.0721923153607337])
+                Y = Y[np.isfinite(Y) & (Y > 0)]
+                tot, cnt = tot + float(np.log(Y).sum()), cnt + Y.size
+            la = math.exp(tot / cnt) if cnt else None
+            return np.full((1, 1, 3), la if la else 0.0, np.float32)
+
+        scale, why = run.calibrate(fr, logavg)
+        _remember_auto(tm, run)
+        premult = run.premultiplied(fr)
+        source = _WorkingBands(reader, run.colour, ic, premult)
+        linear = output_is_linear(run.opts, outp)
+        has_alpha = reader.shape[2] == 4
+
+        def sink(y0, band):
+            nonlocal writer
+            if writer is None:
+                extra = {"ocltm:held_from": os.path.basename(inp)} if held else {}
+                extra["ocltm:streamed"] = f"row bands of {rows}"
+                meta, out_cs, chroma, white, straight = output_metadata(
+                    run, tm, fr, t, ic.describe(), scale, why, extra, linear, has_alpha)
+                writer = BandWriter(outp, fr.spec, 4 if has_alpha else 3, out_cs, meta,
+                                    run.opts.out_bits, f, chroma, white, straight,
+                                    run.opts.png_level)
+            px = run.colour.linear(band) if linear else run.colour.encode(band)
+            a = source.alpha(y0)
+            if a is not None:
+                alpha, empty, pm = a
+                if pm:
+                    px = np.where(alpha[..., None] > 0, px * alpha[..., None], px)
+                px[empty] = 0.0
+                px = np.concatenate([px, alpha[..., None]], axis=2)
+            writer.write(y0, px)
+
+        tm.backend.max_band_pixels = rows * w
+        tm.process_stream(source, sink, time_s=t, frame_number=f, luminance_scale=scale,
+                          illuminant=illuminant_from_metadata(fr.spec))
+        writer.commit()
+        writer = None
+        return t, tm.last
+    except FrameError:
+        raise
+    except Exception as exc:
+        raise FrameError(inp, f, exc) from exc
+    finally:
+        if writer is not None:
+            writer.abort()
+        reader.close()
 
 
 class _StopSignals:
@@ -483,22 +639,13 @@ class Rendered:
     straight_alpha: bool
 
 
-def render_output(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
-                  extra: dict | None, linear: bool) -> Rendered:
-    """Encode the last processed frame (display-linear light in the display's
-    linear colourspace, or the display encoding) with its ``ocltm:*`` metadata."""
-    opts, colour, disp = run.opts, run.colour, tm.display
+def output_metadata(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
+                    extra: dict | None, linear: bool, alpha: bool):
+    """(metadata, output colourspace, chromaticities, whiteLuminance, straight alpha)
+    of the last processed frame (``tm.last``)."""
+    colour, disp = run.colour, tm.display
     info = tm.last
-    disp_lin = tm.last_output
-    if linear:
-        pixels = colour.linear(disp_lin[..., :3])
-        out_cs = colour.linear_output()[0]
-    else:
-        pixels = colour.encode(disp_lin[..., :3])
-        out_cs = colour.output_colorspace
-    alpha = disp_lin.shape[2] == 4
-    if alpha:
-        pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
+    out_cs = colour.linear_output()[0] if linear else colour.output_colorspace
     premult = run.premultiplied(fr)
     meta = {
         "Software": f"ocl-tonemap {__version__}",
@@ -529,8 +676,23 @@ def render_output(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
                                ("straight (unassociated)" if fr.unassociated_alpha else
                                 "tone mapped as stored (--no-unpremult)"))
     meta.update(extra or {})
-    return Rendered(pixels, out_cs, meta, colour.output_chromaticities(encoded=not linear),
-                    disp.unit_cd if linear else None, alpha and not premult)
+    return (meta, out_cs, colour.output_chromaticities(encoded=not linear),
+            disp.unit_cd if linear else None, alpha and not premult)
+
+
+def render_output(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
+                  extra: dict | None, linear: bool) -> Rendered:
+    """Encode the last processed frame (display-linear light in the display's
+    linear colourspace, or the display encoding) with its ``ocltm:*`` metadata."""
+    colour = run.colour
+    disp_lin = tm.last_output
+    pixels = colour.linear(disp_lin[..., :3]) if linear else colour.encode(disp_lin[..., :3])
+    alpha = disp_lin.shape[2] == 4
+    if alpha:
+        pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
+    meta, out_cs, chroma, white, straight = output_metadata(
+        run, tm, fr, t, cs_text, scale, scale_why, extra, linear, alpha)
+    return Rendered(pixels, out_cs, meta, chroma, white, straight)
 
 
 def _write_output(run: _Run, tm: Tonemapper, fr, outp, f, t, cs_text, scale, scale_why,

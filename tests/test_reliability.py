@@ -284,3 +284,70 @@ def test_process_imagebuf_is_the_clis_front_door(tmp_path, rt):
     assert res.spec().getattribute("ocltm:luminance_scale") == 300.0
     with pytest.raises(FrameError, match="cannot read"):
         Tonemapper("pattanaik00").process_imagebuf(oiio.ImageBuf(str(tmp_path / "nope.exr")))
+
+
+# --- frames larger than the memory budget: streamed in row bands -----------------------
+
+def _big(path, w, h, alpha=False):
+    rng = np.random.default_rng(4)
+    lum = 10.0 ** rng.uniform(-1, 3, (h, w, 1))
+    pix = lum * rng.uniform(0.2, 1.0, (h, w, 3))
+    if alpha:
+        a = np.clip(rng.uniform(-0.2, 1.2, (h, w, 1)), 0, 1)
+        pix = np.concatenate([pix * a, a], axis=2)
+    return _exr(path, pix.astype(np.float32), None, whiteLuminance=1.0)
+
+
+@pytest.mark.parametrize("op, extra", [("pattanaik00", []),
+                                       ("durand00", ["--chromatic-adaptation", "on", "--flare",
+                                                     "off", "--acuity", "off"])])
+@pytest.mark.parametrize("ext, alpha", [(".exr", True), (".png", False)])
+def test_streamed_frames_equal_whole_ones(tmp_path, op, extra, ext, alpha):
+    """--max-memory below what the whole frame needs: read, mapped and written in
+    row bands (OIIO scanlines), the same pixels as the whole-frame path (but for
+    the float32 order of the metering sums) and the same metadata."""
+    src = _big(tmp_path / "big.exr", 301, 203, alpha)
+    whole, streamed = str(tmp_path / f"w{ext}"), str(tmp_path / f"s{ext}")
+    common = ["--operator", op, *extra, "-q", "--no-checkpoint"]
+    assert main(["run", src, whole, *common]) == 0
+    assert main(["run", src, streamed, *common, "--max-memory", "8"]) == 0
+    a, b = oiio.ImageBuf(whole), oiio.ImageBuf(streamed)
+    tol = 1e-5 if ext == ".exr" else 1.0 / 255
+    np.testing.assert_allclose(b.get_pixels(oiio.FLOAT), a.get_pixels(oiio.FLOAT), atol=tol)
+    assert "row bands" in b.spec().getattribute("ocltm:streamed")
+    for k in ("ocltm:luminance_scale", "ocltm:input_colorspace", "ocltm:output_colorspace"):
+        assert a.spec().getattribute(k) == b.spec().getattribute(k), k
+    assert not [x for x in os.listdir(tmp_path) if ".tmp" in x]
+
+
+def _peak_rss_mb(args) -> float:
+    """Peak RSS (MiB) of a child ocl-tonemap run."""
+    code = ("import resource, sys, subprocess; "
+            "r = subprocess.run([sys.executable, '-m', 'ocl_tonemap', *sys.argv[1:]]); "
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024); "
+            "sys.exit(r.returncode)")
+    p = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    return float(p.stdout.strip().splitlines()[-1])
+
+
+def test_streaming_bounds_memory(tmp_path):
+    """A 2400x1600 frame (44 MiB as float32 RGB): whole, the run peaks at many times
+    that; streamed it stays under 3x the frame plus a fixed 300 MiB."""
+    w, h = 2400, 1600
+    src = _big(tmp_path / "big.exr", w, h)
+    frame_mb = w * h * 12 / 2**20
+    whole = _peak_rss_mb(["run", src, str(tmp_path / "w.png"), "-q", "--no-checkpoint"])
+    streamed = _peak_rss_mb(["run", src, str(tmp_path / "s.png"), "-q", "--no-checkpoint",
+                             "--max-memory", "64"])
+    assert streamed <= 3 * frame_mb + 300, (streamed, whole)
+    assert streamed < whole
+
+
+def test_operators_that_cannot_stream_say_so(tmp_path, caplog):
+    import logging
+    src = _big(tmp_path / "big.exr", 400, 300)
+    with caplog.at_level(logging.WARNING, logger="ocl_tonemap"):
+        assert main(["run", src, str(tmp_path / "o.png"), "--operator", "ledda04",
+                     "--max-memory", "8", "--no-checkpoint"]) == 0
+    assert any("cannot be streamed" in r.getMessage() for r in caplog.records)
