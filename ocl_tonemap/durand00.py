@@ -35,7 +35,7 @@ import numpy as np
 from .adaptation import exponential_step
 from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder,
                       scene_key)
-from .photometry import neutral_scotopic_ratio
+from .photometry import neutral_scotopic_ratio, xy_to_rgb
 
 NAME = "durand00"
 
@@ -193,7 +193,6 @@ def blue_shift(mode: str = "default") -> tuple:
     default mode the 480 nm tint of :data:`BLUE_SHIFT_DEFAULT_XY`."""
     if mode == "paper":
         return BLUE_SHIFT
-    from .effects import xy_to_rgb
     return tuple(float(v) for v in xy_to_rgb(*BLUE_SHIFT_DEFAULT_XY))
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from . import flare as fl
 from .adaptation import exponential_step
 from .convolution import EDGE_CLAMP, EDGE_ZERO, blur_reference, gaussian_taps
-from .photometry import RGB709_TO_XYZ, Y_WEIGHTS
+from .photometry import RGB709_TO_XYZ, Y_WEIGHTS, normalise_illuminant, xy_to_rgb  # noqa: F401
 
 MODES = ("on", "off", "auto")
 
@@ -106,25 +106,6 @@ class EffectSettings:
 
 
 # --- illuminant -------------------------------------------------------------------
-
-def xy_to_rgb(x: float, y: float) -> np.ndarray:
-    """Working-space (BT.709) RGB of chromaticity (x, y), normalised to luminance 1."""
-    if not (y > 0 and x >= 0 and x + y <= 1):
-        raise ValueError(f"bad chromaticity ({x}, {y})")
-    XYZ = np.array([x / y, 1.0, (1.0 - x - y) / y])
-    return normalise_illuminant(np.linalg.solve(RGB709_TO_XYZ, XYZ))
-
-
-def normalise_illuminant(rgb) -> np.ndarray:
-    """(r_wa, g_wa, b_wa): the illuminant's colour at luminance 1, channels >= 1e-3
-    (a pure primary would need an infinite von Kries gain)."""
-    v = np.maximum(np.asarray(rgb, np.float64), 0.0)
-    Y = float(v @ Y_WEIGHTS)
-    if not (Y > 0 and np.all(np.isfinite(v))):
-        return np.ones(3)
-    v = np.maximum(v / Y, 1e-3)
-    return v / float(v @ Y_WEIGHTS)
-
 
 def parse_illuminant(text: str) -> np.ndarray:
     """A name (D65, A, F2, ...) or ``x,y`` chromaticity -> normalised working RGB."""
