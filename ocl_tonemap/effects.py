@@ -141,6 +141,34 @@ def illuminant_estimate_reference(rgb: np.ndarray) -> np.ndarray:
     return normalise_illuminant((Y[..., None] * rgb).reshape(-1, 3).sum(axis=0))
 
 
+#: An estimated illuminant is held to the Planckian locus within ANSI C78.377's
+#: tolerance for white light (|Duv| <= 0.006) and 1500-25000 K: real light sources
+#: sit there, and coloured lamps or a green lawn must not read as a magenta or green
+#: illuminant (which turned a lamp-lit night field purple).
+ESTIMATE_DUV_MAX = 0.006
+ESTIMATE_CCT_RANGE = (1500.0, 25000.0)
+
+
+def plausible_illuminant(rgb) -> np.ndarray:
+    """An illuminant estimate (working RGB) moved onto the band of real light
+    sources around the Planckian locus (:data:`ESTIMATE_DUV_MAX`), normalised."""
+    import warnings
+    v = normalise_illuminant(rgb)
+    XYZ = RGB709_TO_XYZ @ v
+    if not (XYZ.sum() > 0):
+        return v
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import colour
+        uv = colour.xy_to_UCS_uv(XYZ[:2] / XYZ.sum())
+        cct, duv = colour.temperature.uv_to_CCT_Ohno2013(uv)
+        cct = float(np.clip(cct, *ESTIMATE_CCT_RANGE))
+        duv = float(np.clip(duv, -ESTIMATE_DUV_MAX, ESTIMATE_DUV_MAX))
+        u, w = colour.temperature.CCT_to_uv_Ohno2013(np.array([cct, duv]))
+    x, y = 3.0 * u / (2.0 * u - 8.0 * w + 4.0), 2.0 * w / (2.0 * u - 8.0 * w + 4.0)
+    return xy_to_rgb(x, y)
+
+
 def chromatic_step(illum, goal, dt: float) -> np.ndarray:
     """Exponential filter of (r_wa, g_wa, b_wa) toward the goal, tau = 5 s (exact)."""
     return normalise_illuminant([exponential_step(float(a), float(g), dt, TAU_CHROMA)
@@ -318,7 +346,7 @@ class Effects:
             return self.user_illuminant, "user"
         if frame_hint is not None:
             return normalise_illuminant(frame_hint), "adoptedNeutral"
-        return normalise_illuminant(estimate_fn()), "estimate"
+        return plausible_illuminant(estimate_fn()), "estimate"
 
     def chromatic(self, extra: dict, goal, source: str, dt: float, fresh: bool,
                   preadapted: bool):

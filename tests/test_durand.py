@@ -362,3 +362,23 @@ def test_effect_settings_validation():
         EffectSettings(fov_deg=0)
     assert EffectSettings.for_operator("durand00").flare == "auto"
     assert EffectSettings.for_operator("pattanaik00").flare == "off"
+
+
+def test_estimated_illuminant_stays_on_the_planckian_band():
+    """Real light sources lie near the Planckian locus: an estimate is held there
+    (|Duv| <= 0.006), so coloured lamps or a lawn cannot make a magenta or green
+    'illuminant'; daylight and tungsten estimates are kept."""
+    import warnings
+    from ocl_tonemap.effects import ILLUMINANTS_XY, plausible_illuminant, xy_to_rgb
+    from ocl_tonemap.photometry import RGB709_TO_XYZ
+    for name in ("D65", "A", "D50"):
+        rgb = xy_to_rgb(*ILLUMINANTS_XY[name])
+        np.testing.assert_allclose(plausible_illuminant(rgb), rgb, atol=2e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import colour
+        for bad in ([1.2, 0.8, 1.3], [0.8, 1.3, 0.8]):         # magenta, green
+            v = plausible_illuminant(bad)
+            XYZ = RGB709_TO_XYZ @ v
+            uv = colour.xy_to_UCS_uv(XYZ[:2] / XYZ.sum())
+            assert abs(colour.temperature.uv_to_CCT_Ohno2013(uv)[1]) <= 0.0061
