@@ -161,6 +161,7 @@ class OpenCLBackend:
                 illum += self._illuminant_sums(nr * w)
             if keep_rgb is not None:
                 cl.enqueue_copy(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
+        self.last_max_Y = float(sums.sums[5])
         return bands, repairs, sums.goal(spec), illum
 
     def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec):

@@ -39,6 +39,11 @@ class FrameInfo:
     effects: dict = field(default_factory=dict)
 
 
+class NeedsWholeFrame(RuntimeError):
+    """A streamed frame turned out to need an effect that works on whole frames;
+    nothing was mapped or written, the state is as before."""
+
+
 def as_float_pixels(frame) -> np.ndarray:
     """Pixels as float32, integers normalised as OIIO does (unsigned: 0..max -> 0..1,
     signed: -max..max -> -1..1); booleans, complex and non-numeric arrays refused."""
@@ -249,14 +254,16 @@ class Tonemapper:
 
     def can_stream(self) -> str | None:
         """Why frames cannot be streamed in bands (None: they can): global operators
-        whose effects need no whole frame (flare, acuity and the Purkinje effect do)."""
+        whose effects need no whole frame. Flare and acuity on ``auto`` stream the
+        frames that turn out not to need them (else :class:`NeedsWholeFrame`)."""
         if self.local is not None:
             return f"{self.operator_name} adapts locally"
         if self.backend.name != "opencl":
             return "the reference backend works on whole frames"
         fx = self.effects.s
         for name in ("flare", "acuity", "purkinje"):
-            if getattr(fx, name) != "off":
+            v = getattr(fx, name)
+            if v == "on" or (v == "auto" and name == "purkinje"):
                 return f"the {name} effect needs the whole frame"
         return None
 
@@ -275,7 +282,27 @@ class Tonemapper:
             raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
         time_s, step_dt, fresh = self._frame_time(dt, time_s)
         holder, eff = {}, {}
-        step = self._global_step(fresh, step_dt, time_s, frame_number, illuminant, eff, holder)
+        base_step = self._global_step(fresh, step_dt, time_s, frame_number, illuminant, eff,
+                                      holder)
+        before = self._state.copy()
+        fx = self.effects
+        width = source.shape[1]
+
+        def step(G_rod, G_cone, estimate):
+            # effects on auto: does this frame need the whole of itself after all?
+            if fx.s.flare == "auto" and \
+                    self.backend.last_max_Y > fx.s.flare_threshold * G_cone:
+                raise NeedsWholeFrame("it has light sources (flare)")
+            if fx.s.acuity == "auto":
+                from .effects import acuity_a_px, acuity_blend
+                if float(acuity_blend(acuity_a_px(G_rod, fx.s.fov_deg, width))) > 0:
+                    raise NeedsWholeFrame("the eye's acuity is below the pixels' (acuity)")
+            return base_step(G_rod, G_cone, estimate)
+
+        step.wants_illuminant = base_step.wants_illuminant
+        for name in ("flare", "acuity"):
+            if getattr(fx.s, name) == "auto":
+                eff[name] = {"ran": False, "reason": "not needed (streamed frame)"}
         first = [True]
 
         def band_out(y0, band):
@@ -289,7 +316,11 @@ class Tonemapper:
             sink(y0, band)
 
         self.last_output = None
-        self.backend.process(source, luminance_scale, self.metering, self.op, step, band_out)
+        try:
+            self.backend.process(source, luminance_scale, self.metering, self.op, step, band_out)
+        except NeedsWholeFrame:
+            self._state = before
+            raise
 
     def _process_spectral(self, frame, dt, time_s, frame_number, scale, wavelengths):
         if self.local is None or not getattr(self.op, "SPECTRAL", False):

@@ -27,7 +27,7 @@ from .display import display_for
 from .effects import illuminant_from_metadata
 from .imageio import (LINEAR_FORMATS, FrameError, find_frames, frame_path, is_sequence,
                       read_frame, same_file, write_frame)
-from .pipeline import Tonemapper
+from .pipeline import NeedsWholeFrame, Tonemapper
 from .photometry import RepairCounts
 
 log = logging.getLogger("ocl_tonemap")
@@ -299,6 +299,7 @@ def run_job(opts: JobOptions) -> JobResult:
     colour, disp = run.colour, run.disp
     _check_output_depth(opts, disp, jobs)
     tm = _make_tonemapper(opts, colour, state, disp)
+    run.device_band_pixels = getattr(tm.backend, "max_band_pixels", None)
     result = JobResult([], [])
     fps = opts.fps
     t_prev = tm.state.time_s
@@ -306,8 +307,10 @@ def run_job(opts: JobOptions) -> JobResult:
     with _StopSignals() as stop:
         for k, (f, inp, outp, held) in enumerate(jobs):
             rows = _stream_rows(opts, tm, inp, f)
-            if rows:
-                t, info = _stream_frame(run, tm, inp, outp, f, held, rows, fps, t_prev)
+            streamed = _stream_frame(run, tm, inp, outp, f, held, rows, fps, t_prev) \
+                if rows else None
+            if streamed is not None:
+                t, info = streamed
                 fps = fps or DEFAULT_FPS
                 if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
                              or stop.signum is not None):
@@ -509,10 +512,17 @@ def _stream_frame(run: _Run, tm: Tonemapper, inp, outp, f, held, rows, fps, t_pr
             writer.write(y0, px)
 
         tm.backend.max_band_pixels = rows * w
-        tm.process_stream(source, sink, time_s=t, frame_number=f, luminance_scale=scale,
-                          illuminant=illuminant_from_metadata(fr.spec))
+        try:
+            tm.process_stream(source, sink, time_s=t, frame_number=f, luminance_scale=scale,
+                              illuminant=illuminant_from_metadata(fr.spec))
+        except NeedsWholeFrame as exc:
+            log.warning("%s%s: not streamed, %s; read whole", inp,
+                        "" if f is None else f" frame {f}", exc)
+            tm.backend.max_band_pixels = run.device_band_pixels
+            return None
         writer.commit()
         writer = None
+        tm.backend.max_band_pixels = run.device_band_pixels
         return t, tm.last
     except FrameError:
         raise

@@ -351,3 +351,27 @@ def test_operators_that_cannot_stream_say_so(tmp_path, caplog):
         assert main(["run", src, str(tmp_path / "o.png"), "--operator", "ledda04",
                      "--max-memory", "8", "--no-checkpoint"]) == 0
     assert any("cannot be streamed" in r.getMessage() for r in caplog.records)
+
+
+def test_durand00_defaults_stream_unless_a_frame_needs_flare(tmp_path, caplog):
+    """flare and acuity on auto: a frame that needs neither streams; one with a light
+    source is read whole (said once), and both equal the whole-frame renders."""
+    import logging
+    rng = np.random.default_rng(7)                             # an even, daylit field
+    pix = (500.0 * rng.uniform(0.5, 2.0, (203, 301, 3))).astype(np.float32)
+    plain = _exr(tmp_path / "plain.exr", pix, None, whiteLuminance=1.0)
+    pix[100:104, 150:154] = 1e6                                  # a lamp
+    lamp = _exr(tmp_path / "lamp.exr", pix, None, whiteLuminance=1.0)
+    for src, streamed in ((plain, True), (lamp, False)):
+        w, s = str(tmp_path / "w.exr"), str(tmp_path / "s.exr")
+        assert main(["run", src, w, "--operator", "durand00", "-q", "--no-checkpoint",
+                     "--out-bits", "float"]) == 0
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="ocl_tonemap"):
+            assert main(["run", src, s, "--operator", "durand00", "--no-checkpoint",
+                         "--max-memory", "8", "--out-bits", "float"]) == 0
+        b = oiio.ImageBuf(s)
+        assert (b.spec().getattribute("ocltm:streamed") is not None) == streamed
+        assert any("not streamed" in r.getMessage() for r in caplog.records) == (not streamed)
+        np.testing.assert_allclose(b.get_pixels(oiio.FLOAT),
+                                   oiio.ImageBuf(w).get_pixels(oiio.FLOAT), atol=1e-4, rtol=1e-4)
