@@ -216,7 +216,7 @@ class AdaptationState:
         if not isinstance(doc, dict):
             raise ValueError(f"{path} is not an ocl-tonemap adaptation state")
         st = cls.from_json(doc)
-        side = st.extra.get("pixel_state")
+        side = st.extra.pop("pixel_state", None)    # (it names a file beside *this* JSON)
         if side:
             st.pixels = _read_planes(p.with_name(side))
         return st

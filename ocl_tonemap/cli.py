@@ -380,9 +380,14 @@ def main(argv: list[str] | None = None) -> int:
         except Interrupted as e:
             import shlex
             again = [x for x in (argv if argv is not None else sys.argv[1:]) if x != "--resume"]
-            print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of {e.total} "
-                  f"written; state in {e.checkpoint}). Resume with:\n  ocl-tonemap "
-                  + " ".join(shlex.quote(x) for x in again) + " --resume", file=sys.stderr)
+            if e.checkpoint:
+                print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of "
+                      f"{e.total} written; state in {e.checkpoint}). Resume with:\n  ocl-tonemap "
+                      + " ".join(shlex.quote(x) for x in again) + " --resume", file=sys.stderr)
+            else:
+                print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of "
+                      f"{e.total} written). No checkpoint was kept (--no-checkpoint): run it "
+                      "again from the start to get the same frames", file=sys.stderr)
             return e.exit_code
         if not a.quiet:
             rep = f"; repaired values: {res.repairs.summary()}" if res.repairs.total else ""

@@ -340,7 +340,7 @@ def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
     bits = bits or DEFAULT_BITS.get(ext, "float")
     if bits not in BITS_TYPES:
         raise FrameError(path, frame, f"unknown output bit depth {bits!r} (8, 16, half, float)")
-    pix, straight_alpha = _alpha_for_format(pixels, ext, straight_alpha)
+    pix, straight_alpha = _alpha_for_format(pixels, ext, straight_alpha, path)
     nch = pix.shape[2]
     spec = _output_spec(in_spec, pix.shape[1], pix.shape[0], nch, ext, bits, colorspace,
                         metadata, chromaticities, white_luminance, straight_alpha, png_level)
@@ -361,11 +361,21 @@ def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
             os.unlink(tmp)
 
 
-def _alpha_for_format(pixels, ext: str, straight_alpha: bool):
-    """(pixels as the format stores them, still straight?): JPEG drops alpha;
-    premultiplied formats (EXR) get straight colour premultiplied."""
+def format_supports_alpha(path: str) -> bool:
+    """Whether OIIO's writer for this file name stores alpha (JPEG, Radiance do not)."""
+    out = oiio.ImageOutput.create(path)
+    if out is None:
+        return True
+    return bool(out.supports("alpha"))
+
+
+def _alpha_for_format(pixels, ext: str, straight_alpha: bool, path: str = ""):
+    """(pixels as the format stores them, still straight?): formats without alpha
+    (JPEG, Radiance) drop it; premultiplied formats (EXR) get straight colour
+    premultiplied."""
     pix = np.ascontiguousarray(pixels, np.float32)
-    if ext in (".jpg", ".jpeg") and pix.shape[2] == 4:
+    if pix.shape[2] == 4 and (ext in (".jpg", ".jpeg") or
+                              (path and not format_supports_alpha(path))):
         pix = np.ascontiguousarray(pix[..., :3])
     if pix.shape[2] == 4 and straight_alpha and ext in PREMULTIPLIED_FORMATS:
         pix = pix.copy()
@@ -442,6 +452,18 @@ class BandReader:
 
     def read(self, y0: int, y1: int) -> np.ndarray:
         s = self.spec
+        if s.tile_width > 0:                 # tiled: whole tile rows, then the rows wanted
+            th = s.tile_height
+            a = (y0 // th) * th
+            b = min(s.height, -(-y1 // th) * th)
+            xe = s.x + -(-s.width // s.tile_width) * s.tile_width
+            data = self.inp.read_tiles(0, 0, s.x, min(xe, s.x + s.width), s.y + a, s.y + b,
+                                       s.z, s.z + max(s.depth, 1), 0, s.nchannels, oiio.FLOAT)
+            if data is None:
+                raise FrameError(self.path, self.frame, f"cannot read rows {y0}-{y1}: "
+                                 f"{_oiio_error(self.inp.geterror())}")
+            data = np.asarray(data, np.float32).reshape(b - a, s.width, s.nchannels)
+            return np.ascontiguousarray(data[y0 - a:y1 - a][..., self.idx])
         data = self.inp.read_scanlines(0, 0, s.y + y0, s.y + y1, 0, 0, s.nchannels, oiio.FLOAT)
         if data is None:
             raise FrameError(self.path, self.frame,
@@ -473,9 +495,14 @@ class BandWriter:
         self.straight = straight_alpha and not (nch == 4 and self.ext in PREMULTIPLIED_FORMATS)
         self.premultiply = nch == 4 and straight_alpha and self.ext in PREMULTIPLIED_FORMATS
         self.nch = nch
+        if nch == 4 and not format_supports_alpha(path):
+            nch = 3
+            self.straight = self.premultiply = False
+        self.nch = nch
         self.spec = _output_spec(in_spec, in_spec.width, in_spec.height, nch, self.ext, bits,
                                  colorspace, metadata, chromaticities, white_luminance,
                                  self.straight, png_level)
+        self.spec.tile_width = self.spec.tile_height = self.spec.tile_depth = 0
         d = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(d):
             raise FrameError(path, frame, f"output folder {d} does not exist")
@@ -485,6 +512,7 @@ class BandWriter:
             err = _oiio_error(oiio.geterror() if self.out is None else self.out.geterror())
             self.abort()
             raise FrameError(path, frame, f"cannot write: {err}")
+        self.spec = self.out.spec()          # the origin the format keeps (JPEG, TIFF: 0)
 
     def write(self, y0: int, pixels: np.ndarray) -> None:
         pix = np.ascontiguousarray(pixels[..., :self.nch], np.float32)

@@ -132,6 +132,11 @@ class Tonemapper:
         if self.local is not None:
             self.local.set_pixel_state(self._state.pixels)
 
+    @property
+    def last_alpha(self):
+        """(alpha, empty-pixel mask, premultiplied?) of the last RGBA frame, or None."""
+        return self._alpha
+
     def remember(self, key: str, value) -> None:
         """Keep a JSON-able run value in the state's ``extra`` (saved and resumed)."""
         self._state.extra[key] = value

@@ -194,8 +194,19 @@ def _jobs(opts: JobOptions) -> list[tuple[int | None, str, str, bool]]:
         if not os.path.exists(opts.input):
             raise FrameError(opts.input, None, "no such file")
         f = opts.frames[0] if opts.frames else None
+        if f is None and is_sequence(opts.output):
+            raise FrameError(opts.output, None, "the output has a frame pattern but the input "
+                             "is one image; give --frames N or a plain output name")
         jobs = [(f, opts.input, frame_path(opts.output, f) if (f is not None and is_sequence(opts.output))
                  else opts.output, False)]
+    numbered = [f for f, _, _, _ in jobs if f is not None]
+    if any(b <= a for a, b in zip(numbered, numbered[1:])):
+        raise FrameError(opts.input, None, "--frames must go forward in time (increasing "
+                         "frame numbers, each once)")
+    import OpenImageIO as oiio
+    if oiio.ImageOutput.create(jobs[0][2]) is None:
+        raise FrameError(jobs[0][2], None, "no image format for this output name (use .exr, "
+                         ".png, .tif, .jpg, .hdr ...)")
     inputs = {i for _, i, _, _ in jobs}
     for f, _, o, _ in jobs:
         for j in inputs:
@@ -204,17 +215,42 @@ def _jobs(opts: JobOptions) -> list[tuple[int | None, str, str, bool]]:
     return jobs
 
 
+#: AdaptationState.extra key of the settings a run's frames depend on (--resume checks).
+RUN_KEY = "run"
+
+
+def run_fingerprint(opts: JobOptions) -> dict:
+    """The settings that decide a run's frames, kept in its checkpoint: a resumed
+    run must use the same to give the same frames."""
+    import dataclasses
+    fx = opts.effects
+    return {"input": opts.input, "output": opts.output, "operator": opts.operator,
+            "fps": opts.fps, "metering": opts.metering,
+            "luminance_scale": None if opts.luminance_scale is None else str(opts.luminance_scale),
+            "exposure": opts.exposure, "colorconfig": opts.colorconfig,
+            "iscolorspace": opts.iscolorspace, "display": opts.display, "view": opts.view,
+            "display_model": opts.display_model, "display_white": opts.display_white,
+            "display_black": opts.display_black, "backend": opts.backend,
+            "options": json.loads(json.dumps(opts.operator_options or {}, default=str)),
+            "effects": json.loads(json.dumps(dataclasses.asdict(fx), default=str))
+            if dataclasses.is_dataclass(fx) else None,
+            "missing": opts.missing, "channels": opts.channels, "unpremult": opts.unpremult,
+            "encode": opts.encode, "out_bits": opts.out_bits}
+
+
 def checkpoint_path(opts: JobOptions) -> str:
     """Where the state is checkpointed after every frame: ``--state-out``, else the
-    output name without its frame number and extension + ``.state.json``
-    (``out/shot.####.png`` -> ``out/shot.state.json``)."""
+    output name without its frame number + ``.state.json``
+    (``out/shot.####.png`` -> ``out/shot.png.state.json``)."""
     if opts.state_out:
         return opts.state_out
     d, b = os.path.split(opts.output)
     b = _PAT_TOKEN.sub("", b)
-    root = b.rsplit(".", 1)[0] if "." in b else b
+    root, dot, ext = b.rpartition(".")
+    if not dot:
+        root, ext = b, ""
     root = root.rstrip("._-") or "ocl-tonemap"
-    return os.path.join(d, root + ".state.json")
+    return os.path.join(d, f"{root}.{ext}.state.json" if ext else f"{root}.state.json")
 
 
 def _resume_point(opts: JobOptions, jobs, ckpt: str, operator: str):
@@ -226,9 +262,19 @@ def _resume_point(opts: JobOptions, jobs, ckpt: str, operator: str):
     if st.operator != operator:
         raise ValueError(f"--resume: the checkpoint {ckpt} belongs to operator {st.operator!r}, "
                          f"not {operator!r}")
+    was, now = st.extra.get(RUN_KEY), run_fingerprint(opts)
+    if isinstance(was, dict):
+        diff = [k for k in sorted(set(was) | set(now)) if was.get(k) != now.get(k)]
+        if diff:
+            raise ValueError("--resume: the checkpoint " + ckpt + " was written by a run with "
+                             "other settings (" + "; ".join(
+                                 f"{k}: {was.get(k)!r} then, {now.get(k)!r} now" for k in diff)
+                             + "); resume with the same options, or start again without "
+                             "--resume")
     if st.frame is None:
         raise ValueError(f"--resume: the checkpoint {ckpt} has no frame number (a still); "
                          "run it again")
+    st.extra.pop(RUN_KEY, None)
     todo = [j for j in jobs if j[0] is not None and j[0] > st.frame]
     log.warning("resuming after frame %d from %s: %d of %d frame(s) left", st.frame, ckpt,
                 len(todo), len(jobs))
@@ -291,7 +337,10 @@ def run_job(opts: JobOptions) -> JobResult:
     jobs = _jobs(opts)
     _remove_stale_temps(jobs)
     ckpt = checkpoint_path(opts) if (opts.checkpoint or opts.resume) else None
+    _check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p])
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
+    if state is not None:
+        state.extra.pop(RUN_KEY, None)
     if opts.resume:
         st, jobs = _resume_point(opts, jobs, ckpt, opts.operator)
         state = st if st is not None else state
@@ -300,6 +349,7 @@ def run_job(opts: JobOptions) -> JobResult:
     _check_output_depth(opts, disp, jobs)
     tm = _make_tonemapper(opts, colour, state, disp)
     run.device_band_pixels = getattr(tm.backend, "max_band_pixels", None)
+    fingerprint = run_fingerprint(opts)
     result = JobResult([], [])
     fps = opts.fps
     t_prev = tm.state.time_s
@@ -310,11 +360,10 @@ def run_job(opts: JobOptions) -> JobResult:
             streamed = _stream_frame(run, tm, inp, outp, f, held, rows, fps, t_prev) \
                 if rows else None
             if streamed is not None:
-                t, info = streamed
-                fps = fps or DEFAULT_FPS
+                t, info, fps = streamed
                 if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
                              or stop.signum is not None):
-                    tm.state.save(ckpt, checkpoint=True)
+                    _save_checkpoint(tm, ckpt, fingerprint)
                 result.repairs += info.repairs
                 result.frames.append(f)
                 result.outputs.append(outp)
@@ -349,7 +398,7 @@ def run_job(opts: JobOptions) -> JobResult:
                 info = _write_output(run, tm, fr, outp, f, t, cs_text, scale, scale_why, extra)
                 if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
                              or stop.signum is not None):
-                    tm.state.save(ckpt, checkpoint=True)
+                    _save_checkpoint(tm, ckpt, fingerprint)
             except FrameError:
                 raise
             except Exception as exc:
@@ -377,6 +426,26 @@ def run_job(opts: JobOptions) -> JobResult:
         plot_adaptation(opts.plot, result.infos, tm, opts.plot_frames)
     result.seconds = time.perf_counter() - t_start
     return result
+
+
+def _save_checkpoint(tm: Tonemapper, path: str, fingerprint: dict) -> None:
+    """The state after a frame, with the run's settings (checked by --resume)."""
+    st = tm.state
+    st.extra[RUN_KEY] = fingerprint
+    st.save(path, checkpoint=True)
+
+
+def _check_state_paths(jobs, paths) -> None:
+    """The state files must not be an input or an output, and their folder must exist."""
+    files = {p for _, i, o, _ in jobs for p in (i, o)}
+    for p in paths:
+        d = os.path.dirname(os.path.abspath(p))
+        if not os.path.isdir(d):
+            raise FrameError(p, None, f"the state's folder {d} does not exist")
+        for q in files:
+            if same_file(p, q):
+                raise FrameError(p, None, "the state file would overwrite an input or output "
+                                 "frame; choose another --state-out")
 
 
 def _check_output_depth(opts: JobOptions, disp, jobs) -> None:
@@ -415,6 +484,9 @@ def _stream_rows(opts: JobOptions, tm: Tonemapper, inp: str, f) -> int | None:
         i.close()
     except Exception:  # noqa: BLE001 -- read_frame reports it properly
         return None
+    from .imageio import spectral_channels
+    if spectral_channels(spec.channelnames):
+        return None                                   # spectra are read whole
     frame_bytes = float(spec.width) * spec.height * 12.0
     budget = opts.max_memory * 2**20 if opts.max_memory else max_frame_bytes()
     if WHOLE_FRAME_COPIES * frame_bytes <= budget or spec.width < 1:
@@ -523,7 +595,7 @@ def _stream_frame(run: _Run, tm: Tonemapper, inp, outp, f, held, rows, fps, t_pr
         writer.commit()
         writer = None
         tm.backend.max_band_pixels = run.device_band_pixels
-        return t, tm.last
+        return t, tm.last, fps
     except FrameError:
         raise
     except Exception as exc:
@@ -566,22 +638,26 @@ class _StopSignals:
 def _remove_stale_temps(jobs) -> None:
     """Temporary files a killed earlier run may have left beside the outputs
     (``.<name>.tmp<pid><ext>``, only ours: the pid must not be running)."""
-    import re
-    dirs = {os.path.dirname(os.path.abspath(o)) for _, _, o, _ in jobs}
-    rx = re.compile(r"^\..+\.tmp(\d+)(\.[A-Za-z0-9]+)?$")
-    for d in dirs:
+    from pathlib import Path
+    stems: dict = {}
+    for _, _, o, _ in jobs:
+        stems.setdefault(os.path.dirname(os.path.abspath(o)), set()).add(Path(o).stem)
+    rx = re.compile(r"^\.(.+)\.tmp(\d+)(\.[A-Za-z0-9]+)?$")
+    for d, mine in stems.items():
         try:
             names = os.listdir(d)
         except OSError:
             continue
         for name in names:
             m = rx.match(name)
-            if not m or int(m.group(1)) == os.getpid():
-                continue
+            if not m or m.group(1) not in mine or int(m.group(2)) == os.getpid():
+                continue                       # not a temporary of one of this run's frames
             try:
-                os.kill(int(m.group(1)), 0)
+                os.kill(int(m.group(2)), 0)
                 continue                       # that process is alive: not ours to remove
-            except (ProcessLookupError, PermissionError, OverflowError):
+            except PermissionError:
+                continue                       # alive, another user's
+            except (ProcessLookupError, OverflowError):
                 pass
             try:
                 os.unlink(os.path.join(d, name))
@@ -696,8 +772,18 @@ def render_output(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
     linear colourspace, or the display encoding) with its ``ocltm:*`` metadata."""
     colour = run.colour
     disp_lin = tm.last_output
-    pixels = colour.linear(disp_lin[..., :3]) if linear else colour.encode(disp_lin[..., :3])
+    rgb = disp_lin[..., :3]
     alpha = disp_lin.shape[2] == 4
+    pm = alpha and tm.last_alpha is not None and tm.last_alpha[2]
+    if pm and not linear:
+        # a display encoding is not linear: encode the straight colour, then
+        # premultiply the code values again (encode(c) a, not encode(c a))
+        a = disp_lin[..., 3:4]
+        rgb = np.where(a > 0, rgb / np.where(a > 0, a, 1.0), rgb).astype(np.float32)
+    pixels = colour.linear(rgb) if linear else colour.encode(rgb)
+    if pm and not linear:
+        pixels = np.where(a > 0, pixels * a, pixels).astype(np.float32)
+        pixels[tm.last_alpha[1]] = 0.0
     if alpha:
         pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
     meta, out_cs, chroma, white, straight = output_metadata(
@@ -723,7 +809,13 @@ def frame_input(run: _Run, tm: Tonemapper, fr, path):
     if fr.channel_note:
         run.once(logging.WARNING, "%s: %s", path, fr.channel_note)
     pix, lam, cs_text = _frame_input(run, tm, fr, path)
-    scale, why = run.calibrate(fr, lambda: pix)
+
+    def working_rgb():
+        if lam is None:
+            return pix
+        from .lmsr import spectral_to_rgb
+        return spectral_to_rgb(lam, pix)
+    scale, why = run.calibrate(fr, working_rgb)
     _remember_auto(tm, run)
     return pix, lam, cs_text, scale, why
 

@@ -128,7 +128,7 @@ def test_sparse_checkpoints_resume_to_the_same_frames(shot, tmp_path):
     part = str(tmp_path / "p.####.exr")
     _interrupt_after(["run", pattern, part, *common], str(tmp_path / "p.*.exr"), 20,
                      signal.SIGKILL)
-    ck = json.loads((tmp_path / "p.state.json").read_text())
+    ck = json.loads((tmp_path / "p.exr.state.json").read_text())
     assert ck["frame"] % 7 == 0 or ck["frame"] == frames[-1]
     p = _run(["run", pattern, part, *common, "--resume"])
     _, err = p.communicate(timeout=120)
@@ -144,7 +144,7 @@ def test_ctrl_c_exits_130_with_the_checkpoint(shot, tmp_path):
     if rc == 0:
         pytest.skip("the run finished before the signal")
     assert rc == 130 and "Traceback" not in err and "--resume" in err
-    ckpt = json.loads((tmp_path / "o.state.json").read_text())
+    ckpt = json.loads((tmp_path / "o.png.state.json").read_text())
     assert ckpt["frame"] == max(int(os.path.basename(p).split(".")[1])
                                 for p in glob.glob(str(tmp_path / "o.*.png")))
 
@@ -375,3 +375,120 @@ def test_durand00_defaults_stream_unless_a_frame_needs_flare(tmp_path, caplog):
         assert any("not streamed" in r.getMessage() for r in caplog.records) == (not streamed)
         np.testing.assert_allclose(b.get_pixels(oiio.FLOAT),
                                    oiio.ImageBuf(w).get_pixels(oiio.FLOAT), atol=1e-4, rtol=1e-4)
+
+
+# --- regressions found in review ----------------------------------------------------------
+
+def test_encoded_outputs_of_premultiplied_input_keep_the_colour(tmp_path):
+    """The same straight colour at alpha 1, 0.5 and 0.25: a display encoding must
+    encode the straight colour (it stored encode(c a)/a, brighter at low alpha)."""
+    c = np.array([40.0, 20.0, 10.0], np.float32)
+    a = np.repeat(np.array([1.0, 0.5, 0.25], np.float32), 8)[None, :, None].repeat(4, axis=0)
+    pix = np.concatenate([c * a, a], axis=2)
+    src = _exr(tmp_path / "in.exr", pix, None, whiteLuminance=1.0)
+    hint = oiio.ImageSpec()
+    hint.attribute("oiio:UnassociatedAlpha", 1)
+    for ext in (".png", ".tif"):
+        out = str(tmp_path / f"o{ext}")
+        assert main(["run", src, out, "--metering", "mean", "-q", "--no-checkpoint"]) == 0
+        got = oiio.ImageBuf(out, 0, 0, hint).get_pixels(oiio.FLOAT)
+        if ext == ".tif":                   # TIFF stores associated alpha: code values x a
+            got[..., :3] /= np.maximum(got[..., 3:4], 1e-6)
+        for k in (8, 16):                                   # alpha 0.5 and 0.25 vs 1
+            np.testing.assert_allclose(got[1, k, :3], got[1, 0, :3], atol=2 / 255, err_msg=ext)
+
+
+def test_state_files_never_overwrite_frames(shot, tmp_path, capsys):
+    pattern, frames = shot
+    victim = tmp_path / "victim.exr"
+    shutil.copy(frame_path(pattern, frames[0]), victim)
+    before = victim.read_bytes()
+    assert main(["run", str(victim), str(tmp_path / "o.png"), "--state-out", str(victim),
+                 "-q"]) == 2
+    assert "state file would overwrite" in capsys.readouterr().err
+    assert victim.read_bytes() == before
+    assert main(["run", str(victim), str(tmp_path / "o2.png"), "--state-out",
+                 str(tmp_path / "nope" / "s.json"), "-q"]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert not (tmp_path / "o2.png").exists()
+
+
+def test_resume_refuses_other_settings_and_outputs_keep_their_own_checkpoints(shot, tmp_path,
+                                                                           capsys):
+    pattern, frames = shot
+    part = str(tmp_path / "p.####.png")
+    _interrupt_after(["run", pattern, part], str(tmp_path / "p.*.png"), 5, signal.SIGKILL)
+    assert main(["run", pattern, str(tmp_path / "p.####.exr"), "--frames",
+                 f"{frames[0]}-{frames[2]}", "-q"]) == 0          # another output: its own
+    assert (tmp_path / "p.png.state.json").exists() and (tmp_path / "p.exr.state.json").exists()
+    assert main(["run", pattern, part, "--resume", "--fps", "10", "-q"]) == 2
+    assert "other settings" in capsys.readouterr().err
+    assert main(["run", pattern, part, "--resume", "-q"]) == 0
+    assert all(os.path.exists(frame_path(part, f)) for f in frames)
+
+
+def test_stale_temporaries_of_other_outputs_are_left_alone(shot, tmp_path):
+    pattern, frames = shot
+    other = tmp_path / ".someone_else.tmp999999.png"
+    mine = tmp_path / ".o.tmp999999.png"
+    other.write_bytes(b"x")
+    mine.write_bytes(b"x")
+    assert main(["run", frame_path(pattern, frames[0]), str(tmp_path / "o.png"), "-q"]) == 0
+    assert other.exists() and not mine.exists()
+
+
+def test_streaming_keeps_the_files_frame_rate(shot, tmp_path):
+    pattern, frames = shot
+    a, b = str(tmp_path / "a.####.exr"), str(tmp_path / "b.####.exr")
+    rng = f"{frames[0]}-{frames[3]}"
+    assert main(["run", pattern, a, "--frames", rng, "-q", "--no-checkpoint"]) == 0
+    assert main(["run", pattern, b, "--frames", rng, "-q", "--no-checkpoint",
+                 "--max-memory", "8"]) == 0
+    for f in range(frames[0], frames[3] + 1):
+        ta = json.loads(oiio.ImageBuf(frame_path(a, f)).spec().getattribute("ocltm:state"))
+        tb = json.loads(oiio.ImageBuf(frame_path(b, f)).spec().getattribute("ocltm:state"))
+        assert ta["time_s"] == tb["time_s"]
+
+
+@pytest.mark.parametrize("kind", ["tiled", "offset-jpg", "rgba-hdr"])
+def test_streaming_and_formats(tmp_path, kind):
+    rng = np.random.default_rng(9)
+    w, h = 301, 203
+    pix = (100.0 * rng.uniform(0.5, 2.0, (h, w, 4))).astype(np.float32)
+    pix[..., 3] = 1.0
+    spec = oiio.ImageSpec(w, h, 4, oiio.FLOAT)
+    spec.attribute("whiteLuminance", 1.0)
+    if kind == "tiled":
+        spec.tile_width = spec.tile_height = 64
+    if kind == "offset-jpg":
+        spec.x, spec.y = 7, 5
+    buf = oiio.ImageBuf(spec)
+    buf.set_pixels(oiio.ROI(spec.x, spec.x + w, spec.y, spec.y + h, 0, 1, 0, 4), pix)
+    src = str(tmp_path / "in.exr")
+    assert buf.write(src)
+    ext = {"tiled": ".exr", "offset-jpg": ".jpg", "rgba-hdr": ".hdr"}[kind]
+    whole, streamed = str(tmp_path / f"w{ext}"), str(tmp_path / f"s{ext}")
+    assert main(["run", src, whole, "-q", "--no-checkpoint"]) == 0
+    assert main(["run", src, streamed, "-q", "--no-checkpoint", "--max-memory", "8"]) == 0
+    tol = 3 / 255 if ext == ".jpg" else 2e-3
+    np.testing.assert_allclose(oiio.ImageBuf(streamed).get_pixels(oiio.FLOAT),
+                               oiio.ImageBuf(whole).get_pixels(oiio.FLOAT), atol=tol, rtol=tol)
+
+
+def test_spectral_files_are_not_streamed_and_auto_calibrate_right(tmp_path):
+    from ocl_tonemap.sample import write_spectral_image
+    sp = str(tmp_path / "sp.exr")
+    write_spectral_image(sp, "A", 50.0, patch_px=12)
+    a, b = str(tmp_path / "a.exr"), str(tmp_path / "b.exr")
+    assert main(["run", sp, a, "-q", "--no-checkpoint"]) == 0
+    assert main(["run", sp, b, "-q", "--no-checkpoint", "--max-memory", "8"]) == 0
+    np.testing.assert_array_equal(oiio.ImageBuf(a).get_pixels(oiio.FLOAT),
+                                  oiio.ImageBuf(b).get_pixels(oiio.FLOAT))
+    k = str(tmp_path / "k.exr")
+    assert main(["run", sp, k, "--operator", "kirk11", "--luminance-scale", "auto:30", "-q",
+                 "--no-checkpoint"]) == 0
+    p = str(tmp_path / "p.exr")
+    assert main(["run", sp, p, "--luminance-scale", "auto:30", "-q", "--no-checkpoint"]) == 0
+    sk = oiio.ImageBuf(k).spec().getattribute("ocltm:luminance_scale")
+    spp = oiio.ImageBuf(p).spec().getattribute("ocltm:luminance_scale")
+    assert sk == pytest.approx(spp, rel=1e-3)        # the same frame, the same calibration
