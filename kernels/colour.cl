@@ -19,6 +19,19 @@ inline float repair_value(float x, int *kind)
     return x;
 }
 
+/* The policy and the scale for one value; repairs counted in lc when `counted`. */
+inline float repair_and_scale(const float raw, const float scale, const bool counted,
+                              __local int *lc)
+{
+    int kind;
+    float x = repair_value(raw, &kind);
+    if (kind >= 0 && counted) atomic_inc(&lc[kind]);
+    if (kind == 1) return L_MAX;
+    x *= scale;
+    if (x > L_MAX) { if (counted) atomic_inc(&lc[5]); x = L_MAX; }
+    return x;
+}
+
 /* src: n pixels of `channels` floats (RGB first); rgb out: n*3 floats.
  * Repairs are counted for pixels [count_lo, count_hi) only (a band's halo
  * rows are another band's own). */
@@ -34,19 +47,9 @@ __kernel void scene_to_working(__global const float *src, const int channels, co
     const int i = get_global_id(0);
     if (i < n) {
         float v[3];
-        for (int k = 0; k < 3; ++k) {
-            int kind;
-            float x = repair_value(src[(size_t)i * channels + k], &kind);
-            const bool counted = i >= count_lo && i < count_hi;
-            if (kind >= 0 && counted) atomic_inc(&lc[kind]);
-            if (kind == 1) {
-                x = L_MAX;
-            } else {
-                x *= scale;
-                if (x > L_MAX) { if (counted) atomic_inc(&lc[5]); x = L_MAX; }
-            }
-            v[k] = x;
-        }
+        const bool counted = i >= count_lo && i < count_hi;
+        for (int k = 0; k < 3; ++k)
+            v[k] = repair_and_scale(src[(size_t)i * channels + k], scale, counted, lc);
         vstore3((float3)(v[0], v[1], v[2]), i, rgb);
         Y[i] = M_YR * v[0] + M_YG * v[1] + M_YB * v[2];
         Ys[i] = scotopic_luminance(v[0], v[1], v[2]);
@@ -65,18 +68,7 @@ __kernel void repair_scale(__global float *v, const int n, const float scale,
     if (lid < NREPAIR) lc[lid] = 0;
     barrier(CLK_LOCAL_MEM_FENCE);
     const int i = get_global_id(0);
-    if (i < n) {
-        int kind;
-        float x = repair_value(v[i], &kind);
-        if (kind >= 0) atomic_inc(&lc[kind]);
-        if (kind == 1) {
-            x = L_MAX;
-        } else {
-            x *= scale;
-            if (x > L_MAX) { atomic_inc(&lc[5]); x = L_MAX; }
-        }
-        v[i] = x;
-    }
+    if (i < n) v[i] = repair_and_scale(v[i], scale, true, lc);
     barrier(CLK_LOCAL_MEM_FENCE);
     if (lid < NREPAIR && lc[lid]) atomic_add(&counts[lid], lc[lid]);
 }

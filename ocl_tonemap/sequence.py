@@ -359,50 +359,14 @@ def run_job(opts: JobOptions) -> JobResult:
             rows = _stream_rows(opts, tm, inp, f)
             streamed = _stream_frame(run, tm, inp, outp, f, held, rows, fps, t_prev) \
                 if rows else None
-            if streamed is not None:
-                t, info, fps = streamed
-                if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
-                             or stop.signum is not None):
+            t, info, fps = streamed if streamed is not None else \
+                _whole_frame(run, tm, inp, outp, f, held, fps, t_prev)
+            if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
+                         or stop.signum is not None):
+                try:
                     _save_checkpoint(tm, ckpt, fingerprint)
-                result.repairs += info.repairs
-                result.frames.append(f)
-                result.outputs.append(outp)
-                result.infos.append(info)
-                t_prev = t
-                if opts.progress:
-                    _progress(k + 1, n, time.perf_counter() - t_start)
-                if stop.signum is not None and k + 1 < n:
-                    raise Interrupted(stop.signum, k + 1, n, f, ckpt)
-                continue
-            fr = read_frame(inp, f, opts.channels)
-            try:
-                if fps is None:
-                    fps = fr.fps or DEFAULT_FPS
-                    if fr.fps is None:
-                        log.info("no --fps and no FramesPerSecond metadata: %g fps", fps)
-                if fr.timestamp is not None and not held:
-                    t = fr.timestamp
-                elif f is not None:
-                    t = f / fps
-                else:
-                    t = t_prev if t_prev is not None else 0.0
-                if t_prev is not None and t < t_prev:
-                    raise ValueError(f"frame time {t:.6g} s is before the previous frame's "
-                                     f"{t_prev:.6g} s (frames out of order, or --state-in from a "
-                                     "later chunk)")
-                pix, lam, cs_text, scale, scale_why = frame_input(run, tm, fr, inp)
-                tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
-                           illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam,
-                           premultiplied=run.premultiplied(fr))
-                extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
-                info = _write_output(run, tm, fr, outp, f, t, cs_text, scale, scale_why, extra)
-                if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
-                             or stop.signum is not None):
-                    _save_checkpoint(tm, ckpt, fingerprint)
-            except FrameError:
-                raise
-            except Exception as exc:
-                raise FrameError(inp, f, exc) from exc
+                except Exception as exc:                      # noqa: BLE001
+                    raise FrameError(ckpt, f, f"cannot write the checkpoint: {exc}") from exc
             if info.repairs.total:
                 log.warning("%s%s: repaired bad values (%s)", inp,
                             "" if f is None else f" frame {f}", info.repairs.summary())
@@ -426,6 +390,37 @@ def run_job(opts: JobOptions) -> JobResult:
         plot_adaptation(opts.plot, result.infos, tm, opts.plot_frames)
     result.seconds = time.perf_counter() - t_start
     return result
+
+
+def _whole_frame(run: _Run, tm: Tonemapper, inp, outp, f, held, fps, t_prev):
+    """One frame read, mapped and written whole; returns (time, info, fps)."""
+    fr = read_frame(inp, f, run.opts.channels)
+    try:
+        if fps is None:
+            fps = fr.fps or DEFAULT_FPS
+            if fr.fps is None:
+                log.info("no --fps and no FramesPerSecond metadata: %g fps", fps)
+        if fr.timestamp is not None and not held:
+            t = fr.timestamp
+        elif f is not None:
+            t = f / fps
+        else:
+            t = t_prev if t_prev is not None else 0.0
+        if t_prev is not None and t < t_prev:
+            raise ValueError(f"frame time {t:.6g} s is before the previous frame's "
+                             f"{t_prev:.6g} s (frames out of order, or --state-in from a "
+                             "later chunk)")
+        pix, lam, cs_text, scale, scale_why = frame_input(run, tm, fr, inp)
+        tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
+                   illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam,
+                   premultiplied=run.premultiplied(fr))
+        extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
+        info = _write_output(run, tm, fr, outp, f, t, cs_text, scale, scale_why, extra)
+    except FrameError:
+        raise
+    except Exception as exc:
+        raise FrameError(inp, f, exc) from exc
+    return t, info, fps
 
 
 def _save_checkpoint(tm: Tonemapper, path: str, fingerprint: dict) -> None:
