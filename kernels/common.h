@@ -34,6 +34,7 @@ inline float4 powp4(float4 x, float4 e) { return exp2(e * log2(x)); }
  * S' with the later knee CHANNEL_KNEE.
  * Values relative to white (inv_white); knee <= 0: none. */
 #define CHANNEL_KNEE 0.9f
+#define SIGNAL_CEILING 1.0e6f     /* ocl_tonemap/display.py SIGNAL_CEILING */
 
 inline float shoulder_curve(const float x, const float knee)
 {

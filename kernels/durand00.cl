@@ -4,7 +4,6 @@
  * apply_gains). Reference: ocl_tonemap/durand00.py (map_reference). */
 
 #define DISPLAY_LINEAR_MAX 100.0f
-#define SIGNAL_CEILING 1.0e6f
 
 __kernel void durand00_map(__global const float *rgb, __global const float *Ys,
                            __global float *out, const int n,

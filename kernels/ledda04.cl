@@ -15,7 +15,6 @@
 #define T_DONE 1.0e9f
 #define NSTATE 9   /* sigma_in/fin/anchor cone, sigma_in/fin/anchor rod, t, E, K */
 #define DISPLAY_LINEAR_MAX 100.0f
-#define SIGNAL_CEILING 1.0e6f
 
 /* Eqs. 6-7; Y' clamped at 0. ward: Y' of Ward-Larson et al. 1997 instead of
  * Eq. 7 (the default mode; ocl_tonemap/ledda04.py, luminances). */

@@ -153,6 +153,9 @@ def scene_key(L_adapted):
 
 # --- highlights ------------------------------------------------------------------
 
+#: Display-linear values are capped here before the shoulder: the inverse display
+#: response diverges near saturation, and inf x 0 would be NaN (common.h: the same).
+SIGNAL_CEILING = 1.0e6
 #: Default knee of the highlight shoulder, as a fraction of display white.
 SHOULDER_KNEE = 0.7
 #: Knee of the per-channel cap after the luminance shoulder: colours are desaturated

@@ -33,8 +33,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .adaptation import exponential_step
-from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder,
-                      scene_key)
+from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, DisplaySpec,
+                      apply_shoulder, scene_key)
 from .photometry import neutral_scotopic_ratio, xy_to_rgb
 
 NAME = "durand00"
@@ -53,8 +53,6 @@ BLUE_SHIFT_DEFAULT_XY = (0.3009, 0.3185)
 LA_FLOOR = 1.0e-10
 #: Ferwerda et al. 1996: the display observer is adapted to half the display's maximum.
 DISPLAY_ADAPT_FRACTION = 0.5
-#: Display-linear values are capped here before the shoulder (finite maths).
-SIGNAL_CEILING = 1.0e6
 #: Look-up tables span 12 decades (Sec. 5), centred on the adaptation level here.
 LUT_DECADES = 12.0
 #: Options a caller may pass to ``frame_params`` (``Tonemapper(options=...)``).

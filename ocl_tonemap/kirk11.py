@@ -33,7 +33,8 @@ from . import lmsr
 from .bilateral import BilateralSpec, RangeKernel, bilateral_reference
 from .adaptation import (receptor_levels_advance, receptor_levels_preadapted,
                          receptor_levels_steady, rod_sensitivity)
-from .display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder, scene_key
+from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, DisplaySpec,
+                      apply_shoulder, scene_key)
 from .durand00 import mesopic_factor
 from .photometry import Y_WEIGHTS, sanitize
 
@@ -84,8 +85,6 @@ TARGET_CONTRAST_DEFAULT = 300.0
 SIGMA_RANGE_LOG10 = 0.4
 #: Floor on luminances before the log, cd/m^2.
 Y_FLOOR = 1.0e-10
-#: Display-linear values are capped here before the shoulder.
-SIGNAL_CEILING = 1.0e6
 
 
 
@@ -228,19 +227,15 @@ def solve_display(M: np.ndarray, q_hat: np.ndarray, exact: bool):
     return nnls3(M, q_hat) if exact else gamut_map(M, q_hat)
 
 
-def anchor_gain(Y_out: np.ndarray, L_wa: float, A_cone: float | None = None) -> float:
-    """Absolute level: the factor that brings the log-average display luminance
-    (relative to white) down to display.scene_key(L_wa) (Krawczyk et al. 2005's key,
-    as durand00 and ledda04 use). Without ``A_cone`` (kept for comparison) at most 1: a
-    range-reduced frame is then never brightened. The range reduction maps every
-    frame's base maximum to white
-    whatever its level; without this a 0.1 cd/m^2 scene is shown at 0.86x its
-    daylight brightness. With ``A_cone`` (the scheduler's adapted level), a frame
-    seen before the eye has adapted to it shows at (L_wa/A_cone)^n of that: darker
-    entering a tunnel, brighter (dazzle) leaving it."""
+def anchor_gain(Y_out: np.ndarray, L_wa: float, A_cone: float) -> float:
+    """Absolute level: the factor that brings the frame's log-average display
+    luminance (relative to white) to display.scene_key of the adapted cone level
+    ``A_cone`` (Krawczyk et al. 2005's key, as durand00 and ledda04 use), times
+    (L_wa/A_cone)^n for a frame seen before the eye has adapted to it: darker
+    entering a tunnel, brighter (dazzle) leaving it. The range reduction maps every
+    frame's base maximum to white whatever its level; without this a 0.1 cd/m^2
+    scene was shown at 0.86x its daylight brightness."""
     la = float(np.exp(np.mean(np.log(np.maximum(np.asarray(Y_out, np.float64), 1e-6)))))
-    if A_cone is None:
-        return min(1.0, float(scene_key(L_wa)) / la)
     g = float(scene_key(A_cone)) / la
     return g * (max(L_wa, 1e-10) / max(A_cone, 1e-10)) ** TRANSIENT_N
 

@@ -30,7 +30,8 @@ from dataclasses import dataclass, asdict, field
 import numpy as np
 
 from .bilateral import LEDDA_RANGE, V_FLOOR, BilateralSpec, bilateral_reference
-from .display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder, scene_key
+from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, DisplaySpec,
+                      apply_shoulder, scene_key)
 
 NAME = "ledda04"
 LOCAL = True
@@ -58,8 +59,6 @@ DISPLAY_ADAPT_FRACTION = 0.4
 #: moves more than this many log10 units from the goal that started the
 #: current course (Sec. 5.2, last paragraph; our threshold).
 CHANGE_LOG10 = 0.1
-#: Display-linear values are capped here before the shoulder (finite maths).
-SIGNAL_CEILING = 1.0e6
 #: "Long ago": t of a pixel whose course has finished, s.
 T_DONE = 1.0e9
 

@@ -18,7 +18,8 @@ import numpy as np
 
 from .adaptation import (AdaptationState, receptor_levels_advance, receptor_levels_preadapted,
                          receptor_levels_steady)
-from .display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, DisplaySpec, apply_shoulder
+from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, DisplaySpec,
+                      apply_shoulder)
 from .photometry import neutral_scotopic_ratio
 
 NAME = "pattanaik00"
@@ -204,9 +205,6 @@ def appearance_map(scene_white, scene_black, disp: DisplayObserver, stevens: flo
 
 # --- Colour in the default mode -----------------------------------------------------
 
-#: Display-linear values are capped here before the shoulder (the inverse display
-#: response diverges as a response nears the display's saturation).
-SIGNAL_CEILING = 1.0e6
 
 
 def luminance_level_adaptation_factor(L_A):

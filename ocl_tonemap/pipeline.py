@@ -388,13 +388,7 @@ class Tonemapper:
     def _finish(self, out: np.ndarray, pix: np.ndarray) -> np.ndarray:
         """Alpha back on (premultiplied again where it was), remember the output."""
         if pix.shape[2] == 4 and self._alpha is not None:
-            alpha, empty, premultiplied = self._alpha
-            out = np.array(out[..., :3], np.float32)
-            if premultiplied:
-                a = alpha[..., None]
-                out = np.where(a > 0, out * a, out)
-            out[empty] = 0.0
-            out = np.concatenate([out, alpha[..., None]], axis=2)
+            out = restore_alpha(out, self._alpha)
         elif pix.shape[2] == 4:
             out = np.concatenate([out, pix[..., 3:4]], axis=2)
         self.last_output = out
@@ -485,6 +479,18 @@ class Tonemapper:
                                 spec.z, spec.z + max(spec.depth, 1), 0, nch),
                        np.ascontiguousarray(r.pixels, np.float32))
         return res
+
+
+def restore_alpha(rgb: np.ndarray, alpha_info) -> np.ndarray:
+    """(..., 4): colour multiplied by alpha again where it had been divided
+    (``alpha_info`` from :func:`_straight_colour`), empty pixels exactly zero."""
+    alpha, empty, premultiplied = alpha_info
+    out = np.array(rgb[..., :3], np.float32)
+    if premultiplied:
+        a = alpha[..., None]
+        out = np.where(a > 0, out * a, out).astype(np.float32)
+    out[empty] = 0.0
+    return np.concatenate([out, alpha[..., None]], axis=2)
 
 
 def _straight_colour(pix: np.ndarray, premultiplied: bool):

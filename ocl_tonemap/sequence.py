@@ -27,7 +27,8 @@ from .display import display_for
 from .effects import illuminant_from_metadata
 from .imageio import (LINEAR_FORMATS, FrameError, find_frames, frame_path, is_sequence,
                       read_frame, same_file, write_frame)
-from .pipeline import NeedsWholeFrame, Tonemapper
+from .photometry import Y_WEIGHTS
+from .pipeline import NeedsWholeFrame, Tonemapper, restore_alpha
 from .photometry import RepairCounts
 
 log = logging.getLogger("ocl_tonemap")
@@ -543,9 +544,7 @@ def _stream_frame(run: _Run, tm: Tonemapper, inp, outp, f, held, rows, fps, t_pr
             tot, cnt = 0.0, 0
             for y0 in range(0, h, rows):
                 b = run.colour.convert_input(reader.read(y0, min(h, y0 + rows)), ic)
-                Y = b[..., :3].astype(np.float64) @ np.array([0.2126390058715104,
-                                                              0.7151686787677560,
-                                                              0.0721923153607337])
+                Y = b[..., :3].astype(np.float64) @ Y_WEIGHTS
                 Y = Y[np.isfinite(Y) & (Y > 0)]
                 tot, cnt = tot + float(np.log(Y).sum()), cnt + Y.size
             la = math.exp(tot / cnt) if cnt else None
@@ -571,11 +570,7 @@ def _stream_frame(run: _Run, tm: Tonemapper, inp, outp, f, held, rows, fps, t_pr
             px = run.colour.linear(band) if linear else run.colour.encode(band)
             a = source.alpha(y0)
             if a is not None:
-                alpha, empty, pm = a
-                if pm:
-                    px = np.where(alpha[..., None] > 0, px * alpha[..., None], px)
-                px[empty] = 0.0
-                px = np.concatenate([px, alpha[..., None]], axis=2)
+                px = restore_alpha(px, a)
             writer.write(y0, px)
 
         tm.backend.max_band_pixels = rows * w
@@ -775,12 +770,11 @@ def render_output(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
         # premultiply the code values again (encode(c) a, not encode(c a))
         a = disp_lin[..., 3:4]
         rgb = np.where(a > 0, rgb / np.where(a > 0, a, 1.0), rgb).astype(np.float32)
-    pixels = colour.linear(rgb) if linear else colour.encode(rgb)
-    if pm and not linear:
-        pixels = np.where(a > 0, pixels * a, pixels).astype(np.float32)
-        pixels[tm.last_alpha[1]] = 0.0
-    if alpha:
-        pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
+        pixels = restore_alpha(colour.encode(rgb), tm.last_alpha)
+    else:
+        pixels = colour.linear(rgb) if linear else colour.encode(rgb)
+        if alpha:
+            pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
     meta, out_cs, chroma, white, straight = output_metadata(
         run, tm, fr, t, cs_text, scale, scale_why, extra, linear, alpha)
     return Rendered(pixels, out_cs, meta, chroma, white, straight)
