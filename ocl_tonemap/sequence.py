@@ -336,8 +336,8 @@ def run_job(opts: JobOptions) -> JobResult:
     and SIGTERM end it after the frame in flight (:class:`Interrupted`)."""
     t_start = time.perf_counter()
     jobs = _jobs(opts)
-    _remove_stale_temps(jobs)
     ckpt = checkpoint_path(opts) if (opts.checkpoint or opts.resume) else None
+    _remove_stale_temps(jobs, [p for p in {ckpt, opts.state_out} if p])
     _check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p])
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
     if state is not None:
@@ -625,23 +625,33 @@ class _StopSignals:
         return False
 
 
-def _remove_stale_temps(jobs) -> None:
-    """Temporary files a killed earlier run may have left beside the outputs
-    (``.<name>.tmp<pid><ext>``, only ours: the pid must not be running)."""
+def _remove_stale_temps(jobs, state_paths=()) -> None:
+    """Temporary files a killed earlier run may have left beside the outputs and
+    the state files (``.<name>.tmp<pid>[<ext>]``, only those of this run's files,
+    and only when that process is gone)."""
     from pathlib import Path
-    stems: dict = {}
+    mine: dict = {}
     for _, _, o, _ in jobs:
-        stems.setdefault(os.path.dirname(os.path.abspath(o)), set()).add(Path(o).stem)
+        mine.setdefault(os.path.dirname(os.path.abspath(o)), set()).add(Path(o).stem)
+    prefixes: dict = {}
+    for sp in state_paths:                  # the JSON itself and its per-pixel planes
+        d, name = os.path.split(os.path.abspath(sp))
+        mine.setdefault(d, set()).add(name)
+        prefixes.setdefault(d, []).append(name[:-5] + ".pixels." if name.endswith(".json")
+                                          else name + ".pixels.")
     rx = re.compile(r"^\.(.+)\.tmp(\d+)(\.[A-Za-z0-9]+)?$")
-    for d, mine in stems.items():
+    for d, stems in mine.items():
         try:
             names = os.listdir(d)
         except OSError:
             continue
         for name in names:
             m = rx.match(name)
-            if not m or m.group(1) not in mine or int(m.group(2)) == os.getpid():
-                continue                       # not a temporary of one of this run's frames
+            if not m or int(m.group(2)) == os.getpid():
+                continue
+            if m.group(1) not in stems and not any(m.group(1).startswith(pfx)
+                                                   for pfx in prefixes.get(d, ())):
+                continue                       # not a temporary of one of this run's files
             try:
                 os.kill(int(m.group(2)), 0)
                 continue                       # that process is alive: not ours to remove

@@ -430,11 +430,13 @@ def test_resume_refuses_other_settings_and_outputs_keep_their_own_checkpoints(sh
 def test_stale_temporaries_of_other_outputs_are_left_alone(shot, tmp_path):
     pattern, frames = shot
     other = tmp_path / ".someone_else.tmp999999.png"
-    mine = tmp_path / ".o.tmp999999.png"
-    other.write_bytes(b"x")
-    mine.write_bytes(b"x")
+    mine = [tmp_path / ".o.tmp999999.png",                  # a frame, the state JSON and
+            tmp_path / ".o.png.state.json.tmp999999",       # its planes, killed mid-write
+            tmp_path / ".o.png.state.pixels.2.tmp999999.exr"]
+    for p in (other, *mine):
+        p.write_bytes(b"x")
     assert main(["run", frame_path(pattern, frames[0]), str(tmp_path / "o.png"), "-q"]) == 0
-    assert other.exists() and not mine.exists()
+    assert other.exists() and not any(p.exists() for p in mine)
 
 
 def test_streaming_keeps_the_files_frame_rate(shot, tmp_path):
