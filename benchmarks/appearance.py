@@ -131,7 +131,7 @@ class Runner:
             warnings.simplefilter("ignore")
             from ocl_tonemap import Tonemapper
             from ocl_tonemap.colour import ColourPipeline, load_config
-            from ocl_tonemap.display import display_for
+            from ocl_tonemap.models.display import display_for
             from ocl_tonemap.effects import EffectSettings
         self.Tonemapper, self.display_for, self.EffectSettings = Tonemapper, display_for, EffectSettings
         self.cp = ColourPipeline(load_config("ocl-tonemap"), DISPLAY)
@@ -661,7 +661,8 @@ def main(argv=None) -> int:
     warnings.filterwarnings("ignore", module="colour")
     code = provenance()
 
-    from ocl_tonemap.operators import REGISTRY
+    from ocl_tonemap.operators import registry
+    REGISTRY = registry()
     ops = [o.strip() for o in a.operators.split(",")] if a.operators else list(REGISTRY)
     bad = [o for o in ops if o not in REGISTRY]
     if bad:
@@ -684,7 +685,7 @@ def main(argv=None) -> int:
     os.makedirs(a.out, exist_ok=True)
     os.makedirs(a.results, exist_ok=True)
 
-    from ocl_tonemap.runtime import describe_device, get_runtime
+    from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
     try:
         opencl = describe_device(get_runtime().device)
     except Exception as e:  # noqa: BLE001

@@ -38,10 +38,11 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 from benchutil import timeit  # noqa: E402
 
-from ocl_tonemap import ledda04 as L  # noqa: E402
-from ocl_tonemap.bilateral import LEDDA_RANGE, DeviceBilateral, prepare_signal  # noqa: E402
+from ocl_tonemap.models import ledda2004 as L  # noqa: E402
+from ocl_tonemap.backends.opencl.bilateral import DeviceBilateral  # noqa: E402
+from ocl_tonemap.models.bilateral import LEDDA_RANGE, prepare_signal  # noqa: E402
 from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.runtime import describe_device, get_runtime  # noqa: E402
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
 
 SIZES = [(640, 360), (1920, 1080), (3840, 2160)]
 EXACT_BUDGET_S = 6.0

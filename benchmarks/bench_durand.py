@@ -29,12 +29,13 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 from benchutil import table, timeit  # noqa: E402
 
-from ocl_tonemap import durand00 as dd  # noqa: E402
-from ocl_tonemap import flare as fl  # noqa: E402
-from ocl_tonemap.convolution import EDGE_CLAMP, DeviceBlur, blur_reference, gaussian_taps  # noqa: E402
+from ocl_tonemap.models import durand2000 as dd
+from ocl_tonemap.models import spencer1995 as fl  # noqa: E402
+from ocl_tonemap.backends.opencl.convolution import DeviceBlur  # noqa: E402
+from ocl_tonemap.models.convolution import EDGE_CLAMP, blur_reference, gaussian_taps  # noqa: E402
 from ocl_tonemap.effects import EffectSettings  # noqa: E402
 from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.runtime import describe_device, get_runtime  # noqa: E402
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
 
 OFF = EffectSettings()
 
@@ -84,7 +85,9 @@ def bench_lut(w, h, reps):
     tm = Tonemapper("durand00", "reference", effects=OFF)
     direct = tm.process(img)
     p0 = dd.FrameParams(**{**tm.last.params, "tint": tuple(tm.last.params["tint"])})
-    from ocl_tonemap.photometry import photopic_luminance, scotopic_luminance
+    be = Tonemapper("durand00", "opencl", effects=OFF).backend
+    op = tm.op
+    from ocl_tonemap.models.photometry import photopic_luminance, scotopic_luminance
     rgb = img.astype(np.float64)
     Y, Ys = photopic_luminance(rgb), scotopic_luminance(rgb)
     n = w * h
@@ -99,8 +102,10 @@ def bench_lut(w, h, reps):
     for entries in (0, 500, 2000, 8000):
         p = dd.FrameParams(**{**p0.as_dict(), "lut": entries, "tint": p0.tint})
 
+        call = op.kernel_call(p)
+
         def run():
-            dd.map_opencl(rt, bufs[0], bufs[2], bufs[3], bufs[1], n, p)
+            be.run_pointwise(call, bufs[0], bufs[2], bufs[3], bufs[1], n)
             rt.queue.finish()
         t = timeit(run, reps)
         t_direct = t_direct or t

@@ -32,7 +32,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 from benchutil import timeit  # noqa: E402
 
 from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.runtime import describe_device, get_runtime  # noqa: E402
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
 
 SIZES = [(640, 360), (1920, 1080), (3840, 2160)]
 
@@ -120,12 +120,13 @@ def main():
         t_ocl = timeit(lambda: tm.process(img, dt=1 / 30), reps)
         # per-pixel kernel alone, on the resident buffers of the last frame
         be = tm.backend
-        b = be._bufs
-        from ocl_tonemap import pattanaik00 as P
+        b = be.bufs
+        from ocl_tonemap.models import pattanaik2000 as P
         params = P.frame_params(tm._state, tm.display)
 
         def kern(vector=True):
-            P.map_opencl(be.rt, b["rgb"], b["Y"], b["Ys"], b["out"], w * h, params, vector)
+            be.run_pointwise(tm.op.kernel_call(params, vector), b["rgb"], b["Y"], b["Ys"],
+                             b["out"], w * h)
             be.rt.queue.finish()
         t_k = timeit(kern, reps)
         t_ks = timeit(lambda: kern(False), reps)

@@ -1,18 +1,20 @@
 /* Durand & Dorsey 2000: the per-pixel pass of the extended Ferwerda operator.
  * Eq. 5: out = m_C rgb + k m_R s_w (1.05, 0.97, 1.27), display-linear, with
  * the cone signals already chromatically adapted (Eq. 6, colour.cl's
- * apply_gains). Reference: ocl_tonemap/durand00.py (map_reference). */
+ * apply_gains). Reference: ocl_tonemap/models/durand2000.py (map_reference); the scalars
+ * are packed by ocl_tonemap/operators/durand00.py (P_<name>: their indices). */
 
 #define DISPLAY_LINEAR_MAX 100.0f
 
-__kernel void durand00_map(__global const float *rgb, __global const float *Ys,
-                           __global float *out, const int n,
-                           const float m_cone,                 /* m_C / display unit */
-                           const float rod_r, const float rod_g, const float rod_b,
-                           const float inv_white, const float knee)   /* highlight shoulder */
+__kernel void durand00_map(__global const float *rgb, __global const float *Y,
+                           __global const float *Ys, __global float *out, const int n,
+                           __constant const float *p)
 {
     const int i = get_global_id(0);
     if (i >= n) return;
+    const float m_cone = p[P_m_cone];                         /* m_C / display unit */
+    const float rod_r = p[P_rod_r], rod_g = p[P_rod_g], rod_b = p[P_rod_b];
+    const float inv_white = p[P_inv_white], knee = p[P_knee];  /* highlight shoulder */
     const float3 c = vload3(i, rgb);
     const float s = Ys[i];
     const float3 o = fmin(m_cone * c + s * (float3)(rod_r, rod_g, rod_b), SIGNAL_CEILING);
@@ -30,15 +32,16 @@ inline float lut_at(__global const float *t, const int nlut, const float lo,
     return t[clamp(idx, 0, nlut - 1)];
 }
 
-__kernel void durand00_map_lut(__global const float *rgb, __global const float *Ys,
-                               __global float *out, const int n,
-                               __global const float *tables, const int nlut,
-                               const float lo, const float inv_step,
-                               const float tint_r, const float tint_g, const float tint_b,
-                               const float inv_white, const float knee)
+__kernel void durand00_map_lut(__global const float *rgb, __global const float *Y,
+                               __global const float *Ys, __global float *out, const int n,
+                               __constant const float *p, __global const float *tables)
 {
     const int i = get_global_id(0);
     if (i >= n) return;
+    const int nlut = (int)p[P_nlut];
+    const float lo = p[P_lo], inv_step = p[P_inv_step];
+    const float tint_r = p[P_tint_r], tint_g = p[P_tint_g], tint_b = p[P_tint_b];
+    const float inv_white = p[P_inv_white], knee = p[P_knee];
     const float3 c = vload3(i, rgb);
     const float rod = lut_at(tables + nlut, nlut, lo, inv_step, Ys[i]);
     float3 o;

@@ -1,20 +1,10 @@
 /* Ledda, Santos & Chalmers 2004: per-pixel luminances, time course and mapping.
- * Must agree with ocl_tonemap/ledda04.py (the float64 reference). */
+ * Reference: ocl_tonemap/models/ledda2004.py (float64). */
 
-#define V_FLOOR 1.0e-10f
-#define ALPHA 0.69f
-#define BETA_CONE 5.83f
-#define BETA_ROD 2.0f
-#define TAU_CONE 600.0f
-#define TAU_ROD 2400.0f
-#define LN_RHO_CONE 2.995732273553991f   /* ln 20 */
-#define LN_RHO_ROD 2.995732273553991f
-#define K_MAX 12.0f
-#define K_SLOPE (-0.0006f)
-#define E_MAX 10567.0f
-#define T_DONE 1.0e9f
-#define NSTATE 9   /* sigma_in/fin/anchor cone, sigma_in/fin/anchor rod, t, E, K */
-#define DISPLAY_LINEAR_MAX 100.0f
+/* V_FLOOR, ALPHA, BETA_CONE, BETA_ROD, TAU_CONE, TAU_ROD, LN_RHO_CONE, LN_RHO_ROD,
+ * K_MAX, K_SLOPE, E_MAX, T_DONE, NSTATE and DISPLAY_LINEAR_MAX are given as build
+ * options from ocl_tonemap/models/ledda2004.py (backends/opencl/ledda04.py,
+ * KERNEL_CONSTANTS): one definition, not retyped here. */
 
 /* Eqs. 6-7; Y' clamped at 0. ward: Y' of Ward-Larson et al. 1997 instead of
  * Eq. 7 (the default mode; ocl_tonemap/ledda04.py, luminances). */
@@ -67,26 +57,37 @@ inline float sigma_rod_at(float s_in, float s_fin, float t, float K)
     return s_fin + f * (s_in - s_fin);
 }
 
-/* One frame for every pixel: take the new goals (init: become fully adapted to
- * them with energy E_init; else advance the course by dt and restart it where
- * the goal moved more than change_log2), then map (Eqs. 11-13).
+/* Each pixel's adaptation levels (cones, rods) of this frame: the filtered levels,
+ * blended with the frame's global level in the default mode (I_local^s G^(1-s)). */
+inline float2 adaptation_levels(__global const float *Ic, __global const float *Ir, const int i,
+                                const int rod_from_cone, const float rod_scale,
+                                const float strength, const float ln_global_c,
+                                const float ln_global_r)
+{
+    float ic = Ic[i];
+    float ir = rod_from_cone ? rod_scale * ic : Ir[i];
+    if (strength < 1.0f) {
+        ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
+        ir = rod_from_cone ? rod_scale * ic
+                           : exp(strength * log(fmax(ir, V_FLOOR)) + (1.0f - strength) * ln_global_r);
+    }
+    return (float2)(ic, ir);
+}
+
+/* integrate: one frame for every pixel: take the new goals (init: become fully
+ * adapted to them with energy E_init; else advance the course by dt and restart it
+ * where the goal moved more than change_log2).
  *   Ic, Ir: adaptation luminances of cones and rods; Ir is read as
  *           rod_scale * Ic[i] when rod_from_cone is set (rods not filtered).
  *   state:  NSTATE planes of `stride` floats; this band starts at plane offset 0.
- *   rgb:    working-space cd/m^2, pixel i of this band at rgb_off + i.
- *   out:    display-linear RGB. counts[0] += pixels restarted. */
-__kernel void ledda04_step_map(__global const float *rgb, const int rgb_off,
-                               __global const float *Ic,
-                               __global const float *Ir, const int rod_from_cone,
-                               const float rod_scale, __global float *state, const int stride,
-                               const int n, const float dt, const int init, const float E_init,
-                               const float change_log2, const float sigma_disp,
-                               const float inv_unit, __global float *out,
-                               __global int *counts,
-                               const float strength,   /* local share of the level (1: paper) */
-                               const float ln_global_c, const float ln_global_r,
-                               const float inv_white, const float knee,   /* shoulder */
-                               const int ward)          /* Y' of Ward (default) or Eq. 7 */
+ *   counts[0] += pixels restarted. */
+__kernel void ledda04_step(__global const float *Ic, __global const float *Ir,
+                           const int rod_from_cone, const float rod_scale,
+                           __global float *state, const int stride, const int n,
+                           const float dt, const int init, const float E_init,
+                           const float change_log2, __global int *counts,
+                           const float strength, const float ln_global_c,
+                           const float ln_global_r)
 {
     __local int lrestart;
     if (get_local_id(0) == 0) lrestart = 0;
@@ -94,14 +95,9 @@ __kernel void ledda04_step_map(__global const float *rgb, const int rgb_off,
     const int i = get_global_id(0);
     if (i < n) {
         __global float *s = state + i;
-        float ic = Ic[i];
-        float ir = rod_from_cone ? rod_scale * ic : Ir[i];
-        if (strength < 1.0f) {                 /* I_local^s G^(1-s) (default mode) */
-            ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
-            ir = rod_from_cone ? rod_scale * ic
-                               : exp(strength * log(fmax(ir, V_FLOOR)) + (1.0f - strength) * ln_global_r);
-        }
-        const float gc = sigma_of(ic, BETA_CONE), gr = sigma_of(ir, BETA_ROD);
+        const float2 lv = adaptation_levels(Ic, Ir, i, rod_from_cone, rod_scale, strength,
+                                            ln_global_c, ln_global_r);
+        const float gc = sigma_of(lv.x, BETA_CONE), gr = sigma_of(lv.y, BETA_ROD);
         float sic, sfc, sac, sir, sfr, sar, t, E, K;
         if (init) {
             sic = sfc = sac = gc;
@@ -130,17 +126,36 @@ __kernel void ledda04_step_map(__global const float *rgb, const int rgb_off,
         s[0] = sic; s[stride] = sfc; s[2 * stride] = sac;
         s[3 * stride] = sir; s[4 * stride] = sfr; s[5 * stride] = sar;
         s[6 * stride] = t; s[7 * stride] = E; s[8 * stride] = K;
-
-        const float sc = sigma_cone_at(sic, sfc, t, K);
-        const float sr = sigma_rod_at(sir, sfr, t, K);
-        const float u = clamp((log10(fmax(ic, V_FLOOR)) + 2.0f) / 2.6f, 0.0f, 1.0f);
-        const float mes = u * u * (3.0f - 2.0f * u);                         /* Eq. 11 */
-        const float3 c = vload3(rgb_off + i, rgb);
-        const float cone_gain = mes * sigma_disp / sc * inv_unit;            /* Eq. 12 */
-        const float rod_out = (1.0f - mes) * sigma_disp * ledda_Ys(c, ward) / sr * inv_unit; /* Eq. 13 */
-        float3 o = fmin(c * cone_gain + rod_out, SIGNAL_CEILING);
-        vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     if (get_local_id(0) == 0 && lrestart) atomic_add(&counts[0], lrestart);
+}
+
+/* apply: Eqs. 11-13 with the current sigmas of the state, then the shoulder.
+ *   rgb: working-space cd/m^2, pixel i of this band at rgb_off + i.
+ *   out: display-linear RGB. */
+__kernel void ledda04_map(__global const float *rgb, const int rgb_off,
+                          __global const float *Ic, __global const float *state,
+                          const int stride, const int n, const float sigma_disp,
+                          const float inv_unit, __global float *out, const float strength,
+                          const float ln_global_c, const float inv_white, const float knee,
+                          const int ward)
+{
+    const int i = get_global_id(0);
+    if (i >= n) return;
+    __global const float *s = state + i;
+    float ic = Ic[i];                      /* the cone level, as adaptation_levels gives it */
+    if (strength < 1.0f)
+        ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
+    const float sic = s[0], sfc = s[stride], sir = s[3 * stride], sfr = s[4 * stride];
+    const float t = s[6 * stride], K = s[8 * stride];
+    const float sc = sigma_cone_at(sic, sfc, t, K);
+    const float sr = sigma_rod_at(sir, sfr, t, K);
+    const float u = clamp((log10(fmax(ic, V_FLOOR)) + 2.0f) / 2.6f, 0.0f, 1.0f);
+    const float mes = u * u * (3.0f - 2.0f * u);                         /* Eq. 11 */
+    const float3 c = vload3(rgb_off + i, rgb);
+    const float cone_gain = mes * sigma_disp / sc * inv_unit;            /* Eq. 12 */
+    const float rod_out = (1.0f - mes) * sigma_disp * ledda_Ys(c, ward) / sr * inv_unit; /* Eq. 13 */
+    float3 o = fmin(c * cone_gain + rod_out, SIGNAL_CEILING);
+    vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
 }

@@ -1,7 +1,7 @@
 /* Pattanaik, Tumblin, Yee & Greenberg 2000: fused per-pixel pass.
  * Eq. 2 responses, Eq. 3 colour slope, Sec. 4.3 inverse appearance (as a
  * per-frame gain/offset) and inverse display response (quadratic in L^n).
- * Reference: ocl_tonemap/pattanaik00.py (map_reference). */
+ * Reference: ocl_tonemap/models/pattanaik2000.py (map_reference). */
 
 #define PN 0.73f
 #define L_FLOOR 1.0e-10f
@@ -50,16 +50,20 @@ inline void map_one(const int i, __global const float *rgb, __global const float
 
 #define MAP_ARGS log2_sigma_rod, log2_sigma_cone, B_rod, B_cone, gain, offset, \
                  dB_rod, dB_cone, ds_rod, ds_cone, colour_k, out_black, out_scale, inv_white, knee, chroma
-#define MAP_PARAMS const float log2_sigma_rod, const float log2_sigma_cone, \
-                   const float B_rod, const float B_cone, const float gain, const float offset, \
-                   const float dB_rod, const float dB_cone, \
-                   const float ds_rod, const float ds_cone,  /* display sigma^n */ \
-                   const float colour_k,                     /* ln10 n B_cone / S_d */ \
-                   const float out_black,                    /* display black taken out, cd/m^2 */ \
-                   const float out_scale,                    /* display-linear per cd/m^2 */ \
-                   const float inv_white,                    /* 1 / display white signal */ \
-                   const float knee,                         /* shoulder knee, 0: none */ \
-                   const float chroma                        /* default colour scale */
+/* The frame's scalars, packed by ocl_tonemap/operators/pattanaik00.py (kernel_call);
+ * P_<name> (their indices) come from the same place, as build options. */
+#define MAP_PARAMS __constant const float *p
+#define MAP_LOAD \
+    const float log2_sigma_rod = p[P_log2_sigma_rod], log2_sigma_cone = p[P_log2_sigma_cone]; \
+    const float B_rod = p[P_B_rod], B_cone = p[P_B_cone], gain = p[P_gain], offset = p[P_offset]; \
+    const float dB_rod = p[P_dB_rod], dB_cone = p[P_dB_cone];              /* display */ \
+    const float ds_rod = p[P_ds_rod], ds_cone = p[P_ds_cone];              /* display sigma^n */ \
+    const float colour_k = p[P_colour_k];                /* ln10 n B_cone / S_d */ \
+    const float out_black = p[P_out_black];              /* display black taken out, cd/m^2 */ \
+    const float out_scale = p[P_out_scale];              /* display-linear per cd/m^2 */ \
+    const float inv_white = p[P_inv_white];              /* 1 / display white signal */ \
+    const float knee = p[P_knee];                        /* shoulder knee, 0: none */ \
+    const float chroma = p[P_chroma]                     /* default colour scale */
 
 /* Scalar kernel: one pixel per work-item (kept for comparison in benchmarks). */
 __kernel void pattanaik00_map(__global const float *rgb, __global const float *Y,
@@ -67,6 +71,7 @@ __kernel void pattanaik00_map(__global const float *rgb, __global const float *Y
                               MAP_PARAMS)
 {
     const int i = get_global_id(0);
+    MAP_LOAD;
     if (i < n) map_one(i, rgb, Y, Ys, out, MAP_ARGS);
 }
 
@@ -78,6 +83,7 @@ __kernel void pattanaik00_map4(__global const float *rgb, __global const float *
 {
     const int q = get_global_id(0), i0 = 4 * q;
     if (i0 >= n) return;
+    MAP_LOAD;
     if (i0 + 4 > n) {
         for (int i = i0; i < n; ++i) map_one(i, rgb, Y, Ys, out, MAP_ARGS);
         return;

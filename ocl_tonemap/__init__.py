@@ -8,10 +8,10 @@ pipelines. See README.md; the Python API is :class:`Tonemapper`.
 
 __version__ = "0.1.0"
 
-from .adaptation import AdaptationState  # noqa: E402
-from .display import DisplaySpec  # noqa: E402
+from .state import AdaptationState  # noqa: E402
+from .models.display import DisplaySpec  # noqa: E402
 from .effects import EffectSettings  # noqa: E402
-from .metering import MeteringSpec  # noqa: E402
+from .models.metering import MeteringSpec  # noqa: E402
 from .pipeline import Tonemapper  # noqa: E402
 
 __all__ = ["Tonemapper", "AdaptationState", "DisplaySpec", "EffectSettings", "MeteringSpec",

@@ -263,7 +263,7 @@ def mesopic_luminance(rgb_cd, m: float | None = None) -> np.ndarray:
     with the field's m (default: from the image's log-average photopic and scotopic
     luminances). At night pixels are ordered by V' (the Purkinje shift a person
     sees), by day by V: the luminance whose order a tone mapper should keep."""
-    from ocl_tonemap.photometry import scotopic_luminance
+    from ocl_tonemap.models.photometry import scotopic_luminance
     rgb = np.maximum(np.asarray(rgb_cd, np.float64)[..., :3], 0.0)
     Y, Ys = luminance(rgb), scotopic_luminance(rgb)
     if m is None:

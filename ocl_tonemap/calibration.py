@@ -121,7 +121,7 @@ def camera_scale(spec) -> tuple[float, str] | None:
 def log_average(rgb: np.ndarray, max_samples: int = 1 << 20) -> float | None:
     """exp(mean(ln Y)) of the positive, finite photopic luminances of working RGB
     (a strided subsample of large frames); None when no pixel has light."""
-    from .photometry import Y_WEIGHTS
+    from .models.photometry import Y_WEIGHTS
     a = np.asarray(rgb)[..., :3]
     flat = a.reshape(-1, 3)
     step = max(1, flat.shape[0] // max_samples)

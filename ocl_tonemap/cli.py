@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import argparse
 import logging
-import math
 import os
 import sys
 
 from . import __version__
-from .operators import REGISTRY
+from .operators import registry
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -18,8 +17,10 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", help="frame range for sequence patterns: A-B, A-BxSTEP, or a list")
     p.add_argument("--fps", type=float, help="frames per second (default: FramesPerSecond "
                    "metadata, else 24)")
-    p.add_argument("--operator", default="pattanaik00", choices=sorted(REGISTRY),
-                   help="the model (default pattanaik00)")
+    ops = registry()
+    p.add_argument("--operator", default="pattanaik00", choices=sorted(ops),
+                   help="the model (default pattanaik00): " + "; ".join(
+                       f"{n}: {c.description}" for n, c in ops.items()))
     p.add_argument("--mode", choices=["default", "paper"],
                    help="default: the operator as it looks right on photographs; paper: its "
                    "paper taken literally (docs/models.md says where they differ)")
@@ -92,39 +93,7 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
     p.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
     p.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
-    g = p.add_argument_group("local operators (ledda04, kirk11)")
-    g.add_argument("--sigma-spatial", type=float,
-                   help="bilateral spatial sigma, pixels (default: 2%% of the larger side)")
-    g.add_argument("--bilateral", choices=["auto", "exact", "fast"], default="auto",
-                   help="exact brute force, fast bilateral grid, or auto (exact when cheap)")
-    g.add_argument("--bilateral-sampling", metavar="Q[,QR]",
-                   help="grid sampling rate per sigma in space[,range] (default 2,2; higher "
-                   "is slower and closer to exact)")
-    g.add_argument("--rods", choices=["auto", "always"], default="auto",
-                   help="auto: skip the rod filter on all-photopic frames")
-    g.add_argument("--local-strength", type=float, metavar="S",
-                   help="ledda04: share of the local (bilateral) level in each pixel's "
-                   "adaptation, 0 (global) .. 1 (the paper's fully local); default 0.5")
-    g.add_argument("--ledda-mode", choices=["default", "paper"],
-                   help="ledda04: the same as --mode")
-    g = p.add_argument_group("durand00")
-    g.add_argument("--blue-shift", metavar="R,G,B",
-                   help="colour of rod signals (Eq. 5): default a 480 nm blue, xy 0.289,0.308 "
-                   "(the paper's 1.05,0.97,1.27 with --mode paper); 1,1,1 for none")
-    g.add_argument("--lut", type=int, default=0, metavar="N",
-                   help="evaluate the mapping through per-frame tables of N entries over 12 "
-                   "decades (Sec. 5; the paper uses 2000); 0 = direct (default)")
-    g = p.add_argument_group("kirk11 (spectral EXR input is used when present)")
-    g.add_argument("--kappa", choices=["full", "adaptive"],
-                   help="rod mixing: following the frame's mesopic level (default; photopic "
-                   "scenes unshifted) or fixed at full scotopic values (the paper's choice)")
-    g.add_argument("--shift-scale", metavar="X,Y,Z",
-                   help="Purkinje shift scales of Eq. 12 (default 15,15,5)")
-    g.add_argument("--night-dim", type=float, metavar="GAMMA",
-                   help="range kept by fully scotopic pixels (default 0.25; 1 = no dimming)")
-    g.add_argument("--target-contrast", type=float,
-                   help="base-layer contrast after Durand & Dorsey 2002 compression (default "
-                   "300; the paper's 5 with --mode paper)")
+    _add_operator_args(p)
     g = p.add_argument_group("effects (every operator; default auto for durand00, else off)")
     for name, what in (("flare", "glare of light sources (Spencer et al. 1995)"),
                        ("acuity", "loss of acuity in the dark (Shaler 1937)"),
@@ -168,7 +137,6 @@ def _options(a, input_, output):
 
 
 def _effects(a):
-    from .effects import EffectSettings
     fx = _effect_settings(a)
     _check_effect_flags(a, fx)
     return fx
@@ -183,36 +151,33 @@ def _effect_settings(a):
         flare_threshold=a.flare_threshold, flare_per_octave=a.flare_sampling)
 
 
-def _triple(text: str, flag: str) -> tuple:
-    try:
-        t = tuple(float(v) for v in text.split(","))
-        if len(t) != 3 or min(t) < 0:
-            raise ValueError
-        return t
-    except ValueError:
-        raise ValueError(f"bad {flag} {text!r}: three non-negative numbers a,b,c") from None
+def operator_flags() -> list:
+    """The command-line options of every registered operator, generated from their
+    option specs: [(Option, operators declaring it)], one entry per flag (``--mode``,
+    shared by all, is a run option). Given for another operator, a flag is ignored
+    with a warning (one rule for all of them)."""
+    out: dict = {}
+    for name, cls in registry().items():
+        for o in cls.options:
+            if not o.flag or o.flag == "--mode":
+                continue
+            if o.flag not in out:
+                out[o.flag] = (o, [])
+            out[o.flag][1].append(name)
+    return [(o, tuple(ops)) for o, ops in out.values()]
 
 
-#: Options that belong to some operators: (flag, argparse dest, default, operators,
-#: operator option name, converter). One rule for all of them: given for another
-#: operator, a warning says so and the option is ignored.
-OPERATOR_FLAGS = (
-    ("--lut", "lut", 0, ("durand00",), "lut", None),
-    ("--blue-shift", "blue_shift", None, ("durand00",), "tint",
-     lambda v: _triple(v, "--blue-shift")),
-    ("--sigma-spatial", "sigma_spatial", None, ("ledda04", "kirk11"), "sigma_spatial", None),
-    ("--bilateral", "bilateral", "auto", ("ledda04", "kirk11"), "bilateral", None),
-    ("--bilateral-sampling", "bilateral_sampling", None, ("ledda04", "kirk11"),
-     "bilateral_sampling", None),
-    ("--rods", "rods", "auto", ("ledda04",), "rods", None),
-    ("--local-strength", "local_strength", None, ("ledda04",), "local_strength", None),
-    ("--ledda-mode", "ledda_mode", None, ("ledda04",), "mode", None),
-    ("--kappa", "kappa", None, ("kirk11",), "kappa", None),
-    ("--night-dim", "night_dim", None, ("kirk11",), "gamma", None),
-    ("--target-contrast", "target_contrast", None, ("kirk11",), "target_contrast", None),
-    ("--shift-scale", "shift_scale", None, ("kirk11",), "shift_xyz",
-     lambda v: _triple(v, "--shift-scale")),
-)
+def _add_operator_args(p: argparse.ArgumentParser) -> None:
+    groups: dict = {}
+    for o, ops in operator_flags():
+        title = ", ".join(ops)
+        if title not in groups:
+            groups[title] = p.add_argument_group(f"{title} options")
+        kw = {"help": o.help, "default": o.default}
+        for k in ("type", "choices", "metavar"):
+            if getattr(o, k) is not None:
+                kw[k] = getattr(o, k)
+        groups[title].add_argument(o.flag, dest=o.dest, **kw)
 
 
 def _ignored(flag: str, where: str, operator: str) -> None:
@@ -220,25 +185,23 @@ def _ignored(flag: str, where: str, operator: str) -> None:
 
 
 def _operator_options(a) -> dict | None:
-    if a.lut and not (2 <= a.lut <= 1 << 20):
-        raise ValueError(f"--lut must be 0 or 2 .. 1048576 entries (got {a.lut})")
-    if a.sigma_spatial is not None and not (math.isfinite(a.sigma_spatial)
-                                            and 0 < a.sigma_spatial <= 1e5):
-        raise ValueError(f"--sigma-spatial must be a positive number of pixels (got "
-                         f"{a.sigma_spatial:g})")
     if a.max_band_pixels is not None and a.max_band_pixels < 1:
         raise ValueError("--max-band-pixels must be >= 1")
     opts = {"mode": a.mode} if a.mode else {}
-    for flag, dest, default, ops, key, conv in OPERATOR_FLAGS:
-        v = getattr(a, dest)
-        if v is None or v == default:
+    for o, ops in operator_flags():
+        v = getattr(a, o.dest)
+        if v is None or v == o.default:
             continue
+        if o.check is not None:
+            o.check(v)
         if a.operator not in ops:
-            _ignored(flag, " and ".join(ops), a.operator)
+            _ignored(o.flag, " and ".join(ops), a.operator)
             continue
-        opts[key] = conv(v) if conv else v
-    if a.operator in ("ledda04", "kirk11") and a.metering != "logmean":
-        _ignored("--metering", "the global operators (pattanaik00, durand00); "
+        opts[o.name] = o.convert(v) if o.convert else v
+    reg = registry()
+    if reg[a.operator].metering == "local" and a.metering != "logmean":
+        metered = ", ".join(n for n, c in reg.items() if c.metering != "local")
+        _ignored("--metering", f"the global operators ({metered}); "
                  f"{a.operator} adapts locally", a.operator)
     return opts or None
 
@@ -326,7 +289,7 @@ def main(argv: list[str] | None = None) -> int:
     from .imageio import FrameError
     try:
         if a.cmd == "devices":
-            from .runtime import OpenCLUnavailable, describe_device, list_devices
+            from .backends.opencl.runtime import OpenCLUnavailable, describe_device, list_devices
             devs = list_devices()
             if not devs:
                 raise OpenCLUnavailable("no OpenCL platform found; install with "

@@ -51,7 +51,7 @@ class ColourError(ValueError):
 
 
 def bundled_config_path() -> Path:
-    from .runtime import package_data_dir
+    from .resources import package_data_dir
     return package_data_dir("ocio_configs", "ocl_tonemap.ocio") / "ocl_tonemap.ocio"
 
 
@@ -150,7 +150,7 @@ def xyz_to_chromaticities(M: np.ndarray) -> tuple:
 def chromaticities_to_working(chrom) -> np.ndarray:
     """Matrix from RGB with these chromaticities to linear BT.709/D65, with a
     Bradford adaptation from the file's white to D65."""
-    from .photometry import RGB709_TO_XYZ
+    from .models.photometry import RGB709_TO_XYZ
     M = chromaticities_to_xyz(chrom)
     src_w = M.sum(axis=1)
     dst_w = RGB709_TO_XYZ.sum(axis=1)
@@ -333,7 +333,7 @@ class ColourPipeline:
         the working space when the config has none."""
         if getattr(self, "_linear_out", None) is not None:
             return self._linear_out
-        from .photometry import RGB709_TO_XYZ
+        from .models.photometry import RGB709_TO_XYZ
         D = self.display_primaries()
         target = xyz_to_chromaticities(RGB709_TO_XYZ @ D)
         best = None
@@ -377,7 +377,7 @@ class ColourPipeline:
     def output_chromaticities(self, encoded: bool) -> tuple:
         """EXR chromaticities of what is written: the display's primaries (encoded
         output), or those of the linear output colourspace."""
-        from .photometry import RGB709_TO_XYZ
+        from .models.photometry import RGB709_TO_XYZ
         if encoded:
             return xyz_to_chromaticities(RGB709_TO_XYZ @ self.display_primaries())
         _, M = self.linear_output()
@@ -392,7 +392,7 @@ class ColourPipeline:
         codes = np.array([[[0.5, 0, 0], [0, 0.5, 0], [0, 0, 0.5], [0, 0, 0]]], np.float32)
         _apply(proc, codes)
         D = (codes[0, :3] - codes[0, 3]).T.astype(np.float64)
-        from .photometry import Y_WEIGHTS
+        from .models.photometry import Y_WEIGHTS
         y = float(Y_WEIGHTS @ D.sum(axis=1))
         if not (np.all(np.isfinite(D)) and y > 0):
             return np.eye(3)

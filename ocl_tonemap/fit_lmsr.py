@@ -21,8 +21,8 @@ import sys
 
 import numpy as np
 
-from . import lmsr
-from .photometry import RGB709_TO_XYZ
+from .models import lmsr
+from .models.photometry import RGB709_TO_XYZ
 
 TRAIN_REFLECTANCES = (("colourchecker", "ColorChecker N Ohta"), ("tcs", "CIE 1995"))
 HELD_OUT_REFLECTANCES = (("vs", "NIST CQS 9.0"),)

@@ -10,6 +10,7 @@ overwritten.
 
 from __future__ import annotations
 
+import functools
 import glob
 import json
 import math
@@ -264,7 +265,7 @@ def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
     names = [n.split(".")[-1].upper() for n in spec.channelnames]
     from_spectrum = False
     if lam is not None and not all(c in names for c in "RGB"):
-        from .lmsr import spectral_to_rgb
+        from .models.lmsr import spectral_to_rgb
         pix = spectral_to_rgb(lam, cube).astype(np.float32)     # working RGB, cd/m^2
         from_spectrum = True
     note = None
@@ -542,3 +543,38 @@ class BandWriter:
             self.out = None
         if os.path.exists(self.tmp):
             os.unlink(self.tmp)
+
+
+@functools.lru_cache(maxsize=8)
+def read_weight_mask(path: str, width: int, height: int) -> np.ndarray:
+    """A ``mask:`` metering weight image resized to (height, width), float32 weights >= 0."""
+    if not os.path.exists(path):
+        raise ValueError(f"metering mask {path}: no such file")
+    buf = oiio.ImageBuf(path)
+    if buf.has_error:
+        raise ValueError(f"metering mask {path}: cannot read: {buf.geterror().strip()}")
+    spec = buf.spec()
+    if (spec.width, spec.height) != (width, height):
+        buf = oiio.ImageBufAlgo.resize(buf, roi=oiio.ROI(0, width, 0, height, 0, 1, 0,
+                                                           spec.nchannels))
+    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float64).reshape(height, width, -1)
+    nc = px.shape[2]
+    colour = [i for i in range(nc) if i != spec.alpha_channel] or [0]
+    w = np.nan_to_num(px[..., colour[:3]].mean(axis=2), nan=0.0, posinf=0.0, neginf=0.0)
+    w = np.maximum(w, 0.0)
+    if not w.sum() > 0:
+        raise ValueError(f"metering mask {path}: no positive weight")
+    return w.astype(np.float32)
+
+
+def illuminant_from_metadata(spec) -> np.ndarray | None:
+    """The EXR ``adoptedNeutral`` chromaticity (x, y) of a frame, as normalised RGB."""
+    if spec is None:
+        return None
+    v = spec.getattribute("adoptedNeutral")
+    try:
+        x, y = float(v[0]), float(v[1])
+        from .models.photometry import xy_to_rgb
+        return xy_to_rgb(x, y)
+    except (TypeError, ValueError, IndexError):
+        return None

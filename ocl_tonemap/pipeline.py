@@ -1,11 +1,17 @@
-"""The pipeline: one observer watching a sequence of frames.
+"""The run of one observer over a sequence of frames.
 
 Data flows one way per frame:
     pixels (working space) x luminance scale -> cd/m^2 (bad-value policy)
-    -> meter (adaptation goal) -> advance state (host scheduler)
-    -> per-pixel operator -> display-linear (1.0 = display unit).
-OCIO display encoding and file I/O wrap this in ``sequence.py`` / the CLI;
-:class:`Tonemapper` is the Python API for a compositing pipeline step.
+    -> scene effects -> **measure** (metering, local levels)
+    -> **integrate** (advance the adaptation state; receptor effects)
+    -> **apply** (per-pixel operator) -> display effects
+    -> display-linear (1.0 = display unit).
+The three phases can be called separately (:meth:`Tonemapper.measure`,
+:meth:`~Tonemapper.integrate`, :meth:`~Tonemapper.apply`); :meth:`Tonemapper.process`
+chains them. The operator says what each phase computes (``operators/``), the
+backend's schedule how (``backends/``). OCIO display encoding and file I/O wrap
+this in ``sequence.py`` / the CLI; :class:`Tonemapper` is the Python API for a
+compositing pipeline step.
 """
 
 from __future__ import annotations
@@ -15,13 +21,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .adaptation import AdaptationState
 from .backends import make_backend
-from .display import DisplaySpec, display_for
 from .effects import EffectSettings, Effects
-from .metering import MeteringSpec
+from .models.display import DisplaySpec, display_for
+from .models.metering import MeteringSpec
+from .models.photometry import RepairCounts, Y_WEIGHTS
 from .operators import get_operator
-from .photometry import RepairCounts
+from .operators.base import Frame, FrameStats
+from .state import AdaptationState
 
 
 @dataclass
@@ -61,19 +68,20 @@ class Tonemapper:
 
     Parameters
     ----------
-    operator : registry name (``pattanaik00``).
+    operator : registry name (``pattanaik00``; ``operators.registry()`` lists them).
     backend : ``"opencl"`` (default) or ``"reference"`` (float64 NumPy).
     metering : metering spec string or :class:`MeteringSpec` (``logmean``).
     display : the display observer (:class:`DisplaySpec`); SDR 100 cd/m^2 by default.
     preadapt : ``(L_cd, seconds_or_None)`` initial adaptation; default: fully
         adapted to the first frame.
     state : an :class:`AdaptationState` to resume from.
-    device : OpenCL device spec (see ``runtime.choose_device``).
+    device : OpenCL device spec (see ``backends.opencl.runtime.choose_device``).
     max_band_pixels : process larger frames in row bands (device memory).
-    options : operator options (local operators: see e.g. ``ledda04.make_observer``;
-        durand00: ``tint``, ``lut``).
+    options : operator options (the operator's ``options`` specs; e.g. durand00:
+        ``tint``, ``lut``; ledda04: ``sigma_spatial``, ``local_strength`` ...).
     effects : :class:`~ocl_tonemap.effects.EffectSettings` (flare, acuity, chromatic
-        adaptation); default: on ``auto`` for durand00, off for the others.
+        adaptation, Purkinje); default: the operator's defaults.
+    plugin_effects : names of installed effect plugins to run (entry points).
     """
 
     def __init__(self, operator: str = "pattanaik00", backend: str = "opencl",
@@ -82,9 +90,9 @@ class Tonemapper:
                  preadapt: tuple[float, float | None] | None = None,
                  state: AdaptationState | None = None, device: str | None = None,
                  max_band_pixels: int | None = None, options: dict | None = None,
-                 effects: EffectSettings | None = None):
+                 effects: EffectSettings | None = None, plugin_effects=()):
         self.operator_name = operator
-        self.op = get_operator(operator)
+        op_cls = get_operator(operator)
         self.backend = make_backend(backend, device, max_band_pixels)
         self.metering = metering if isinstance(metering, MeteringSpec) else MeteringSpec.parse(metering)
         self.display = display or display_for("sRGB - Display")
@@ -96,32 +104,36 @@ class Tonemapper:
         self._state = state.copy() if state is not None else AdaptationState(operator)
         if self._state.operator != operator:
             raise ValueError(f"state belongs to operator {self._state.operator!r}, not {operator!r}")
-        self.local = None
-        if getattr(self.op, "LOCAL", False):
-            self.local = self.op.make_observer(options, self.display, preadapt)
-            self.local.set_pixel_state(self._state.pixels)
-        elif options:
-            known = getattr(self.op, "OPTIONS", ())
-            bad = [k for k in options if k not in known]
-            if bad:
-                raise ValueError(f"operator {operator} takes no option(s) {', '.join(bad)}"
-                                 + (f" (it takes {', '.join(known)})" if known else ""))
-        self.options = {k: v for k, v in (options or {}).items() if v is not None}
-        self.effects = Effects(effects or EffectSettings.for_operator(operator), self.backend)
-        if getattr(self.op, "SPECTRAL", False) and self.effects.s.purkinje != "off":
+        self.op = op_cls(options, self.display, preadapt)
+        self.options = dict(self.op.options)
+        self.schedule = self.backend.schedule(self.op)
+        self.schedule_set_pixels(self._state.pixels)
+        self._state.pixels = None             # the schedule holds them now
+        self.effects = Effects(effects or EffectSettings.for_operator(operator), self.backend,
+                               tuple(plugin_effects))
+        if "spectral" in self.op.inputs and self.effects.s.purkinje != "off":
             raise ValueError(f"{operator} models the Purkinje shift itself; leave --purkinje off")
+        self.display_primaries = None
         self.last: FrameInfo | None = None
         self.last_output: np.ndarray | None = None
         self._alpha = None
 
     # -- state -----------------------------------------------------------------
+    def schedule_set_pixels(self, pixels) -> None:
+        setter = getattr(self.schedule, "set_pixel_state", None)
+        if setter is not None:
+            setter(pixels)
+        elif pixels:
+            raise ValueError(f"{self.operator_name} keeps no per-pixel state")
+
     @property
     def state(self) -> AdaptationState:
-        """A copy of the current adaptation state (serialisable; for local
-        operators with the per-pixel planes)."""
+        """A copy of the current adaptation state (serialisable; with the per-pixel
+        planes of operators that keep them)."""
         st = self._state.copy()
-        if self.local is not None:
-            st.pixels = self.local.pixel_state()
+        getter = getattr(self.schedule, "pixel_state", None)
+        if getter is not None and self.op.state.planes:
+            st.pixels = getter()
         return st
 
     @state.setter
@@ -129,8 +141,8 @@ class Tonemapper:
         if value.operator != self.operator_name:
             raise ValueError(f"state belongs to operator {value.operator!r}")
         self._state = value.copy()
-        if self.local is not None:
-            self.local.set_pixel_state(self._state.pixels)
+        self.schedule_set_pixels(self._state.pixels)
+        self._state.pixels = None
 
     @property
     def last_alpha(self):
@@ -140,6 +152,37 @@ class Tonemapper:
     def remember(self, key: str, value) -> None:
         """Keep a JSON-able run value in the state's ``extra`` (saved and resumed)."""
         self._state.extra[key] = value
+
+    def set_display_primaries(self, D) -> None:
+        """Display linear RGB -> working RGB (3x3), for operators that solve for
+        display values (kirk11, Eq. 14)."""
+        self.display_primaries = None if D is None else np.asarray(D, np.float64)
+
+    # -- the three phases -----------------------------------------------------------
+    def measure(self, frame: Frame) -> FrameStats:
+        """Per-frame statistics of ``frame`` (metering, the illuminant, local levels)."""
+        want = self.effects.s.chromatic_adaptation != "off"
+        return self.schedule.measure(frame, self.metering, want)
+
+    def integrate(self, stats: FrameStats, time_s: float, frame_number: int | None = None,
+                  dt: float = 0.0, fresh: bool = False, illuminant=None, eff: dict | None = None):
+        """Advance the adaptation state over one frame's statistics (the operator's
+        state and the receptor-slot effects). Returns (params, receptor gains)."""
+        st, fx = self._state, self.effects
+        eff = {} if eff is None else eff
+        self.schedule.integrate(st, stats, dt, fresh)
+        st.time_s, st.frame = float(time_s), frame_number
+        params = self.op.params(st, stats) if self.schedule.receptor_gains else None
+        gains = None
+        if self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off":
+            goal, src = fx.illuminant_goal(illuminant, stats.illuminant)
+            gains, eff["chromatic_adaptation"] = fx.chromatic(
+                st.extra, goal, src, dt, fresh, self.preadapt is not None)
+        return params, gains
+
+    def apply(self, frame: Frame, stats: FrameStats, params=None, gains=None, sink=None):
+        """The per-pixel mapping of ``frame`` under the current state."""
+        return self.schedule.apply(frame, self._state, stats, params, gains, sink)
 
     # -- frames ----------------------------------------------------------------
     def process(self, frame: np.ndarray, dt: float | None = None, time_s: float | None = None,
@@ -158,8 +201,8 @@ class Tonemapper:
         ``illuminant``: the frame's own illuminant (working RGB, e.g. from EXR
         ``adoptedNeutral``) for chromatic adaptation, below a user value.
         ``wavelengths``: the frame is spectral radiance (H x W x N, W sr^-1 m^-2
-        nm^-1 times ``luminance_scale`` / 683 ... see lmsr.py) sampled at these
-        wavelengths (nm); operators that model receptors from spectra (kirk11) only.
+        nm^-1 times ``luminance_scale`` / 683 ... see models/lmsr.py) sampled at these
+        wavelengths (nm); operators that take spectral input (kirk11) only.
         """
         if wavelengths is not None:
             return self._process_spectral(frame, dt, time_s, frame_number, luminance_scale,
@@ -176,7 +219,6 @@ class Tonemapper:
         out = self._process_rgb(pix, dt, time_s, frame_number, luminance_scale, illuminant,
                                 premultiplied)
         if grey is not None:                          # luminance in, luminance out
-            from .photometry import Y_WEIGHTS
             y = (np.asarray(out[..., :3], np.float64) @ Y_WEIGHTS).astype(np.float32)
             return y if grey == "2d" else y[..., None]
         return out
@@ -188,29 +230,34 @@ class Tonemapper:
         pix = np.ascontiguousarray(pix, np.float32)
         self._alpha = None
         if pix.shape[2] == 4:
-            pix, self._alpha = _straight_colour(pix, premultiplied)
-
-        st = self._state
+            pix, self._alpha = straight_colour(pix, premultiplied)
         time_s, step_dt, fresh = self._frame_time(dt, time_s)
-        orig = pix
         eff: dict = {}
-        pre_repairs = None
-        pix, luminance_scale, pre_repairs = self._pre_effects(pix, luminance_scale, eff, step_dt,
-                                                              fresh, illuminant)
-        if self.local is not None:
-            return self._process_local(pix, orig, luminance_scale, step_dt, fresh, time_s,
-                                       frame_number, eff, pre_repairs)
-        holder = {}
-        fx = self.effects
-        step = self._global_step(fresh, step_dt, time_s, frame_number, illuminant, eff, holder)
-        out, repairs, (G_rod, G_cone) = self.backend.process(pix, luminance_scale, self.metering,
-                                                             self.op, step)
-        out, eff["acuity"] = fx.acuity(out, G_rod)
-        p = holder["params"]
-        self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone,
-                              pre_repairs or repairs, st.copy(),
-                              p.as_dict() if hasattr(p, "as_dict") else {}, eff)
-        return self._finish(out, orig)
+        work, scale, pre_repairs = self._scene_effects(pix, luminance_scale, eff, step_dt, fresh,
+                                                       illuminant)
+        out = self._run_frame(Frame(work, scale, None, self.display_primaries), time_s,
+                              frame_number, step_dt, fresh, illuminant, eff, pre_repairs)
+        return self._finish(out, pix)
+
+    def _run_frame(self, frame: Frame, time_s, frame_number, step_dt, fresh, illuminant, eff,
+                   pre_repairs=None):
+        """measure -> integrate -> apply -> display effects, and the frame's record."""
+        stats = self.measure(frame)
+        params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh, illuminant,
+                                       eff)
+        out = self.apply(frame, stats, params, gains)
+        out, eff["acuity"] = self.effects.acuity(out, stats.G_rod)
+        for plugin in self.effects.slot_plugins("display"):
+            new, eff[plugin.NAME] = plugin.run(out, {"G_rod": stats.G_rod, "G_cone": stats.G_cone})
+            out = out if new is None else np.asarray(new, np.float32)
+        self.last = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
+                              pre_repairs or stats.repairs, self._state.copy(),
+                              self._summary(params, stats), eff)
+        return out
+
+    def _summary(self, params, stats) -> dict:
+        own = getattr(self.schedule, "summary", None)
+        return own(stats) if own is not None else self.op.summary(params)
 
     def _frame_time(self, dt, time_s):
         """(time of this frame, step since the last one, fresh observer?)."""
@@ -229,47 +276,22 @@ class Tonemapper:
                              f"this one at {time_s} s")
         return time_s, step_dt, fresh
 
-    def _global_step(self, fresh, step_dt, time_s, frame_number, illuminant, eff, holder):
-        """The host scheduler's step for a global operator, called by the backend
-        between metering and mapping: advance the state, the frame's parameters,
-        chromatic adaptation's gains."""
-        st, fx = self._state, self.effects
-
-        def step(G_rod: float, G_cone: float, estimate):
-            if fresh:
-                if self.preadapt is not None:
-                    st.values = self.op.preadapted(*self.preadapt)
-                else:
-                    st.values = self.op.steady_state(G_rod, G_cone)
-            else:
-                st.values = self.op.advance(st.values, G_rod, G_cone, step_dt)
-            st.time_s, st.frame = float(time_s), frame_number
-            p = self.op.frame_params(st, self.display, **self.options)
-            holder["params"] = p
-            gains = None
-            if fx.s.chromatic_adaptation != "off":
-                goal, src = fx.illuminant_goal(illuminant, estimate)
-                gains, eff["chromatic_adaptation"] = fx.chromatic(
-                    st.extra, goal, src, step_dt, fresh, self.preadapt is not None)
-            holder["G"] = (G_rod, G_cone)
-            return p, gains
-
-        step.wants_illuminant = fx.s.chromatic_adaptation != "off"
-        return step
-
     def can_stream(self) -> str | None:
-        """Why frames cannot be streamed in bands (None: they can): global operators
-        whose effects need no whole frame. Flare and acuity on ``auto`` stream the
-        frames that turn out not to need them (else :class:`NeedsWholeFrame`)."""
-        if self.local is not None:
-            return f"{self.operator_name} adapts locally"
-        if self.backend.name != "opencl":
-            return "the reference backend works on whole frames"
+        """Why frames cannot be streamed in bands (None: they can): operators whose
+        schedule streams and whose effects need no whole frame. Flare and acuity on
+        ``auto`` stream the frames that turn out not to need them (else
+        :class:`NeedsWholeFrame`)."""
+        if not getattr(self.schedule, "streams", False):
+            if self.op.metering == "local":
+                return f"{self.operator_name} adapts locally"
+            return f"the {self.backend.name} backend works on whole frames"
         fx = self.effects.s
         for name in ("flare", "acuity", "purkinje"):
             v = getattr(fx, name)
             if v == "on" or (v == "auto" and name == "purkinje"):
                 return f"the {name} effect needs the whole frame"
+        if self.effects.plugins:
+            return "effect plugins need the whole frame"
         return None
 
     def process_stream(self, source, sink, dt: float | None = None,
@@ -279,58 +301,44 @@ class Tonemapper:
         working-space bands (straight colour), ``source.shape`` is (H, W, C);
         ``sink(y0, band)`` receives the display-linear bands (3 channels) after
         the state has advanced (``self.last`` is set before the first band comes).
-        Global operators without whole-frame effects (:meth:`can_stream`)."""
+        Operators and effects that stream (:meth:`can_stream`)."""
         why = self.can_stream()
         if why:
             raise ValueError(f"cannot stream this frame: {why}")
         if not (math.isfinite(luminance_scale) and luminance_scale > 0):
             raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
         time_s, step_dt, fresh = self._frame_time(dt, time_s)
-        holder, eff = {}, {}
-        base_step = self._global_step(fresh, step_dt, time_s, frame_number, illuminant, eff,
-                                      holder)
+        eff: dict = {}
         before = self._state.copy()
         fx = self.effects
-        width = source.shape[1]
-
-        def step(G_rod, G_cone, estimate):
-            # effects on auto: does this frame need the whole of itself after all?
-            if fx.s.flare == "auto" and \
-                    self.backend.last_max_Y > fx.s.flare_threshold * G_cone:
-                raise NeedsWholeFrame("it has light sources (flare)")
-            if fx.s.acuity == "auto":
-                from .effects import acuity_a_px, acuity_blend
-                if float(acuity_blend(acuity_a_px(G_rod, fx.s.fov_deg, width))) > 0:
-                    raise NeedsWholeFrame("the eye's acuity is below the pixels' (acuity)")
-            return base_step(G_rod, G_cone, estimate)
-
-        step.wants_illuminant = base_step.wants_illuminant
+        frame = Frame(source, luminance_scale, None, self.display_primaries)
+        stats = self.measure(frame)
+        # effects on auto: does this frame need the whole of itself after all?
+        if fx.s.flare == "auto" and \
+                self.backend.last_max_Y > fx.s.flare_threshold * stats.G_cone:
+            raise NeedsWholeFrame("it has light sources (flare)")
+        if fx.s.acuity == "auto" and fx.acuity_needed(stats.G_rod, source.shape[1]):
+            raise NeedsWholeFrame("the eye's acuity is below the pixels' (acuity)")
         for name in ("flare", "acuity"):
             if getattr(fx.s, name) == "auto":
                 eff[name] = {"ran": False, "reason": "not needed (streamed frame)"}
-        first = [True]
-
-        def band_out(y0, band):
-            if first[0]:
-                first[0] = False
-                G_rod, G_cone = holder["G"]
-                p = holder["params"]
-                self.last = FrameInfo(frame_number, float(time_s), step_dt, G_rod, G_cone,
-                                      self.backend.last_repairs, self._state.copy(),
-                                      p.as_dict() if hasattr(p, "as_dict") else {}, eff)
-            sink(y0, band)
-
+        params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh, illuminant,
+                                       eff)
+        self.last = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
+                              stats.repairs, self._state.copy(), self._summary(params, stats), eff)
         self.last_output = None
         try:
-            self.backend.process(source, luminance_scale, self.metering, self.op, step, band_out)
+            self.apply(frame, stats, params, gains, sink)
         except NeedsWholeFrame:
             self._state = before
             raise
 
     def _process_spectral(self, frame, dt, time_s, frame_number, scale, wavelengths):
-        if self.local is None or not getattr(self.op, "SPECTRAL", False):
+        if "spectral" not in self.op.inputs:
+            from .operators import registry
+            which = [n for n, c in registry().items() if "spectral" in c.inputs]
             raise ValueError(f"operator {self.operator_name} takes RGB frames; spectral "
-                             "input needs --operator kirk11")
+                             f"input needs --operator {' or '.join(which)}")
         fx = self.effects.s
         if fx.flare != "off" or fx.chromatic_adaptation != "off" or fx.purkinje != "off":
             raise ValueError("flare, chromatic adaptation and the Purkinje effect need RGB "
@@ -349,20 +357,21 @@ class Tonemapper:
         if not math.isfinite(step_dt) or step_dt < 0:
             raise ValueError(f"time goes backwards: last frame at {st.time_s} s, this one at "
                              f"{time_s} s")
-        self.local.wavelengths = lam
-        try:
-            return self._process_local(pix, pix[..., :0], scale, step_dt, fresh, time_s,
-                                       frame_number, {}, None)
-        finally:
-            self.local.wavelengths = None
+        self._alpha = None
+        out = self._run_frame(Frame(pix, scale, lam, self.display_primaries), time_s,
+                              frame_number, step_dt, fresh, None, {})
+        self.last_output = out
+        return out
 
-    def _pre_effects(self, pix, scale, eff: dict, dt: float, fresh: bool, illuminant):
-        """Effects on the scene before the operator: flares (every operator) and,
-        for local operators, chromatic adaptation. Returns the frame to tone map
-        (cd/m^2 with scale 1 when changed) and the repairs of the original."""
+    def _scene_effects(self, pix, scale, eff: dict, dt: float, fresh: bool, illuminant):
+        """Effects in the scene slot (flare, Purkinje, plugins), and chromatic adaptation
+        where the schedule cannot put it on the cone signals. Returns the frame to tone
+        map (cd/m^2 with scale 1 when changed) and the repairs of the original."""
         fx = self.effects
-        local_chroma = self.local is not None and fx.s.chromatic_adaptation != "off"
-        if fx.s.flare == "off" and fx.s.purkinje == "off" and not local_chroma:
+        own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
+        scene_plugins = fx.slot_plugins("scene")
+        if fx.s.flare == "off" and fx.s.purkinje == "off" and not own_chroma \
+                and not scene_plugins:
             return pix, scale, None
         rgb, repairs, (G_rod, G_cone), estimate = self.backend.working(pix, scale, self.metering)
         changed = False
@@ -373,7 +382,11 @@ class Tonemapper:
                                            self.preadapt)
         if new is not None:
             rgb, changed = new, True
-        if local_chroma:
+        for plugin in scene_plugins:
+            new, eff[plugin.NAME] = plugin.run(rgb, {"G_rod": G_rod, "G_cone": G_cone})
+            if new is not None:
+                rgb, changed = np.asarray(new, np.float32), True
+        if own_chroma:
             goal, src = fx.illuminant_goal(illuminant, estimate)
             gains, eff["chromatic_adaptation"] = fx.chromatic(
                 self._state.extra, goal, src, dt, fresh, self.preadapt is not None)
@@ -394,29 +407,6 @@ class Tonemapper:
         self.last_output = out
         return out
 
-    def _process_local(self, pix, orig, scale, dt, fresh, time_s, frame_number, eff,
-                       pre_repairs):
-        st = self._state
-        scheduled = hasattr(self.local, "levels")     # local operators with receptor levels
-        if scheduled:
-            keys = ("A_rod", "A_cone", "B_rod", "B_cone")
-            self.local.levels = ({k: float(st.values[k]) for k in keys}
-                                 if not fresh and all(k in st.values for k in keys) else None)
-        if self.backend.name == "reference":
-            out, repairs, (G_rod, G_cone) = self.local.process_reference(pix, scale, dt, fresh)
-        else:
-            out, repairs, (G_rod, G_cone) = self.local.process_opencl(self.backend, pix, scale,
-                                                                      dt, fresh)
-        out, eff["acuity"] = self.effects.acuity(out, G_rod)
-        summ = self.local.summary.as_dict()
-        st.values = {"logmean_I_A_cone": float(G_cone), "logmean_I_A_rod": float(G_rod)}
-        if scheduled and self.local.levels is not None:
-            st.values.update({k: float(v) for k, v in self.local.levels.items()})
-        st.time_s, st.frame, st.pixels = float(time_s), frame_number, None
-        self.last = FrameInfo(frame_number, float(time_s), dt, G_rod, G_cone,
-                              pre_repairs or repairs, st.copy(), summ, eff)
-        return self._finish(out, orig)
-
     def process_imagebuf(self, buf, dt: float | None = None, time_s: float | None = None,
                          luminance_scale=None, colorconfig: str | None = None,
                          iscolorspace: str | None = None, encode: bool = False,
@@ -435,7 +425,7 @@ class Tonemapper:
         ``ocltm:*`` attributes as the CLI's outputs."""
         import OpenImageIO as oiio
         from .imageio import frame_from_imagebuf
-        from .sequence import JobOptions, _Run, frame_input, render_output
+        from .sequence import JobOptions, RunSetup, frame_input, render_output
         fr = frame_from_imagebuf(buf, "<ImageBuf>", frame_number, channels)
         key = (colorconfig, iscolorspace, luminance_scale, unpremult)
         if getattr(self, "_front", None) is None or self._front[0] != key:
@@ -445,10 +435,10 @@ class Tonemapper:
                               if self.display.name and not self.display.paper_crt else None,
                               unpremult=unpremult, encode=encode, checkpoint=False)
             try:
-                run = _Run(opts, self._state.extra)
+                run = RunSetup(opts, self._state.extra)
             except Exception:  # noqa: BLE001 -- a display name the config lacks
                 opts.display = None
-                run = _Run(opts, self._state.extra)
+                run = RunSetup(opts, self._state.extra)
             self._front = (key, run)
         run = self._front[1]
         pix, lam, cs_text, scale, why = frame_input(run, self, fr, "<ImageBuf>")
@@ -483,7 +473,7 @@ class Tonemapper:
 
 def restore_alpha(rgb: np.ndarray, alpha_info) -> np.ndarray:
     """(..., 4): colour multiplied by alpha again where it had been divided
-    (``alpha_info`` from :func:`_straight_colour`), empty pixels exactly zero."""
+    (``alpha_info`` from :func:`straight_colour`), empty pixels exactly zero."""
     alpha, empty, premultiplied = alpha_info
     out = np.array(rgb[..., :3], np.float32)
     if premultiplied:
@@ -493,7 +483,7 @@ def restore_alpha(rgb: np.ndarray, alpha_info) -> np.ndarray:
     return np.concatenate([out, alpha[..., None]], axis=2)
 
 
-def _straight_colour(pix: np.ndarray, premultiplied: bool):
+def straight_colour(pix: np.ndarray, premultiplied: bool):
     """(frame with straight colour, (alpha, empty mask, premultiplied)): colour
     divided by alpha where alpha > 0 when ``premultiplied``; ``empty`` marks
     zero-alpha pixels with zero colour (they stay zero)."""

@@ -10,16 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .photometry import neutral_scotopic_ratio
 
 
-def mapping_curve(op, state, display, L: np.ndarray, options: dict | None = None) -> np.ndarray:
+def mapping_curve(op, state, display, L: np.ndarray) -> np.ndarray | None:
     """Display luminance (cd/m^2) of neutral scene luminances ``L`` for one state
-    of a global operator."""
-    p = op.frame_params(state, display, **(options or {}))
-    rgb = np.repeat(L[:, None], 3, axis=1)
-    out = op.map_reference(rgb, L, L * neutral_scotopic_ratio(), p)
-    return display.from_signal(out[:, 1])
+    of an operator (``op``: the operator instance), None where there is no single
+    curve (local adaptation)."""
+    out = op.plot_curves(state, L)
+    return None if out is None else display.from_signal(out[:, 1])
 
 
 def default_plot_frames(infos, count: int = 6) -> list[int]:
@@ -78,14 +76,14 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
     ax = axes[2]
     picks = frames if frames else default_plot_frames(infos)
     L = np.logspace(-4, 6, 241)
-    if tm.local is not None:                 # no single curve: each pixel has its own
+    if tm.op.plot_curves(infos[0].state, L[:1]) is None:   # each pixel has its own curve
         picks = []
         ax.text(0.5, 0.5, "local operator: the mapping differs per pixel", ha="center",
                 transform=ax.transAxes)
     for idx in picks:
         idx = min(max(int(idx), 0), len(infos) - 1)
         inf = infos[idx]
-        Ld = mapping_curve(tm.op, inf.state, tm.display, L, tm.options)
+        Ld = mapping_curve(tm.op, inf.state, tm.display, L)
         lab = f"t={inf.time_s:.2f}s" + (f" (frame {inf.frame})" if inf.frame is not None else "")
         ax.plot(np.log10(L), lg(Ld), label=lab)
         for ti in (idx,):

@@ -14,7 +14,7 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
-from .photometry import Y_WEIGHTS
+from .models.photometry import Y_WEIGHTS
 
 SPEED = 25.0                 # m/s (90 km/h)
 CAM_H = 1.2                  # eye height, m
@@ -137,7 +137,7 @@ def spectral_patches(illuminant: str = "A", luminance: float = 1.0,
     as spectral radiance (W sr^-1 m^-2 nm^-1) sampled at ``wavelengths`` (default
     400-700 nm every 10 nm), scaled so that the perfect white would have
     ``luminance`` cd/m^2. Returns (wavelengths, (24, N) spectra, patch names)."""
-    from . import lmsr
+    from .models import lmsr
     colour = lmsr.colour_module()
     lam = np.arange(400.0, 701.0, 10.0) if wavelengths is None else np.asarray(wavelengths)
     il = colour.SDS_ILLUMINANTS[illuminant]
@@ -156,7 +156,7 @@ def write_spectral_image(path: str, illuminant: str = "A", luminance: float = 1.
     cube = np.repeat(np.repeat(spectra.reshape(4, 6, -1), patch_px, 0), patch_px, 1)
     names = [f"S0.{w:g}nm" for w in lam]
     if with_rgb:
-        from .lmsr import spectral_to_rgb
+        from .models.lmsr import spectral_to_rgb
         cube = np.concatenate([spectral_to_rgb(lam, cube), cube], axis=2)
         names = ["R", "G", "B"] + names
     h, w, n = cube.shape

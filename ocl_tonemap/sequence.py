@@ -19,17 +19,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import __version__
-from .adaptation import AdaptationState
+from .state import AdaptationState
 from .calibration import ASSUMED_HELP, CalibrationRequest, Calibrator
 from .colour import (ColourPipeline, InputColour, is_builtin_source, load_config,
                      resolve_config_source, resolve_input)
-from .display import display_for
-from .effects import illuminant_from_metadata
+from .models.display import display_for
+from .imageio import illuminant_from_metadata
 from .imageio import (LINEAR_FORMATS, FrameError, find_frames, frame_path, is_sequence,
                       read_frame, same_file, write_frame)
-from .photometry import Y_WEIGHTS
+from .models.photometry import Y_WEIGHTS
 from .pipeline import NeedsWholeFrame, Tonemapper, restore_alpha
-from .photometry import RepairCounts
+from .models.photometry import RepairCounts
 
 log = logging.getLogger("ocl_tonemap")
 #: A frame-number token in a file name (imageio's pattern), with a separator before it.
@@ -282,7 +282,7 @@ def _resume_point(opts: JobOptions, jobs, ckpt: str, operator: str):
     return st, todo
 
 
-class _Run:
+class RunSetup:
     """What one run decides once: colour, display, calibration, and the notices
     already given (an assumption is reported once per run, not per frame)."""
 
@@ -345,7 +345,7 @@ def run_job(opts: JobOptions) -> JobResult:
     if opts.resume:
         st, jobs = _resume_point(opts, jobs, ckpt, opts.operator)
         state = st if st is not None else state
-    run = _Run(opts, state.extra if state is not None else None)
+    run = RunSetup(opts, state.extra if state is not None else None)
     colour, disp = run.colour, run.disp
     _check_output_depth(opts, disp, jobs)
     tm = _make_tonemapper(opts, colour, state, disp)
@@ -393,7 +393,7 @@ def run_job(opts: JobOptions) -> JobResult:
     return result
 
 
-def _whole_frame(run: _Run, tm: Tonemapper, inp, outp, f, held, fps, t_prev):
+def _whole_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, fps, t_prev):
     """One frame read, mapped and written whole; returns (time, info, fps)."""
     fr = read_frame(inp, f, run.opts.channels)
     try:
@@ -510,11 +510,11 @@ class _WorkingBands:
         self._alpha: dict = {}
 
     def __getitem__(self, sl: slice) -> np.ndarray:
-        from .pipeline import _straight_colour
+        from .pipeline import straight_colour
         y0, y1 = sl.start or 0, sl.stop
         band = self.colour.convert_input(self.reader.read(y0, y1), self.ic)
         if band.shape[2] == 4:
-            band, alpha = _straight_colour(band, self.premultiplied)
+            band, alpha = straight_colour(band, self.premultiplied)
             self._alpha = {y0: alpha}
         return band
 
@@ -522,7 +522,7 @@ class _WorkingBands:
         return self._alpha.get(y0)
 
 
-def _stream_frame(run: _Run, tm: Tonemapper, inp, outp, f, held, rows, fps, t_prev):
+def _stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t_prev):
     """One frame read, mapped and written in bands of ``rows`` rows; returns (time, info)."""
     from .calibration import log_average
     from .imageio import BandReader, BandWriter
@@ -665,17 +665,17 @@ def _remove_stale_temps(jobs, state_paths=()) -> None:
                 pass
 
 
-def _remember_auto(tm: Tonemapper, run: _Run) -> None:
+def _remember_auto(tm: Tonemapper, run: RunSetup) -> None:
     """Keep the run's ``auto`` calibration constant in the state (resume uses it)."""
     if run.calibrator.auto_scale is not None:
         tm.remember(AUTO_SCALE_KEY, float(run.calibrator.auto_scale))
 
 
-def _frame_input(run: _Run, tm: Tonemapper, fr, path):
+def _frame_input(run: RunSetup, tm: Tonemapper, fr, path):
     """(pixels, wavelengths or None, description of the input colour) for one frame:
     the spectrum for an operator that takes spectra, else working-space RGB (from
     the spectrum through the CIE 1931 observer when the file has no RGB)."""
-    if fr.wavelengths is not None and getattr(tm.op, "SPECTRAL", False):
+    if fr.wavelengths is not None and "spectral" in tm.op.inputs:
         lam = fr.wavelengths
         return fr.spectral, lam, (f"spectral, {len(lam)} channels {lam[0]:g}-{lam[-1]:g} nm "
                                   "(radiance, W sr^-1 m^-2 nm^-1)")
@@ -696,8 +696,7 @@ def _colour(cfg, opts: JobOptions) -> ColourPipeline:
 def _make_tonemapper(opts: JobOptions, colour: ColourPipeline, state, disp) -> Tonemapper:
     tm = Tonemapper(opts.operator, opts.backend, opts.metering, disp, opts.preadapt, state,
                     opts.device, opts.max_band_pixels, opts.operator_options, opts.effects)
-    if hasattr(tm.local, "set_display_primaries"):
-        tm.local.set_display_primaries(colour.display_primaries())
+    tm.set_display_primaries(colour.display_primaries())
     log.info("backend: %s", tm.backend.describe())
     log.info("OCIO: working %s, display %r view %r -> %s", colour.working, colour.display,
              colour.view, colour.output_colorspace)
@@ -725,7 +724,7 @@ class Rendered:
     straight_alpha: bool
 
 
-def output_metadata(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
+def output_metadata(run: RunSetup, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
                     extra: dict | None, linear: bool, alpha: bool):
     """(metadata, output colourspace, chromaticities, whiteLuminance, straight alpha)
     of the last processed frame (``tm.last``)."""
@@ -737,7 +736,8 @@ def output_metadata(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
         "Software": f"ocl-tonemap {__version__}",
         "ocltm:operator": tm.operator_name,
         "ocltm:backend": tm.backend.name,
-        "ocltm:metering": tm.metering.describe() if tm.local is None else "local (bilateral)",
+        "ocltm:metering": tm.metering.describe() if tm.op.metering != "local"
+        else "local (bilateral)",
         "ocltm:input_colorspace": cs_text,
         "ocltm:output_colorspace": out_cs,
         "ocltm:output_encoding": (f"display-linear light, 1.0 = {disp.unit_cd:g} cd/m^2"
@@ -766,7 +766,7 @@ def output_metadata(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
             disp.unit_cd if linear else None, alpha and not premult)
 
 
-def render_output(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
+def render_output(run: RunSetup, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
                   extra: dict | None, linear: bool) -> Rendered:
     """Encode the last processed frame (display-linear light in the display's
     linear colourspace, or the display encoding) with its ``ocltm:*`` metadata."""
@@ -790,7 +790,7 @@ def render_output(run: _Run, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
     return Rendered(pixels, out_cs, meta, chroma, white, straight)
 
 
-def _write_output(run: _Run, tm: Tonemapper, fr, outp, f, t, cs_text, scale, scale_why,
+def _write_output(run: RunSetup, tm: Tonemapper, fr, outp, f, t, cs_text, scale, scale_why,
                   extra: dict | None):
     """Encode the last processed frame for the display and write it with its metadata."""
     r = render_output(run, tm, fr, t, cs_text, scale, scale_why, extra,
@@ -801,7 +801,7 @@ def _write_output(run: _Run, tm: Tonemapper, fr, outp, f, t, cs_text, scale, sca
     return tm.last
 
 
-def frame_input(run: _Run, tm: Tonemapper, fr, path):
+def frame_input(run: RunSetup, tm: Tonemapper, fr, path):
     """The front door for one frame: its pixels in the working space (or spectrum),
     the description of its colour, and its calibration. Returns
     (pixels, wavelengths or None, colour text, scale, scale source)."""
@@ -812,7 +812,7 @@ def frame_input(run: _Run, tm: Tonemapper, fr, path):
     def working_rgb():
         if lam is None:
             return pix
-        from .lmsr import spectral_to_rgb
+        from .models.lmsr import spectral_to_rgb
         return spectral_to_rgb(lam, pix)
     scale, why = run.calibrate(fr, working_rgb)
     _remember_auto(tm, run)
@@ -863,7 +863,7 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
         if same_file(o, opts.input):
             raise FrameError(o, None, "output would overwrite the input file; choose another OUTPUT")
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
-    run = _Run(opts, state.extra if state is not None else None)
+    run = RunSetup(opts, state.extra if state is not None else None)
     tm = _make_tonemapper(opts, run.colour, state, run.disp)
     fr = read_frame(opts.input, None, opts.channels)
     result = JobResult([], [])

@@ -61,7 +61,7 @@ def dark_adaptation_thresholds(preadapt_seconds: float, times_s, operator: str =
     scene = target_scene(background, targets)
     tm = Tonemapper(operator, backend, preadapt=(preadapt_cd, preadapt_seconds), options=options)
     tm.process(scene, time_s=0.0)
-    L_d = tm.local.settings.display_adapt_cd or 0.4 * tm.display.white_cd
+    L_d = tm.op.settings.display_adapt_cd or 0.4 * tm.display.white_cd
     min_step = WEBER * L_d / tm.display.unit_cd
     out = []
     t_now = 0.0

@@ -5,7 +5,7 @@ import pytest
 @pytest.fixture(scope="session")
 def rt():
     """The OpenCL runtime (PoCL in CI). Tests need a real OpenCL device."""
-    from ocl_tonemap.runtime import get_runtime
+    from ocl_tonemap.backends.opencl.runtime import get_runtime
     return get_runtime()
 
 

@@ -13,7 +13,7 @@ from ocl_tonemap import Tonemapper
 from ocl_tonemap import appearance_metrics as am
 from ocl_tonemap import appearance_scenes as scenes
 from ocl_tonemap.calibration import log_average
-from ocl_tonemap.display import display_for
+from ocl_tonemap.models.display import display_for
 from ocl_tonemap.effects import EffectSettings
 
 OPERATORS = ("pattanaik00", "ledda04", "durand00", "kirk11")

@@ -102,7 +102,7 @@ def test_exr_chromaticities_are_honoured(tmp_path):
 
 def test_chromaticity_matrix_values():
     # Rec.709 primaries/D65 -> the IEC 61966-2-1 matrix; to working -> identity
-    from ocl_tonemap.photometry import RGB709_TO_XYZ
+    from ocl_tonemap.models.photometry import RGB709_TO_XYZ
     np.testing.assert_allclose(colour.chromaticities_to_xyz(colour.REC709_CHROMATICITIES),
                                RGB709_TO_XYZ, atol=2e-4)
     np.testing.assert_allclose(colour.chromaticities_to_working(colour.REC709_CHROMATICITIES),

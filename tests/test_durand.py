@@ -7,12 +7,15 @@ import numpy as np
 import pytest
 
 from conftest import hdr_image
-from ocl_tonemap import durand00 as dd
-from ocl_tonemap import effects as fx
-from ocl_tonemap import flare as fl
-from ocl_tonemap.convolution import EDGE_CLAMP, EDGE_ZERO, DeviceBlur, blur_reference, gaussian_taps
+from ocl_tonemap.models import durand2000 as dd
+from ocl_tonemap.models import ferwerda1996 as fw
+from ocl_tonemap.models import durand2000 as fx
+from ocl_tonemap.models import shaler1937 as acu
+from ocl_tonemap.models import spencer1995 as fl
+from ocl_tonemap.backends.opencl.convolution import DeviceBlur
+from ocl_tonemap.models.convolution import EDGE_CLAMP, EDGE_ZERO, blur_reference, gaussian_taps
 from ocl_tonemap.effects import EffectSettings
-from ocl_tonemap.photometry import RGB709_TO_XYZ
+from ocl_tonemap.models.photometry import RGB709_TO_XYZ
 from ocl_tonemap.pipeline import Tonemapper
 
 NO_FX = EffectSettings()  # all effects off
@@ -24,7 +27,7 @@ NO_FX = EffectSettings()  # all effects off
                                        (-2.0, (0.405 * -2 + 1.6) ** 2.18 - 2.86),
                                        (-1.44, -1.835), (0.0, -0.395), (3.0, 2.605)])
 def test_rod_tvi_published_values(logL, rod):
-    assert dd.log_threshold_rod(10.0 ** logL) == pytest.approx(rod, abs=1e-9)
+    assert fw.log_threshold_rod(10.0 ** logL) == pytest.approx(rod, abs=1e-9)
 
 
 @pytest.mark.parametrize("logL, cone", [(-4.0, -0.72), (-2.6, -0.72),
@@ -32,11 +35,11 @@ def test_rod_tvi_published_values(logL, rod):
                                         (3.0, 3.0 - 1.255)])
 def test_cone_tvi_published_values(logL, cone):
     # the photopic branch follows the cone adaptation level L_aC (not L_wa)
-    assert dd.log_threshold_cone(10.0 ** logL) == pytest.approx(cone, abs=1e-9)
+    assert fw.log_threshold_cone(10.0 ** logL) == pytest.approx(cone, abs=1e-9)
 
 
-@pytest.mark.parametrize("fn, breaks", [(dd.log_threshold_rod, (-3.94, -1.44)),
-                                        (dd.log_threshold_cone, (-2.6, 1.9))])
+@pytest.mark.parametrize("fn, breaks", [(fw.log_threshold_rod, (-3.94, -1.44)),
+                                        (fw.log_threshold_cone, (-2.6, 1.9))])
 def test_tvi_continuous_at_branch_points(fn, breaks):
     """Ferwerda's rounded constants leave jumps of at most 0.0123 decades (rods at
     -1.44) and 0.003 (cones at 1.9); elsewhere the curves are smooth and rising."""
@@ -52,16 +55,16 @@ def test_tvi_continuous_at_branch_points(fn, breaks):
 
 def test_scale_factors_and_mesopic_factor_ranges():
     L = 10.0 ** np.linspace(-6, 8, 300)
-    mC, mR = dd.scale_factors(L, L, 50.0)
+    mC, mR = fw.scale_factors(L, L, 50.0)
     assert np.all(mC > 0) and np.all(mR > 0) and np.all(np.diff(mC) <= 0)
     assert np.all(np.diff(mC[L > 10 ** -2.5]) < 0)      # constant below the cone floor
     # photopic: threshold mapping is Ward-like, m_C proportional to 1 / L_wa
-    assert dd.scale_factors(1e5, 1e5, 50.0)[0] / dd.scale_factors(1e4, 1e4, 50.0)[0] == \
+    assert fw.scale_factors(1e5, 1e5, 50.0)[0] / fw.scale_factors(1e4, 1e4, 50.0)[0] == \
         pytest.approx(0.1, rel=1e-12)
-    k = dd.mesopic_factor(L)
+    k = dd.mesopic_factor_walraven_valeton(L)
     assert k.min() == 0.0 and k.max() <= 1.0 and np.all(np.diff(k) <= 0)
-    assert dd.mesopic_factor(0.0) == 1.0 and dd.mesopic_factor(400.0) == 0.0
-    assert dd.mesopic_factor(100.0) == pytest.approx(0.375)
+    assert dd.mesopic_factor_walraven_valeton(0.0) == 1.0 and dd.mesopic_factor_walraven_valeton(400.0) == 0.0
+    assert dd.mesopic_factor_walraven_valeton(100.0) == pytest.approx(0.375)
 
 
 def _xy(rgb):
@@ -226,31 +229,31 @@ def test_chromatic_adaptation_leaves_rods_alone():
 
 def test_acuity_blur_widens_monotonically_as_light_falls():
     L = 10.0 ** np.linspace(-6, 4, 400)
-    sig = fx.acuity_sigma_px(fx.acuity_a_px(L, 50.0, 1920))
+    sig = acu.acuity_sigma_px(acu.acuity_a_px(L, 50.0, 1920))
     assert np.all(np.diff(sig) <= 0)                                  # never less blur in the dark
     inside = (np.log10(L) > -3.5) & (np.log10(L) < 3.0)
     assert np.all(np.diff(sig[inside]) < 0)
     # Ferwerda's criterion G(omega) = eps_R(L)/L (Eq. 9) gives a blur that
     # narrows again as light falls below the rods' absolute threshold
     Lf = 10.0 ** np.linspace(-3.5, -1.0, 200)
-    g = dd.threshold_rod(Lf) / Lf
+    g = fw.threshold_rod(Lf) / Lf
     ok = g < 1
-    a_f = fx.acuity_cutoff(Lf[ok]) * np.sqrt(np.pi / -np.log(g[ok]))
+    a_f = acu.acuity_cutoff(Lf[ok]) * np.sqrt(np.pi / -np.log(g[ok]))
     sig_f = 1.0 / (a_f * np.sqrt(2 * np.pi))
     assert np.any(np.diff(sig_f) > 0) and np.any(np.diff(sig_f) < 0)
-    assert fx.ACUITY_A_PER_OMEGA == pytest.approx(1.86, abs=0.005)   # Eq. 10
+    assert acu.ACUITY_A_PER_OMEGA == pytest.approx(1.86, abs=0.005)   # Eq. 10
 
 
 def test_no_blur_above_cutoff_and_smooth_transition(rt):
     rng = np.random.default_rng(0)
     img = rng.random((30, 40, 3)).astype(np.float32)
-    out, info = fx.apply_acuity(img, 100.0, 50.0)                  # daylight: no blur
+    out, info = acu.apply_acuity(img, 100.0, 50.0)                  # daylight: no blur
     assert info["blend"] == 0.0 and out is img
     # width such that a_px crosses 1.1 .. 1.0: the blend is continuous and monotone
     a = np.linspace(1.2, 0.9, 61)
-    b = fx.acuity_blend(a)
+    b = acu.acuity_blend(a)
     assert b[0] == 0 and b[-1] == 1 and np.all(np.diff(b) >= 0) and np.max(np.diff(b)) < 0.06
-    dark, info = fx.apply_acuity(img, 1e-4, 5.0)                  # 40 px over 5 degrees
+    dark, info = acu.apply_acuity(img, 1e-4, 5.0)                  # 40 px over 5 degrees
     assert info["blend"] == 1.0 and info["sigma_px"] > 0.4
     assert dark.std() < img.std()
 
@@ -369,8 +372,8 @@ def test_estimated_illuminant_stays_on_the_planckian_band():
     (|Duv| <= 0.006), so coloured lamps or a lawn cannot make a magenta or green
     'illuminant'; daylight and tungsten estimates are kept."""
     import warnings
-    from ocl_tonemap.effects import ILLUMINANTS_XY, plausible_illuminant, xy_to_rgb
-    from ocl_tonemap.photometry import RGB709_TO_XYZ
+    from ocl_tonemap.models.durand2000 import ILLUMINANTS_XY, plausible_illuminant, xy_to_rgb
+    from ocl_tonemap.models.photometry import RGB709_TO_XYZ
     for name in ("D65", "A", "D50"):
         rgb = xy_to_rgb(*ILLUMINANTS_XY[name])
         np.testing.assert_allclose(plausible_illuminant(rgb), rgb, atol=2e-3)

@@ -5,9 +5,9 @@ Fails on ab46a99 (saturated teal, 100% NNLS fallback, night as bright as day).""
 import numpy as np
 import pytest
 
-from ocl_tonemap import kirk11 as ko
-from ocl_tonemap import lmsr
-from ocl_tonemap.photometry import RGB709_TO_XYZ, Y_WEIGHTS
+from ocl_tonemap.models import kirk2011 as ko
+from ocl_tonemap.models import lmsr
+from ocl_tonemap.models.photometry import RGB709_TO_XYZ, Y_WEIGHTS
 from ocl_tonemap.pipeline import Tonemapper
 from ocl_tonemap.sample import spectral_patches
 

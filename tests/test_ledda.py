@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from conftest import hdr_image
-from ocl_tonemap import ledda04 as L
-from ocl_tonemap.adaptation import AdaptationState
-from ocl_tonemap.bilateral import (LEDDA_RANGE, DeviceBilateral, RangeKernel,
-                                   bilateral_reference)
+from ocl_tonemap.models import ledda2004 as L
+from ocl_tonemap.state import AdaptationState
+from ocl_tonemap.backends.opencl.bilateral import DeviceBilateral
+from ocl_tonemap.models.bilateral import LEDDA_RANGE, RangeKernel, bilateral_reference
 from ocl_tonemap.pipeline import Tonemapper
 
 #: Stated tolerance of the device exact path against float64 (relative).
@@ -81,10 +81,10 @@ def test_range_kernel_is_a_function_of_log_ratio():
 
 def test_mesopic_factor_range_and_monotonic():
     I = np.logspace(-6, 8, 500)
-    m = L.mesopic_factor(I)
+    m = L.mesopic_factor_ledda2004(I)
     assert m.min() == 0.0 and m.max() == 1.0 and np.all(np.diff(m) >= 0)
-    assert L.mesopic_factor(0.01) == 0.0 and L.mesopic_factor(10 ** 0.6) == 1.0
-    assert 0 < L.mesopic_factor(0.1) < 1
+    assert L.mesopic_factor_ledda2004(0.01) == 0.0 and L.mesopic_factor_ledda2004(10 ** 0.6) == 1.0
+    assert 0 < L.mesopic_factor_ledda2004(0.1) < 1
 
 
 def test_inverse_identity():

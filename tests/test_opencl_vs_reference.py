@@ -40,7 +40,7 @@ def test_tunnel_sequence_agrees(tunnel_frames, metering):
 
 
 def test_percentile_metering_within_one_bin(tunnel_frames):
-    from ocl_tonemap.metering import HIST_BINS, HIST_HI, HIST_LO
+    from ocl_tonemap.models.metering import HIST_BINS, HIST_HI, HIST_LO
     bin_decades = (HIST_HI - HIST_LO) / HIST_BINS
     a = Tonemapper(backend="reference", metering="percentile:60")
     b = Tonemapper(backend="opencl", metering="percentile:60")
@@ -54,7 +54,7 @@ def test_percentile_metering_within_one_bin(tunnel_frames):
 
 @pytest.mark.parametrize("display", ["sdr", "pq", "crt"])
 def test_displays_agree(display):
-    from ocl_tonemap.display import DisplaySpec
+    from ocl_tonemap.models.display import DisplaySpec
     spec = {"sdr": DisplaySpec.from_white("sRGB - Display", 100.0),
             "pq": DisplaySpec.from_white("Rec.2100-PQ - Display", 1000.0, hdr=True),
             "crt": DisplaySpec.crt_2000()}[display]
@@ -161,15 +161,16 @@ def test_adaptation_dims_after_entering_dark():
 @pytest.mark.parametrize("n", [1, 3, 4, 5, 1023])
 def test_float4_kernel_equals_scalar_kernel(rt, n):
     import pyopencl as cl
-    from ocl_tonemap import pattanaik00 as P
+    from ocl_tonemap.models import pattanaik2000 as P
     tm = Tonemapper()
     img = hdr_image(1, n, seed=n)
     tm.process(img)
-    b = tm.backend._bufs
+    b = tm.backend.bufs
     p = P.frame_params(tm._state, tm.display)
     outs = []
     for vector in (True, False):
-        P.map_opencl(rt, b["rgb"], b["Y"], b["Ys"], b["out"], n, p, vector=vector)
+        tm.backend.run_pointwise(tm.op.kernel_call(p, vector=vector), b["rgb"], b["Y"],
+                                 b["Ys"], b["out"], n)
         o = np.empty((n, 3), np.float32)
         cl.enqueue_copy(rt.queue, o, b["out"])
         outs.append(o)

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from ocl_tonemap import pattanaik00 as P
-from ocl_tonemap.adaptation import bleaching_step, exponential_step
-from ocl_tonemap.display import DisplaySpec
+from ocl_tonemap.models import pattanaik2000 as P
+from ocl_tonemap.models.integrators import bleaching_step, exponential_step
+from ocl_tonemap.models.display import DisplaySpec
 
 
 def test_paper_display_constants():
@@ -141,7 +141,7 @@ def test_appearance_rules_and_continuity():
 
 def test_mapping_is_monotonic_in_luminance():
     v = P.steady_state(300.0, 100.0)
-    from ocl_tonemap.adaptation import AdaptationState
+    from ocl_tonemap.state import AdaptationState
     st = AdaptationState("pattanaik00", v)
     p = P.frame_params(st, DisplaySpec.from_white("sdr", 100.0))
     L = np.logspace(-6, 8, 400)

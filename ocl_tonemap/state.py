@@ -1,13 +1,9 @@
-"""Adaptation state and its time integration (the host scheduler).
+"""Adaptation state: small, explicit, serialisable.
 
-The state is small and explicit: a dict of named float64 scalars per operator
-plus the time (s) and number of the last frame shown. It serialises to a short
-JSON document so a shot can be split into chunks and resumed; per-pixel state
-(later operators) travels in a side file named in the JSON.
-
-Integrators are *exact* for a goal held constant over the step (zero-order
-hold of the frame's adaptation goal), so results do not depend on the frame
-rate and stay bounded for any step from 1 ms to hours.
+A dict of named float64 scalars per operator plus the time (s) and number of the
+last frame shown. It serialises to a short JSON document so a shot can be split
+into chunks and resumed; per-pixel state (local operators) travels in a side file
+named in the JSON.
 """
 
 from __future__ import annotations
@@ -21,98 +17,6 @@ from pathlib import Path
 import numpy as np
 
 STATE_FORMAT = "ocl-tonemap.adaptation-state/1"
-
-
-def exponential_step(value: float, goal: float, dt: float, t0: float) -> float:
-    """First-order low-pass toward ``goal`` over ``dt`` seconds, time constant ``t0``.
-
-    Exact solution of dA/dt = (G - A)/t0 with G constant: the paper's filter
-    with F = 1 - exp(-T/t0) (Pattanaik 2000, Sec. 4.1.2, Fig. 6).
-    """
-    if dt <= 0.0:
-        return value
-    f = -math.expm1(-dt / t0)  # 1 - exp(-dt/t0), accurate for dt << t0
-    return value + f * (goal - value)
-
-
-def bleaching_step(bleach: float, goal: float, dt: float, k_half: float, tau: float) -> float:
-    """Exact pigment kinetics over ``dt`` seconds (Pattanaik 2000, Eq. 7 as an ODE).
-
-    Eq. 7's discrete step B += K(B) - J(G, B) with J = T*B*G/k, K = T*(1-B)/tau
-    is the explicit Euler step of
-        dB/dt = -B*G/k + (1 - B)/tau,
-    which is linear in B: with r = G/k + 1/tau and B_inf = (1/tau)/r,
-        B(t + dt) = B_inf + (B(t) - B_inf) * exp(-r*dt).
-    B_inf = k/(k + tau*G) is Hunt's static B (Eq. 6) for k/tau = 0.04 (rods)
-    and 2e6 (cones). The result stays in [0, 1] for any G >= 0 and dt >= 0,
-    where the explicit step goes negative once dt*G/k > 1.
-    """
-    goal = max(goal, 0.0)
-    r = goal / k_half + 1.0 / tau
-    b_inf = (1.0 / tau) / r
-    if dt <= 0.0:
-        return bleach
-    return b_inf + (bleach - b_inf) * math.exp(-r * dt)
-
-
-# --- the shared receptor scheduler (Pattanaik et al. 2000, Sec. 4.1.2) -------------
-#
-# Four signals per observer: neural adaptation levels A (cd/m^2, fast, symmetric)
-# and pigment bleaching B (0..1, slow, asymmetric: bleaching in light, regeneration
-# over minutes in the dark) for rods and cones. pattanaik00 uses them directly;
-# kirk11 and the Purkinje effect take their adaptation level from A and the rods'
-# dark adaptation from B (:func:`rod_sensitivity`).
-
-#: Neural time constants t0, s.
-T0_ROD, T0_CONE = 0.150, 0.080
-#: Pigment regeneration time constants tau, s.
-TAU_ROD, TAU_CONE = 400.0, 110.0
-#: Bleaching half-rate constants of Eq. 7 (J = T*B*G/k), cd/m^2.
-K_ROD, K_CONE = 16.0, 2.2e8
-#: Floor on adaptation luminance (cd/m^2) of a fully dark-adapted observer.
-A_FLOOR = 1.0e-10
-
-
-def bleach_static(G, k_half: float, tau: float):
-    """Hunt's static bleaching factor (Pattanaik Eq. 6), k/(k + tau G): 0.04/(0.04 + A)
-    for rods, 2e6/(2e6 + A) for cones; the steady state of Eq. 7."""
-    G = np.maximum(np.asarray(G, np.float64), 0.0)
-    return (k_half / tau) / (k_half / tau + G)
-
-
-def receptor_levels_steady(G_rod: float, G_cone: float) -> dict:
-    """Fully adapted to the goals: A = G, B = Eq. 6."""
-    return {"A_rod": float(G_rod), "A_cone": float(G_cone),
-            "B_rod": float(bleach_static(G_rod, K_ROD, TAU_ROD)),
-            "B_cone": float(bleach_static(G_cone, K_CONE, TAU_CONE))}
-
-
-def receptor_levels_advance(values: dict, G_rod: float, G_cone: float, dt: float) -> dict:
-    """Advance A (exact exponential filters, t0 150/80 ms) and B (Eq. 7's kinetics,
-    solved exactly) by ``dt`` seconds toward the goals."""
-    return {
-        "A_rod": exponential_step(values["A_rod"], G_rod, dt, T0_ROD),
-        "A_cone": exponential_step(values["A_cone"], G_cone, dt, T0_CONE),
-        "B_rod": bleaching_step(values["B_rod"], G_rod, dt, K_ROD, TAU_ROD),
-        "B_cone": bleaching_step(values["B_cone"], G_cone, dt, K_CONE, TAU_CONE),
-    }
-
-
-def receptor_levels_preadapted(L_rod: float, L_cone: float, seconds: float | None) -> dict:
-    """After a neutral field (rods see ``L_rod``, cones ``L_cone``): fully adapted
-    to it, or from full dark adaptation exposed to it for ``seconds``."""
-    if seconds is None:
-        return receptor_levels_steady(L_rod, L_cone)
-    dark = {"A_rod": A_FLOOR, "A_cone": A_FLOOR, "B_rod": 1.0, "B_cone": 1.0}
-    return receptor_levels_advance(dark, L_rod, L_cone, seconds)
-
-
-def rod_sensitivity(values: dict) -> float:
-    """How far the rods' dark adaptation has come: B_rod over its steady value at the
-    current level A_rod, in [0, 1]. 1 when adapted; right after a bright field
-    (rhodopsin bleached) near 0, recovering over minutes (tau 400 s)."""
-    b_inf = float(bleach_static(values["A_rod"], K_ROD, TAU_ROD))
-    return float(min(1.0, max(0.0, values["B_rod"] / b_inf))) if b_inf > 0 else 0.0
 
 
 @dataclass

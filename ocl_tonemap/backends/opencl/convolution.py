@@ -1,54 +1,14 @@
-"""Separable convolution: Gaussian taps, a float64 reference and the device pass.
-
-Shared by the loss-of-acuity blur (Durand & Dorsey 2000, Sec. 7; clamped
-edges) and the fast flare (sums of Gaussians on a pyramid; zero outside the
-image, as the exact linear convolution it approximates).
-"""
+"""Separable Gaussian blur on an OpenCL runtime (kernels/convolution.cl), in row
+bands with halo rows when a frame does not fit; the reference is
+``models/convolution.py``."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-EDGE_ZERO, EDGE_CLAMP = 0, 1
-#: Gaussian taps are kept out to this many sigma (weight beyond: < 1.2e-4 of the total).
-TRUNCATE_SIGMA = 4.0
-
-
-def gaussian_taps(sigma: float) -> np.ndarray:
-    """Half-kernel [w0, w1, ..., wR] of a sampled Gaussian, normalised so that
-    w0 + 2 sum(w1..wR) = 1. ``sigma`` in pixels; sigma <= 0 gives the identity."""
-    if not sigma > 0:
-        return np.ones(1)
-    R = max(1, int(math.ceil(TRUNCATE_SIGMA * sigma)))
-    r = np.arange(R + 1, dtype=np.float64)
-    t = np.exp(-0.5 * (r / sigma) ** 2)
-    return t / (t[0] + 2.0 * t[1:].sum())
-
-
-def _shift(a: np.ndarray, d: int, axis: int, edge: int) -> np.ndarray:
-    """a shifted so that out[i] = a[i + d] along ``axis`` (zero or clamped outside)."""
-    n = a.shape[axis]
-    idx = np.arange(n) + d
-    if edge == EDGE_CLAMP:
-        return np.take(a, np.clip(idx, 0, n - 1), axis=axis)
-    ok = (idx >= 0) & (idx < n)
-    out = np.take(a, np.clip(idx, 0, n - 1), axis=axis)
-    shape = [1] * a.ndim
-    shape[axis] = n
-    return out * ok.reshape(shape)
-
-
-def blur_reference(img: np.ndarray, taps: np.ndarray, edge: int = EDGE_ZERO) -> np.ndarray:
-    """Float64 separable convolution of an (H, W[, C]) array with the same taps along y and x."""
-    a = np.asarray(img, np.float64)
-    for axis in (1, 0):
-        out = taps[0] * a
-        for r in range(1, len(taps)):
-            out = out + taps[r] * (_shift(a, -r, axis, edge) + _shift(a, r, axis, edge))
-        a = out
-    return a
+from ...models.convolution import EDGE_ZERO
+from ..plan import row_bands
+from .runtime import round_up
 
 
 class DeviceBlur:
@@ -73,7 +33,6 @@ class DeviceBlur:
     def blur(self, img: np.ndarray, taps: np.ndarray, edge: int = EDGE_ZERO) -> np.ndarray:
         """Blur each plane of an (H, W[, C]) float array; returns float32 of the same shape."""
         import pyopencl as cl
-        from .runtime import round_up
         a = np.asarray(img, np.float32)
         planes = a[..., None] if a.ndim == 2 else a
         h, w, nc = planes.shape
@@ -83,12 +42,11 @@ class DeviceBlur:
         q = self.rt.queue
         tap_buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                             hostbuf=np.asarray(taps, np.float32))
-        rows = max(1, min(h, self.max_pixels // max(w, 1) - 2 * R))
         out = np.empty((h, w, nc), np.float32)
         for c in range(nc):
             plane = np.ascontiguousarray(planes[..., c])
-            for y0 in range(0, h, rows):
-                y1 = min(h, y0 + rows)
+            for y0, nr in row_bands(h, w, self.max_pixels, R):
+                y1 = y0 + nr
                 a0, a1 = max(0, y0 - R), min(h, y1 + R)       # band plus halo rows
                 bh = a1 - a0
                 src, tmp = self._buffers(bh * w)

@@ -125,33 +125,6 @@ class MeteringSpec:
             return 3, 0.0, 0.0, 1.0, 1.0, 1.0
         return 0, 0.0, 0.0, 1.0, 1.0, 1.0
 
-    def mask_weights(self, width: int, height: int) -> np.ndarray:
-        """The mask image resized to (height, width), float32 weights >= 0."""
-        return _mask_weights(self.mask, width, height)
-
-
-@functools.lru_cache(maxsize=8)
-def _mask_weights(path: str, width: int, height: int) -> np.ndarray:
-    import os
-    import OpenImageIO as oiio
-    if not os.path.exists(path):
-        raise ValueError(f"metering mask {path}: no such file")
-    buf = oiio.ImageBuf(path)
-    if buf.has_error:
-        raise ValueError(f"metering mask {path}: cannot read: {buf.geterror().strip()}")
-    spec = buf.spec()
-    if (spec.width, spec.height) != (width, height):
-        buf = oiio.ImageBufAlgo.resize(buf, roi=oiio.ROI(0, width, 0, height, 0, 1, 0,
-                                                           spec.nchannels))
-    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float64).reshape(height, width, -1)
-    nc = px.shape[2]
-    colour = [i for i in range(nc) if i != spec.alpha_channel] or [0]
-    w = np.nan_to_num(px[..., colour[:3]].mean(axis=2), nan=0.0, posinf=0.0, neginf=0.0)
-    w = np.maximum(w, 0.0)
-    if not w.sum() > 0:
-        raise ValueError(f"metering mask {path}: no positive weight")
-    return w.astype(np.float32)
-
 
 @functools.lru_cache(maxsize=32)
 def _centre_count(width: int, height: int) -> int:
@@ -162,14 +135,16 @@ def _centre_count(width: int, height: int) -> int:
     return int(((xs[None, :] ** 2 + ys[:, None] ** 2) <= r * r).sum())
 
 
-def weights(spec: MeteringSpec, width: int, height: int, y0: int = 0, rows: int | None = None):
-    """Per-pixel metering weights (float64) for rows [y0, y0+rows)."""
+def weights(spec: MeteringSpec, width: int, height: int, y0: int = 0, rows: int | None = None,
+            mask: np.ndarray | None = None):
+    """Per-pixel metering weights (float64) for rows [y0, y0+rows); ``mask``: the
+    (height, width) weight image of ``mask:`` metering (``imageio.read_weight_mask``)."""
     rows = height - y0 if rows is None else rows
     mode, p0, p1, p2, w_in, w_out = spec.weight_params(width, height)
     if mode == 0:
         return np.ones((rows, width))
     if mode == 3:
-        return spec.mask_weights(width, height)[y0:y0 + rows].astype(np.float64)
+        return np.asarray(mask)[y0:y0 + rows].astype(np.float64)
     x = np.arange(width) + 0.5
     y = np.arange(y0, y0 + rows) + 0.5
     d2 = (x[None, :] - p0) ** 2 + (y[:, None] - p1) ** 2
@@ -234,9 +209,9 @@ def histogram_percentile(hist: np.ndarray, p: float) -> float:
 # --- float64 reference ----------------------------------------------------------
 
 def reference_sums(Y: np.ndarray, Ys: np.ndarray, spec: MeteringSpec, width: int, height: int,
-                   y0: int = 0) -> MeterSums:
+                   y0: int = 0, mask: np.ndarray | None = None) -> MeterSums:
     rows = Y.shape[0]
-    w = weights(spec, width, height, y0, rows)
+    w = weights(spec, width, height, y0, rows, mask)
     Y = np.asarray(Y, np.float64)
     Ys = np.asarray(Ys, np.float64)
     sums = np.array([w.sum(), (w * Y).sum(), (w * np.log(np.maximum(Y, LOG_FLOOR))).sum(),
@@ -245,78 +220,11 @@ def reference_sums(Y: np.ndarray, Ys: np.ndarray, spec: MeteringSpec, width: int
     return MeterSums(sums)
 
 
-def reference_goal(Y: np.ndarray, Ys: np.ndarray, spec: MeteringSpec) -> tuple[float, float]:
-    """(G_rod, G_cone) of a whole frame, float64; percentiles exact."""
+def reference_goal(Y: np.ndarray, Ys: np.ndarray, spec: MeteringSpec,
+                   mask: np.ndarray | None = None) -> tuple[float, float]:
+    """(G_rod, G_cone) of a whole frame, float64; percentiles exact; ``mask`` as
+    :func:`weights`."""
     h, w = Y.shape
     if spec.mode == "percentile":
         return (float(np.percentile(Ys, spec.percentile)), float(np.percentile(Y, spec.percentile)))
-    return reference_sums(Y, Ys, spec, w, h).goal(spec)
-
-
-# --- device ------------------------------------------------------------------------
-
-class DeviceMeter:
-    """Two-stage device reductions over one band at a time."""
-
-    GROUPS = 128
-    WG = 64
-
-    def __init__(self, rt):
-        import pyopencl as cl
-        self.rt = rt
-        mf = cl.mem_flags
-        self.partial = cl.Buffer(rt.context, mf.READ_WRITE, self.GROUPS * 8 * 4)
-        self.result = cl.Buffer(rt.context, mf.READ_WRITE, 8 * 4)
-        self.hist = cl.Buffer(rt.context, mf.READ_WRITE, HIST_BINS * 4)
-        self._k_partial = rt.kernel("metering.cl", "meter_partial")
-        self._k_final = rt.kernel("metering.cl", "meter_final")
-        self._k_hist = rt.kernel("metering.cl", "log_histogram")
-        self._no_mask = cl.Buffer(rt.context, mf.READ_ONLY, 4)
-        self._mask_key = None
-        self._mask_buf = None
-
-    def _mask(self, spec: MeteringSpec, width: int, height: int):
-        import pyopencl as cl
-        if spec.mode != "mask":
-            return self._no_mask
-        key = (spec.mask, width, height)
-        if key != self._mask_key:
-            self._mask_buf = cl.Buffer(self.rt.context,
-                                       cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                       hostbuf=spec.mask_weights(width, height))
-            self._mask_key = key
-        return self._mask_buf
-
-    def band_sums(self, y_buf, ys_buf, n: int, width: int, height: int, y0: int,
-                  spec: MeteringSpec) -> MeterSums:
-        import pyopencl as cl
-        q = self.rt.queue
-        mode, p0, p1, p2, w_in, w_out = spec.weight_params(width, height)
-        f = np.float32
-        groups = max(1, min(self.GROUPS, -(-n // self.WG)))
-        scratch = cl.LocalMemory(self.WG * 8 * 4)
-        self._k_partial(q, (groups * self.WG,), (self.WG,), y_buf, ys_buf, np.int32(n),
-                        np.int32(width), np.int32(y0), np.int32(mode), f(p0), f(p1), f(p2),
-                        f(w_in), f(w_out), f(LOG_FLOOR), self._mask(spec, width, height),
-                        self.partial, scratch)
-        self._k_final(q, (self.WG,), (self.WG,), self.partial, np.int32(groups), self.result,
-                      scratch)
-        out = np.empty(8, np.float32)
-        cl.enqueue_copy(q, out, self.result)
-        ms = MeterSums(out[:7].astype(np.float64))
-        if spec.mode == "percentile":
-            ms.hist_Y = self._histogram(y_buf, n)
-            ms.hist_Ys = self._histogram(ys_buf, n)
-        return ms
-
-    def _histogram(self, buf, n: int) -> np.ndarray:
-        import pyopencl as cl
-        q = self.rt.queue
-        cl.enqueue_fill_buffer(q, self.hist, np.int32(0), 0, HIST_BINS * 4)
-        groups = max(1, min(self.GROUPS, -(-n // 256)))
-        self._k_hist(q, (groups * 256,), (256,), buf, np.int32(n), np.float32(HIST_LO),
-                     np.float32(HIST_HI), np.int32(HIST_BINS), self.hist,
-                     cl.LocalMemory(HIST_BINS * 4))
-        h = np.empty(HIST_BINS, np.int32)
-        cl.enqueue_copy(q, h, self.hist)
-        return h.astype(np.int64)
+    return reference_sums(Y, Ys, spec, w, h, 0, mask).goal(spec)

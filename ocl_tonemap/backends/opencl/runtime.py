@@ -36,18 +36,9 @@ def _cl():
     return cl
 
 
-def package_data_dir(name: str, probe: str) -> Path:
-    """``ocl_tonemap/<name>`` in an installed wheel (where pyproject maps the
-    top-level folder), else ``<name>`` beside the package in a source tree."""
-    here = Path(__file__).resolve().parent
-    for p in (here / name, here.parent / name):
-        if (p / probe).is_file():
-            return p
-    raise FileNotFoundError(f"{name}/{probe} not found in the installed package or the source tree")
-
-
 def kernel_dir() -> Path:
     """Folder holding the OpenCL sources (``*.cl`` and ``common.h``)."""
+    from ...resources import package_data_dir
     return package_data_dir("kernels", "common.h")
 
 
@@ -131,9 +122,11 @@ class Runtime:
     def name(self) -> str:
         return self.device.name.strip()
 
-    def kernel(self, file: str, name: str):
-        """A kernel of ``file``, retrieved once per process (kernel objects are costly)."""
-        return _kernel(self.context, self.device, file, name)
+    def kernel(self, file: str, name: str, defines: tuple = ()):
+        """A kernel of ``file``, retrieved once per process (kernel objects are costly).
+        ``defines``: (NAME, value) pairs given to the compiler as -DNAME=value (constants
+        and parameter indices generated from the Python side, never retyped)."""
+        return _kernel(self.context, self.device, file, name, tuple(defines))
 
     def max_alloc_bytes(self) -> int:
         return int(self.device.max_mem_alloc_size)
@@ -155,20 +148,34 @@ def get_runtime(spec: str | None = None) -> Runtime:
     return _runtime_for(choose_device(spec))
 
 
+def define_value(v) -> str:
+    """A -D value: ints as they are, floats as float32 literals that round-trip."""
+    if isinstance(v, (bool, int)):
+        return str(int(v))
+    import numpy as np
+    return f"{float(np.float32(v))!r}f".replace("inff", "INFINITY")
+
+
+def index_defines(names, prefix: str = "P_") -> tuple:
+    """-D pairs giving each packed parameter's index: P_<name> = i."""
+    return tuple((f"{prefix}{n}", i) for i, n in enumerate(names))
+
+
 @functools.lru_cache(maxsize=None)
-def _build(context, device, files: tuple[str, ...]):
+def _build(context, device, files: tuple[str, ...], defines: tuple = ()):
     cl = _cl()
     kdir = kernel_dir()
     src = "\n".join((kdir / f).read_text() for f in ("common.h", *files))
     # No -cl-fast-relaxed-math: the kernels rely on IEEE inf/0 behaviour at the
     # extremes (documented in docs/models.md).
-    return cl.Program(context, src).build(options=["-cl-std=CL1.2"], devices=[device])
+    opts = ["-cl-std=CL1.2"] + [f"-D{k}={define_value(v)}" for k, v in defines]
+    return cl.Program(context, src).build(options=opts, devices=[device])
 
 
 @functools.lru_cache(maxsize=None)
-def _kernel(context, device, file: str, name: str):
+def _kernel(context, device, file: str, name: str, defines: tuple = ()):
     cl = _cl()
-    return cl.Kernel(_build(context, device, (file,)), name)
+    return cl.Kernel(_build(context, device, (file,), defines), name)
 
 
 def round_up(n: int, m: int) -> int:

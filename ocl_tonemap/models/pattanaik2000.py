@@ -1,11 +1,19 @@
 """Pattanaik, Tumblin, Yee & Greenberg 2000: time-dependent global adaptation.
 
+>>> round(float(sigma_cone(25.0)), 1)      # Eq. 5 at the CRT's A = 25 (Sec. 4.3: 646)
+646.1
+>>> s = receptor_levels_steady(1.0, 1.0)   # Eq. 6 at 1 cd/m^2
+>>> round(s["B_rod"], 4), round(s["B_cone"], 6)
+(0.0385, 1.0)
+
 "Time-Dependent Visual Adaptation for Fast Realistic Image Display",
 SIGGRAPH 2000. Equation numbers below are the paper's. Units: cd/m^2 for
 luminances (photopic for cones, scotopic for rods), seconds for time.
 
 The float64 functions here are the reference; ``kernels/pattanaik00.cl`` is
-the fused per-pixel device pass (Eqs. 2, 3, 8 and the inverse of Sec. 4.3).
+the fused per-pixel device pass (Eqs. 2, 3, 8 and the inverse of Sec. 4.3), run
+by ``operators/pattanaik00.py``. The receptor time course (Sec. 4.1.2) is shared:
+kirk11 and the Purkinje effect take their adaptation from it.
 Reconstructions of the garbled text are in docs/models.md.
 """
 
@@ -16,18 +24,13 @@ from dataclasses import dataclass, asdict
 
 import numpy as np
 
-from .adaptation import (AdaptationState, receptor_levels_advance, receptor_levels_preadapted,
-                         receptor_levels_steady)
 from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, DisplaySpec,
                       apply_shoulder)
+from .integrators import bleaching_step, exponential_step
 from .photometry import neutral_scotopic_ratio
-
-NAME = "pattanaik00"
 
 #: Eq. 2 exponent (Hunt's n, Sec. 4.1.1).
 N = 0.73
-#: Neural t0, pigment tau and Eq. 7's k (Sec. 4.1.2): the shared scheduler's.
-from .adaptation import K_CONE, K_ROD, T0_CONE, T0_ROD, TAU_CONE, TAU_ROD  # noqa: E402,F401
 #: Floor on luminance inside the response (cd/m^2): far below the absolute
 #: threshold of vision (~1e-6) and far above float32 denormals.
 L_FLOOR = 1.0e-10
@@ -36,6 +39,65 @@ A_FLOOR = 1.0e-10
 #: Floor on colour ratios before the Eq. 3 power (log of 0 is -inf).
 RATIO_FLOOR = 1.0e-12
 LN10 = math.log(10.0)
+
+
+# --- The receptor time course, Sec. 4.1.2 (shared by kirk11 and the Purkinje effect) ---
+#
+# Four signals per observer: neural adaptation levels A (cd/m^2, fast, symmetric)
+# and pigment bleaching B (0..1, slow, asymmetric: bleaching in light, regeneration
+# over minutes in the dark) for rods and cones. pattanaik00 uses them directly;
+# kirk11 and the Purkinje effect take their adaptation level from A and the rods'
+# dark adaptation from B (:func:`rod_sensitivity`).
+
+#: Neural time constants t0, s.
+T0_ROD, T0_CONE = 0.150, 0.080
+#: Pigment regeneration time constants tau, s.
+TAU_ROD, TAU_CONE = 400.0, 110.0
+#: Bleaching half-rate constants of Eq. 7 (J = T*B*G/k), cd/m^2.
+K_ROD, K_CONE = 16.0, 2.2e8
+
+
+def bleach_static(G, k_half: float, tau: float):
+    """Hunt's static bleaching factor (Pattanaik Eq. 6), k/(k + tau G): 0.04/(0.04 + A)
+    for rods, 2e6/(2e6 + A) for cones; the steady state of Eq. 7."""
+    G = np.maximum(np.asarray(G, np.float64), 0.0)
+    return (k_half / tau) / (k_half / tau + G)
+
+
+def receptor_levels_steady(G_rod: float, G_cone: float) -> dict:
+    """Fully adapted to the goals: A = G, B = Eq. 6."""
+    return {"A_rod": float(G_rod), "A_cone": float(G_cone),
+            "B_rod": float(bleach_static(G_rod, K_ROD, TAU_ROD)),
+            "B_cone": float(bleach_static(G_cone, K_CONE, TAU_CONE))}
+
+
+def receptor_levels_advance(values: dict, G_rod: float, G_cone: float, dt: float) -> dict:
+    """Advance A (exact exponential filters, t0 150/80 ms) and B (Eq. 7's kinetics,
+    solved exactly) by ``dt`` seconds toward the goals."""
+    return {
+        "A_rod": exponential_step(values["A_rod"], G_rod, dt, T0_ROD),
+        "A_cone": exponential_step(values["A_cone"], G_cone, dt, T0_CONE),
+        "B_rod": bleaching_step(values["B_rod"], G_rod, dt, K_ROD, TAU_ROD),
+        "B_cone": bleaching_step(values["B_cone"], G_cone, dt, K_CONE, TAU_CONE),
+    }
+
+
+def receptor_levels_preadapted(L_rod: float, L_cone: float, seconds: float | None) -> dict:
+    """After a neutral field (rods see ``L_rod``, cones ``L_cone``): fully adapted
+    to it, or from full dark adaptation exposed to it for ``seconds``."""
+    if seconds is None:
+        return receptor_levels_steady(L_rod, L_cone)
+    dark = {"A_rod": A_FLOOR, "A_cone": A_FLOOR, "B_rod": 1.0, "B_cone": 1.0}
+    return receptor_levels_advance(dark, L_rod, L_cone, seconds)
+
+
+def rod_sensitivity(values: dict) -> float:
+    """How far the rods' dark adaptation has come: B_rod over its steady value at the
+    current level A_rod, in [0, 1]. 1 when adapted; right after a bright field
+    (rhodopsin bleached) near 0, recovering over minutes (tau 400 s)."""
+    b_inf = float(bleach_static(values["A_rod"], K_ROD, TAU_ROD))
+    return float(min(1.0, max(0.0, values["B_rod"] / b_inf))) if b_inf > 0 else 0.0
+
 
 
 # --- Static response model (Sec. 4.1.1) ---------------------------------------
@@ -51,7 +113,6 @@ ROD_AMPLITUDE = 0.5
 #: ``mode``: "default" (Hunt's rod sigma and amplitude, highlight shoulder) or
 #: "paper" (Eqs. 4 and 6 as printed, hard clip at display white).
 MODES = ("default", "paper")
-OPTIONS = ("mode",)
 
 
 def sigma_rod(A_rod, printed: bool = False):
@@ -250,7 +311,7 @@ class FrameParams:
         return d
 
 
-def frame_params(state: AdaptationState, display: DisplaySpec,
+def frame_params(state, display: DisplaySpec,
                  mode: str = "default") -> FrameParams:
     """Per-frame scalars. ``mode="paper"``: Eq. 4 as printed and a hard clip at
     display white; default: Hunt's rod sigma and the highlight shoulder."""
@@ -292,30 +353,6 @@ def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams
                        SIGNAL_CEILING)
     out = apply_shoulder(L_sig[..., None] * c_disp, p.white_signal, p.shoulder_knee)
     return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
-
-
-def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParams,
-               vector: bool = True):
-    """Enqueue the fused per-pixel pass (kernels/pattanaik00.cl) on ``rt``.
-
-    ``vector``: four pixels per work-item in float4 (default), else one.
-    """
-    from .runtime import round_up
-
-    d = p.display
-    f = np.float32
-    name = "pattanaik00_map4" if vector else "pattanaik00_map"
-    knl = rt.kernel("pattanaik00.cl", name)
-    items = -(-max(n_pixels, 1) // 4) if vector else max(n_pixels, 1)
-    wg = 64
-    knl(rt.queue, (round_up(items, wg),), (wg,),
-        rgb_buf, y_buf, ys_buf, out_buf, np.int32(n_pixels),
-        f(math.log2(p.sigma_rod)), f(math.log2(p.sigma_cone)), f(p.B_rod), f(p.B_cone),
-        f(p.gain), f(p.offset),
-        f(d.B_rod), f(d.B_cone), f(d.sigma_rod ** N), f(d.sigma_cone ** N),
-        f(LN10 * N * p.B_cone / d.S_d if p.chroma is None else 0.0),
-        f(d.signal_offset), f(d.gain), f(1.0 / p.white_signal), f(p.shoulder_knee),
-        f(p.chroma if p.chroma is not None else 0.0))
 
 
 # --- Scheduler hooks --------------------------------------------------------

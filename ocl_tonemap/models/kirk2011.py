@@ -17,7 +17,13 @@ detail, ``bilateral.py``), the mesopic dimming by w, and for RGB input the
 paper's blend from the source image (photopic) to the mesopic image by w.
 
 The float64 functions here are the reference; ``kernels/kirk11.cl`` is the
-device pass. Reconstructions of the seed text are in docs/models.md.
+device pass (``backends/opencl/kirk11.py``). Reconstructions of the seed text are
+in docs/models.md.
+
+>>> w = white_norm()
+>>> q = lmsr.rgb_to_lmsr(np.ones(3)) * w
+>>> round(float(q[0] - q[1]), 9), round(float(q[2] - (q[0] + q[1])), 9)   # white: opponent 0
+(0.0, 0.0)
 """
 
 from __future__ import annotations
@@ -25,22 +31,15 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from . import lmsr
-from .bilateral import BilateralSpec, RangeKernel, bilateral_reference
-from .adaptation import (receptor_levels_advance, receptor_levels_preadapted,
-                         receptor_levels_steady, rod_sensitivity)
-from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, DisplaySpec,
-                      apply_shoulder, scene_key)
-from .durand00 import mesopic_factor
-from .photometry import Y_WEIGHTS, sanitize
-
-NAME = "kirk11"
-LOCAL = True
-SPECTRAL = True     # takes spectral frames (Tonemapper.process(..., wavelengths=...))
+from .display import DisplaySpec, scene_key
+from .durand2000 import mesopic_factor_walraven_valeton
+from .durand2002 import range_reduce
+from .photometry import Y_WEIGHTS
 
 #: Rod mixing at full scotopic adaptation (Eq. 10; Cao et al. 2008).
 KAPPA1, KAPPA2 = 0.25, 0.4
@@ -222,6 +221,12 @@ def gamut_map(M: np.ndarray, q_hat: np.ndarray):
     return np.maximum(pn + t[..., None] * (p - pn), 0.0), np.any(neg, axis=-1)
 
 
+def display_matrix(D: np.ndarray) -> np.ndarray:
+    """M of Eq. 14: display RGB -> LMS, the LMS rows of H through the display
+    primaries ``D`` (display linear RGB -> working linear RGB)."""
+    return lmsr.fitted()["H"][:3] @ np.asarray(D, np.float64)
+
+
 def solve_display(M: np.ndarray, q_hat: np.ndarray, exact: bool):
     """Eq. 15: the paper's exact NNLS (``exact``) or the hue-keeping gamut map."""
     return nnls3(M, q_hat) if exact else gamut_map(M, q_hat)
@@ -250,7 +255,6 @@ class KirkSettings:
     beta: float = BETA
     target_contrast: float | None = None   # None: 5 (paper) or 300 (default)
     sigma_spatial: float | None = None   # px; default 2% of the larger side
-    bilateral: BilateralSpec = field(default_factory=BilateralSpec)
     mode: str = "default"
 
     def __post_init__(self):
@@ -281,9 +285,7 @@ class KirkSettings:
         return self.mode == "paper"
 
     def as_dict(self) -> dict:
-        d = asdict(self)
-        d["bilateral"] = asdict(self.bilateral)
-        return d
+        return asdict(self)
 
 
 def kappas(settings: KirkSettings, L_waR: float) -> tuple[float, float, float]:
@@ -291,20 +293,12 @@ def kappas(settings: KirkSettings, L_waR: float) -> tuple[float, float, float]:
     the Walraven-Valeton mesopic factor of the frame's scotopic level."""
     if settings.kappa == "full":
         return KAPPA1, KAPPA2, 1.0
-    k = float(mesopic_factor(L_waR))
+    k = float(mesopic_factor_walraven_valeton(L_waR))
     return KAPPA1 * k, KAPPA2 * k, k
 
 
 def logmean(x: np.ndarray) -> float:
     return float(np.exp(np.mean(np.log(np.maximum(np.asarray(x, np.float64), 1e-6)))))
-
-
-def range_reduce(logY: np.ndarray, base: np.ndarray, target_contrast: float) -> np.ndarray:
-    """Durand & Dorsey 2002: log10 of the output luminance relative to display white:
-    the base compressed to ``target_contrast`` with its maximum at white, detail kept."""
-    span = float(base.max() - base.min())
-    c = min(1.0, math.log10(target_contrast) / span) if span > 0 else 1.0
-    return c * (base - base.max()) + (logY - base)
 
 
 def compose_reference(src_rgb, shift_rgb, w, logY, base, settings: KirkSettings,
@@ -327,131 +321,3 @@ def compose_reference(src_rgb, shift_rgb, w, logY, base, settings: KirkSettings,
     return np.maximum(out * (display.white_cd / display.unit_cd), 0.0)
 
 
-@dataclass
-class KirkSummary:
-    model_scale: float = 0.0
-    k1: float = KAPPA1
-    k2: float = KAPPA2
-    rod_gain: float = 1.0
-    w_mean: float = 0.0
-    fallback_fraction: float = 0.0
-    input: str = "rgb"
-
-    def as_dict(self) -> dict:
-        return asdict(self)
-
-
-class KirkObserver:
-    """kirk11 as a local operator of the pipeline. The paper's model is steady
-    state; the default mode takes its adaptation from the shared receptor
-    scheduler (``adaptation.receptor_levels_*``): the rods' mixing (kappa) follows
-    the adapted scotopic level and the rods' dark adaptation, and the display
-    anchor the adapted cone level, so a tunnel blinds on entry and dazzles on exit.
-    ``levels``: the scheduler's state (A_rod, A_cone, B_rod, B_cone)."""
-
-    def __init__(self, settings: KirkSettings, display: DisplaySpec, preadapt=None):
-        self.s = settings
-        self.display = display
-        self.preadapt = preadapt
-        self.summary = KirkSummary()
-        self.D = np.eye(3)     # display primaries (working linear), see set_display_primaries
-        self._dev = None
-        self.wavelengths = None   # set by the pipeline for a spectral frame
-        self.levels: dict | None = None
-        self._frame_L = None
-
-    # -- time course (default mode) ------------------------------------------------------
-    def begin_frame(self, L_waR: float, L_wa: float, dt: float, fresh: bool):
-        """Advance the receptor levels to this frame's goals; returns (k1, k2, rod gain)."""
-        self._frame_L = (L_waR, L_wa)
-        if self.s.paper:
-            self.levels = None
-            return kappas(self.s, L_waR)
-        if fresh or self.levels is None:
-            if fresh and self.preadapt is not None:
-                L, sec = self.preadapt
-                w = lmsr.rgb_to_lmsr(np.ones(3))          # a neutral: rod goal per cone goal
-                self.levels = receptor_levels_preadapted(L * w[3] / (w[0] + w[1]), L, sec)
-            else:
-                self.levels = receptor_levels_steady(L_waR, L_wa)
-        else:
-            self.levels = receptor_levels_advance(self.levels, L_waR, L_wa, dt)
-        k1, k2, gain = kappas(self.s, self.levels["A_rod"])
-        sens = rod_sensitivity(self.levels)
-        return k1 * sens, k2 * sens, gain * sens
-
-    def finish(self, out: np.ndarray) -> np.ndarray:
-        """The absolute level (:func:`anchor_gain`) and, in the default mode, the
-        highlight shoulder; display-linear in, display-linear out."""
-        u = self.display.white_cd / self.display.unit_cd
-        out = np.asarray(out, np.float64)
-        L_wa = self._frame_L[1]
-        if self.s.paper:
-            return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
-        g = anchor_gain(out @ Y_WEIGHTS / u, L_wa, self.levels["A_cone"])
-        out = apply_shoulder(np.minimum(out * g, SIGNAL_CEILING), u, SHOULDER_KNEE)
-        return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
-
-    def set_display_primaries(self, D: np.ndarray) -> None:
-        self.D = np.asarray(D, np.float64)
-
-    @property
-    def M(self) -> np.ndarray:
-        """Eq. 14: display RGB -> LMS (the LMS rows of H through the display primaries)."""
-        return lmsr.fitted()["H"][:3] @ self.D
-
-    def pixel_state(self):
-        return None
-
-    def set_pixel_state(self, pixels) -> None:
-        if pixels:
-            raise ValueError("kirk11 keeps no per-pixel state")
-
-    # -- float64 reference ------------------------------------------------------------
-    def _lmsr(self, pixels, scale, wavelengths):
-        if wavelengths is not None:
-            spec, repairs = sanitize(pixels, scale)
-            return None, lmsr.spectral_to_lmsr(wavelengths, spec), repairs
-        rgb, repairs = sanitize(pixels[..., :3], scale)
-        return rgb, lmsr.rgb_to_lmsr(rgb), repairs
-
-    def process_reference(self, pixels, scale, dt, fresh):
-        wavelengths = self.wavelengths
-        src, q, repairs = self._lmsr(pixels, scale, wavelengths)
-        L_wa, L_waR = logmean(q[..., 0] + q[..., 1]), logmean(q[..., 3])
-        area = model_scale()
-        k1, k2, gain = self.begin_frame(L_waR, L_wa, dt, fresh)
-        q_hat, w = purkinje_shift(q, area, k1, k2, self.s.shift_xyz, gain,
-                                  white=not self.s.paper)
-        p, fb = solve_display(self.M, q_hat, self.s.paper)
-        shift_rgb = p @ self.D.T
-        # range reduction of the mesopic image's own luminance (rods add to it)
-        logY = np.log10(np.maximum(shift_rgb @ Y_WEIGHTS, Y_FLOOR))
-        h, wd = logY.shape
-        base = bilateral_reference(logY, self.s.sigma_px(wd, h),
-                                   RangeKernel("difference", SIGMA_RANGE_LOG10))
-        out = self.finish(compose_reference(src if src is not None else shift_rgb, shift_rgb,
-                                            w, logY, base, self.s, self.display,
-                                            blend=src is not None))
-        self.summary = KirkSummary(area, k1, k2, gain, float(w.mean()), float(fb.mean()),
-                                   "spectral" if wavelengths is not None else "rgb")
-        return out.astype(np.float32), repairs, (L_waR, L_wa)
-
-    # -- OpenCL -----------------------------------------------------------------------
-    def process_opencl(self, backend, pixels, scale, dt, fresh):
-        from .kirk11_device import KirkDevice
-        if self._dev is None or self._dev.rt is not backend.rt:
-            self._dev = KirkDevice(backend.rt)
-        return self._dev.process(self, backend, pixels, scale, self.wavelengths, dt, fresh)
-
-
-def make_observer(options: dict | None, display: DisplaySpec, preadapt) -> KirkObserver:
-    o = {k: v for k, v in (options or {}).items() if v is not None}
-    known = {"kappa", "shift_xyz", "gamma", "target_contrast", "sigma_spatial", "bilateral",
-             "bilateral_sampling", "rods", "mode"}
-    bad = set(o) - known
-    if bad:
-        raise ValueError(f"kirk11 takes no option(s) {', '.join(sorted(bad))}")
-    bil = BilateralSpec.parse(o.pop("bilateral", "auto"), o.pop("bilateral_sampling", None))
-    o.pop("rods", None)
-    return KirkObserver(KirkSettings(bilateral=bil, **o), display, preadapt)

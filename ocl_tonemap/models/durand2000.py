@@ -1,5 +1,10 @@
 """Durand & Dorsey 2000: Ferwerda's threshold operator, extended and made time-dependent.
 
+>>> float(mesopic_factor_walraven_valeton(0.0)), float(mesopic_factor_walraven_valeton(400.0))
+(1.0, 0.0)
+>>> [round(v, 2) for v in BLUE_SHIFT]
+[1.05, 0.97, 1.27]
+
 "Interactive Tone Mapping", Eurographics Workshop on Rendering 2000. Equation
 numbers below are the paper's. Units: cd/m^2 (photopic for cones, scotopic
 for rods), seconds.
@@ -15,7 +20,7 @@ m_R = eps_C(L_da)/eps_R(L_waR) (Ferwerda et al. 1996's TVI curves, Eqs. 1-2),
 the Walraven & Valeton mesopic factor k (Eq. 4) and exponential light
 adaptation of m_R, m_C with tau_R = 0.4 s, tau_C = 0.1 s (Sec. 3.3).
 
-Chromatic adaptation (Eq. 6) is the shared effect in ``effects.py``: it
+Chromatic adaptation (Eq. 6, below; the effect in ``effects/chromatic.py``)
 scales the cone signals r_w, g_w, b_w by 1/(r_wa, g_wa, b_wa) before this
 pass, leaving the rod signal s_w alone, exactly as Eq. 6 does.
 
@@ -32,12 +37,12 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .adaptation import exponential_step
 from .display import (DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, DisplaySpec,
                       apply_shoulder, scene_key)
-from .photometry import neutral_scotopic_ratio, xy_to_rgb
-
-NAME = "durand00"
+from .ferwerda1996 import (LA_FLOOR, adapted_cone_luminance, threshold_cone,  # noqa: F401
+                           threshold_rod)
+from .integrators import exponential_step
+from .photometry import RGB709_TO_XYZ, Y_WEIGHTS, neutral_scotopic_ratio, normalise_illuminant, xy_to_rgb
 
 #: Light-adaptation time constants, Sec. 3.3 (Adelson 1982; Hayhoe et al. 1987), s.
 TAU_ROD, TAU_CONE = 0.4, 0.1
@@ -49,44 +54,13 @@ BLUE_SHIFT = (1.05, 0.97, 1.27)
 #: wavelength of 480 nm, xy (0.3009, 0.3185): CIELAB hue 260 (blue) where Hunt's
 #: white is at 302 (violet), chroma 3.6 where Hunt's is 9 (docs/models.md).
 BLUE_SHIFT_DEFAULT_XY = (0.3009, 0.3185)
-#: Floor on adaptation luminances before the log, cd/m^2 (below every branch point).
-LA_FLOOR = 1.0e-10
 #: Ferwerda et al. 1996: the display observer is adapted to half the display's maximum.
 DISPLAY_ADAPT_FRACTION = 0.5
 #: Look-up tables span 12 decades (Sec. 5), centred on the adaptation level here.
 LUT_DECADES = 12.0
-#: Options a caller may pass to ``frame_params`` (``Tonemapper(options=...)``).
-OPTIONS = ("tint", "lut", "mode")
 #: ``mode``: "default" (display adaptation following the scene's key, highlight
 #: shoulder) or "paper" (L_da = L_dmax/2 for every scene, hard clip at white).
 MODES = ("default", "paper")
-
-
-# --- Threshold-versus-intensity (Ferwerda et al. 1996), Eqs. 1-2 -----------------
-
-def log_threshold_rod(L_aR):
-    """log10 eps_R(L_aR), Eq. 1: rod threshold (scotopic cd/m^2) at adaptation L_aR."""
-    x = np.log10(np.maximum(np.asarray(L_aR, np.float64), LA_FLOOR))
-    mid = np.maximum(0.405 * x + 1.6, 0.0) ** 2.18 - 2.86
-    return np.where(x <= -3.94, -2.86, np.where(x >= -1.44, x - 0.395, mid))
-
-
-def log_threshold_cone(L_aC):
-    """log10 eps_C(L_aC), Eq. 2: cone threshold (cd/m^2). The photopic branch,
-    printed "log L_wa - 1.255", is log L_aC - 1.255 (docs/models.md)."""
-    x = np.log10(np.maximum(np.asarray(L_aC, np.float64), LA_FLOOR))
-    mid = np.maximum(0.249 * x + 0.65, 0.0) ** 2.7 - 0.72
-    return np.where(x <= -2.6, -0.72, np.where(x >= 1.9, x - 1.255, mid))
-
-
-def threshold_rod(L_aR):
-    """eps_R(L_aR), scotopic cd/m^2 (Eq. 1)."""
-    return 10.0 ** log_threshold_rod(L_aR)
-
-
-def threshold_cone(L_aC):
-    """eps_C(L_aC), cd/m^2 (Eq. 2)."""
-    return 10.0 ** log_threshold_cone(L_aC)
 
 
 def display_adaptation(display: DisplaySpec, L_adapted: float | None = None) -> float:
@@ -98,38 +72,14 @@ def display_adaptation(display: DisplaySpec, L_adapted: float | None = None) -> 
     return float(scene_key(L_adapted)) * display.white_cd
 
 
-def adapted_cone_luminance(inv_eps_cone: float) -> float:
-    """The cone adaptation level (cd/m^2) whose threshold (Eq. 2) is 1/``inv_eps_cone``:
-    Eq. 2 inverted (its flat scotopic branch maps to its end, 10^-2.6)."""
-    le = -math.log10(max(inv_eps_cone, 1e-300))
-    if le >= 1.9 - 1.255:
-        return 10.0 ** (le + 1.255)
-    if le <= -0.72 + 1e-12:
-        return 10.0 ** -2.6
-    return 10.0 ** (((le + 0.72) ** (1.0 / 2.7) - 0.65) / 0.249)
-
-
-def scale_factors(L_wa, L_waR, L_da):
-    """Steady (m_C, m_R), Sec. 3.1: m_C = eps_C(L_da)/eps_C(L_wa), m_R = eps_C(L_da)/eps_R(L_waR)."""
-    e_d = threshold_cone(L_da)
-    return e_d / threshold_cone(L_wa), e_d / threshold_rod(L_waR)
-
-
-def mesopic_factor(L_waR):
+def mesopic_factor_walraven_valeton(L_waR):
     """k, Eq. 4 (Walraven & Valeton 1984): (sigma - 0.25 L)/(sigma + L), sigma = 100
     cd/m^2, clamped to [0, 1]: 1 in the dark, 0 from L_waR = 400 up."""
     L = np.maximum(np.asarray(L_waR, np.float64), 0.0)
     return np.clip((SIGMA_MESOPIC - 0.25 * L) / (SIGMA_MESOPIC + L), 0.0, 1.0)
 
 
-def ferwerda_mesopic_factor(L_wa):
-    """Ferwerda et al.'s original k (Sec. 3.1), kept for comparison:
-    (1 - (L_wa/2 - 0.01)/(10 - 0.01))^2 clamped to [0, 1]."""
-    L = np.asarray(L_wa, np.float64)
-    return np.clip(1.0 - (L / 2.0 - 0.01) / (10.0 - 0.01), 0.0, 1.0) ** 2
-
-
-# --- Scheduler hooks ------------------------------------------------------------------
+# --- Time course, Sec. 3.3 ----------------------------------------------------------
 
 def steady_state(G_rod: float, G_cone: float) -> dict:
     """Fully light-adapted: inverse thresholds at the goals (m = m_steady)."""
@@ -209,7 +159,7 @@ def frame_params(state, display: DisplaySpec, tint=None, lut: int = 0,
                               else adapted_cone_luminance(v["inv_eps_cone"]))
     e_d = float(threshold_cone(L_da))
     return FrameParams(e_d * v["inv_eps_cone"], e_d * v["inv_eps_rod"],
-                       float(mesopic_factor(v["L_waR"])), tuple(float(t) for t in tint), L_da,
+                       float(mesopic_factor_walraven_valeton(v["L_waR"])), tuple(float(t) for t in tint), L_da,
                        v["L_wa"], v["L_waR"], display.unit_cd, int(lut), mode,
                        0.0 if paper else SHOULDER_KNEE,
                        float(display.white_cd / display.unit_cd))
@@ -260,37 +210,78 @@ def _lut_reference(rgb, Ys, p: FrameParams):
     return cone, rod
 
 
-def map_opencl(rt, rgb_buf, y_buf, ys_buf, out_buf, n_pixels: int, p: FrameParams):
-    """Enqueue the per-pixel pass (kernels/durand00.cl): direct, or through the
-    per-frame tables when ``p.lut`` > 0."""
-    from .runtime import round_up
-    f = np.float32
-    wg = 64
-    gsz = (round_up(max(n_pixels, 1), wg),)
-    rod = p.rod_rgb
-    if not p.lut:
-        knl = rt.kernel("durand00.cl", "durand00_map")
-        knl(rt.queue, gsz, (wg,), rgb_buf, ys_buf, out_buf, np.int32(n_pixels),
-            f(p.m_cone / p.unit_cd), f(rod[0]), f(rod[1]), f(rod[2]),
-            f(1.0 / p.white_signal), f(p.shoulder_knee))
-        return
-    import pyopencl as cl
-    tc, tr, lo, step = lut_tables(p)
-    tables = np.concatenate([tc, tr]).astype(np.float32)
-    buf = _lut_buffer(rt, tables.nbytes)
-    cl.enqueue_copy(rt.queue, buf, tables)
-    knl = rt.kernel("durand00.cl", "durand00_map_lut")
-    knl(rt.queue, gsz, (wg,), rgb_buf, ys_buf, out_buf, np.int32(n_pixels), buf,
-        np.int32(p.lut), f(lo), f(1.0 / step), f(p.tint[0]), f(p.tint[1]), f(p.tint[2]),
-        f(1.0 / p.white_signal), f(p.shoulder_knee))
+# --- Chromatic adaptation, Sec. 3.4 and Eq. 6 -----------------------------------------
+
+#: Chromatic adaptation time constant, s (Sec. 3.4; Fairchild & Reniff 1995).
+TAU_CHROMA = 5.0
+
+#: CIE 1931 xy chromaticities of named illuminants (CIE 15:2004).
+ILLUMINANTS_XY = {
+    "D50": (0.34567, 0.35850), "D55": (0.33242, 0.34743), "D65": (0.31270, 0.32900),
+    "D75": (0.29902, 0.31485), "A": (0.44757, 0.40745), "TUNGSTEN": (0.44757, 0.40745),
+    "F2": (0.37208, 0.37529), "F7": (0.31292, 0.32933), "F11": (0.38052, 0.37713),
+    "LED-B3": (0.4474, 0.4066), "LED-B4": (0.4557, 0.4211),
+}
+
+def parse_illuminant(text: str) -> np.ndarray:
+    """A name (D65, A, F2, ...) or ``x,y`` chromaticity -> normalised working RGB."""
+    t = text.strip().upper()
+    if t in ILLUMINANTS_XY:
+        return xy_to_rgb(*ILLUMINANTS_XY[t])
+    try:
+        x, y = (float(v) for v in text.split(","))
+        return xy_to_rgb(x, y)
+    except ValueError:
+        raise ValueError(f"bad --illuminant {text!r}: use x,y or one of "
+                         f"{', '.join(sorted(ILLUMINANTS_XY))}") from None
 
 
-_LUT_BUFS: dict = {}
+def illuminant_estimate_reference(rgb: np.ndarray) -> np.ndarray:
+    """Luminance-weighted grey world, sum(Y rgb) / sum(Y Y): bright regions and
+    light sources dominate (they carry the illuminant's colour; Sec. 4.1 warns
+    against the plain image average). Float64; the device does the same sums."""
+    rgb = np.asarray(rgb, np.float64)
+    Y = rgb @ Y_WEIGHTS
+    return normalise_illuminant((Y[..., None] * rgb).reshape(-1, 3).sum(axis=0))
 
 
-def _lut_buffer(rt, nbytes: int):
-    import pyopencl as cl
-    key = (id(rt.context), nbytes)
-    if key not in _LUT_BUFS:
-        _LUT_BUFS[key] = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY, nbytes)
-    return _LUT_BUFS[key]
+#: An estimated illuminant is held to the Planckian locus within ANSI C78.377's
+#: tolerance for white light (|Duv| <= 0.006) and 1500-25000 K: real light sources
+#: sit there, and coloured lamps or a green lawn must not read as a magenta or green
+#: illuminant (which turned a lamp-lit night field purple).
+ESTIMATE_DUV_MAX = 0.006
+ESTIMATE_CCT_RANGE = (1500.0, 25000.0)
+
+
+def plausible_illuminant(rgb) -> np.ndarray:
+    """An illuminant estimate (working RGB) moved onto the band of real light
+    sources around the Planckian locus (:data:`ESTIMATE_DUV_MAX`), normalised."""
+    import warnings
+    v = normalise_illuminant(rgb)
+    XYZ = RGB709_TO_XYZ @ v
+    if not (XYZ.sum() > 0):
+        return v
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import colour
+        uv = colour.xy_to_UCS_uv(XYZ[:2] / XYZ.sum())
+        cct, duv = colour.temperature.uv_to_CCT_Ohno2013(uv)
+        cct = float(np.clip(cct, *ESTIMATE_CCT_RANGE))
+        duv = float(np.clip(duv, -ESTIMATE_DUV_MAX, ESTIMATE_DUV_MAX))
+        u, w = colour.temperature.CCT_to_uv_Ohno2013(np.array([cct, duv]))
+    x, y = 3.0 * u / (2.0 * u - 8.0 * w + 4.0), 2.0 * w / (2.0 * u - 8.0 * w + 4.0)
+    return xy_to_rgb(x, y)
+
+
+def chromatic_step(illum, goal, dt: float) -> np.ndarray:
+    """Exponential filter of (r_wa, g_wa, b_wa) toward the goal, tau = 5 s (exact)."""
+    return normalise_illuminant([exponential_step(float(a), float(g), dt, TAU_CHROMA)
+                                 for a, g in zip(illum, goal)])
+
+
+def von_kries_gains(illum) -> np.ndarray:
+    """Eq. 6 (corrected, docs/models.md): the cone signals are divided by the
+    normalised illuminant, r_d = m_C r_w / r_wa etc."""
+    return 1.0 / np.asarray(illum, np.float64)
+
+

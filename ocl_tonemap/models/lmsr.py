@@ -31,7 +31,7 @@ L_MAX, M_MAX, S_MAX = 0.637, 0.392, 1.606
 KM_PHOTOPIC, KM_SCOTOPIC = 683.0, 1700.0
 #: Integration grid, nm (the cone fundamentals start at 390).
 WL = np.arange(390.0, 781.0, 1.0)
-FIT_FILE = Path(__file__).with_name("data") / "rgb_to_lmsr.json"
+FIT_FILE = Path(__file__).resolve().parent.parent / "data" / "rgb_to_lmsr.json"
 
 
 def colour_module():

@@ -1,0 +1,221 @@
+"""The OpenCL backend: float32 kernels (``kernels/*.cl``) on one device.
+
+Frames larger than ``max_band_pixels`` are processed in row bands
+(``plan.row_bands``): the measure pass meters every band (sums add up exactly as
+for one band), the apply pass maps each band. A frame that fits stays resident
+between the passes. One pool of working buffers serves every schedule.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...models import metering as met
+from ...models.photometry import RepairCounts
+from ...operators.base import FrameStats, Operator
+from ..plan import row_bands
+from .metering import DeviceMeter
+from .runtime import get_runtime, index_defines, round_up
+
+
+class OpenCLBackend:
+    """Float32 OpenCL kernels (kernels/*.cl)."""
+
+    name = "opencl"
+    ILLUM_GROUPS = 64
+
+    def __init__(self, device: str | None = None, max_band_pixels: int | None = None):
+        self.rt = get_runtime(device)
+        self.meter = DeviceMeter(self.rt)
+        self._colour = self.rt.kernel("colour.cl", "scene_to_working")
+        self._gains = self.rt.kernel("colour.cl", "apply_gains")
+        self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
+        if max_band_pixels is None:
+            # Per pixel: src (<=4 floats), rgb 3, Y, Y', out 3 = 48 B; keep to 1/4
+            # of global memory and under the largest single allocation.
+            max_band_pixels = min(self.rt.max_alloc_bytes() // 16,
+                                  self.rt.global_mem_bytes() // (48 * 4))
+        self.max_band_pixels = int(max(1, max_band_pixels))
+        self.bufs = None
+        self._cap = 0
+        self._pool: dict = {}
+
+    def describe(self) -> str:
+        from .runtime import describe_device
+        return describe_device(self.rt.device)
+
+    def schedule(self, op):
+        spec = op.schedules.get(self.name)
+        if spec:
+            from .. import load_schedule
+            return load_schedule(spec)(self, op)
+        if type(op).kernel_call is Operator.kernel_call:
+            from ..reference import PointwiseSchedule as HostSchedule   # no kernel: float64
+            return HostSchedule(self, op)
+        return PointwiseSchedule(self, op)
+
+    def device_blur(self):
+        """``blur(img, taps, edge)`` on the device (effects: flare, acuity)."""
+        from .convolution import DeviceBlur
+        return DeviceBlur(self.rt, self.max_band_pixels).blur
+
+    def purkinje_device(self):
+        """kirk11's shift kernels for the Purkinje effect on other operators."""
+        from .kirk11 import KirkDevice
+        return KirkDevice(self.rt)
+
+    # -- buffers -----------------------------------------------------------------------
+    def buffer(self, name: str, nbytes: int):
+        """A named device buffer of at least ``nbytes`` from the pool (grown as needed)."""
+        import pyopencl as cl
+        b = self._pool.get(name)
+        if b is None or b.size < nbytes:
+            b = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, max(int(nbytes), 4))
+            self._pool[name] = b
+        return b
+
+    def constant(self, arr: np.ndarray):
+        import pyopencl as cl
+        return cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                         hostbuf=np.ascontiguousarray(arr, np.float32))
+
+    def _buffers(self, npix: int, channels: int):
+        need = npix * max(channels, 3)
+        if self.bufs is None or self._cap < need:
+            cap = max(need, 1)
+            self.bufs = {k: self.buffer(k, cap * 4) for k in ("src", "rgb", "Y", "Ys", "out")}
+            self.bufs["counts"] = self.buffer("counts", 8 * 4)
+            self._cap = cap
+        return self.bufs
+
+    # -- the colour stage ------------------------------------------------------------------
+    def to_working(self, band: np.ndarray, scale: float, count: bool,
+                   count_rows: tuple[int, int] | None = None) -> RepairCounts:
+        """Upload one band and run the colour stage into ``bufs`` rgb, Y, Ys; returns
+        its repair counts (of rows ``count_rows`` of the band only, when given)."""
+        import pyopencl as cl
+        q = self.rt.queue
+        rows, width, channels = band.shape
+        n = rows * width
+        b = self._buffers(n, channels)
+        lo, hi = count_rows if count_rows is not None else (0, rows)
+        cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
+        cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)
+        self._colour(q, (round_up(n, 64),), (64,), b["src"], np.int32(channels), np.int32(n),
+                     np.float32(scale), b["rgb"], b["Y"], b["Ys"], b["counts"],
+                     np.int32(lo * width), np.int32(hi * width))
+        rc = RepairCounts()
+        if count:
+            c = np.empty(8, np.int32)
+            cl.enqueue_copy(q, c, b["counts"])
+            for k, v in zip(RepairCounts.KEYS, c):
+                setattr(rc, k, int(v))
+        return rc
+
+    def _illuminant_sums(self, n: int) -> np.ndarray:
+        """Device sums (Y r, Y g, Y b, Y Y) over the resident band (float64 on the host)."""
+        import pyopencl as cl
+        out = self.buffer("illum", self.ILLUM_GROUPS * 4 * 4)
+        wg = 64
+        groups = max(1, min(self.ILLUM_GROUPS, -(-n // wg)))
+        self._illum(self.rt.queue, (groups * wg,), (wg,), self.bufs["rgb"], self.bufs["Y"],
+                    np.int32(n), out, cl.LocalMemory(wg * 4 * 4))
+        part = np.empty((groups, 4), np.float32)
+        cl.enqueue_copy(self.rt.queue, part, out)
+        return part.astype(np.float64).sum(axis=0)
+
+    def bands(self, h: int, w: int, halo: int = 0):
+        return row_bands(h, w, self.max_band_pixels, halo)
+
+    def meter_pass(self, pixels, scale, spec, illuminant: bool, keep_rgb: np.ndarray | None):
+        """Colour stage + metering over the bands (+ illuminant sums, + the working
+        rgb copied to ``keep_rgb``): (bands, repairs, (G_rod, G_cone), illuminant sums)."""
+        import pyopencl as cl
+        h, w, _ = pixels.shape
+        bands = self.bands(h, w)
+        repairs = RepairCounts()
+        sums = None
+        illum = np.zeros(4)
+        for y0, nr in bands:
+            repairs += self.to_working(pixels[y0:y0 + nr], scale, count=True)
+            b = self.bufs
+            s = self.meter.band_sums(b["Y"], b["Ys"], nr * w, w, h, y0, spec)
+            if sums is None:
+                sums = s
+            else:
+                sums.add(s)
+            if illuminant:
+                illum += self._illuminant_sums(nr * w)
+            if keep_rgb is not None:
+                cl.enqueue_copy(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
+        self.last_max_Y = float(sums.sums[5])
+        return bands, repairs, sums.goal(spec), illum
+
+    def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec):
+        """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn)."""
+        h, w, _ = pixels.shape
+        rgb = np.empty((h, w, 3), np.float32)
+        _, repairs, G, illum = self.meter_pass(pixels, scale, spec, True, rgb)
+        return rgb, repairs, G, lambda: illum[:3]
+
+    # -- per-pixel kernels ---------------------------------------------------------------------
+    def run_pointwise(self, call, rgb, Y, Ys, out, n: int) -> None:
+        """Enqueue a per-pixel kernel (operators.base.KernelCall) over ``n`` pixels."""
+        names = tuple(k for k, _ in call.params)
+        knl = self.rt.kernel(call.file, call.kernel, index_defines(names))
+        p = self.constant(np.array([v for _, v in call.params] or [0.0], np.float32))
+        extra = tuple(self.constant(b) for b in call.buffers)
+        items = -(-max(n, 1) // 4) if call.vector else max(n, 1)
+        knl(self.rt.queue, (round_up(items, 64),), (64,), rgb, Y, Ys, out, np.int32(n), p,
+            *extra)
+
+
+class PointwiseSchedule:
+    """Colour, metering, the host's state step, one per-pixel kernel, over bands."""
+
+    receptor_gains = True
+    streams = True
+
+    def __init__(self, backend: OpenCLBackend, op):
+        self.backend, self.op = backend, op
+
+    def measure(self, frame, spec: met.MeteringSpec, want_illuminant: bool = False) -> FrameStats:
+        be = self.backend
+        h, w, _ = frame.pixels.shape
+        bands, repairs, (G_rod, G_cone), illum = be.meter_pass(frame.pixels, frame.scale, spec,
+                                                               want_illuminant, None)
+        be.last_repairs = repairs
+        # one band stays resident in the backend's buffers until the next frame
+        return FrameStats(w, h, G_rod, G_cone, repairs, lambda: illum[:3],
+                          handle=(frame.pixels, bands))
+
+    def integrate(self, state, stats, dt: float, fresh: bool) -> None:
+        self.op.integrate(state, stats, dt, fresh)
+
+    def apply(self, frame, state, stats, params, gains=None, sink=None):
+        """Map every band (re-reading it unless the frame is the resident one); with
+        ``sink(y0, band)`` bands go there and None is returned."""
+        import pyopencl as cl
+        be = self.backend
+        h, w, _ = frame.pixels.shape
+        resident = stats.handle is not None and stats.handle[0] is frame.pixels
+        bands = stats.handle[1] if resident else be.bands(h, w)
+        call = self.op.kernel_call(params)
+        out = np.empty((h, w, 3), np.float32) if sink is None else None
+        for y0, nr in bands:
+            if len(bands) > 1 or not resident:
+                be.to_working(frame.pixels[y0:y0 + nr], frame.scale, count=False)
+            b = be.bufs
+            n = nr * w
+            if gains is not None:                          # Eq. 6: cone signals only
+                g = np.asarray(gains, np.float32)
+                be._gains(be.rt.queue, (round_up(n, 64),), (64,), b["rgb"], b["Y"],
+                          np.int32(n), g[0], g[1], g[2])
+            be.run_pointwise(call, b["rgb"], b["Y"], b["Ys"], b["out"], n)
+            if sink is None:
+                cl.enqueue_copy(be.rt.queue, out[y0:y0 + nr], b["out"])
+            else:
+                band = np.empty((nr, w, 3), np.float32)
+                cl.enqueue_copy(be.rt.queue, band, b["out"])
+                sink(y0, band)
+        return out

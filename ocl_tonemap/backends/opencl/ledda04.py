@@ -1,0 +1,297 @@
+"""ledda04 on the device: luminances, the bilateral filter (exact or grid), the
+per-pixel state step and the mapping (kernels/ledda04.cl, kernels/bilateral.cl).
+
+measure    colour stage and Y, Y' per band; the frame's log-average levels; the
+           bilateral filter of Y and Y' (exact: bands with halo rows; grid: the
+           frame's z range, splat band by band, blur, slice band by band) into the
+           adaptation levels I_A, I_A' (resident for one band, host planes for more);
+integrate  ``ledda04_step`` on the per-pixel state (resident on the device between
+           frames when the frame is one band, on the host otherwise);
+apply      ``ledda04_map`` per band.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...models import ledda2004 as L
+from ...models.bilateral import LEDDA_RANGE, V_FLOOR, spatial_radius
+from ...models.display import DISPLAY_LINEAR_MAX
+from ...models.metering import MeteringSpec
+from ...models.photometry import RepairCounts
+from ...operators.base import FrameStats
+from ..reference import PixelStateMixin
+from .bilateral import DeviceBilateral
+from .runtime import round_up
+
+#: Model constants of kernels/ledda04.cl, given as build options (never retyped).
+KERNEL_CONSTANTS = (
+    ("V_FLOOR", V_FLOOR), ("ALPHA", L.ALPHA), ("BETA_CONE", L.BETA_CONE),
+    ("BETA_ROD", L.BETA_ROD), ("TAU_CONE", L.TAU_CONE), ("TAU_ROD", L.TAU_ROD),
+    ("LN_RHO_CONE", math.log(L.RHO_CONE)), ("LN_RHO_ROD", math.log(L.RHO_ROD)),
+    ("K_MAX", L.K_MAX), ("K_SLOPE", L.K_SLOPE), ("E_MAX", L.E_MAX), ("T_DONE", L.T_DONE),
+    ("NSTATE", len(L.STATE_CHANNELS)), ("DISPLAY_LINEAR_MAX", DISPLAY_LINEAR_MAX),
+)
+LOGMEAN = MeteringSpec.parse("logmean")
+
+
+class LeddaSchedule(PixelStateMixin):
+    receptor_gains = False
+    streams = False
+
+    def __init__(self, backend, op):
+        self.backend, self.op = backend, op
+        self.planes = L.STATE_CHANNELS
+        self._host = None        # authoritative when _dev is None
+        self._dev = None         # (cl.Buffer, (h, w)) authoritative on the device
+        self._filters = None
+        rt = backend.rt
+        self._k_lum = rt.kernel("ledda04.cl", "ledda04_luminance", KERNEL_CONSTANTS)
+        self._k_step = rt.kernel("ledda04.cl", "ledda04_step", KERNEL_CONSTANTS)
+        self._k_map = rt.kernel("ledda04.cl", "ledda04_map", KERNEL_CONSTANTS)
+
+    # -- per-pixel state ---------------------------------------------------------------
+    def pixel_state(self) -> dict | None:
+        """Per-pixel state as float32 (h, w) arrays (a snapshot; a device copy stays
+        authoritative and resident for the next frame)."""
+        if self._dev is not None:
+            import pyopencl as cl
+            buf, (h, w) = self._dev
+            a = np.empty((len(self.planes), h, w), np.float32)
+            cl.enqueue_copy(self.backend.rt.queue, a, buf)
+            return {k: np.array(a[i]) for i, k in enumerate(self.planes)}
+        return super().pixel_state()
+
+    def set_pixel_state(self, pixels) -> None:
+        super().set_pixel_state(pixels)
+        self._dev = None
+
+    def state_shape(self):
+        return self._dev[1] if self._dev is not None else super().state_shape()
+
+    def _take_host_state(self):
+        if self._dev is not None:
+            self._host = self.pixel_state()
+            self._dev = None
+        return self._host
+
+    # -- measure -----------------------------------------------------------------------
+    def _colour_and_lum(self, frame, a: int, b: int, own):
+        """Rows [a, b) to working space and Y, Y'; returns (repairs, n, Yl, Ysl)."""
+        be = self.backend
+        w = frame.pixels.shape[1]
+        rc = be.to_working(frame.pixels[a:b], frame.scale, count=own is not None, count_rows=own)
+        n = (b - a) * w
+        yl, ysl = be.buffer("ledda_Y", n * 4), be.buffer("ledda_Ys", n * 4)
+        self._k_lum(be.rt.queue, (round_up(n, 64),), (64,), be.bufs["rgb"], np.int32(n), yl, ysl,
+                    np.int32(self.op.ward))
+        return rc, n, yl, ysl
+
+    def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
+        import pyopencl as cl
+        be, op, s = self.backend, self.op, self.op.settings
+        rt, q = be.rt, be.rt.queue
+        h, w = frame.pixels.shape[:2]
+        sig = s.sigma_px(w, h)
+        if self._filters is None:
+            self._filters = (DeviceBilateral(rt), DeviceBilateral(rt))
+        fc, fr = self._filters
+        method = fc.choose(s.bilateral, sig, w, h)
+        halo = spatial_radius(sig) if method == "exact" else 0
+        bands = be.bands(h, w, halo)
+        banded = len(bands) > 1
+        # the frame's global log-averages: one band is coloured once and stays resident
+        resident = self._colour_and_lum(frame, 0, h, (0, h)) if not banded else None
+        gsums = None
+        for y0, nr in ([(0, h)] if not banded else bands):
+            _, n, yl, ysl = resident if resident is not None else \
+                self._colour_and_lum(frame, y0, y0 + nr, None)
+            gs = be.meter.band_sums(yl, ysl, n, w, h, y0, LOGMEAN)
+            if gsums is None:
+                gsums = gs
+            else:
+                gsums.add(gs)
+        G_rod_g, G_cone_g = gsums.goal(LOGMEAN)
+        geoms = None
+        if method == "fast":
+            zr = [[np.inf, -np.inf], [np.inf, -np.inf]]
+            for y0, nr in bands:                    # z ranges of Y and Y'
+                _, n, yl, ysl = resident if not banded else \
+                    self._colour_and_lum(frame, y0, y0 + nr, None)
+                for k, (flt, buf) in enumerate(((fc, yl), (fr, ysl))):
+                    lo, hi = flt.z_range(buf, n, LEDDA_RANGE)
+                    zr[k] = [min(zr[k][0], lo), max(zr[k][1], hi)]
+            geoms = [flt.fit_geometry(w, h, zr[k][0], zr[k][1], sig, LEDDA_RANGE, s.bilateral.q_s,
+                                      s.bilateral.q_r) for k, flt in enumerate((fc, fr))]
+            for flt, g in zip((fc, fr), geoms):
+                flt.begin_grid(g)
+            for y0, nr in bands:                    # splat
+                if banded:
+                    _, n, yl, ysl = self._colour_and_lum(frame, y0, y0 + nr, None)
+                else:
+                    _, n, yl, ysl = resident
+                fc.splat(yl, w, nr, y0, geoms[0], LEDDA_RANGE)
+                fr.splat(ysl, w, nr, y0, geoms[1], LEDDA_RANGE)
+            fc.blur(geoms[0], LEDDA_RANGE)
+            fr.blur(geoms[1], LEDDA_RANGE)
+        repairs = RepairCounts()
+        sums = None
+        rods_used = True
+        planes = {"I_c": np.empty((h, w), np.float32), "I_r": np.empty((h, w), np.float32)} \
+            if banded else {}
+        for y0, nr in bands:                        # filter / slice: the adaptation levels
+            a, b = max(0, y0 - halo), min(h, y0 + nr + halo)
+            if resident is not None:
+                rc, _, yl, ysl = resident
+                resident = (RepairCounts(), *resident[1:])     # count the repairs once
+            else:
+                rc, _, yl, ysl = self._colour_and_lum(frame, a, b, (y0 - a, y0 - a + nr))
+            repairs += rc
+            n = nr * w
+            ic, ir = be.buffer("ledda_Ic", n * 4), be.buffer("ledda_Ir", n * 4)
+            if method == "exact":
+                fc.exact(yl, ic, w, b - a, a, y0, nr, sig, LEDDA_RANGE)
+            else:
+                fc.slice(yl, ic, w, nr, y0, y0, nr, geoms[0], LEDDA_RANGE)
+            rods_needed = banded or op.rods == "always" or \
+                math.exp(fc.z_range(ic, n, LEDDA_RANGE)[0]) < L.PHOTOPIC_FLOOR
+            if rods_needed:
+                if method == "exact":
+                    fr.exact(ysl, ir, w, b - a, a, y0, nr, sig, LEDDA_RANGE)
+                else:
+                    fr.slice(ysl, ir, w, nr, y0, y0, nr, geoms[1], LEDDA_RANGE)
+            rods_used = rods_used and rods_needed
+            sb = be.meter.band_sums(ic, ir if rods_needed else ic, n, w, h, y0, LOGMEAN)
+            if sums is None:
+                sums = sb
+            else:
+                sums.add(sb)
+            if banded:
+                cl.enqueue_copy(q, planes["I_c"][y0:y0 + nr], ic)
+                cl.enqueue_copy(q, planes["I_r"][y0:y0 + nr], ir)
+            else:
+                planes = {"I_c": ic, "I_r": ir}
+        G_rod, G_cone = sums.goal(LOGMEAN)
+        if not rods_used:
+            G_rod = max(G_cone * op.rod_ratio, V_FLOOR)
+        grid = ""
+        if method == "fast":
+            g = geoms[0]
+            grid = f" (q_s={sig / g.s_s:.3g}, q_r={LEDDA_RANGE.z_width() / g.s_r:.3g})"
+        return FrameStats(w, h, G_rod, G_cone, repairs,
+                          values={"global_cone": G_cone_g, "global_rod": G_rod_g,
+                                  "sigma_px": sig, "rods": bool(rods_used),
+                                  "bilateral": method + grid},
+                          planes=planes, handle=(frame.pixels, bands, banded, halo))
+
+    # -- integrate ---------------------------------------------------------------------
+    def _band_levels(self, stats, y0, nr):
+        """(Ic, Ir) device buffers of one band: resident, or uploaded from the host planes."""
+        import pyopencl as cl
+        ic, ir = stats.planes["I_c"], stats.planes["I_r"]
+        if isinstance(ic, np.ndarray):
+            be = self.backend
+            n = nr * ic.shape[1]
+            bc, br = be.buffer("ledda_Ic", n * 4), be.buffer("ledda_Ir", n * 4)
+            cl.enqueue_copy(be.rt.queue, bc, np.ascontiguousarray(ic[y0:y0 + nr]))
+            cl.enqueue_copy(be.rt.queue, br, np.ascontiguousarray(ir[y0:y0 + nr]))
+            return bc, br
+        return ic, ir
+
+    def _frame_scalars(self, stats):
+        s = self.op.settings
+        return (np.float32(s.strength),
+                np.float32(math.log(max(stats.values["global_cone"], V_FLOOR))),
+                np.float32(math.log(max(stats.values["global_rod"], V_FLOOR))))
+
+    def integrate(self, state, stats, dt: float, fresh: bool) -> None:
+        import pyopencl as cl
+        be, op = self.backend, self.op
+        q = be.rt.queue
+        h, w = stats.height, stats.width
+        self.check_shape(fresh, (h, w))
+        _, bands, banded, _ = stats.handle
+        init = fresh and op.preadapt is None
+        if fresh and op.preadapt is not None:
+            self.set_pixel_state(L.preadapted_state(op.preadapt[0], op.preadapt[1], (h, w),
+                                                    op.ward))
+        counts = be.buffer("ledda_counts", 4)
+        cl.enqueue_fill_buffer(q, counts, np.int32(0), 0, 4)
+        nstate = len(self.planes)
+        if banded and self._dev is not None:
+            self._take_host_state()                 # banded frames keep state on the host
+        if banded and init:
+            self._host = {k: np.empty((h, w), np.float32) for k in self.planes}
+        strength, lgc, lgr = self._frame_scalars(stats)
+        f32, i32 = np.float32, np.int32
+        for y0, nr in bands:
+            n = nr * w
+            ic, ir = self._band_levels(stats, y0, nr)
+            if banded:
+                st = be.buffer("ledda_state_band", nstate * n * 4)
+                if not init:
+                    planes = np.stack([self._host[k][y0:y0 + nr] for k in self.planes])
+                    cl.enqueue_copy(q, st, np.ascontiguousarray(planes, np.float32))
+            elif self._dev is not None:
+                st = self._dev[0]                   # resident from the last frame
+            else:
+                st = cl.Buffer(be.rt.context, cl.mem_flags.READ_WRITE, nstate * n * 4)
+                if not init:
+                    planes = np.stack([self._host[k] for k in self.planes])
+                    cl.enqueue_copy(q, st, np.ascontiguousarray(planes, np.float32))
+            rods = stats.values["rods"]
+            self._k_step(q, (round_up(n, 64),), (64,), ic, ir, i32(0 if rods else 1),
+                         f32(op.rod_ratio), st, i32(n), i32(n), f32(dt), i32(1 if init else 0),
+                         f32(L.E_MAX), f32(op.settings.change_log10 * math.log2(10.0)), counts,
+                         strength, lgc, lgr)
+            if banded:
+                planes = np.empty((nstate, nr, w), np.float32)
+                cl.enqueue_copy(q, planes, st)
+                for i, k in enumerate(self.planes):
+                    self._host[k][y0:y0 + nr] = planes[i]
+            else:
+                self._dev, self._host = (st, (h, w)), None
+        nres = np.empty(1, np.int32)
+        cl.enqueue_copy(q, nres, counts)
+        stats.values["restarted_fraction"] = float(nres[0]) / (h * w) if not init else 0.0
+        state.values = {"logmean_I_A_cone": float(stats.G_cone),
+                        "logmean_I_A_rod": float(stats.G_rod)}
+
+    # -- apply -------------------------------------------------------------------------
+    def apply(self, frame, state, stats, params=None, gains=None, sink=None):
+        import pyopencl as cl
+        be, op = self.backend, self.op
+        q = be.rt.queue
+        h, w = stats.height, stats.width
+        _, bands, banded, halo = stats.handle
+        sd, white, knee = op.frame_mapping(stats.values["global_cone"], stats.values["global_rod"])
+        stats.values["sigma_disp"] = sd
+        strength, lgc, _ = self._frame_scalars(stats)
+        f32, i32 = np.float32, np.int32
+        out = np.empty((h, w, 3), np.float32)
+        nstate = len(self.planes)
+        for y0, nr in bands:
+            n = nr * w
+            if banded:
+                be.to_working(frame.pixels[y0:y0 + nr], frame.scale, count=False)
+                ic, _ = self._band_levels(stats, y0, nr)
+                st = be.buffer("ledda_state_band", nstate * n * 4)
+                planes = np.stack([self._host[k][y0:y0 + nr] for k in self.planes])
+                cl.enqueue_copy(q, st, np.ascontiguousarray(planes, np.float32))
+            else:
+                ic, st = stats.planes["I_c"], self._dev[0]
+            self._k_map(q, (round_up(n, 64),), (64,), be.bufs["rgb"], i32(0), ic, st, i32(n),
+                        i32(n), f32(sd), f32(1.0 / op.display.unit_cd), be.bufs["out"], strength,
+                        lgc, f32(1.0 / white), f32(knee), i32(op.ward))
+            cl.enqueue_copy(q, out[y0:y0 + nr], be.bufs["out"])
+        return out
+
+    def summary(self, stats) -> dict:
+        from ...operators.ledda04 import FrameSummary
+        v, op = stats.values, self.op
+        return FrameSummary(v["sigma_px"], v["bilateral"], v["sigma_disp"], v["rods"],
+                            op.settings.mode, op.settings.strength, v["global_cone"],
+                            v["global_rod"], v.get("restarted_fraction", 0.0), stats.G_cone,
+                            stats.G_rod).as_dict()

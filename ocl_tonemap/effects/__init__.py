@@ -1,0 +1,160 @@
+"""Effects any operator can use, each in a declared slot of the frame's data flow.
+
+=======================  =========  ==============================================
+effect                   slot       module
+=======================  =========  ==============================================
+``flare``                scene      ``effects/flare.py`` (Spencer et al. 1995)
+``purkinje``             scene      ``effects/purkinje.py`` (Kirk & O'Brien 2011)
+``chromatic_adaptation`` receptor   ``effects/chromatic.py`` (Durand & Dorsey 2000, Eq. 6)
+``acuity``               display    ``effects/acuity.py`` (Shaler 1937, D&D Sec. 7)
+=======================  =========  ==============================================
+
+*scene* effects change the scene (cd/m^2) before the operator measures it;
+*receptor* effects act on the cone signals (the schedule places them, see
+``chromatic.py``); *display* effects change the display-linear output.
+
+Each takes ``on | off | auto``. ``auto`` runs an effect only where the frame
+needs it (light sources present; cut-off frequency below the pixel frequency;
+illuminant away from the working white by more than 1%; rods active), so its
+output equals ``on`` and frames that do not need it cost nothing. Which effects
+ran, and with what, is returned per frame for the metadata.
+
+:data:`REGISTRY` lists them; a separately installed package may add effects in
+the ``ocl_tonemap.effects`` entry-point group (a module or object with ``NAME``,
+``SLOT`` in scene | display, ``HELP`` and ``run(rgb, levels) -> (rgb or None,
+info)``), run when enabled through ``Tonemapper(plugin_effects=[NAME, ...])``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from ..models import spencer1995 as fl
+from ..models.durand2000 import parse_illuminant
+from . import acuity as _acuity
+from . import chromatic as _chromatic
+from . import flare as _flare
+from . import purkinje as _purkinje
+
+MODES = ("on", "off", "auto")
+SLOTS = ("scene", "receptor", "display")
+#: Default angular width of the image, degrees (the paper's 50-degree example, Sec. 8).
+DEFAULT_FOV = 50.0
+#: name -> module of the built-in effects (each with NAME, SLOT, NEEDS, HELP, run).
+REGISTRY = {m.NAME: m for m in (_flare, _acuity, _chromatic, _purkinje)}
+
+
+def plugin_effects() -> dict:
+    """Effects installed by other packages (entry-point group ``ocl_tonemap.effects``)."""
+    from importlib.metadata import entry_points
+    out = {}
+    for ep in entry_points(group="ocl_tonemap.effects"):
+        eff = ep.load()
+        if getattr(eff, "SLOT", None) not in ("scene", "display"):
+            raise ValueError(f"effect plugin {ep.name}: SLOT must be scene or display")
+        out[ep.name] = eff
+    return out
+
+
+@dataclass(frozen=True)
+class EffectSettings:
+    """Switches and parameters of the effects (CLI: --flare, --acuity,
+    --chromatic-adaptation, --fov, --illuminant, --flare-method ...)."""
+
+    flare: str = "off"
+    acuity: str = "off"
+    chromatic_adaptation: str = "off"
+    purkinje: str = "off"
+    fov_deg: float = DEFAULT_FOV
+    flare_method: str = "fast"
+    flare_threshold: float = fl.DEFAULT_THRESHOLD
+    flare_per_octave: int = 1
+    illuminant: str | None = None
+
+    def __post_init__(self):
+        for k in ("flare", "acuity", "chromatic_adaptation", "purkinje"):
+            if getattr(self, k) not in MODES:
+                raise ValueError(f"--{k.replace('_', '-')} must be on, off or auto "
+                                 f"(got {getattr(self, k)!r})")
+        if not (0 < self.fov_deg < 180):
+            raise ValueError(f"--fov must be between 0 and 180 degrees (got {self.fov_deg})")
+        if self.flare_method not in ("fast", "exact"):
+            raise ValueError(f"--flare-method must be fast or exact (got {self.flare_method!r})")
+        if not (self.flare_threshold > 0 and math.isfinite(self.flare_threshold)):
+            raise ValueError("--flare-threshold must be a positive number")
+        if self.flare_per_octave not in (1, 2, 3, 4):
+            raise ValueError("--flare-sampling (Gaussians per octave) must be 1..4")
+        if self.illuminant is not None:
+            parse_illuminant(self.illuminant)
+
+    @classmethod
+    def for_operator(cls, operator: str, **given) -> "EffectSettings":
+        """Defaults: the operator's ``default_effects`` (durand00, whose paper they
+        come from, runs flare, acuity and chromatic adaptation on ``auto``); the
+        others leave them off unless asked."""
+        from ..operators import get_operator
+        base = replace(cls(), **get_operator(operator).default_effects)
+        return replace(base, **{k: v for k, v in given.items() if v is not None})
+
+    @property
+    def any(self) -> bool:
+        return any(getattr(self, k) != "off"
+                   for k in ("flare", "acuity", "chromatic_adaptation", "purkinje"))
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+
+
+class Effects:
+    """The effects of one observer: settings, the backend's device helpers, and the
+    effects' state (kept in ``AdaptationState.extra``)."""
+
+    STATE_KEY = _chromatic.STATE_KEY
+
+    def __init__(self, settings: EffectSettings, backend, plugins=()):
+        self.s = settings
+        self.backend = backend
+        self.user_illuminant = parse_illuminant(settings.illuminant) if settings.illuminant else None
+        self._blur = backend.device_blur() if hasattr(backend, "device_blur") else None
+        self._purkinje_dev = None
+        found = plugin_effects() if plugins else {}
+        missing = [p for p in plugins if p not in found]
+        if missing:
+            raise ValueError(f"no effect plugin {', '.join(missing)} (installed: "
+                             f"{', '.join(sorted(found)) or 'none'})")
+        self.plugins = [found[p] for p in plugins]
+
+    def slot_plugins(self, slot: str):
+        return [p for p in self.plugins if p.SLOT == slot]
+
+    def flare(self, rgb: np.ndarray, G_rod: float, G_cone: float):
+        """(new rgb or None, info) for one frame in cd/m^2."""
+        return _flare.run(self.s, rgb, G_rod, G_cone, self._blur)
+
+    def purkinje(self, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
+                 dt: float = 0.0, fresh: bool = True, preadapt=None):
+        if self.s.purkinje != "off" and self._purkinje_dev is None and \
+                hasattr(self.backend, "purkinje_device"):
+            self._purkinje_dev = self.backend.purkinje_device()
+        return _purkinje.run(self.s, rgb, G_rod, G_cone, extra, dt, fresh, preadapt,
+                             self._purkinje_dev)
+
+    def illuminant_goal(self, frame_hint, estimate_fn):
+        """(normalised rgb, source): user value > frame metadata > estimate."""
+        return _chromatic.illuminant_goal(self.user_illuminant, frame_hint, estimate_fn)
+
+    def chromatic(self, extra: dict, goal, source: str, dt: float, fresh: bool,
+                  preadapted: bool):
+        """Advance the illuminant state; returns (gains or None, info)."""
+        return _chromatic.run(self.s, extra, goal, source, dt, fresh, preadapted)
+
+    def acuity(self, img: np.ndarray, G_rod: float):
+        return _acuity.run(self.s, img, G_rod, self._blur)
+
+    def acuity_needed(self, G_rod: float, width: int) -> bool:
+        return _acuity.needed(self.s, G_rod, width)

@@ -1,0 +1,85 @@
+"""The Purkinje shift of Kirk & O'Brien 2011 (Cao et al. 2008) as an effect on any
+operator: the scene's chromaticity shifted as rods add to the cone pathways, each
+pixel's photopic luminance kept (the operator models rod luminance itself).
+
+Slot: scene. Needs: the shared receptor levels (``models/pattanaik2000.py``: the
+adapted scotopic level and the rods' dark adaptation), kept in
+``AdaptationState.extra["purkinje_levels"]``; on the device, kirk11's shift kernel.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..models import kirk2011 as ko
+from ..models import lmsr
+from ..models.pattanaik2000 import (receptor_levels_advance, receptor_levels_preadapted,
+                                    receptor_levels_steady, rod_sensitivity)
+from ..models.photometry import Y_WEIGHTS, neutral_scotopic_ratio
+
+NAME = "purkinje"
+SLOT = "scene"
+NEEDS = ("receptor levels",)
+HELP = "rod colour shift of kirk11 on the scene's colours (Kirk & O'Brien 2011)"
+LEVELS_KEY = "purkinje_levels"
+
+#: ``auto`` skips the shift when rods carry less than this share (photopic frames).
+PURKINJE_AUTO_GAIN = 0.01
+
+
+def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None,
+                   sensitivity: float = 1.0):
+    """Shift working RGB (cd/m^2) as kirk11 does with ``--kappa adaptive`` and keep
+    each pixel's photopic luminance. ``G_rod``: the (adapted) scotopic level;
+    ``sensitivity``: how far the rods are dark adapted (0..1, scales the rods'
+    share). ``device``: a KirkDevice, else float64."""
+    area = ko.model_scale()
+    k1, k2, gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), G_rod)
+    k1, k2, gain = k1 * sensitivity, k2 * sensitivity, gain * sensitivity
+    M = lmsr.fitted()["H"][:3]
+    rgb = np.asarray(rgb)
+    if gain <= 0.0:
+        return rgb, {"rod_gain": 0.0, "fallback_fraction": 0.0}
+    if device is not None:
+        p, fb = device.shift_rgb(np.asarray(rgb, np.float32), area, k1, k2, gain, M,
+                                 np.eye(3), ko.SHIFT_XYZ)
+        p = p.astype(np.float64)
+    else:
+        q = lmsr.rgb_to_lmsr(rgb)
+        qh, _ = ko.purkinje_shift(q, area, k1, k2, ko.SHIFT_XYZ, gain)
+        p, fbm = ko.gamut_map(M, qh)
+        fb = float(fbm.mean())
+    y_in = np.asarray(rgb, np.float64) @ Y_WEIGHTS
+    y_p = p @ Y_WEIGHTS
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(y_p > 0, y_in / np.where(y_p > 0, y_p, 1.0), 0.0)
+    out = np.where((y_p > 0)[..., None], p * k[..., None], rgb)
+    return out.astype(np.float32), {"rod_gain": float(gain), "k1": float(k1),
+                                    "fallback_fraction": float(fb)}
+
+
+
+def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
+        dt: float = 0.0, fresh: bool = True, preadapt=None, device=None):
+    """(new rgb or None, info): the kirk11 shift applied to chromaticity only (each
+    pixel keeps its Y), its strength from the shared receptor scheduler: the
+    adapted scotopic level and the rods' dark adaptation (``extra`` keeps the
+    levels in the adaptation state; without it, steady state at the frame)."""
+    if settings.purkinje == "off":
+        return None, {"ran": False}
+    prev = (extra or {}).get(LEVELS_KEY)
+    if prev is None or fresh:
+        lv = (receptor_levels_preadapted(preadapt[0] * neutral_scotopic_ratio(),
+                                         preadapt[0], preadapt[1])
+              if (fresh and preadapt is not None) else receptor_levels_steady(G_rod, G_cone))
+    else:
+        lv = receptor_levels_advance(prev, G_rod, G_cone, dt)
+    if extra is not None:
+        extra[LEVELS_KEY] = {k: float(v) for k, v in lv.items()}
+    sens = rod_sensitivity(lv)
+    out, info = apply_purkinje(rgb, lv["A_rod"], lv["A_cone"], device, sens)
+    info.update({"A_rod": lv["A_rod"], "rod_sensitivity": sens})
+    if settings.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
+        return None, {"ran": False, "reason": "photopic", **info}
+    info["ran"] = True
+    return out, info

@@ -1,0 +1,308 @@
+"""Ledda, Santos & Chalmers 2004: local adaptation with a dark/light time course.
+
+"A Local Model of Eye Adaptation for High Dynamic Range Images", Afrigraph
+2004. Equation numbers are the paper's. Units: cd/m^2 (photopic Y for
+cones, scotopic Y' for rods), seconds.
+
+Per pixel:
+  Y, Y'          Eqs. 6-7 (the paper's coefficients, applied to working RGB)
+  I_A, I_A'      bilateral filter of Y and Y' (Eqs. 8-10, ``bilateral.py``)
+  sigma          beta * I_A^alpha, Eq. 5 (alpha = 0.69; beta_cone 5.83, beta_rod 2.0)
+  R_cone, R_rod  Y^n / (Y^n + sigma^n), Eqs. 2-3
+  mes            smoothstep of (log10 I_A + 2)/2.6, Eq. 11 (reconstructed)
+  output         Y_coneO = mes sigma_disp (R/(1-R))^(1/n) (Eq. 12), Y_rodO likewise
+                 with 1 - mes (Eq. 13); RGB = rgb * Y_coneO/Y + Y_rodO.
+Time course (Sec. 5.2, Eqs. 14-17, Table 1, reconstructed): each pixel's
+sigma moves from sigma_in to sigma_fin along a dark or light curve; a change
+of illumination restarts it from the current sigma. The per-pixel state is
+small and serialisable (see :data:`STATE_CHANNELS`).
+
+The float64 functions below are the reference; ``kernels/ledda04.cl`` is the
+device pass (state step, mapping), ``kernels/bilateral.cl`` the filter, run by
+``operators/ledda04.py`` and ``backends/opencl/ledda04.py``.
+
+>>> float(mesopic_factor_ledda2004(0.01)), float(mesopic_factor_ledda2004(10.0))
+(0.0, 1.0)
+>>> round(float(K_of_energy(0.0)), 1), round(float(K_of_energy(1e9)), 4)
+(12.0, 5.6598)
+
+Reconstructions are argued in docs/models.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .bilateral import LEDDA_RANGE, V_FLOOR, bilateral_reference
+from .photometry import neutral_scotopic_ratio, scotopic_luminance
+from .display import DISPLAY_LINEAR_MAX, SIGNAL_CEILING, DisplaySpec, apply_shoulder, scene_key
+
+#: Eq. 5 exponent and the per-receptor betas, cd/m^2 ("between 5.83 and 2.0
+#: depending on the receptor": cones are the less sensitive system).
+ALPHA = 0.69
+BETA_CONE, BETA_ROD = 5.83, 2.0
+#: Naka-Rushton exponent of Eqs. 1-3 (0.7 < n < 2; Hunt's 0.73 as in
+#: Pattanaik 2000). It cancels between Eq. 2 and its inverse Eq. 12.
+N = 0.73
+#: Eqs. 6-7 (Pattanaik et al. 1998's RGB -> Y, Y').
+Y_COEFFS = (0.256, 0.67, 0.065)
+YS_COEFFS = (-0.702, 1.039, 0.433)
+#: Table 1 time constants, s.
+TAU_CONE, TAU_ROD = 600.0, 2400.0
+RHO_CONE, RHO_ROD = 20.0, 20.0
+#: Eq. 17: K = -0.0006 E + 12, valid for E up to 10567 cd/m^2 s (Mote & Riopelle).
+K_SLOPE, K_MAX, E_MAX = -0.0006, 12.0, 10567.0
+K_MIN = K_MAX + K_SLOPE * E_MAX
+#: Display adaptation level as a fraction of display white (Sec. 4.4: 30-50
+#: cd/m^2 on the paper's display; 40 for a 100 cd/m^2 white).
+DISPLAY_ADAPT_FRACTION = 0.4
+#: A pixel's adaptation restarts (new sigma_in, sigma_fin) when its goal sigma
+#: moves more than this many log10 units from the goal that started the
+#: current course (Sec. 5.2, last paragraph; our threshold).
+CHANGE_LOG10 = 0.1
+#: "Long ago": t of a pixel whose course has finished, s.
+T_DONE = 1.0e9
+
+#: ``mode``: "default" (adaptation to a blend of the local and the frame's global
+#: level, display anchored to the scene's key, highlight shoulder) or "paper"
+#: (fully local, the fixed display sigma, hard clip): docs/models.md.
+MODES = ("default", "paper")
+#: Default share of the local (bilateral) level in the adaptation level
+#: (Reinhard & Devlin 2005's light-adaptation mix; 1 = the paper's fully local).
+LOCAL_STRENGTH = 0.5
+
+#: Per-pixel state planes, in this order (float32 on the device).
+STATE_CHANNELS = ("sigma_in_cone", "sigma_fin_cone", "sigma_anchor_cone",
+                  "sigma_in_rod", "sigma_fin_rod", "sigma_anchor_rod",
+                  "t_course", "energy", "K")
+
+
+# --- static model (Sec. 4) -------------------------------------------------------
+
+def luminances(rgb: np.ndarray, ward: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Photopic Y and scotopic Y' of working RGB (cd/m^2), Eqs. 6-7.
+
+    Eq. 7 has a negative red weight; Y' < 0 (every orange and red) is clamped to
+    0. ``ward`` (the default mode): Y' of Ward-Larson et al. 1997
+    (``photometry.scotopic_luminance``), positive like V'(lambda) (docs/models.md)."""
+    rgb = np.asarray(rgb, np.float64)
+    Y = rgb @ np.array(Y_COEFFS)
+    if ward:
+        return Y, scotopic_luminance(rgb)
+    Ys = np.maximum(rgb @ np.array(YS_COEFFS), 0.0)
+    return Y, Ys
+
+
+def neutral_rod_ratio(ward: bool) -> float:
+    """Y'/Y of a neutral grey: 0.777 for Eqs. 6-7, 2.57 for Ward's Y' over Eq. 6's Y."""
+    if ward:
+        return neutral_scotopic_ratio() / sum(Y_COEFFS)
+    return sum(YS_COEFFS) / sum(Y_COEFFS)
+
+
+def sigma_of(I_A, beta: float):
+    """Half-saturation sigma = beta * I_A^alpha, Eq. 5 (cd/m^2); I_A floored at V_FLOOR."""
+    return beta * np.maximum(np.asarray(I_A, np.float64), V_FLOOR) ** ALPHA
+
+
+def response(Y, sigma):
+    """R = Y^n / (Y^n + sigma^n), Eqs. 2-3, as 1/(1 + (sigma/Y)^n) (no overflow)."""
+    Y = np.maximum(np.asarray(Y, np.float64), 1e-300)
+    return 1.0 / (1.0 + (np.asarray(sigma, np.float64) / Y) ** N)
+
+
+def inverse_response(R, sigma_disp):
+    """Eqs. 12-13 without mes: sigma_disp * (R / (1 - R))^(1/n)."""
+    R = np.asarray(R, np.float64)
+    return sigma_disp * (R / (1.0 - R)) ** (1.0 / N)
+
+
+def mesopic_factor_ledda2004(I_A):
+    """mes = 3 u^2 - 2 u^3, u = clamp((log10 I_A + 2) / 2.6, 0, 1), Eq. 11.
+
+    0 (rods only) at I_A <= 0.01 cd/m^2, 1 (cones only) at I_A >= 10^0.6 ~ 4 cd/m^2
+    ("rods are completely saturated ... above around 4 cd/m^2", Sec. 4.3)."""
+    u = np.clip((np.log10(np.maximum(np.asarray(I_A, np.float64), V_FLOOR)) + 2.0) / 2.6, 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+def display_sigma(display: DisplaySpec, adapt_cd: float | None = None) -> float:
+    """The single display sigma (Sec. 4.4): Eq. 4 with the cone beta at the display
+    adaptation level (``adapt_cd``, default 0.4 x display white = 40 cd/m^2)."""
+    L = adapt_cd if adapt_cd else DISPLAY_ADAPT_FRACTION * display.white_cd
+    return BETA_CONE * L ** ALPHA
+
+
+# --- time course (Sec. 5.2) ------------------------------------------------------
+
+def K_of_energy(E):
+    """K = -0.0006 E + 12 (Eq. 17), E = intensity x pre-adaptation time (Eq. 16),
+    cd/m^2 s; E clamped to [0, 10567] (the range of Mote & Riopelle's data)."""
+    return K_MAX + K_SLOPE * np.clip(np.asarray(E, np.float64), 0.0, E_MAX)
+
+
+def dark_fraction(t, K, tau):
+    """Where sigma_t stands between sigma_fin (0) and sigma_in (1) in the dark, Eq. 14:
+
+        (e^{K/t} - e^{K/tau}) / (e^K - e^{K/tau}),  1 s <= t <= tau,
+
+    i.e. (CONE_dark - pos_fin) / (pos_in - pos_fin) with CONE_dark = sigma_in e^{K/t},
+    pos_in = sigma_in e^K, pos_fin = sigma_in e^{K/tau} (Table 1); 1 before t = 1 s,
+    0 from t = tau."""
+    t = np.asarray(t, np.float64)
+    K = np.asarray(K, np.float64)
+    tt = np.maximum(t, 1.0)
+    with np.errstate(over="ignore"):
+        f = (np.exp(K / tt) - np.exp(K / tau)) / (np.exp(K) - np.exp(K / tau))
+    return np.where(t >= tau, 0.0, np.clip(f, 0.0, 1.0))
+
+
+def light_fraction(t, rho):
+    """The light curve, Eq. 15: (CONE_light - pos_fin)/(pos_in - pos_fin) with
+    CONE_light = sigma_in K log t, pos_in = 0, pos_fin = sigma_in K log rho (Table 1)
+    = 1 - log t / log rho; 1 before t = 1 s, 0 from t = rho."""
+    t = np.maximum(np.asarray(t, np.float64), 1.0)
+    return np.clip(1.0 - np.log(t) / math.log(rho), 0.0, 1.0)
+
+
+def sigma_at(sigma_in, sigma_fin, t, K, receptor: str):
+    """sigma_t of Eqs. 14-15 for one receptor: dark when sigma_fin < sigma_in.
+    Rods lag the cones by tau_cone in the dark (ROD_dark uses t - tau_cone)."""
+    sigma_in = np.asarray(sigma_in, np.float64)
+    sigma_fin = np.asarray(sigma_fin, np.float64)
+    if receptor == "cone":
+        fd = dark_fraction(t, K, TAU_CONE)
+        fl = light_fraction(t, RHO_CONE)
+    else:
+        fd = dark_fraction(np.asarray(t, np.float64) - TAU_CONE, K, TAU_ROD)
+        fl = light_fraction(t, RHO_ROD)
+    f = np.where(sigma_fin < sigma_in, fd, fl)
+    return sigma_fin + f * (sigma_in - sigma_fin)
+
+
+# --- per-pixel state ----------------------------------------------------------------
+
+def initial_state(I_c, I_r, E) -> dict:
+    """Fully adapted to the given adaptation luminances (course finished)."""
+    sc, sr = sigma_of(I_c, BETA_CONE), sigma_of(I_r, BETA_ROD)
+    E = np.broadcast_to(np.asarray(E, np.float64), sc.shape)
+    return {"sigma_in_cone": sc, "sigma_fin_cone": sc, "sigma_anchor_cone": sc,
+            "sigma_in_rod": sr, "sigma_fin_rod": sr, "sigma_anchor_rod": sr,
+            "t_course": np.full(sc.shape, T_DONE), "energy": np.array(E, np.float64),
+            "K": K_of_energy(E)}
+
+
+def preadapted_state(L_cd: float, seconds: float | None, shape, ward: bool = False) -> dict:
+    """Uniform state after looking at a neutral field of ``L_cd`` cd/m^2 for
+    ``seconds`` (None: for long, E at its ceiling). Y' of a neutral field is
+    Y * :func:`neutral_rod_ratio`."""
+    ratio = neutral_rod_ratio(ward)
+    E = E_MAX if seconds is None else L_cd * seconds
+    return initial_state(np.full(shape, float(L_cd)), np.full(shape, L_cd * ratio), E)
+
+
+def step_reference(state: dict, I_c, I_r, dt: float, change_log10: float = CHANGE_LOG10) -> dict:
+    """Advance every pixel by ``dt`` s and take the new frame's goals (float64).
+
+    1. The previous frame was seen for dt: t += dt; E += I_A_prev dt (Eq. 16,
+       I_A_prev recovered from sigma_fin_cone by inverting Eq. 5).
+    2. New goals sigma_goal = Eq. 5 of this frame's I_A. If either receptor's
+       goal left its anchor by more than ``change_log10``, the course restarts:
+       sigma_in = the current sigma_t, sigma_fin = anchor = goal, t = 0,
+       K = Eq. 17 of the energy just accumulated, E = 0. Otherwise sigma_fin
+       follows the goal and the course goes on.
+    """
+    s = {k: np.array(v, np.float64) for k, v in state.items()}
+    t_prev = s["t_course"]
+    sig_c_now = sigma_at(s["sigma_in_cone"], s["sigma_fin_cone"], t_prev + dt, s["K"], "cone")
+    sig_r_now = sigma_at(s["sigma_in_rod"], s["sigma_fin_rod"], t_prev + dt, s["K"], "rod")
+    I_prev = (s["sigma_fin_cone"] / BETA_CONE) ** (1.0 / ALPHA)
+    E = np.minimum(s["energy"] + I_prev * dt, 1e30)
+    t = np.minimum(t_prev + dt, T_DONE)
+    gc, gr = sigma_of(I_c, BETA_CONE), sigma_of(I_r, BETA_ROD)
+    change = ((np.abs(np.log10(gc / s["sigma_anchor_cone"])) > change_log10)
+              | (np.abs(np.log10(gr / s["sigma_anchor_rod"])) > change_log10))
+    out = {
+        "sigma_in_cone": np.where(change, sig_c_now, s["sigma_in_cone"]),
+        "sigma_fin_cone": gc,
+        "sigma_anchor_cone": np.where(change, gc, s["sigma_anchor_cone"]),
+        "sigma_in_rod": np.where(change, sig_r_now, s["sigma_in_rod"]),
+        "sigma_fin_rod": gr,
+        "sigma_anchor_rod": np.where(change, gr, s["sigma_anchor_rod"]),
+        "t_course": np.where(change, 0.0, t),
+        "energy": np.where(change, 0.0, E),
+        "K": np.where(change, K_of_energy(E), s["K"]),
+    }
+    return out
+
+
+def current_sigmas(state: dict) -> tuple[np.ndarray, np.ndarray]:
+    t, K = state["t_course"], state["K"]
+    return (sigma_at(state["sigma_in_cone"], state["sigma_fin_cone"], t, K, "cone"),
+            sigma_at(state["sigma_in_rod"], state["sigma_fin_rod"], t, K, "rod"))
+
+
+def map_reference(rgb: np.ndarray, Ys: np.ndarray, I_c: np.ndarray, sigma_c, sigma_r,
+                  sigma_disp: float, unit_cd: float, white_signal: float = 1.0,
+                  knee: float = 0.0) -> np.ndarray:
+    """Eqs. 11-13: display-linear RGB from scene rgb (cd/m^2), Y', the cone
+    adaptation luminance (for mes) and the current sigmas; then the highlight
+    shoulder when ``knee`` > 0.
+
+    Y_coneO / Y = mes sigma_disp / sigma_cone because (R/(1-R))^(1/n) = Y/sigma
+    exactly (Eq. 2); using the quotient form keeps R -> 1 from cancelling.
+    """
+    mes = mesopic_factor_ledda2004(I_c)
+    cone_gain = mes * sigma_disp / np.asarray(sigma_c, np.float64)
+    rod_out = (1.0 - mes) * sigma_disp * np.asarray(Ys, np.float64) / np.asarray(sigma_r, np.float64)
+    out = (np.asarray(rgb, np.float64) * cone_gain[..., None] + rod_out[..., None]) / unit_cd
+    out = apply_shoulder(np.minimum(out, SIGNAL_CEILING), white_signal, knee)
+    return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
+
+
+def blend_levels(I_local, G: float, strength: float):
+    """Each pixel's adaptation level in the default mode: the geometric blend
+    I_local^s G^(1-s) of its local (bilateral) level and the frame's global
+    log-average G (Reinhard & Devlin 2005's local/global light-adaptation mix, in
+    log luminance as the bilateral filter works)."""
+    if strength >= 1.0:
+        return np.asarray(I_local, np.float64)
+    lI = np.log(np.maximum(np.asarray(I_local, np.float64), V_FLOOR))
+    return np.exp(strength * lI + (1.0 - strength) * math.log(max(G, V_FLOOR)))
+
+
+def anchored_sigma(display: DisplaySpec, G_cone: float, G_rod: float) -> float:
+    """The default mode's display sigma: the one that shows a uniform field at the
+    frame's global levels (G_cone, G_rod) at the scene's key on the display,
+    ``display.scene_key(G_cone)`` x white (Eqs. 11-13 solved for sigma_disp), so a
+    brighter scene is brighter and a uniform adapted field never exceeds white."""
+    Gc, Gr = max(G_cone, V_FLOOR), max(G_rod, V_FLOOR)
+    mes = float(mesopic_factor_ledda2004(Gc))
+    f = mes * Gc / float(sigma_of(Gc, BETA_CONE)) + (1.0 - mes) * Gr / float(sigma_of(Gr, BETA_ROD))
+    return float(scene_key(Gc)) * display.white_cd / f
+
+
+def adaptation_maps_reference(rgb: np.ndarray, sigma_s: float):
+    """Y, Y' and the local adaptation luminances I_A (cones), I_A' (rods)."""
+    Y, Ys = luminances(rgb)
+    return Y, Ys, bilateral_reference(Y, sigma_s, LEDDA_RANGE), bilateral_reference(Ys, sigma_s, LEDDA_RANGE)
+
+
+def logmean(x: np.ndarray) -> float:
+    return float(np.exp(np.mean(np.log(np.maximum(np.asarray(x, np.float64), V_FLOOR)))))
+
+
+# --- the observer: one frame on a backend ---------------------------------------------
+
+#: Neutral Y'/Y of Eqs. 6-7 (a grey of Y cd/m^2 has Y' = 0.777 Y).
+NEUTRAL_ROD_RATIO = sum(YS_COEFFS) / sum(Y_COEFFS)
+#: mes = 1 from here up (Eq. 11): rods saturated, their output weight is 0.
+PHOTOPIC_FLOOR = 10.0 ** 0.6
+
+
+#: Neutral Y'/Y of Eqs. 6-7 (a grey of Y cd/m^2 has Y' = 0.777 Y).
+NEUTRAL_ROD_RATIO = sum(YS_COEFFS) / sum(Y_COEFFS)
+#: mes = 1 from here up (Eq. 11): rods saturated, their output weight is 0.
+PHOTOPIC_FLOOR = 10.0 ** 0.6

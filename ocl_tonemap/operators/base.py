@@ -1,0 +1,270 @@
+"""The operator protocol: what an operator computes, declared; how, left to the backends.
+
+An operator is a class with
+
+``name``, ``description``, ``citation``
+    registry name (``--operator NAME``), one line for ``--help``, the paper;
+``options``
+    :class:`Option` specs: the command line (flags and ``--help``), the API
+    keywords (``Tonemapper(options=...)``), validation and the output metadata are
+    all generated from them;
+``state``
+    a :class:`StateSpec`: the scalar values and per-pixel planes it keeps between
+    frames (``AdaptationState.values`` / ``.pixels``);
+``stages``
+    its per-frame :class:`Stage` list, each a pointwise, neighbourhood (with a
+    halo), reduction (metering) or host-side state step, naming its float64
+    reference in ``models/`` and its kernel in ``kernels/``;
+``inputs``
+    ``("rgb",)`` or ``("rgb", "spectral")``;
+
+and the three phases of a frame, which a run chains frame by frame and which can
+also be called separately (``Tonemapper.measure / integrate / apply``):
+
+``measure``   per-frame statistics (metering sums, the illuminant, and for local
+              operators the per-pixel adaptation inputs): :class:`FrameStats`;
+``integrate`` advance the adaptation state over the statistics (host scalars, or
+              per-pixel planes on the backend);
+``apply``     the per-pixel mapping of the frame, given the state.
+
+The phases run on a *schedule*: the backend's executor of the stage list
+(``backends/``). A pointwise operator (colour, metering, state step, one
+per-pixel map) needs no schedule of its own: it provides ``params`` (the frame's
+scalars), ``map_reference`` (float64) and ``kernel_call`` (the kernel and its
+packed parameters), and both backends run it. Operators with neighbourhood
+stages or per-pixel state name a schedule per backend (``schedules``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from ..models.photometry import RepairCounts
+
+#: Kinds of stage.
+STAGE_KINDS = ("colour", "reduction", "state", "pointwise", "neighbourhood")
+
+
+@dataclass(frozen=True)
+class Option:
+    """One operator option: the API keyword ``name`` and the command-line ``flag``.
+
+    ``default`` is the command line's default (a flag left at it is not passed);
+    ``convert`` turns the flag's text into the API value; ``check`` validates an
+    API value (raises ValueError). Several operators may declare the same flag:
+    it is then one command-line option shared by them."""
+
+    name: str
+    flag: str
+    help: str
+    type: Callable | None = None
+    default: Any = None
+    choices: tuple | None = None
+    metavar: str | None = None
+    convert: Callable | None = None
+    check: Callable | None = None
+
+    @property
+    def dest(self) -> str:
+        """The argparse destination (the API name for API-only options, flag None)."""
+        return self.flag.lstrip("-").replace("-", "_") if self.flag else self.name
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One per-frame stage: what it computes (``reference``, a function in
+    ``models/``), where its device code is (``kernel``, ``FILE.cl:NAME``), what
+    kind of access it makes and, for neighbourhoods, its halo."""
+
+    name: str
+    kind: str
+    what: str
+    reference: str = ""
+    kernel: str = ""
+    halo: str = ""
+
+    def __post_init__(self):
+        if self.kind not in STAGE_KINDS:
+            raise ValueError(f"stage {self.name}: kind must be one of {STAGE_KINDS}")
+
+
+@dataclass(frozen=True)
+class StateSpec:
+    """What an operator keeps between frames: named scalars and per-pixel planes."""
+
+    scalars: tuple[str, ...] = ()
+    planes: tuple[str, ...] = ()
+
+
+@dataclass
+class FrameStats:
+    """What ``measure`` found on one frame.
+
+    G_rod, G_cone : the frame's adaptation goals (scotopic / photopic cd/m^2).
+    repairs : bad values replaced (NaN, inf, negatives ...).
+    illuminant : a function giving the frame's illuminant estimate (working RGB),
+        computed on demand.
+    values : operator-specific scalars (JSON-able).
+    planes : per-pixel adaptation inputs (backend arrays or buffers).
+    handle : the backend's resident frame (private to the schedule that made it).
+    """
+
+    width: int
+    height: int
+    G_rod: float
+    G_cone: float
+    repairs: RepairCounts = field(default_factory=RepairCounts)
+    illuminant: Callable | None = None
+    values: dict = field(default_factory=dict)
+    planes: dict = field(default_factory=dict)
+    handle: Any = None
+
+
+@dataclass
+class Frame:
+    """One frame as the schedules see it: ``pixels`` (H x W x C float32, or a band
+    source whose row slices read the file), ``scale`` (cd/m^2 per pixel value),
+    ``wavelengths`` (nm, spectral frames), the display primaries for operators that
+    solve for display RGB."""
+
+    pixels: Any
+    scale: float
+    wavelengths: np.ndarray | None = None
+    display_primaries: np.ndarray | None = None
+
+    @property
+    def shape(self):
+        return self.pixels.shape
+
+
+class Operator:
+    """Base class of the operators (see the module docstring)."""
+
+    name = ""
+    description = ""
+    citation = ""
+    options: tuple[Option, ...] = ()
+    state = StateSpec()
+    stages: tuple[Stage, ...] = ()
+    inputs = ("rgb",)
+    #: "frame": metered with the run's --metering spec; "local": adapts per pixel.
+    metering = "frame"
+    #: effect -> mode when the user gives none (durand00: its paper's effects on auto).
+    default_effects: dict = {}
+    #: backend name -> "module:Class" of the schedule running this operator; the
+    #: pointwise schedules are used where none is named.
+    schedules: dict = {}
+
+    def __init__(self, options: dict | None = None, display=None, preadapt=None):
+        self.display = display
+        self.preadapt = preadapt
+        self.options = self.validate_options(options)
+
+    # -- options -------------------------------------------------------------------
+    @classmethod
+    def validate_options(cls, options: dict | None) -> dict:
+        """Options given (None dropped), unknown names refused, each checked."""
+        given = {k: v for k, v in (options or {}).items() if v is not None}
+        known = {o.name: o for o in cls.options}
+        bad = [k for k in given if k not in known]
+        if bad:
+            raise ValueError(f"operator {cls.name} takes no option(s) {', '.join(sorted(bad))}"
+                             + (f" (it takes {', '.join(known)})" if known else ""))
+        for k, v in given.items():
+            o = known[k]
+            if o.choices is not None and o.type is None and v not in o.choices:
+                raise ValueError(f"{o.flag} must be one of {', '.join(map(str, o.choices))} "
+                                 f"(got {v!r})")
+            if o.check is not None:
+                o.check(v)
+        return given
+
+    def option(self, name: str, default=None):
+        return self.options.get(name, default)
+
+    # -- the phases ------------------------------------------------------------------
+    def steady_state(self, stats: FrameStats) -> dict:
+        """State values fully adapted to a frame."""
+        raise NotImplementedError
+
+    def preadapted(self, L_cd: float, seconds: float | None) -> dict:
+        """State values after a neutral field of ``L_cd`` cd/m^2 (for ``seconds``)."""
+        raise NotImplementedError
+
+    def advance(self, values: dict, stats: FrameStats, dt: float) -> dict:
+        """State values advanced by ``dt`` seconds toward the frame's goals."""
+        raise NotImplementedError
+
+    def integrate(self, state, stats: FrameStats, dt: float, fresh: bool) -> None:
+        """Advance ``state`` (an AdaptationState) over one frame's statistics: the
+        scalar time course of the host scheduler. Operators with per-pixel state
+        do it on their schedule."""
+        if fresh:
+            state.values = (self.preadapted(*self.preadapt) if self.preadapt is not None
+                            else self.steady_state(stats))
+        else:
+            state.values = self.advance(state.values, stats, dt)
+
+    def params(self, state, stats: FrameStats):
+        """The frame's scalars for the per-pixel stage (an object with ``as_dict``)."""
+        raise NotImplementedError
+
+    def summary(self, params) -> dict:
+        """What to record per frame (metadata, plots)."""
+        return params.as_dict() if hasattr(params, "as_dict") else {}
+
+    # -- per-pixel stage of pointwise operators --------------------------------------------
+    def map_reference(self, rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, params) -> np.ndarray:
+        """Float64: scene cd/m^2 (rgb, photopic Y, scotopic Y') -> display-linear RGB."""
+        raise NotImplementedError
+
+    def kernel_call(self, params) -> "KernelCall | None":
+        """The device per-pixel stage: kernel and packed scalars (None: no kernel;
+        the OpenCL backend then runs ``map_reference`` on the host)."""
+        return None
+
+    # -- display model helpers --------------------------------------------------------------
+    def plot_curves(self, state, Ls: np.ndarray):
+        """Display-linear output of neutral greys ``Ls`` (cd/m^2) under ``state``, or
+        None for operators with no single curve (local adaptation)."""
+        from ..models.photometry import neutral_scotopic_ratio
+        L = np.asarray(Ls, np.float64)
+        p = self.params(state, None)
+        rgb = np.repeat(L[:, None], 3, axis=1)
+        return self.map_reference(rgb, L, L * neutral_scotopic_ratio(), p)
+
+
+@dataclass(frozen=True)
+class KernelCall:
+    """A per-pixel kernel of signature ``(rgb, Y, Ys, out, n, __constant float *p)``
+    (``params``: the frame's scalars in the kernel's order, packed as float32), or
+    with ``vector`` four pixels per work-item. ``buffers``: extra read-only float32
+    arrays passed after ``p`` (tables)."""
+
+    file: str
+    kernel: str
+    params: tuple
+    vector: bool = False
+    buffers: tuple = ()
+
+
+def finite_positive(flag: str, upper: float = math.inf):
+    def check(v):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= upper):
+            raise ValueError(f"{flag} must be a positive number (got {v!r})")
+    return check
+
+
+def parse_triple(text: str, flag: str) -> tuple:
+    """``a,b,c``: three non-negative numbers (command-line options)."""
+    try:
+        t = tuple(float(v) for v in text.split(","))
+        if len(t) != 3 or min(t) < 0:
+            raise ValueError
+        return t
+    except ValueError:
+        raise ValueError(f"bad {flag} {text!r}: three non-negative numbers a,b,c") from None

@@ -1,0 +1,86 @@
+"""durand00: Durand & Dorsey 2000, Ferwerda's threshold operator made time-dependent,
+with the mesopic blue shift; its paper's effects (flare, acuity, chromatic
+adaptation) run on ``auto``.
+
+The model is ``models/durand2000.py`` (with ``models/ferwerda1996.py``); this
+module declares the operator and packs the frame's scalars for
+``kernels/durand00.cl``.
+"""
+
+from __future__ import annotations
+
+from ..models import durand2000 as model
+from .base import KernelCall, Operator, Option, Stage, StateSpec, parse_triple
+from .pattanaik00 import MODE_OPTION
+
+
+def _lut_check(v):
+    if v and not (2 <= int(v) <= 1 << 20):
+        raise ValueError(f"--lut must be 0 or 2 .. 1048576 entries (got {v})")
+
+
+#: The packed scalars of kernels/durand00.cl, one layout for both its kernels
+#: (P_<name> in the kernels; each kernel reads its own).
+KERNEL_PARAMS = ("m_cone", "rod_r", "rod_g", "rod_b", "inv_white", "knee", "nlut", "lo",
+                 "inv_step", "tint_r", "tint_g", "tint_b")
+
+
+def _packed(**given) -> tuple:
+    return tuple((k, given.get(k, 0.0)) for k in KERNEL_PARAMS)
+
+
+class Durand00(Operator):
+    name = "durand00"
+    description = ("Durand & Dorsey 2000: Ferwerda threshold mapping, mesopic blue shift, "
+                   "light and chromatic adaptation")
+    citation = "Durand & Dorsey, Interactive Tone Mapping, Eurographics Workshop on Rendering 2000"
+    options = (
+        MODE_OPTION,
+        Option("tint", "--blue-shift", "colour of rod signals (Eq. 5): default a 480 nm blue, xy "
+               "0.289,0.308 (the paper's 1.05,0.97,1.27 with --mode paper); 1,1,1 for none",
+               metavar="R,G,B", convert=lambda v: parse_triple(v, "--blue-shift")),
+        Option("lut", "--lut", "evaluate the mapping through per-frame tables of N entries over "
+               "12 decades (Sec. 5; the paper uses 2000); 0 = direct (default)",
+               type=int, default=0, metavar="N", check=_lut_check),
+    )
+    state = StateSpec(scalars=("inv_eps_rod", "inv_eps_cone", "L_waR", "L_wa"))
+    default_effects = {"flare": "auto", "acuity": "auto", "chromatic_adaptation": "auto"}
+    stages = (
+        Stage("colour", "colour", "working RGB x scale -> cd/m^2, Y, Y'; bad values repaired",
+              "models.photometry.sanitize", "colour.cl:scene_to_working"),
+        Stage("meter", "reduction", "world adaptation L_wa (Y), L_waR (Y')",
+              "models.metering.reference_goal", "metering.cl:meter_partial"),
+        Stage("adapt", "state", "1/eps filtered with tau 0.4 s (rods), 0.1 s (cones), Sec. 3.3",
+              "models.durand2000.advance"),
+        Stage("map", "pointwise", "Eq. 5: m_C rgb + k m_R s_w tint (Eq. 6 gains before it)",
+              "models.durand2000.map_reference", "durand00.cl:durand00_map"),
+    )
+
+    def steady_state(self, stats):
+        return model.steady_state(stats.G_rod, stats.G_cone)
+
+    def preadapted(self, L_cd, seconds):
+        return model.preadapted(L_cd, seconds)
+
+    def advance(self, values, stats, dt):
+        return model.advance(values, stats.G_rod, stats.G_cone, dt)
+
+    def params(self, state, stats):
+        return model.frame_params(state, self.display, **self.options)
+
+    def map_reference(self, rgb, Y, Ys, p):
+        return model.map_reference(rgb, Y, Ys, p)
+
+    def kernel_call(self, p):
+        import numpy as np
+        if not p.lut:
+            rod = p.rod_rgb
+            vals = _packed(m_cone=p.m_cone / p.unit_cd, rod_r=rod[0], rod_g=rod[1],
+                           rod_b=rod[2], inv_white=1.0 / p.white_signal, knee=p.shoulder_knee)
+            return KernelCall("durand00.cl", "durand00_map", vals)
+        tc, tr, lo, step = model.lut_tables(p)
+        vals = _packed(nlut=p.lut, lo=lo, inv_step=1.0 / step, tint_r=p.tint[0],
+                       tint_g=p.tint[1], tint_b=p.tint[2], inv_white=1.0 / p.white_signal,
+                       knee=p.shoulder_knee)
+        return KernelCall("durand00.cl", "durand00_map_lut", vals,
+                          buffers=(np.concatenate([tc, tr]).astype(np.float32),))

@@ -1,0 +1,141 @@
+"""kirk11: Kirk & O'Brien 2011, the Purkinje colour shift (rods in the cone pathways),
+bilateral range reduction (Durand & Dorsey 2002) and mesopic dimming.
+
+The model is ``models/kirk2011.py``; this module declares the operator and its
+time course (the shared receptor levels of ``models/pattanaik2000.py``: the rods'
+mixing follows the adapted scotopic level and the rods' dark adaptation, the
+display anchor the adapted cone level). Its phases run on
+``backends/reference.py:KirkSchedule`` and ``backends/opencl/kirk11.py:KirkSchedule``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..backends.plan import BilateralSpec
+from ..models import lmsr
+from ..models.display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, apply_shoulder
+from ..models.kirk2011 import (KAPPA1, KAPPA2, KirkSettings, anchor_gain, display_matrix,
+                               kappas)
+from ..models.pattanaik2000 import (receptor_levels_advance, receptor_levels_preadapted,
+                                    receptor_levels_steady, rod_sensitivity)
+from ..models.photometry import Y_WEIGHTS
+from .base import Operator, Option, Stage, StateSpec, parse_triple
+from .ledda04 import BILATERAL_OPTIONS
+from .pattanaik00 import MODE_OPTION
+
+LEVEL_KEYS = ("A_rod", "A_cone", "B_rod", "B_cone")
+
+
+@dataclass
+class KirkSummary:
+    model_scale: float = 0.0
+    k1: float = KAPPA1
+    k2: float = KAPPA2
+    rod_gain: float = 1.0
+    w_mean: float = 0.0
+    fallback_fraction: float = 0.0
+    input: str = "rgb"
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+class Kirk11(Operator):
+    name = "kirk11"
+    description = ("Kirk & O'Brien 2011: Purkinje colour shift (rods in the cone pathways), "
+                   "bilateral range reduction, mesopic dimming")
+    citation = ("Kirk & O'Brien, Perceptually Based Tone Mapping for Low-Light Conditions, "
+                "ACM TOG 30(4), SIGGRAPH 2011")
+    options = (
+        MODE_OPTION, *BILATERAL_OPTIONS,
+        Option("kappa", "--kappa", "rod mixing: following the frame's mesopic level (default; "
+               "photopic scenes unshifted) or fixed at full scotopic values (the paper's choice)",
+               choices=("full", "adaptive")),
+        Option("shift_xyz", "--shift-scale", "Purkinje shift scales of Eq. 12 (default 15,15,5)",
+               metavar="X,Y,Z", convert=lambda v: parse_triple(v, "--shift-scale")),
+        Option("gamma", "--night-dim", "range kept by fully scotopic pixels (default 0.25; 1 = "
+               "no dimming)", type=float, metavar="GAMMA"),
+        Option("target_contrast", "--target-contrast", "base-layer contrast after Durand & "
+               "Dorsey 2002 compression (default 300; the paper's 5 with --mode paper)",
+               type=float),
+    )
+    state = StateSpec(scalars=("logmean_I_A_cone", "logmean_I_A_rod", *LEVEL_KEYS))
+    inputs = ("rgb", "spectral")
+    metering = "local"
+    schedules = {"reference": ".reference:KirkSchedule", "opencl": ".opencl.kirk11:KirkSchedule"}
+    stages = (
+        Stage("lmsr", "colour", "working RGB (via H) or spectra (Eq. 8) -> LMSR, repaired",
+              "models.lmsr.rgb_to_lmsr", "kirk11.cl:to_lmsr"),
+        Stage("levels", "reduction", "log-averages of L+M and R", "models.kirk2011.logmean"),
+        Stage("adapt", "state", "receptor levels (Pattanaik 2000 Sec. 4.1.2) -> kappa, rod gain",
+              "models.pattanaik2000.receptor_levels_advance"),
+        Stage("shift", "pointwise", "Eqs. 10-15: opponent shift, display solve, w (Eq. 16)",
+              "models.kirk2011.purkinje_shift", "kirk11.cl:kirk11_shift"),
+        Stage("base", "neighbourhood", "Durand & Dorsey 2002 base layer of log10 Y",
+              "models.bilateral.bilateral_reference", "bilateral.cl:bilateral_exact|grid_*",
+              halo="ceil(3 sigma_spatial) rows (exact); none (grid)"),
+        Stage("compose", "pointwise", "range reduction, blend, mesopic dimming, anchor",
+              "models.kirk2011.compose_reference", "kirk11.cl:kirk11_compose"),
+    )
+
+    def __init__(self, options=None, display=None, preadapt=None):
+        super().__init__(options, display, preadapt)
+        o = dict(self.options)
+        self.bilateral = BilateralSpec.parse(o.pop("bilateral", "auto"),
+                                             o.pop("bilateral_sampling", None))
+        self.settings = KirkSettings(**o)
+
+    @property
+    def s(self) -> KirkSettings:
+        return self.settings
+
+    @staticmethod
+    def M(D) -> np.ndarray:
+        """Eq. 14: display RGB -> LMS for display primaries D."""
+        return display_matrix(D)
+
+    # -- time course -----------------------------------------------------------------------
+    def integrate(self, state, stats, dt: float, fresh: bool) -> None:
+        """The receptor levels advanced to this frame's goals (default mode), and the
+        frame's (k1, k2, rod gain) in ``stats.values``."""
+        L_waR, L_wa = stats.G_rod, stats.G_cone
+        v = state.values
+        levels = {k: float(v[k]) for k in LEVEL_KEYS} \
+            if not fresh and all(k in v for k in LEVEL_KEYS) else None
+        if self.s.paper:
+            levels = None
+            k1, k2, gain = kappas(self.s, L_waR)
+        else:
+            if fresh or levels is None:
+                if fresh and self.preadapt is not None:
+                    L, sec = self.preadapt
+                    w = lmsr.rgb_to_lmsr(np.ones(3))     # a neutral: rod goal per cone goal
+                    levels = receptor_levels_preadapted(L * w[3] / (w[0] + w[1]), L, sec)
+                else:
+                    levels = receptor_levels_steady(L_waR, L_wa)
+            else:
+                levels = receptor_levels_advance(levels, L_waR, L_wa, dt)
+            k1, k2, gain = kappas(self.s, levels["A_rod"])
+            sens = rod_sensitivity(levels)
+            k1, k2, gain = k1 * sens, k2 * sens, gain * sens
+        stats.values.update(k1=k1, k2=k2, rod_gain=gain, levels=levels)
+        state.values = {"logmean_I_A_cone": float(L_wa), "logmean_I_A_rod": float(L_waR)}
+        if levels is not None:
+            state.values.update({k: float(x) for k, x in levels.items()})
+
+    def finish(self, out: np.ndarray, stats) -> np.ndarray:
+        """The absolute level (``anchor_gain``) and, in the default mode, the highlight
+        shoulder; display-linear in, display-linear out."""
+        u = self.display.white_cd / self.display.unit_cd
+        out = np.asarray(out, np.float64)
+        if self.s.paper:
+            return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
+        g = anchor_gain(out @ Y_WEIGHTS / u, stats.G_cone, stats.values["levels"]["A_cone"])
+        out = apply_shoulder(np.minimum(out * g, SIGNAL_CEILING), u, SHOULDER_KNEE)
+        return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
+
+    def plot_curves(self, state, Ls):
+        return None

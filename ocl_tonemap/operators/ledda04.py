@@ -1,0 +1,166 @@
+"""ledda04: Ledda, Santos & Chalmers 2004, local adaptation with a dark/light time course.
+
+The model is ``models/ledda2004.py``; this module declares the operator: options,
+per-pixel state, stages, and the per-frame mapping scalars. Its phases run on the
+schedules ``backends/reference.py:LeddaSchedule`` (float64) and
+``backends/opencl/ledda04.py:LeddaSchedule`` (bilateral filter, state step and
+mapping on the device, in row bands with halos when a frame does not fit).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+from ..backends.plan import BilateralSpec
+from ..models.display import SHOULDER_KNEE
+from ..models.ledda2004 import (CHANGE_LOG10, LOCAL_STRENGTH, MODES, STATE_CHANNELS,
+                                anchored_sigma, display_sigma, neutral_rod_ratio)
+from .base import Operator, Option, Stage, StateSpec
+from .pattanaik00 import MODE_OPTION
+
+
+def _sigma_check(v):
+    if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= 1e5):
+        raise ValueError(f"--sigma-spatial must be a positive number of pixels (got {v:g})")
+
+
+#: Options of the bilateral filter, shared with kirk11.
+BILATERAL_OPTIONS = (
+    Option("sigma_spatial", "--sigma-spatial", "bilateral spatial sigma, pixels (default: 2%% of "
+           "the larger side)", type=float, check=_sigma_check),
+    Option("bilateral", "--bilateral", "exact brute force, fast bilateral grid, or auto (exact "
+           "when cheap)", choices=("auto", "exact", "fast"), default="auto"),
+    Option("bilateral_sampling", "--bilateral-sampling", "grid sampling rate per sigma in "
+           "space[,range] (default 2,2; higher is slower and closer to exact)", metavar="Q[,QR]"),
+)
+
+
+@dataclass(frozen=True)
+class LeddaSettings:
+    """User-facing settings of the local operator.
+
+    sigma_spatial : bilateral spatial sigma, pixels; None = 2% of the larger image
+        side (Durand & Dorsey 2002's choice, the filter Ledda cites as [9]).
+    bilateral : exact | fast | auto, and the grid sampling (see bilateral.py).
+    display_adapt_cd : display adaptation level for sigma_disp (default 0.4 x white).
+    change_log10 : restart threshold of the time course (log10 of sigma).
+    mode : "default" or "paper" (:data:`MODES`).
+    local_strength : share of the local level in each pixel's adaptation level,
+        0 (global) .. 1 (the paper's fully local); None: 0.5, or 1 in paper mode.
+    """
+
+    sigma_spatial: float | None = None
+    bilateral: BilateralSpec = field(default_factory=BilateralSpec)
+    display_adapt_cd: float | None = None
+    change_log10: float = CHANGE_LOG10
+    mode: str = "default"
+    local_strength: float | None = None
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise ValueError(f"ledda04 mode must be one of {', '.join(MODES)} (got {self.mode!r})")
+        ls = self.local_strength
+        if ls is not None and not (0.0 <= ls <= 1.0):
+            raise ValueError(f"--local-strength must be between 0 and 1 (got {ls})")
+
+    @property
+    def strength(self) -> float:
+        if self.local_strength is not None:
+            return float(self.local_strength)
+        return 1.0 if self.mode == "paper" else LOCAL_STRENGTH
+
+    def sigma_px(self, width: int, height: int) -> float:
+        if self.sigma_spatial is not None:
+            if not (self.sigma_spatial > 0 and math.isfinite(self.sigma_spatial)):
+                raise ValueError(f"sigma_spatial must be > 0 px (got {self.sigma_spatial})")
+            return float(self.sigma_spatial)
+        return max(0.02 * max(width, height), 0.5)
+
+
+
+
+@dataclass(frozen=True)
+class FrameSummary:
+    """Scalars recorded per frame (metadata, plots)."""
+
+    sigma_spatial_px: float
+    bilateral: str
+    sigma_disp: float
+    rods_modelled: bool
+    mode: str
+    local_strength: float
+    global_cone: float          # the frame's log-average (Eq. 6 Y), cd/m^2
+    global_rod: float
+    restarted_fraction: float
+    logmean_I_A_cone: float
+    logmean_I_A_rod: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+
+
+
+class Ledda04(Operator):
+    name = "ledda04"
+    description = "Ledda, Santos & Chalmers 2004: local (bilateral) adaptation, dark/light time course"
+    citation = ("Ledda, Santos & Chalmers, A Local Model of Eye Adaptation for High Dynamic "
+                "Range Images, Afrigraph 2004")
+    options = (
+        MODE_OPTION, *BILATERAL_OPTIONS,
+        Option("rods", "--rods", "auto: skip the rod filter on all-photopic frames",
+               choices=("auto", "always"), default="auto"),
+        Option("local_strength", "--local-strength", "ledda04: share of the local (bilateral) "
+               "level in each pixel's adaptation, 0 (global) .. 1 (the paper's fully local); "
+               "default 0.5", type=float, metavar="S"),
+        Option("mode", "--ledda-mode", "ledda04: the same as --mode", choices=MODES),
+        Option("display_adapt_cd", None, "display adaptation level for sigma_disp, cd/m^2 "
+               "(default 0.4 x white)"),
+        Option("change_log10", None, "restart threshold of the time course, log10 of sigma"),
+    )
+    state = StateSpec(scalars=("logmean_I_A_cone", "logmean_I_A_rod"), planes=STATE_CHANNELS)
+    metering = "local"
+    schedules = {"reference": ".reference:LeddaSchedule",
+                 "opencl": ".opencl.ledda04:LeddaSchedule"}
+    stages = (
+        Stage("colour", "colour", "working RGB x scale -> cd/m^2; Y, Y' (Eqs. 6-7)",
+              "models.ledda2004.luminances", "ledda04.cl:ledda04_luminance"),
+        Stage("global", "reduction", "the frame's log-average levels (default mode's blend)",
+              "models.metering.reference_goal", "metering.cl:meter_partial"),
+        Stage("local_levels", "neighbourhood", "I_A, I_A': bilateral filter of Y, Y' (Eqs. 8-10)",
+              "models.bilateral.bilateral_reference", "bilateral.cl:bilateral_exact|grid_*",
+              halo="ceil(3 sigma_spatial) rows (exact); none (grid)"),
+        Stage("adapt", "state", "per-pixel time course, Eqs. 14-17 (dark/light, restarts)",
+              "models.ledda2004.step_reference", "ledda04.cl:ledda04_step"),
+        Stage("map", "pointwise", "Eqs. 11-13 with the current sigmas, shoulder",
+              "models.ledda2004.map_reference", "ledda04.cl:ledda04_map"),
+    )
+
+    def __init__(self, options=None, display=None, preadapt=None):
+        super().__init__(options, display, preadapt)
+        o = dict(self.options)
+        spec = BilateralSpec.parse(o.pop("bilateral", "auto") or "auto",
+                                   o.pop("bilateral_sampling", None))
+        self.settings = LeddaSettings(o.pop("sigma_spatial", None), spec,
+                                      o.pop("display_adapt_cd", None),
+                                      o.pop("change_log10", CHANGE_LOG10),
+                                      o.pop("mode", "default"), o.pop("local_strength", None))
+        self.rods = o.pop("rods", "auto")
+        if self.rods not in ("auto", "always"):
+            raise ValueError(f"rods must be auto or always (got {self.rods!r})")
+        self.sigma_disp = display_sigma(display, self.settings.display_adapt_cd) \
+            if display is not None else None
+        self.ward = self.settings.mode != "paper"
+        self.rod_ratio = neutral_rod_ratio(self.ward)
+
+    def frame_mapping(self, G_cone: float, G_rod: float) -> tuple[float, float, float]:
+        """(display sigma, white signal, shoulder knee) of one frame."""
+        white = self.display.white_cd / self.display.unit_cd
+        if self.settings.mode == "paper":
+            return self.sigma_disp, white, 0.0
+        return anchored_sigma(self.display, G_cone, G_rod), white, SHOULDER_KNEE
+
+    def plot_curves(self, state, Ls):
+        return None                       # no single curve: each pixel has its own

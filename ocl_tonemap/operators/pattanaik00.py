@@ -1,0 +1,73 @@
+"""pattanaik00: Pattanaik, Tumblin, Yee & Greenberg 2000, time-dependent global adaptation.
+
+The model is ``models/pattanaik2000.py``; this module declares the operator: its
+options, its state (the four receptor signals), its stages, and the packing of
+the frame's scalars for ``kernels/pattanaik00.cl``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..models import pattanaik2000 as model
+from ..models.photometry import neutral_scotopic_ratio
+from .base import KernelCall, Operator, Option, Stage, StateSpec
+
+MODE_OPTION = Option("mode", "--mode", "default: the operator as it looks right on photographs; "
+                     "paper: its paper taken literally (docs/models.md says where they differ)",
+                     choices=("default", "paper"))
+
+#: Parameters of the per-pixel kernel, in their packed order (P_<name> in the kernel).
+KERNEL_PARAMS = ("log2_sigma_rod", "log2_sigma_cone", "B_rod", "B_cone", "gain", "offset",
+                 "dB_rod", "dB_cone", "ds_rod", "ds_cone", "colour_k", "out_black", "out_scale",
+                 "inv_white", "knee", "chroma")
+
+
+class Pattanaik00(Operator):
+    name = "pattanaik00"
+    description = "Pattanaik, Tumblin, Yee & Greenberg 2000: time-dependent global adaptation"
+    citation = ("Pattanaik, Tumblin, Yee & Greenberg, Time-Dependent Visual Adaptation for "
+                "Fast Realistic Image Display, SIGGRAPH 2000")
+    options = (MODE_OPTION,)
+    state = StateSpec(scalars=("A_rod", "A_cone", "B_rod", "B_cone"))
+    stages = (
+        Stage("colour", "colour", "working RGB x scale -> cd/m^2, Y, Y'; bad values repaired",
+              "models.photometry.sanitize", "colour.cl:scene_to_working"),
+        Stage("meter", "reduction", "adaptation goals G_rod (Y'), G_cone (Y)",
+              "models.metering.reference_goal", "metering.cl:meter_partial"),
+        Stage("adapt", "state", "A: exponential t0 = 150/80 ms; B: Eq. 7 solved exactly",
+              "models.pattanaik2000.receptor_levels_advance"),
+        Stage("map", "pointwise", "Eqs. 2-3 responses, Sec. 4.3 inverse appearance and display",
+              "models.pattanaik2000.map_reference", "pattanaik00.cl:pattanaik00_map4"),
+    )
+
+    def steady_state(self, stats):
+        return model.steady_state(stats.G_rod, stats.G_cone)
+
+    def preadapted(self, L_cd, seconds):
+        return model.preadapted(L_cd, seconds)
+
+    def advance(self, values, stats, dt):
+        return model.advance(values, stats.G_rod, stats.G_cone, dt)
+
+    def params(self, state, stats):
+        return model.frame_params(state, self.display, **self.options)
+
+    def map_reference(self, rgb, Y, Ys, p):
+        return model.map_reference(rgb, Y, Ys, p)
+
+    def kernel_call(self, p, vector: bool = True):
+        d = p.display
+        N = model.N
+        vals = (math.log2(p.sigma_rod), math.log2(p.sigma_cone), p.B_rod, p.B_cone, p.gain,
+                p.offset, d.B_rod, d.B_cone, d.sigma_rod ** N, d.sigma_cone ** N,
+                model.LN10 * N * p.B_cone / d.S_d if p.chroma is None else 0.0,
+                d.signal_offset, d.gain, 1.0 / p.white_signal, p.shoulder_knee,
+                p.chroma if p.chroma is not None else 0.0)
+        return KernelCall("pattanaik00.cl", "pattanaik00_map4" if vector else "pattanaik00_map",
+                          tuple(zip(KERNEL_PARAMS, vals)), vector)
+
+
+def neutral_goals(L_cd: float) -> tuple[float, float]:
+    """(G_rod, G_cone) of a neutral field of ``L_cd`` cd/m^2."""
+    return L_cd * neutral_scotopic_ratio(), L_cd

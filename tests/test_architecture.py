@@ -1,0 +1,129 @@
+"""The layout's rules (docs/architecture.md), checked on the source: models are pure,
+imports go one way without cycles, no module takes another's private names, the
+models' doctests hold, and operators are found through one registry."""
+
+from __future__ import annotations
+
+import ast
+import doctest
+import importlib
+from pathlib import Path
+
+import pytest
+
+import ocl_tonemap
+
+PKG = Path(ocl_tonemap.__file__).resolve().parent
+
+
+def _modules():
+    for p in sorted(PKG.rglob("*.py")):
+        rel = p.relative_to(PKG.parent).with_suffix("")
+        parts = list(rel.parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        yield ".".join(parts), p
+
+
+def _imports(name: str, path: Path, top_level_only: bool = False):
+    """(imported module, names, line) of every import in a module."""
+    tree = ast.parse(path.read_text())
+    is_pkg = path.name == "__init__.py"
+    nodes = tree.body if top_level_only else ast.walk(tree)
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                yield a.name, [], node.lineno
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = name.split(".")
+                base = base[:len(base) - node.level + (1 if is_pkg else 0)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            yield mod, [a.name for a in node.names], node.lineno
+
+
+def _resolve(mod: str, names) -> list[str]:
+    """Package-internal modules an import refers to (``from pkg import module``)."""
+    known = {m for m, _ in _modules()}
+    out = []
+    if mod in known:
+        out.append(mod)
+    for n in names:
+        if f"{mod}.{n}" in known:
+            out.append(f"{mod}.{n}")
+    return out
+
+
+def test_models_are_pure_numpy():
+    """models/ imports nothing else from the package, and no OpenCL, OIIO or OCIO."""
+    bad = []
+    for name, path in _modules():
+        if not name.startswith("ocl_tonemap.models"):
+            continue
+        for mod, _, line in _imports(name, path):
+            if mod.startswith("ocl_tonemap") and not mod.startswith("ocl_tonemap.models"):
+                bad.append(f"{path.name}:{line} imports {mod}")
+            if mod.split(".")[0] in ("pyopencl", "OpenImageIO", "PyOpenColorIO"):
+                bad.append(f"{path.name}:{line} imports {mod}")
+    assert not bad, bad
+
+
+def test_no_import_cycles():
+    """The module graph (imports at module level) has no cycle."""
+    graph = {}
+    for name, path in _modules():
+        deps = set()
+        for mod, names, _ in _imports(name, path, top_level_only=True):
+            deps.update(d for d in _resolve(mod, names) if d != name)
+        graph[name] = deps
+    state, cycle = {}, []
+
+    def visit(n, stack):
+        state[n] = 1
+        for d in graph.get(n, ()):
+            if d.startswith(n + "."):
+                continue               # a package importing its own submodules
+            if state.get(d) == 1:
+                cycle.append(stack[stack.index(d):] + [d] if d in stack else [n, d])
+            elif not state.get(d):
+                visit(d, stack + [d])
+        state[n] = 2
+    for n in graph:
+        if not state.get(n):
+            visit(n, [n])
+    assert not cycle, cycle
+
+
+def test_no_private_names_across_modules():
+    bad = []
+    for name, path in _modules():
+        for mod, names, line in _imports(name, path):
+            if mod.startswith("ocl_tonemap") and any(n.startswith("_") and not n.startswith("__") for n in names):
+                bad.append(f"{name}:{line} from {mod} import {names}")
+    assert not bad, bad
+
+
+@pytest.mark.parametrize("module", sorted(m for m, _ in _modules() if ".models." in m))
+def test_models_doctests(module):
+    mod = importlib.import_module(module)
+    res = doctest.testmod(mod, optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert res.failed == 0
+    if module.rsplit(".", 1)[-1] not in ("__init__",):
+        assert res.attempted > 0 or module.endswith(("numerics", "photometry", "lmsr",
+                                                     "metering", "convolution", "bilateral",
+                                                     "display", "spencer1995")), \
+            f"{module} has no doctest"
+
+
+def test_registry_has_the_four_operators_with_one_protocol():
+    from ocl_tonemap.operators import registry
+    from ocl_tonemap.operators.base import STAGE_KINDS, Operator
+    reg = registry()
+    assert {"pattanaik00", "ledda04", "durand00", "kirk11"} <= set(reg)
+    for name, cls in reg.items():
+        assert issubclass(cls, Operator) and cls.name == name and cls.stages
+        assert all(s.kind in STAGE_KINDS for s in cls.stages)
+        assert any(o.name == "mode" for o in cls.options)
+    assert reg["ledda04"].state.planes and not reg["pattanaik00"].state.planes
