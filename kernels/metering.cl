@@ -147,7 +147,7 @@ __kernel void log_histogram(__global const float *L, const int n, const float lo
         if (lh[b]) atomic_add(&hist[b], lh[b]);
 }
 
-/* Illuminant estimate (effects.py): per work-group sums of Y*r, Y*g, Y*b, Y*Y
+/* Illuminant estimate (models/durand2000.py): per work-group sums of Y*r, Y*g, Y*b, Y*Y
  * -- a luminance-weighted grey world, dominated by the bright regions and the
  * light sources. The host adds the group records in float64. */
 __kernel void illuminant_partial(__global const float *rgb, __global const float *Y,
