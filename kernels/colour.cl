@@ -1,5 +1,5 @@
 /* Colour and luminance stage: scene values -> sanitised working-space cd/m^2,
- * photopic Y and scotopic Y' (see ocl_tonemap/photometry.py for the policy). */
+ * photopic Y and scotopic Y' (see ocl_tonemap/models/photometry.py for the policy). */
 
 /* Classify one input value by its bits (robust when the device flushes
  * denormals in arithmetic): returns the repaired value before scaling and

@@ -1,4 +1,4 @@
-/* Shared by every program: constants that must match ocl_tonemap/photometry.py. */
+/* Shared by every program: constants that must match ocl_tonemap/models/photometry.py. */
 #define L_MAX 1.0e10f            /* scene ceiling, cd/m^2 (+Inf maps here) */
 #define NREPAIR 6                /* nan, pos_inf, neg_inf, negative, denormal, over_max */
 #define LN10 2.302585092994046f
@@ -28,13 +28,13 @@ inline float scotopic_luminance(float r, float g, float b)
 inline float powp(float x, float e) { return exp2(e * log2(x)); }
 inline float4 powp4(float4 x, float4 e) { return exp2(e * log2(x)); }
 
-/* Highlight shoulder (ocl_tonemap/display.py, apply_shoulder): luminance through
+/* Highlight shoulder (ocl_tonemap/models/display.py, apply_shoulder): luminance through
  * S (identity up to the knee, then knee + (1-knee) t/(1+t), t = (x-knee)/(1-knee)),
  * then desaturation toward it where the largest channel would exceed S'(max),
  * S' with the later knee CHANNEL_KNEE.
  * Values relative to white (inv_white); knee <= 0: none. */
 #define CHANNEL_KNEE 0.9f
-#define SIGNAL_CEILING 1.0e6f     /* ocl_tonemap/display.py SIGNAL_CEILING */
+#define SIGNAL_CEILING 1.0e6f     /* ocl_tonemap/models/display.py SIGNAL_CEILING */
 
 inline float shoulder_curve(const float x, const float knee)
 {

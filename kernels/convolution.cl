@@ -2,7 +2,7 @@
  * x or along y with a symmetric tap table (taps[0] is the centre, taps[r] the
  * weight at distance r, radius R). Used by the loss-of-acuity blur (clamped
  * edges) and the flare pyramid's Gaussians (zero outside the image).
- * Reference: ocl_tonemap/convolution.py (blur_reference). */
+ * Reference: ocl_tonemap/models/convolution.py (blur_reference). */
 
 #define EDGE_ZERO 0
 #define EDGE_CLAMP 1

@@ -1,6 +1,6 @@
 /* Kirk & O'Brien 2011: receptor responses, the Purkinje shift (Cao et al. 2008)
  * with the non-negative display solve, and the final composition.
- * Reference: ocl_tonemap/kirk11.py. */
+ * Reference: ocl_tonemap/models/kirk2011.py. */
 
 #define L_MAX_F 0.637f
 #define M_MAX_F 0.392f

@@ -7,7 +7,7 @@
  * KERNEL_CONSTANTS): one definition, not retyped here. */
 
 /* Eqs. 6-7; Y' clamped at 0. ward: Y' of Ward-Larson et al. 1997 instead of
- * Eq. 7 (the default mode; ocl_tonemap/ledda04.py, luminances). */
+ * Eq. 7 (the default mode; ocl_tonemap/models/ledda2004.py, luminances). */
 inline float ledda_Y(float3 c) { return 0.256f * c.x + 0.67f * c.y + 0.065f * c.z; }
 inline float ledda_Ys(float3 c, const int ward)
 {
