@@ -179,15 +179,31 @@ class LeddaSchedule(PixelStateMixin):
         return out.astype(np.float32)
 
     def summary(self, stats) -> dict:
-        from ..operators.ledda04 import FrameSummary
-        v, op = stats.values, self.op
-        return FrameSummary(v["sigma_px"], v["bilateral"], v["sigma_disp"], v["rods"],
-                            op.settings.mode, op.settings.strength, v["global_cone"],
-                            v["global_rod"], v.get("restarted_fraction", 0.0), stats.G_cone,
-                            stats.G_rod).as_dict()
+        return ledda_summary(self.op, stats)
 
 
-class KirkSchedule:
+def ledda_summary(op, stats) -> dict:
+    """ledda04's per-frame record (metadata, plots), the same on every backend."""
+    from ..operators.ledda04 import FrameSummary
+    v = stats.values
+    return FrameSummary(v["sigma_px"], v["bilateral"], v["sigma_disp"], v["rods"],
+                        op.settings.mode, op.settings.strength, v["global_cone"],
+                        v["global_rod"], v.get("restarted_fraction", 0.0), stats.G_cone,
+                        stats.G_rod).as_dict()
+
+
+class NoPixelState:
+    """Schedules of operators that keep no per-pixel state."""
+
+    def pixel_state(self):
+        return None
+
+    def set_pixel_state(self, pixels) -> None:
+        if pixels:
+            raise ValueError(f"{self.op.name} keeps no per-pixel state")
+
+
+class KirkSchedule(NoPixelState):
     """kirk11 in float64: Eqs. 8-16, exact bilateral base, composition."""
 
     receptor_gains = False
@@ -195,13 +211,6 @@ class KirkSchedule:
 
     def __init__(self, backend, op):
         self.backend, self.op = backend, op
-
-    def pixel_state(self):
-        return None
-
-    def set_pixel_state(self, pixels) -> None:
-        if pixels:
-            raise ValueError("kirk11 keeps no per-pixel state")
 
     def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
         from ..models import kirk2011 as K

@@ -238,6 +238,37 @@ class Operator:
         return self.map_reference(rgb, L, L * neutral_scotopic_ratio(), p)
 
 
+#: The colour and metering stages every frame-metered operator starts with.
+COLOUR_STAGE = Stage("colour", "colour", "working RGB x scale -> cd/m^2, Y, Y'; bad values "
+                     "repaired", "models.photometry.sanitize", "colour.cl:scene_to_working")
+METER_STAGE = Stage("meter", "reduction", "adaptation goals G_rod (Y'), G_cone (Y) with the "
+                    "run's --metering", "models.metering.reference_goal",
+                    "metering.cl:meter_partial")
+
+
+class ModelOperator(Operator):
+    """A global operator whose state step, frame scalars and per-pixel reference are a
+    model module's ``steady_state``, ``advance``, ``preadapted``, ``frame_params`` and
+    ``map_reference`` (goals G_rod, G_cone)."""
+
+    model = None
+
+    def steady_state(self, stats):
+        return self.model.steady_state(stats.G_rod, stats.G_cone)
+
+    def preadapted(self, L_cd, seconds):
+        return self.model.preadapted(L_cd, seconds)
+
+    def advance(self, values, stats, dt):
+        return self.model.advance(values, stats.G_rod, stats.G_cone, dt)
+
+    def params(self, state, stats):
+        return self.model.frame_params(state, self.display, **self.options)
+
+    def map_reference(self, rgb, Y, Ys, p):
+        return self.model.map_reference(rgb, Y, Ys, p)
+
+
 @dataclass(frozen=True)
 class KernelCall:
     """A per-pixel kernel of signature ``(rgb, Y, Ys, out, n, __constant float *p)``

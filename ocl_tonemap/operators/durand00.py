@@ -10,7 +10,7 @@ module declares the operator and packs the frame's scalars for
 from __future__ import annotations
 
 from ..models import durand2000 as model
-from .base import KernelCall, Operator, Option, Stage, StateSpec, parse_triple
+from .base import COLOUR_STAGE, METER_STAGE, KernelCall, ModelOperator, Option, Stage, StateSpec, parse_triple
 from .pattanaik00 import MODE_OPTION
 
 
@@ -29,7 +29,8 @@ def _packed(**given) -> tuple:
     return tuple((k, given.get(k, 0.0)) for k in KERNEL_PARAMS)
 
 
-class Durand00(Operator):
+class Durand00(ModelOperator):
+    model = model
     name = "durand00"
     description = ("Durand & Dorsey 2000: Ferwerda threshold mapping, mesopic blue shift, "
                    "light and chromatic adaptation")
@@ -46,30 +47,12 @@ class Durand00(Operator):
     state = StateSpec(scalars=("inv_eps_rod", "inv_eps_cone", "L_waR", "L_wa"))
     default_effects = {"flare": "auto", "acuity": "auto", "chromatic_adaptation": "auto"}
     stages = (
-        Stage("colour", "colour", "working RGB x scale -> cd/m^2, Y, Y'; bad values repaired",
-              "models.photometry.sanitize", "colour.cl:scene_to_working"),
-        Stage("meter", "reduction", "world adaptation L_wa (Y), L_waR (Y')",
-              "models.metering.reference_goal", "metering.cl:meter_partial"),
+        COLOUR_STAGE, METER_STAGE,
         Stage("adapt", "state", "1/eps filtered with tau 0.4 s (rods), 0.1 s (cones), Sec. 3.3",
               "models.durand2000.advance"),
         Stage("map", "pointwise", "Eq. 5: m_C rgb + k m_R s_w tint (Eq. 6 gains before it)",
               "models.durand2000.map_reference", "durand00.cl:durand00_map"),
     )
-
-    def steady_state(self, stats):
-        return model.steady_state(stats.G_rod, stats.G_cone)
-
-    def preadapted(self, L_cd, seconds):
-        return model.preadapted(L_cd, seconds)
-
-    def advance(self, values, stats, dt):
-        return model.advance(values, stats.G_rod, stats.G_cone, dt)
-
-    def params(self, state, stats):
-        return model.frame_params(state, self.display, **self.options)
-
-    def map_reference(self, rgb, Y, Ys, p):
-        return model.map_reference(rgb, Y, Ys, p)
 
     def kernel_call(self, p):
         import numpy as np

@@ -10,8 +10,7 @@ from __future__ import annotations
 import math
 
 from ..models import pattanaik2000 as model
-from ..models.photometry import neutral_scotopic_ratio
-from .base import KernelCall, Operator, Option, Stage, StateSpec
+from .base import COLOUR_STAGE, METER_STAGE, KernelCall, ModelOperator, Option, Stage, StateSpec
 
 MODE_OPTION = Option("mode", "--mode", "default: the operator as it looks right on photographs; "
                      "paper: its paper taken literally (docs/models.md says where they differ)",
@@ -23,7 +22,8 @@ KERNEL_PARAMS = ("log2_sigma_rod", "log2_sigma_cone", "B_rod", "B_cone", "gain",
                  "inv_white", "knee", "chroma")
 
 
-class Pattanaik00(Operator):
+class Pattanaik00(ModelOperator):
+    model = model
     name = "pattanaik00"
     description = "Pattanaik, Tumblin, Yee & Greenberg 2000: time-dependent global adaptation"
     citation = ("Pattanaik, Tumblin, Yee & Greenberg, Time-Dependent Visual Adaptation for "
@@ -31,30 +31,12 @@ class Pattanaik00(Operator):
     options = (MODE_OPTION,)
     state = StateSpec(scalars=("A_rod", "A_cone", "B_rod", "B_cone"))
     stages = (
-        Stage("colour", "colour", "working RGB x scale -> cd/m^2, Y, Y'; bad values repaired",
-              "models.photometry.sanitize", "colour.cl:scene_to_working"),
-        Stage("meter", "reduction", "adaptation goals G_rod (Y'), G_cone (Y)",
-              "models.metering.reference_goal", "metering.cl:meter_partial"),
+        COLOUR_STAGE, METER_STAGE,
         Stage("adapt", "state", "A: exponential t0 = 150/80 ms; B: Eq. 7 solved exactly",
               "models.pattanaik2000.receptor_levels_advance"),
         Stage("map", "pointwise", "Eqs. 2-3 responses, Sec. 4.3 inverse appearance and display",
               "models.pattanaik2000.map_reference", "pattanaik00.cl:pattanaik00_map4"),
     )
-
-    def steady_state(self, stats):
-        return model.steady_state(stats.G_rod, stats.G_cone)
-
-    def preadapted(self, L_cd, seconds):
-        return model.preadapted(L_cd, seconds)
-
-    def advance(self, values, stats, dt):
-        return model.advance(values, stats.G_rod, stats.G_cone, dt)
-
-    def params(self, state, stats):
-        return model.frame_params(state, self.display, **self.options)
-
-    def map_reference(self, rgb, Y, Ys, p):
-        return model.map_reference(rgb, Y, Ys, p)
 
     def kernel_call(self, p, vector: bool = True):
         d = p.display
@@ -67,7 +49,3 @@ class Pattanaik00(Operator):
         return KernelCall("pattanaik00.cl", "pattanaik00_map4" if vector else "pattanaik00_map",
                           tuple(zip(KERNEL_PARAMS, vals)), vector)
 
-
-def neutral_goals(L_cd: float) -> tuple[float, float]:
-    """(G_rod, G_cone) of a neutral field of ``L_cd`` cd/m^2."""
-    return L_cd * neutral_scotopic_ratio(), L_cd

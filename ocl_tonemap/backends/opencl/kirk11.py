@@ -17,6 +17,7 @@ from ...models.kirk2011 import (RHO, SIGMA_RANGE_LOG10, compose_reference, displ
 from ...models.bilateral import RangeKernel
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
+from ..reference import NoPixelState
 from .bilateral import DeviceBilateral
 from .runtime import round_up
 
@@ -109,20 +110,13 @@ class KirkDevice:
         return q, src, rc
 
 
-class KirkSchedule:
+class KirkSchedule(NoPixelState):
     receptor_gains = False
     streams = False
 
     def __init__(self, backend, op):
         self.backend, self.op = backend, op
         self.dev = KirkDevice(backend.rt)
-
-    def pixel_state(self):
-        return None
-
-    def set_pixel_state(self, pixels) -> None:
-        if pixels:
-            raise ValueError("kirk11 keeps no per-pixel state")
 
     def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
         import pyopencl as cl

@@ -22,7 +22,7 @@ from ...models.display import DISPLAY_LINEAR_MAX
 from ...models.metering import MeteringSpec
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
-from ..reference import PixelStateMixin
+from ..reference import PixelStateMixin, ledda_summary
 from .bilateral import DeviceBilateral
 from .runtime import round_up
 
@@ -289,9 +289,4 @@ class LeddaSchedule(PixelStateMixin):
         return out
 
     def summary(self, stats) -> dict:
-        from ...operators.ledda04 import FrameSummary
-        v, op = stats.values, self.op
-        return FrameSummary(v["sigma_px"], v["bilateral"], v["sigma_disp"], v["rods"],
-                            op.settings.mode, op.settings.strength, v["global_cone"],
-                            v["global_rod"], v.get("restarted_fraction", 0.0), stats.G_cone,
-                            stats.G_rod).as_dict()
+        return ledda_summary(self.op, stats)
