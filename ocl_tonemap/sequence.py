@@ -524,7 +524,6 @@ class _WorkingBands:
 
 def _stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t_prev):
     """One frame read, mapped and written in bands of ``rows`` rows; returns (time, info)."""
-    from .calibration import log_average
     from .imageio import BandReader, BandWriter
     reader = BandReader(inp, f, run.opts.channels)
     writer = None
