@@ -1,6 +1,6 @@
 """Peak memory and time per frame on huge frames: whole-frame against streamed.
 
-    python benchmarks/bench_memory.py [--size 12000x8000] [--also 16000x16000]
+    python benchmarks/bench_memory.py [--size 12000x8000] [--also 16000x16000] [--cases a,b]
 
 Writes benchmarks/results/memory.md. Each run is a child ``ocl-tonemap run`` whose
 peak resident set (ru_maxrss) is read after it exits; the frame is generated
@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import resource
 import subprocess
 import sys
 import tempfile
@@ -54,12 +53,26 @@ def child(args: list[str]) -> tuple[float, float, int]:
     return float(rss), float(sec), int(rc)
 
 
+#: (label, operator, extra arguments, also whole?): every operator and effect.
+CASES = (
+    ("pattanaik00", "pattanaik00", [], True),
+    ("durand00", "durand00", ["--flare", "off", "--acuity", "off"], True),
+    ("durand00 flare+acuity on", "durand00", ["--flare", "on", "--acuity", "on"], False),
+    ("pattanaik00 purkinje on", "pattanaik00", ["--purkinje", "on"], False),
+    ("ledda04 (+checkpoint)", "ledda04", ["--checkpoint-every", "1"], False),
+    ("kirk11", "kirk11", [], False),
+)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--size", default="12000x8000")
     ap.add_argument("--also", default=None, help="a second, larger size (e.g. 16000x16000)")
     ap.add_argument("--budget", type=float, default=1024.0, help="--max-memory, MiB")
+    ap.add_argument("--cases", default=None, help="labels of CASES to run, comma-separated "
+                    "(default: all)")
     a = ap.parse_args()
+    cases = [c for c in CASES if a.cases is None or c[0] in a.cases.split(",")]
     rows = []
     with tempfile.TemporaryDirectory() as d:
         for size in [s for s in (a.size, a.also) if s]:
@@ -69,19 +82,23 @@ def main() -> None:
             make_frame(src, w, h)
             gen = time.perf_counter() - t0
             frame_mb = w * h * 12 / 2**20
-            for op in ("pattanaik00", "durand00"):
+            fits = frame_mb * 12 < 0.8 * os.sysconf("SC_PAGE_SIZE") * \
+                os.sysconf("SC_PHYS_PAGES") / 2**20            # whole only where it fits
+            for label, op, fx, whole in cases:
                 modes = [("streamed", ["--max-memory", f"{a.budget:g}"])]
-                if frame_mb * 12 < 0.8 * os.sysconf("SC_PAGE_SIZE") * \
-                        os.sysconf("SC_PHYS_PAGES") / 2**20:     # whole only where it fits
+                if whole and fits:
                     modes.append(("whole", ["--max-memory", "1e9"]))
                 for mode, extra in modes:
-                    fx = ["--flare", "off", "--acuity", "off"] if op == "durand00" else []
+                    ck = [] if "--checkpoint-every" in fx else ["--no-checkpoint"]
                     rss, sec, rc = child(["run", src, os.path.join(d, "o.png"), "--operator",
-                                          op, "-q", "--no-checkpoint", *fx, *extra])
-                    rows.append((f"{w}x{h}", op, mode, f"{frame_mb:.0f}",
+                                          op, "-q", *ck, *fx, *extra])
+                    rows.append((f"{w}x{h}", label, mode, f"{frame_mb:.0f}",
                                  f"{rss:.0f}" if rc == 0 else f"failed ({rc})",
                                  f"{rss / frame_mb:.2f}" if rc == 0 else "-", f"{sec:.1f}"))
                     print(rows[-1], flush=True)
+                    for x in os.listdir(d):                  # checkpoints of the last case
+                        if x.startswith("o.png.state"):
+                            os.remove(os.path.join(d, x))
             print(f"(generated {size} in {gen:.0f} s)", flush=True)
     out = os.path.join(HERE, "results", "memory.md")
     with open(out, "w") as fh:
@@ -91,7 +108,7 @@ def main() -> None:
                  f"{platform.machine()}, {os.cpu_count()} CPUs, PoCL. Peak resident set of the "
                  "whole `ocl-tonemap run` (PNG out), against the frame's size as float32 RGB. "
                  f"Streamed: `--max-memory {a.budget:g}`; whole: the budget lifted.\n\n")
-        fh.write(table(("frame", "operator", "path", "frame MiB (float32 RGB)", "peak RSS MiB",
+        fh.write(table(("frame", "operator and effects", "path", "frame MiB (float32 RGB)", "peak RSS MiB",
                         "RSS / frame", "seconds"), rows))
         fh.write("\n\nThe bound in the README: streamed frames stay under 3x the frame plus "
                  "~300 MiB (the process itself is ~130 MiB).\n")

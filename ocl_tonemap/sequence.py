@@ -573,23 +573,26 @@ def _stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, 
             writer.write(y0, px)
 
         tm.backend.max_band_pixels = rows * w
+        # per-pixel planes of local operators (their state and levels) go to a file
+        # beside the output, read and written by bands (backends/planes.py)
+        tm.backend.spill_dir = os.path.dirname(os.path.abspath(outp))
         try:
             tm.process_stream(source, sink, time_s=t, frame_number=f, luminance_scale=scale,
                               illuminant=illuminant_from_metadata(fr.spec))
         except NeedsWholeFrame as exc:
             log.warning("%s%s: not streamed, %s; read whole", inp,
                         "" if f is None else f" frame {f}", exc)
-            tm.backend.max_band_pixels = run.device_band_pixels
             return None
         writer.commit()
         writer = None
-        tm.backend.max_band_pixels = run.device_band_pixels
         return t, tm.last, fps
     except FrameError:
         raise
     except Exception as exc:
         raise FrameError(inp, f, exc) from exc
     finally:
+        tm.backend.max_band_pixels = run.device_band_pixels
+        tm.backend.spill_dir = None
         if writer is not None:
             writer.abort()
         reader.close()

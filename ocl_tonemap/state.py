@@ -31,7 +31,10 @@ class AdaptationState:
     frame : number of the last frame shown, or None.
     extra : operator-specific JSON-able data (e.g. the path of per-pixel state).
     pixels : per-pixel state of local operators: name -> float32 (h, w) array,
-        saved beside the JSON as ``<name>.pixels.exr`` (one channel per plane).
+        saved beside the JSON as ``<name>.pixels.exr`` (one channel per plane); or,
+        for frames too large to hold whole, a band-readable view
+        (``backends/planes.py``: a spilled store, or the side file opened lazily),
+        which ``copy`` shares rather than copies.
     """
 
     operator: str
@@ -42,8 +45,10 @@ class AdaptationState:
     pixels: dict | None = None
 
     def copy(self) -> "AdaptationState":
-        px = None if self.pixels is None else {k: np.array(v, copy=True)
-                                              for k, v in self.pixels.items()}
+        from .backends.planes import band_readable
+        px = self.pixels
+        if px is not None and not band_readable(px):
+            px = {k: np.array(v, copy=True) for k, v in px.items()}
         return AdaptationState(self.operator, dict(self.values), self.time_s, self.frame,
                                json.loads(json.dumps(self.extra)), px)
 
@@ -149,35 +154,83 @@ def _state_from_image(path: Path) -> dict:
         raise ValueError(f"{path}: its ocltm:state is not JSON ({exc})") from None
 
 
-def _write_planes(path: Path, planes: dict) -> None:
-    """Float32 EXR, one channel per plane, written atomically."""
+#: Side files larger than this are opened lazily and read by row bands.
+LAZY_PLANES_BYTES = 256 * 2**20
+#: Rows per band when planes are written or read by bands: about 64 MiB.
+_BAND_BYTES = 64 * 2**20
+
+
+def _write_planes(path: Path, planes) -> None:
+    """Float32 EXR, one channel per plane, written atomically; a band-readable
+    source (``backends/planes.py``) is written by row bands, never whole."""
     import OpenImageIO as oiio
-    names = list(planes)
-    h, w = np.shape(planes[names[0]])
+
+    from .backends.planes import band_readable, plane_shape, read_rows
+    names = list(planes.names if band_readable(planes) else planes)
+    h, w = plane_shape(planes)
     spec = oiio.ImageSpec(w, h, len(names), oiio.FLOAT)
     spec.channelnames = tuple(names)
     # uncompressed: a checkpoint is written after every frame, and zip took
     # longer than the frame (1080p ledda04: 0.4 s of a 0.9 s frame)
     spec.attribute("compression", "none")
-    data = np.ascontiguousarray(np.stack([np.asarray(planes[k], np.float32) for k in names],
-                                         axis=-1))
     tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.exr")
     out = oiio.ImageOutput.create(str(tmp))
     if out is None or not out.open(str(tmp), spec):
         raise OSError(f"cannot write per-pixel state {path}: {oiio.geterror()}")
-    ok = out.write_image(data)
-    out.close()
+    rows = max(1, _BAND_BYTES // max(1, 4 * w * len(names)))
+    ok = True
+    try:
+        for y0 in range(0, h, rows):
+            y1 = min(h, y0 + rows)
+            band = np.ascontiguousarray(np.moveaxis(read_rows(planes, names, y0, y1), 0, -1))
+            ok = ok and out.write_scanlines(y0, y1, 0, band)
+    finally:
+        out.close()
     if not ok:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
         raise OSError(f"cannot write per-pixel state {path}: {out.geterror()}")
     os.replace(tmp, path)
 
 
-def _read_planes(path: Path) -> dict:
+class PlaneFile:
+    """A per-pixel state side file opened lazily: band-readable (``names``,
+    ``shape``, ``read(y0, y1, names)``), for state too large to read whole."""
+
+    def __init__(self, path: Path, spec):
+        self.path = path
+        self.names = tuple(spec.channelnames)
+        self.shape = (spec.height, spec.width)
+
+    def read(self, y0: int, y1: int, names=None) -> np.ndarray:
+        import OpenImageIO as oiio
+        inp = oiio.ImageInput.open(str(self.path))
+        if inp is None:
+            raise ValueError(f"cannot read per-pixel state {self.path}: {oiio.geterror()}")
+        try:
+            data = inp.read_scanlines(0, 0, y0, y1, 0, 0, len(self.names), oiio.FLOAT)
+        finally:
+            inp.close()
+        if data is None:
+            raise ValueError(f"cannot read per-pixel state {self.path} rows {y0}-{y1}")
+        data = np.asarray(data, np.float32).reshape(y1 - y0, self.shape[1], len(self.names))
+        idx = [self.names.index(k) for k in (names or self.names)]
+        return np.ascontiguousarray(np.moveaxis(data[..., idx], -1, 0))
+
+
+def _read_planes(path: Path):
+    """The side file's planes: a dict of (h, w) arrays, or a :class:`PlaneFile`
+    when larger than :data:`LAZY_PLANES_BYTES`."""
     import OpenImageIO as oiio
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
         raise ValueError(f"cannot read per-pixel state {path}: {oiio.geterror()}")
     spec = inp.spec()
+    if float(spec.width) * spec.height * spec.nchannels * 4 > LAZY_PLANES_BYTES:
+        inp.close()
+        return PlaneFile(path, spec)
     data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
     inp.close()
     if data is None:

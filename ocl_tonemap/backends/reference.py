@@ -8,6 +8,7 @@ from ..models import durand2000
 from ..models import metering as met
 from ..models.photometry import photopic_luminance, sanitize, scotopic_luminance
 from ..operators.base import FrameStats
+from .planes import band_readable, plane_shape, read_rows
 
 
 def _mask(spec: met.MeteringSpec, w: int, h: int):
@@ -82,28 +83,40 @@ class PointwiseSchedule:
 
 
 class PixelStateMixin:
-    """Per-pixel state kept by a schedule: host planes (float64 in the reference)."""
+    """Per-pixel state kept by a schedule: host planes (float64 in the reference).
+
+    ``band_state``: the schedule reads its state by row bands, so a band-readable
+    source (``backends/planes.py``) is kept as it is; else it is read whole."""
 
     planes: tuple = ()
+    band_state = False
 
     def pixel_state(self) -> dict | None:
         if self._host is None:
             return None
+        if band_readable(self._host):
+            return self._host if getattr(self._host, "spilled", True) else self._host.as_dict()
         return {k: np.array(v, copy=True) for k, v in self._host.items()}
 
-    def set_pixel_state(self, pixels: dict | None) -> None:
+    def set_pixel_state(self, pixels) -> None:
         if pixels is not None:
-            missing = [k for k in self.planes if k not in pixels]
+            names = pixels.names if band_readable(pixels) else tuple(pixels)
+            missing = [k for k in self.planes if k not in names]
             if missing:
                 raise ValueError(f"per-pixel state lacks {', '.join(missing)}")
-            shapes = {np.shape(pixels[k]) for k in self.planes}
-            if len(shapes) != 1 or len(next(iter(shapes))) != 2:
-                raise ValueError("per-pixel state planes must be 2-D and of one size")
-            pixels = {k: np.asarray(pixels[k]) for k in self.planes}
+            if band_readable(pixels):
+                if not self.band_state:
+                    h = plane_shape(pixels)[0]
+                    pixels = dict(zip(self.planes, read_rows(pixels, self.planes, 0, h)))
+            else:
+                shapes = {np.shape(pixels[k]) for k in self.planes}
+                if len(shapes) != 1 or len(next(iter(shapes))) != 2:
+                    raise ValueError("per-pixel state planes must be 2-D and of one size")
+                pixels = {k: np.asarray(pixels[k]) for k in self.planes}
         self._host = pixels
 
     def state_shape(self):
-        return None if self._host is None else self._host[self.planes[0]].shape
+        return None if self._host is None else plane_shape(self._host)
 
     def check_shape(self, fresh: bool, shape) -> None:
         if fresh:

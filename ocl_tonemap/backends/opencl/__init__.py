@@ -36,6 +36,9 @@ class OpenCLBackend:
             max_band_pixels = min(self.rt.max_alloc_bytes() // 16,
                                   self.rt.global_mem_bytes() // (48 * 4))
         self.max_band_pixels = int(max(1, max_band_pixels))
+        #: Folder for per-pixel planes of banded frames (``backends/planes.py``);
+        #: None keeps them in memory. The streaming run sets it.
+        self.spill_dir = None
         self.bufs = None
         self._cap = 0
         self._pool: dict = {}

@@ -22,6 +22,7 @@ from ...models.display import DISPLAY_LINEAR_MAX
 from ...models.metering import MeteringSpec
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
+from ..planes import PlaneStore, UniformPlanes, read_rows
 from ..reference import PixelStateMixin, ledda_summary
 from .bilateral import DeviceBilateral
 from .runtime import round_up
@@ -39,12 +40,13 @@ LOGMEAN = MeteringSpec.parse("logmean")
 
 class LeddaSchedule(PixelStateMixin):
     receptor_gains = False
-    streams = False
+    streams = True
+    band_state = True
 
     def __init__(self, backend, op):
         self.backend, self.op = backend, op
         self.planes = L.STATE_CHANNELS
-        self._host = None        # authoritative when _dev is None
+        self._host = None        # authoritative when _dev is None: dict or PlaneStore
         self._dev = None         # (cl.Buffer, (h, w)) authoritative on the device
         self._filters = None
         rt = backend.rt
@@ -53,9 +55,10 @@ class LeddaSchedule(PixelStateMixin):
         self._k_map = rt.kernel("ledda04.cl", "ledda04_map", KERNEL_CONSTANTS)
 
     # -- per-pixel state ---------------------------------------------------------------
-    def pixel_state(self) -> dict | None:
+    def pixel_state(self):
         """Per-pixel state as float32 (h, w) arrays (a snapshot; a device copy stays
-        authoritative and resident for the next frame)."""
+        authoritative and resident for the next frame); state spilled to a file
+        (streamed frames) comes as that band-readable store, valid until the next frame."""
         if self._dev is not None:
             import pyopencl as cl
             buf, (h, w) = self._dev
@@ -71,11 +74,10 @@ class LeddaSchedule(PixelStateMixin):
     def state_shape(self):
         return self._dev[1] if self._dev is not None else super().state_shape()
 
-    def _take_host_state(self):
-        if self._dev is not None:
-            self._host = self.pixel_state()
-            self._dev = None
-        return self._host
+    def _store(self, names, shape):
+        """Planes of a banded frame: spilled to a file when the run streams frames
+        (``backend.spill_dir``), else in memory."""
+        return PlaneStore(names, shape, self.backend.spill_dir)
 
     # -- measure -----------------------------------------------------------------------
     def _colour_and_lum(self, frame, a: int, b: int, own):
@@ -90,21 +92,26 @@ class LeddaSchedule(PixelStateMixin):
         return rc, n, yl, ysl
 
     def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
+        """Banded frames (and streamed ones, whose rows are read again for each pass)
+        take three passes before the state step: the global log-averages with the
+        z ranges, the grid splat (grid filter only), the local levels."""
         import pyopencl as cl
         be, op, s = self.backend, self.op, self.op.settings
-        rt, q = be.rt, be.rt.queue
+        q = be.rt.queue
         h, w = frame.pixels.shape[:2]
         sig = s.sigma_px(w, h)
         if self._filters is None:
-            self._filters = (DeviceBilateral(rt), DeviceBilateral(rt))
+            self._filters = (DeviceBilateral(be.rt), DeviceBilateral(be.rt))
         fc, fr = self._filters
         method = fc.choose(s.bilateral, sig, w, h)
         halo = spatial_radius(sig) if method == "exact" else 0
         bands = be.bands(h, w, halo)
         banded = len(bands) > 1
-        # the frame's global log-averages: one band is coloured once and stays resident
+        # the frame's global log-averages (and the z ranges of Y and Y' for the
+        # grid): one band is coloured once and stays resident
         resident = self._colour_and_lum(frame, 0, h, (0, h)) if not banded else None
         gsums = None
+        zr = [[np.inf, -np.inf], [np.inf, -np.inf]]
         for y0, nr in ([(0, h)] if not banded else bands):
             _, n, yl, ysl = resident if resident is not None else \
                 self._colour_and_lum(frame, y0, y0 + nr, None)
@@ -113,16 +120,13 @@ class LeddaSchedule(PixelStateMixin):
                 gsums = gs
             else:
                 gsums.add(gs)
-        G_rod_g, G_cone_g = gsums.goal(LOGMEAN)
-        geoms = None
-        if method == "fast":
-            zr = [[np.inf, -np.inf], [np.inf, -np.inf]]
-            for y0, nr in bands:                    # z ranges of Y and Y'
-                _, n, yl, ysl = resident if not banded else \
-                    self._colour_and_lum(frame, y0, y0 + nr, None)
+            if method == "fast":
                 for k, (flt, buf) in enumerate(((fc, yl), (fr, ysl))):
                     lo, hi = flt.z_range(buf, n, LEDDA_RANGE)
                     zr[k] = [min(zr[k][0], lo), max(zr[k][1], hi)]
+        G_rod_g, G_cone_g = gsums.goal(LOGMEAN)
+        geoms = None
+        if method == "fast":
             geoms = [flt.fit_geometry(w, h, zr[k][0], zr[k][1], sig, LEDDA_RANGE, s.bilateral.q_s,
                                       s.bilateral.q_r) for k, flt in enumerate((fc, fr))]
             for flt, g in zip((fc, fr), geoms):
@@ -139,8 +143,7 @@ class LeddaSchedule(PixelStateMixin):
         repairs = RepairCounts()
         sums = None
         rods_used = True
-        planes = {"I_c": np.empty((h, w), np.float32), "I_r": np.empty((h, w), np.float32)} \
-            if banded else {}
+        planes = self._store(("I_c", "I_r"), (h, w)) if banded else {}
         for y0, nr in bands:                        # filter / slice: the adaptation levels
             a, b = max(0, y0 - halo), min(h, y0 + nr + halo)
             if resident is not None:
@@ -169,8 +172,10 @@ class LeddaSchedule(PixelStateMixin):
             else:
                 sums.add(sb)
             if banded:
-                cl.enqueue_copy(q, planes["I_c"][y0:y0 + nr], ic)
-                cl.enqueue_copy(q, planes["I_r"][y0:y0 + nr], ir)
+                lv = np.empty((2, nr, w), np.float32)
+                cl.enqueue_copy(q, lv[0], ic)
+                cl.enqueue_copy(q, lv[1], ir)
+                planes.write(y0, lv)
             else:
                 planes = {"I_c": ic, "I_r": ir}
         G_rod, G_cone = sums.goal(LOGMEAN)
@@ -187,18 +192,20 @@ class LeddaSchedule(PixelStateMixin):
                           planes=planes, handle=(frame.pixels, bands, banded, halo))
 
     # -- integrate ---------------------------------------------------------------------
-    def _band_levels(self, stats, y0, nr):
-        """(Ic, Ir) device buffers of one band: resident, or uploaded from the host planes."""
+    def _band_levels(self, stats, y0, nr, rods: bool = True):
+        """(Ic, Ir) device buffers of one band: resident, or uploaded from the planes."""
         import pyopencl as cl
-        ic, ir = stats.planes["I_c"], stats.planes["I_r"]
-        if isinstance(ic, np.ndarray):
+        planes = stats.planes
+        if isinstance(planes, PlaneStore):
             be = self.backend
-            n = nr * ic.shape[1]
+            n = nr * planes.shape[1]
+            lv = planes.read(y0, y0 + nr)
             bc, br = be.buffer("ledda_Ic", n * 4), be.buffer("ledda_Ir", n * 4)
-            cl.enqueue_copy(be.rt.queue, bc, np.ascontiguousarray(ic[y0:y0 + nr]))
-            cl.enqueue_copy(be.rt.queue, br, np.ascontiguousarray(ir[y0:y0 + nr]))
+            cl.enqueue_copy(be.rt.queue, bc, lv[0])
+            if rods:
+                cl.enqueue_copy(be.rt.queue, br, lv[1])
             return bc, br
-        return ic, ir
+        return planes["I_c"], planes["I_r"]
 
     def _frame_scalars(self, stats):
         s = self.op.settings
@@ -207,6 +214,8 @@ class LeddaSchedule(PixelStateMixin):
                 np.float32(math.log(max(stats.values["global_rod"], V_FLOOR))))
 
     def integrate(self, state, stats, dt: float, fresh: bool) -> None:
+        """``ledda04_step`` per band. One-band frames keep the state resident on the
+        device; banded ones read and write it by bands in a :class:`PlaneStore`."""
         import pyopencl as cl
         be, op = self.backend, self.op
         q = be.rt.queue
@@ -215,15 +224,21 @@ class LeddaSchedule(PixelStateMixin):
         _, bands, banded, _ = stats.handle
         init = fresh and op.preadapt is None
         if fresh and op.preadapt is not None:
-            self.set_pixel_state(L.preadapted_state(op.preadapt[0], op.preadapt[1], (h, w),
-                                                    op.ward))
+            one = L.preadapted_state(op.preadapt[0], op.preadapt[1], (1, 1), op.ward)
+            self.set_pixel_state(UniformPlanes(one, (h, w)) if banded else
+                                 {k: np.broadcast_to(v, (h, w)) for k, v in one.items()})
         counts = be.buffer("ledda_counts", 4)
         cl.enqueue_fill_buffer(q, counts, np.int32(0), 0, 4)
         nstate = len(self.planes)
-        if banded and self._dev is not None:
-            self._take_host_state()                 # banded frames keep state on the host
-        if banded and init:
-            self._host = {k: np.empty((h, w), np.float32) for k in self.planes}
+        src = None
+        if banded:
+            if self._dev is not None:
+                self._host = self.pixel_state()     # banded frames keep state on the host
+                self._dev = None
+            src = None if init else self._host
+            own = isinstance(src, PlaneStore) and src.shape == (h, w) and \
+                src.spilled == (be.spill_dir is not None)
+            dst = src if own else self._store(self.planes, (h, w))
         strength, lgc, lgr = self._frame_scalars(stats)
         f32, i32 = np.float32, np.int32
         for y0, nr in bands:
@@ -232,15 +247,13 @@ class LeddaSchedule(PixelStateMixin):
             if banded:
                 st = be.buffer("ledda_state_band", nstate * n * 4)
                 if not init:
-                    planes = np.stack([self._host[k][y0:y0 + nr] for k in self.planes])
-                    cl.enqueue_copy(q, st, np.ascontiguousarray(planes, np.float32))
+                    cl.enqueue_copy(q, st, read_rows(src, self.planes, y0, y0 + nr))
             elif self._dev is not None:
                 st = self._dev[0]                   # resident from the last frame
             else:
                 st = cl.Buffer(be.rt.context, cl.mem_flags.READ_WRITE, nstate * n * 4)
                 if not init:
-                    planes = np.stack([self._host[k] for k in self.planes])
-                    cl.enqueue_copy(q, st, np.ascontiguousarray(planes, np.float32))
+                    cl.enqueue_copy(q, st, read_rows(self._host, self.planes, 0, h))
             rods = stats.values["rods"]
             self._k_step(q, (round_up(n, 64),), (64,), ic, ir, i32(0 if rods else 1),
                          f32(op.rod_ratio), st, i32(n), i32(n), f32(dt), i32(1 if init else 0),
@@ -249,18 +262,25 @@ class LeddaSchedule(PixelStateMixin):
             if banded:
                 planes = np.empty((nstate, nr, w), np.float32)
                 cl.enqueue_copy(q, planes, st)
-                for i, k in enumerate(self.planes):
-                    self._host[k][y0:y0 + nr] = planes[i]
+                dst.write(y0, planes)
             else:
                 self._dev, self._host = (st, (h, w)), None
+        if banded:
+            if src is not dst and isinstance(src, PlaneStore):
+                src.close()
+            self._host = dst
         nres = np.empty(1, np.int32)
         cl.enqueue_copy(q, nres, counts)
         stats.values["restarted_fraction"] = float(nres[0]) / (h * w) if not init else 0.0
+        stats.values["sigma_disp"] = op.frame_mapping(stats.values["global_cone"],
+                                                      stats.values["global_rod"])[0]
         state.values = {"logmean_I_A_cone": float(stats.G_cone),
                         "logmean_I_A_rod": float(stats.G_rod)}
 
     # -- apply -------------------------------------------------------------------------
     def apply(self, frame, state, stats, params=None, gains=None, sink=None):
+        """``ledda04_map`` per band (rows re-read for banded frames); with
+        ``sink(y0, band)`` the bands go there and None is returned."""
         import pyopencl as cl
         be, op = self.backend, self.op
         q = be.rt.queue
@@ -270,22 +290,26 @@ class LeddaSchedule(PixelStateMixin):
         stats.values["sigma_disp"] = sd
         strength, lgc, _ = self._frame_scalars(stats)
         f32, i32 = np.float32, np.int32
-        out = np.empty((h, w, 3), np.float32)
+        out = np.empty((h, w, 3), np.float32) if sink is None else None
         nstate = len(self.planes)
         for y0, nr in bands:
             n = nr * w
             if banded:
                 be.to_working(frame.pixels[y0:y0 + nr], frame.scale, count=False)
-                ic, _ = self._band_levels(stats, y0, nr)
+                ic, _ = self._band_levels(stats, y0, nr, rods=False)
                 st = be.buffer("ledda_state_band", nstate * n * 4)
-                planes = np.stack([self._host[k][y0:y0 + nr] for k in self.planes])
-                cl.enqueue_copy(q, st, np.ascontiguousarray(planes, np.float32))
+                cl.enqueue_copy(q, st, read_rows(self._host, self.planes, y0, y0 + nr))
             else:
                 ic, st = stats.planes["I_c"], self._dev[0]
             self._k_map(q, (round_up(n, 64),), (64,), be.bufs["rgb"], i32(0), ic, st, i32(n),
                         i32(n), f32(sd), f32(1.0 / op.display.unit_cd), be.bufs["out"], strength,
                         lgc, f32(1.0 / white), f32(knee), i32(op.ward))
-            cl.enqueue_copy(q, out[y0:y0 + nr], be.bufs["out"])
+            if sink is None:
+                cl.enqueue_copy(q, out[y0:y0 + nr], be.bufs["out"])
+            else:
+                band = np.empty((nr, w, 3), np.float32)
+                cl.enqueue_copy(q, band, be.bufs["out"])
+                sink(y0, band)
         return out
 
     def summary(self, stats) -> dict:
