@@ -87,6 +87,9 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--png-level", type=int, default=1, metavar="0-9",
                    help="zlib level of PNG outputs (default 1: 3.5x faster to write than 6, "
                    "files ~13%% larger)")
+    p.add_argument("--serial-io", action="store_true",
+                   help="read, map and write each frame in turn on one thread (default: the "
+                   "next frame is read and the last one written while the device works)")
     p.add_argument("--channels", metavar="R,G,B",
                    help="input channels to use as R,G,B (or one name: luminance); default the "
                    "R, G, B channels by name")
@@ -132,7 +135,7 @@ def _options(a, input_, output):
         effects=_effects(a), missing=a.missing, resume=a.resume, checkpoint=a.checkpoint,
         checkpoint_every=a.checkpoint_every,
         channels=[c.strip() for c in a.channels.split(",")] if a.channels else None,
-        png_level=a.png_level, max_memory=a.max_memory,
+        png_level=a.png_level, max_memory=a.max_memory, overlap_io=not a.serial_io,
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
 
 

@@ -92,6 +92,7 @@ class JobOptions:
     resume: bool = False            # continue from the checkpoint of an earlier run
     checkpoint: bool = True         # write the state after every frame ...
     checkpoint_every: int = 1       # ... or every N frames (local operators: per-pixel planes)
+    overlap_io: bool = True         # read the next frame and write the last one beside the work
 
     def __post_init__(self):
         if self.fps is not None and not (math.isfinite(self.fps) and 0 < self.fps <= 1e6):
@@ -355,19 +356,48 @@ def run_job(opts: JobOptions) -> JobResult:
     fps = opts.fps
     t_prev = tm.state.time_s
     n = len(jobs)
-    with _StopSignals() as stop:
+    rows_of: dict = {}
+
+    def rows(k):                       # streamed in bands? (decided once per frame)
+        if k not in rows_of:
+            rows_of[k] = _stream_rows(opts, tm, jobs[k][1], jobs[k][0])
+        return rows_of[k]
+
+    with _StopSignals() as stop, _FrameIO(opts.overlap_io) as io:
         for k, (f, inp, outp, held) in enumerate(jobs):
-            rows = _stream_rows(opts, tm, inp, f)
-            streamed = _stream_frame(run, tm, inp, outp, f, held, rows, fps, t_prev) \
-                if rows else None
-            t, info, fps = streamed if streamed is not None else \
-                _whole_frame(run, tm, inp, outp, f, held, fps, t_prev)
+            if k + 1 < n and not rows(k + 1):         # read-ahead of the next frame
+                _, inp1, _, _ = jobs[k + 1]
+                io.prefetch(k + 1, lambda inp1=inp1, f1=jobs[k + 1][0]:
+                            read_frame(inp1, f1, opts.channels))
+            try:
+                if rows(k):
+                    io.drain()                        # a streamed frame writes in bands
+                    streamed = _stream_frame(run, tm, inp, outp, f, held, rows(k), fps, t_prev)
+                else:
+                    streamed = None
+                if streamed is not None:
+                    t, info, fps = streamed
+                    write = None
+                else:
+                    fr = io.read(k, lambda: read_frame(inp, f, opts.channels))
+                    t, info, fps, write = _whole_frame(run, tm, fr, inp, outp, f, held, fps,
+                                                       t_prev)
+            except BaseException:
+                io.drain()                 # the frames before this one are complete
+                raise
+            snap = None
             if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
                          or stop.signum is not None):
-                try:
-                    _save_checkpoint(tm, ckpt, fingerprint)
-                except Exception as exc:                      # noqa: BLE001
-                    raise FrameError(ckpt, f, f"cannot write the checkpoint: {exc}") from exc
+                snap = _checkpoint_state(tm, fingerprint)
+
+            def after(snap=snap, f=f):
+                if snap is not None:
+                    try:
+                        snap.save(ckpt, checkpoint=True)
+                    except Exception as exc:                      # noqa: BLE001
+                        raise FrameError(ckpt, f, f"cannot write the checkpoint: {exc}") \
+                            from exc
+            io.write(write, after)
             if info.repairs.total:
                 log.warning("%s%s: repaired bad values (%s)", inp,
                             "" if f is None else f" frame {f}", info.repairs.summary())
@@ -379,9 +409,11 @@ def run_job(opts: JobOptions) -> JobResult:
             if opts.progress:
                 _progress(k + 1, n, time.perf_counter() - t_start)
             if stop.signum is not None and k + 1 < n:
+                io.drain()
                 if opts.progress:
                     sys.stderr.write("\n")
                 raise Interrupted(stop.signum, k + 1, n, f, ckpt)
+        io.drain()
     if opts.progress and n:
         sys.stderr.write("\n")
     if opts.state_out:
@@ -393,9 +425,10 @@ def run_job(opts: JobOptions) -> JobResult:
     return result
 
 
-def _whole_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, fps, t_prev):
-    """One frame read, mapped and written whole; returns (time, info, fps)."""
-    fr = read_frame(inp, f, run.opts.channels)
+def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_prev):
+    """One frame (read whole) mapped; returns (time, info, fps, write): ``write()``
+    encodes it for the display and writes it (on the writer thread when the I/O
+    overlaps), from what this frame left, whatever the next frame does."""
     try:
         if fps is None:
             fps = fr.fps or DEFAULT_FPS
@@ -416,19 +449,88 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, fps, t_prev)
                    illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam,
                    premultiplied=run.premultiplied(fr))
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
-        info = _write_output(run, tm, fr, outp, f, t, cs_text, scale, scale_why, extra)
+        linear = output_is_linear(run.opts, outp)
+        disp_lin, alpha_info, info = tm.last_output, tm.last_alpha, tm.last
+        meta = output_metadata(run, tm, fr, t, cs_text, scale, scale_why, extra, linear,
+                               disp_lin.shape[2] == 4)
     except FrameError:
         raise
     except Exception as exc:
         raise FrameError(inp, f, exc) from exc
-    return t, info, fps
+
+    def write():
+        try:
+            pixels = encode_pixels(run.colour, disp_lin, alpha_info, linear)
+            _, out_cs, chroma, white, straight = meta
+            write_frame(outp, pixels, fr.spec, out_cs, meta[0], run.opts.out_bits, f,
+                        chromaticities=chroma, white_luminance=white, straight_alpha=straight,
+                        png_level=run.opts.png_level)
+        except FrameError:
+            raise
+        except Exception as exc:
+            raise FrameError(outp, f, exc) from exc
+    return t, info, fps, write
 
 
-def _save_checkpoint(tm: Tonemapper, path: str, fingerprint: dict) -> None:
+class _FrameIO:
+    """Read-ahead and write-behind: the next frame is read and the last one encoded
+    and written on two threads (one frame each way in flight: memory stays bounded)
+    while the device works; OIIO and OCIO release Python's lock while they decode,
+    encode and write. A failure surfaces at its own frame; ``drain`` waits for the
+    write in flight and then runs what follows it (the checkpoint), so outputs and
+    checkpoints keep their order. ``enabled`` False: everything on the caller."""
+
+    def __init__(self, enabled: bool = True):
+        from concurrent.futures import ThreadPoolExecutor
+        self._r = ThreadPoolExecutor(1, "ocltm-read") if enabled else None
+        self._w = ThreadPoolExecutor(1, "ocltm-write") if enabled else None
+        self._reads: dict = {}
+        self._pending = None
+
+    def prefetch(self, key, fn) -> None:
+        if self._r is not None and key not in self._reads:
+            self._reads[key] = self._r.submit(fn)
+
+    def read(self, key, fn):
+        fut = self._reads.pop(key, None)
+        return fn() if fut is None else fut.result()
+
+    def write(self, fn, after) -> None:
+        """Run ``fn`` (None: nothing to write) and then ``after``, behind the caller."""
+        self.drain()
+        if fn is None or self._w is None:
+            if fn is not None:
+                fn()
+            after()
+            return
+        def both():
+            fn()
+            after()
+        self._pending = self._w.submit(both)
+
+    def drain(self) -> None:
+        if self._pending is not None:
+            fut, self._pending = self._pending, None
+            fut.result()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        for fut in self._reads.values():
+            fut.cancel()
+        self._reads.clear()
+        for ex in (self._r, self._w):
+            if ex is not None:
+                ex.shutdown(wait=True)      # a write in flight completes (renamed whole)
+        return False
+
+
+def _checkpoint_state(tm: Tonemapper, fingerprint: dict) -> AdaptationState:
     """The state after a frame, with the run's settings (checked by --resume)."""
     st = tm.state
     st.extra[RUN_KEY] = fingerprint
-    st.save(path, checkpoint=True)
+    return st
 
 
 def _check_state_paths(jobs, paths) -> None:
@@ -475,6 +577,7 @@ def _stream_rows(opts: JobOptions, tm: Tonemapper, inp: str, f) -> int | None:
         import OpenImageIO as oiio
         i = oiio.ImageInput.open(inp)
         if i is None:
+            oiio.geterror()          # (this thread's; read_frame reports it properly)
             return None
         spec = i.spec()
         i.close()
@@ -768,27 +871,32 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, t, cs_text, scale, scale_
             disp.unit_cd if linear else None, alpha and not premult)
 
 
-def render_output(run: RunSetup, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
-                  extra: dict | None, linear: bool) -> Rendered:
-    """Encode the last processed frame (display-linear light in the display's
-    linear colourspace, or the display encoding) with its ``ocltm:*`` metadata."""
-    colour = run.colour
-    disp_lin = tm.last_output
+def encode_pixels(colour, disp_lin: np.ndarray, alpha_info, linear: bool) -> np.ndarray:
+    """Display-linear light (with alpha) to the output's values: the display's linear
+    colourspace, or the display encoding (OCIO)."""
     rgb = disp_lin[..., :3]
     alpha = disp_lin.shape[2] == 4
-    pm = alpha and tm.last_alpha is not None and tm.last_alpha[2]
+    pm = alpha and alpha_info is not None and alpha_info[2]
     if pm and not linear:
         # a display encoding is not linear: encode the straight colour, then
         # premultiply the code values again (encode(c) a, not encode(c a))
         a = disp_lin[..., 3:4]
         rgb = np.where(a > 0, rgb / np.where(a > 0, a, 1.0), rgb).astype(np.float32)
-        pixels = restore_alpha(colour.encode(rgb), tm.last_alpha)
-    else:
-        pixels = colour.linear(rgb) if linear else colour.encode(rgb)
-        if alpha:
-            pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
+        return restore_alpha(colour.encode(rgb), alpha_info)
+    pixels = colour.linear(rgb) if linear else colour.encode(rgb)
+    if alpha:
+        pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
+    return pixels
+
+
+def render_output(run: RunSetup, tm: Tonemapper, fr, t, cs_text, scale, scale_why,
+                  extra: dict | None, linear: bool) -> Rendered:
+    """Encode the last processed frame (display-linear light in the display's
+    linear colourspace, or the display encoding) with its ``ocltm:*`` metadata."""
+    disp_lin = tm.last_output
+    pixels = encode_pixels(run.colour, disp_lin, tm.last_alpha, linear)
     meta, out_cs, chroma, white, straight = output_metadata(
-        run, tm, fr, t, cs_text, scale, scale_why, extra, linear, alpha)
+        run, tm, fr, t, cs_text, scale, scale_why, extra, linear, disp_lin.shape[2] == 4)
     return Rendered(pixels, out_cs, meta, chroma, white, straight)
 
 

@@ -1,0 +1,91 @@
+"""Read-ahead and write-behind (sequence._FrameIO): the next frame is read and the
+last one encoded and written on two threads while the device works. The frames,
+their metadata and the checkpoints are those of the serial run; a failure is
+reported at its own frame, with the frames before it complete."""
+
+import json
+import os
+import shutil
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from ocl_tonemap.cli import main
+from ocl_tonemap.imageio import frame_path
+from ocl_tonemap.sample import write_tunnel_sequence
+
+
+@pytest.fixture(scope="module")
+def seq(tmp_path_factory):
+    d = tmp_path_factory.mktemp("seq")
+    return write_tunnel_sequence(str(d), 48, 27, 30.0, 0.3)
+
+
+def _meta(path):
+    spec = oiio.ImageBuf(str(path)).spec()
+    return {a.name: spec.getattribute(a.name) for a in spec.extra_attribs
+            if a.name.startswith("ocltm:")}
+
+
+@pytest.mark.parametrize("op, ext", [("pattanaik00", ".png"), ("ledda04", ".exr")])
+def test_overlapped_io_equals_serial(seq, tmp_path, op, ext):
+    pattern, frames = seq
+    runs = {}
+    for mode, extra in (("serial", ["--serial-io"]), ("overlap", [])):
+        d = tmp_path / mode
+        d.mkdir()
+        out = str(d / f"o.####{ext}")
+        assert main(["run", pattern, out, "--operator", op, "-q", *extra]) == 0
+        runs[mode] = (d, out)
+    (ds, os_), (do, oo) = runs["serial"], runs["overlap"]
+    for f in frames:
+        a, b = frame_path(os_, f), frame_path(oo, f)
+        np.testing.assert_array_equal(oiio.ImageBuf(b).get_pixels(oiio.FLOAT),
+                                      oiio.ImageBuf(a).get_pixels(oiio.FLOAT))
+        assert _meta(a) == _meta(b)
+    ca = json.loads((ds / f"o{ext}.state.json").read_text())
+    cb = json.loads((do / f"o{ext}.state.json").read_text())
+    for c in (ca, cb):                        # (the output path differs, and the side
+        c["extra"].pop("pixel_state", None)    # file's name)
+        c["extra"]["run"].pop("output")
+    assert ca == cb and ca["frame"] == frames[-1]
+
+
+def test_bad_frame_while_the_last_one_is_written(seq, tmp_path, capsys):
+    """Frame 4 cannot be read (its read ran ahead, on the reader thread): the error
+    names it; frames 1-3 are written whole and the checkpoint is frame 3's."""
+    pattern, frames = seq
+    d = tmp_path / "in"
+    shutil.copytree(os.path.dirname(pattern), d)
+    pat = str(d / os.path.basename(pattern))
+    bad = frame_path(pat, frames[3])
+    with open(bad, "wb") as fh:
+        fh.write(b"garbage")
+    out = str(tmp_path / "o.####.png")
+    assert main(["run", pat, out, "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("ocl-tonemap ERROR") == 1 and f"{bad} frame {frames[3]}:" in err
+    for f in frames[:3]:
+        assert oiio.ImageBuf(frame_path(out, f)).get_pixels(oiio.FLOAT).shape == (27, 48, 3)
+    assert not os.path.exists(frame_path(out, frames[3]))
+    st = json.loads((tmp_path / "o.png.state.json").read_text())
+    assert st["frame"] == frames[2]
+    assert not [p for p in os.listdir(tmp_path) if ".tmp" in p]
+
+
+def test_write_failure_is_named_at_its_frame(seq, tmp_path, capsys):
+    """Frame 2's output cannot be written (a folder stands in its place): the error
+    names that output and frame, frame 1 is complete and its checkpoint written,
+    and nothing after frame 2 is left."""
+    pattern, frames = seq
+    out = str(tmp_path / "o.####.png")
+    os.mkdir(frame_path(out, frames[1]))
+    assert main(["run", pattern, out, "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("ocl-tonemap ERROR") == 1
+    assert f"frame {frames[1]}" in err
+    assert os.path.isfile(frame_path(out, frames[0]))
+    assert json.loads((tmp_path / "o.png.state.json").read_text())["frame"] == frames[0]
+    assert not any(os.path.exists(frame_path(out, f)) for f in frames[2:])
+    assert not [p for p in os.listdir(tmp_path) if ".tmp" in p]
