@@ -3,8 +3,10 @@ bilateral base (backends/opencl/bilateral.py) and the composition.
 
 measure    LMSR of the frame (resident for one band) and its log-averages;
 integrate  the receptor levels (host scalars, ``operators/kirk11.py``);
-apply      Eqs. 10-16 per band, the base layer, the composition; frames beyond
-           the backend's band size compose on the host (float64).
+apply      Eqs. 10-16, the base layer, the composition, ``finish``; frames beyond
+           the backend's band size (and streamed ones, read from their file by
+           bands) in passes over row bands on the device, in memory bounded by
+           the band (``KirkSchedule._apply_banded``).
 """
 
 from __future__ import annotations
@@ -12,10 +14,11 @@ from __future__ import annotations
 import numpy as np
 
 from ...models import lmsr
-from ...models.kirk2011 import (RHO, SIGMA_RANGE_LOG10, compose_reference, display_matrix,
-                                logmean, model_scale, subset_solvers, white_norm)
-from ...models.bilateral import RangeKernel
-from ...models.photometry import RepairCounts
+from ...models.bilateral import RangeKernel, spatial_radius
+from ...models.display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, apply_shoulder
+from ...models.kirk2011 import (RHO, SIGMA_RANGE_LOG10, anchor_gain, display_matrix, logmean,
+                                model_scale, subset_solvers, white_norm)
+from ...models.photometry import Y_WEIGHTS, RepairCounts
 from ...operators.base import FrameStats
 from ..reference import NoPixelState
 from .bilateral import DeviceBilateral
@@ -110,9 +113,29 @@ class KirkDevice:
         return q, src, rc
 
 
+class _Banded:
+    """The handle of a frame beyond one device band (or a band source reading its
+    file): the frame, and the shift pass's findings once made."""
+
+    def __init__(self, frame):
+        self.frame = frame
+        self.found = None            # ((k1, k2, rod gain), (z_min, z_max))
+
+
+def finish_band(op, out: np.ndarray, gain: float) -> np.ndarray:
+    """``Kirk11.finish`` on one band of a frame whose anchor gain (``anchor_gain`` of
+    the whole frame's log-average) is ``gain``: the shoulder (default mode) and the
+    clamp, float32 out."""
+    out = np.asarray(out, np.float64)
+    if not op.s.paper:
+        u = op.display.white_cd / op.display.unit_cd
+        out = apply_shoulder(np.minimum(out * gain, SIGNAL_CEILING), u, SHOULDER_KNEE)
+    return np.clip(out, 0.0, DISPLAY_LINEAR_MAX).astype(np.float32)
+
+
 class KirkSchedule(NoPixelState):
     receptor_gains = False
-    streams = False
+    streams = True
 
     def __init__(self, backend, op):
         self.backend, self.op = backend, op
@@ -124,9 +147,11 @@ class KirkSchedule(NoPixelState):
         h, w = frame.pixels.shape[:2]
         n = h * w
         bands = be.bands(h, w)
-        if len(bands) == 1:
+        be.last_max_Y = 0.0                 # for flare on auto (Tonemapper.process_stream)
+        if len(bands) == 1 and isinstance(frame.pixels, np.ndarray):
             q, src, repairs = self.dev.lmsr_band(be, frame.pixels, frame.scale, frame.wavelengths,
                                                  True)
+            self._note_max_Y(frame, n)
             qh = np.empty((n, 4), np.float32)
             cl.enqueue_copy(be.rt.queue, qh, q)
             return FrameStats(w, h, logmean(qh[:, 3]), logmean(qh[:, 0] + qh[:, 1]),
@@ -138,29 +163,41 @@ class KirkSchedule(NoPixelState):
             qb, _, rc = self.dev.lmsr_band(be, frame.pixels[y0:y0 + nr], frame.scale,
                                            frame.wavelengths, True)
             repairs += rc
+            self._note_max_Y(frame, nr * w)
             qh = np.empty((nr * w, 4), np.float32)
             cl.enqueue_copy(be.rt.queue, qh, qb)
             sum_lm += float(np.log(np.maximum(qh[:, 0].astype(np.float64) + qh[:, 1], 1e-6)).sum())
             sum_r += float(np.log(np.maximum(qh[:, 3].astype(np.float64), 1e-6)).sum())
         return FrameStats(w, h, float(np.exp(sum_r / n)), float(np.exp(sum_lm / n)), repairs,
-                          handle=(frame.pixels, None, None))
+                          handle=_Banded(frame))
+
+    def _note_max_Y(self, frame, n: int) -> None:
+        """The largest working luminance so far (RGB: the colour stage's Y of the band
+        just read), as ``meter_pass`` leaves it in ``backend.last_max_Y``."""
+        if frame.wavelengths is None:
+            be = self.backend
+            top = self.dev.bil.z_range(be.bufs["Y"], n, RangeKernel("difference", 1.0))[1]
+            be.last_max_Y = max(be.last_max_Y, top)
 
     def integrate(self, state, stats, dt: float, fresh: bool) -> None:
         self.op.integrate(state, stats, dt, fresh)
 
     def apply(self, frame, state, stats, params=None, gains=None, sink=None):
+        """Eqs. 10-16, the base layer and the composition; with ``sink(y0, band)`` the
+        display-linear bands go there and None is returned."""
         import pyopencl as cl
         be, dev, op = self.backend, self.dev, self.op
         s, v = op.settings, stats.values
         q_ = be.rt.queue
         h, w = stats.height, stats.width
         n = h * w
+        resident = isinstance(stats.handle, tuple) and stats.handle[0] is frame.pixels
+        if not resident:
+            return self._apply_banded(frame, stats, sink)
         D = frame.display_primaries if frame.display_primaries is not None else np.eye(3)
         M = display_matrix(D)
         area = model_scale()
         _, q, src = stats.handle
-        if q is None or stats.handle[0] is not frame.pixels:
-            return self._apply_banded(frame, stats, D, M, area)
         gsz, wg = (round_up(n, 64),), (64,)
         shifted, wbuf, logY, fb = dev.shift(q, n, area, v["k1"], v["k2"], v["rod_gain"],
                                             s.shift_xyz, M, D, s.paper)
@@ -192,48 +229,140 @@ class KirkSchedule(NoPixelState):
         cl.enqueue_copy(q_, wh, wbuf)
         v.update(model_scale=area, w_mean=float(wh.mean()), fallback_fraction=float(nfb[0]) / n,
                  input="spectral" if frame.wavelengths is not None else "rgb")
+        if sink is not None:
+            sink(0, res)
+            return None
         return res
 
-    def _apply_banded(self, frame, stats, D, M, area):
-        """Frames beyond the backend's band size: the shift in row bands, the base
-        through ``DeviceBilateral.filter_banded``, the composition on the host
-        (float64, the reference's ``compose_reference``)."""
+    # -- frames beyond one band: passes over row bands, each re-reading its rows --------
+    def _shift_rows(self, frame, v, a: int, b: int):
+        """Rows [a, b) of the frame read, to LMSR and through Eqs. 10-16 on the device:
+        (the composition's source buffer, shifted RGB, w, log10 Y, fallback count)."""
+        s = self.op.settings
+        D = frame.display_primaries if frame.display_primaries is not None else np.eye(3)
+        q, src, _ = self.dev.lmsr_band(self.backend, frame.pixels[a:b], frame.scale,
+                                       frame.wavelengths, False)
+        out, wb, lb, fb = self.dev.shift(q, (b - a) * frame.pixels.shape[1], model_scale(),
+                                         v["k1"], v["k2"], v["rod_gain"], s.shift_xyz,
+                                         display_matrix(D), D, s.paper)
+        return (src if frame.wavelengths is None else out), out, wb, lb, fb
+
+    def _shift_pass(self, frame, stats) -> tuple[float, float]:
+        """Pass 1 of a banded frame: the shift per band, reduced to the summary (w_mean of
+        Eq. 16, the share of Eq. 15's fallback) and the range of log10 Y (the grid's z
+        axis). Made once per frame and levels (the summary may ask first)."""
+        import pyopencl as cl
+        v, q_ = stats.values, self.backend.rt.queue
+        key = (v["k1"], v["k2"], v["rod_gain"])
+        memo = stats.handle if isinstance(stats.handle, _Banded) and \
+            stats.handle.frame.pixels is frame.pixels else None
+        if memo is not None and memo.found is not None and memo.found[0] == key:
+            return memo.found[1]
+        h, w = frame.pixels.shape[:2]
+        rk = RangeKernel("difference", SIGMA_RANGE_LOG10)
+        w_sum, nfb, lo, hi = 0.0, 0, np.inf, -np.inf
+        for y0, nr in self.backend.bands(h, w):
+            _, _, wb, lb, fb = self._shift_rows(frame, v, y0, y0 + nr)
+            wh = np.empty(nr * w, np.float32)
+            cl.enqueue_copy(q_, wh, wb)
+            c = np.empty(1, np.int32)
+            cl.enqueue_copy(q_, c, fb)
+            w_sum, nfb = w_sum + float(wh.sum(dtype=np.float64)), nfb + int(c[0])
+            zl, zh = self.dev.bil.z_range(lb, nr * w, rk)
+            lo, hi = min(lo, zl), max(hi, zh)
+        v.update(model_scale=model_scale(), w_mean=w_sum / (h * w),
+                 fallback_fraction=nfb / (h * w),
+                 input="spectral" if frame.wavelengths is not None else "rgb")
+        if memo is not None:
+            memo.found = (key, (lo, hi))
+        return lo, hi
+
+    def _apply_banded(self, frame, stats, sink=None):
+        """Frames beyond the backend's band size, in passes over row bands that re-read
+        their rows (a band source re-decodes them) and keep no whole-frame plane:
+        (1) the shift -> summary, z range; (2, grid) the shift, splatted; (3) the base
+        layer (grid slice, or the exact filter on rows read with a ceil(3 sigma) halo)
+        -> its min and max (Durand & Dorsey 2002's compression); (4, default mode) the
+        composition -> the log-average for ``anchor_gain``; (5) the composition and
+        ``finish_band`` -> ``sink`` or the output."""
         import pyopencl as cl
         be, dev, op = self.backend, self.dev, self.op
         s, v = op.settings, stats.values
         q_ = be.rt.queue
-        h, w = stats.height, stats.width
-        blend = frame.wavelengths is None
-        shifted = np.empty((h, w, 3), np.float32)
-        wh = np.empty((h, w), np.float32)
-        logY = np.empty((h, w), np.float32)
-        src = np.empty((h, w, 3), np.float32) if blend else None
-        nfb = 0
-        for y0, nr in be.bands(h, w):
-            qb, sb, _ = dev.lmsr_band(be, frame.pixels[y0:y0 + nr], frame.scale,
-                                      frame.wavelengths, False)
-            ob, wb, lb, fb = dev.shift(qb, nr * w, area, v["k1"], v["k2"], v["rod_gain"],
-                                       s.shift_xyz, M, D, s.paper)
-            cl.enqueue_copy(q_, shifted[y0:y0 + nr], ob)
-            cl.enqueue_copy(q_, wh[y0:y0 + nr], wb)
-            cl.enqueue_copy(q_, logY[y0:y0 + nr], lb)
-            if blend:
-                cl.enqueue_copy(q_, src[y0:y0 + nr], sb)
-            c = np.empty(1, np.int32)
-            cl.enqueue_copy(q_, c, fb)
-            nfb += int(c[0])
+        h, w = frame.pixels.shape[:2]
+        n = h * w
+        z_lo, z_hi = self._shift_pass(frame, stats)
+        rk = RangeKernel("difference", SIGMA_RANGE_LOG10)
         sig = s.sigma_px(w, h)
         method = dev.bil.choose(op.bilateral, sig, w, h)
-        base = dev.bil.filter_banded(logY, sig, RangeKernel("difference", SIGMA_RANGE_LOG10),
-                                     method, be.max_band_pixels, op.bilateral.q_s,
-                                     op.bilateral.q_r)
-        out = op.finish(compose_reference(src, shifted.astype(np.float64),
-                                          wh.astype(np.float64), logY.astype(np.float64),
-                                          base.astype(np.float64), s, op.display, blend), stats)
-        v.update(model_scale=area, w_mean=float(wh.mean()), fallback_fraction=nfb / (h * w),
-                 input="spectral" if frame.wavelengths is not None else "rgb")
-        return out.astype(np.float32)
+        halo = spatial_radius(sig) if method == "exact" else 0
+        bands = be.bands(h, w, halo)
+        if method != "exact":
+            geom = dev.bil.fit_geometry(w, h, z_lo, z_hi, sig, rk, op.bilateral.q_s,
+                                        op.bilateral.q_r)
+            dev.bil.begin_grid(geom)
+            for y0, nr in bands:
+                dev.bil.splat(self._shift_rows(frame, v, y0, y0 + nr)[3], w, nr, y0, geom, rk)
+            dev.bil.blur(geom, rk)
+
+        def base(y0, nr, rows_too=True):
+            """The base layer of rows [y0, y0+nr) and (``rows_too``) those rows shifted,
+            read last (a band source keeps the alpha of the rows it read last)."""
+            out = dev._buf(nr * w * 4)
+            if method == "exact":
+                a, b = max(0, y0 - halo), min(h, y0 + nr + halo)
+                rows = self._shift_rows(frame, v, a, b)
+                dev.bil.exact(rows[3], out, w, b - a, a, y0, nr, sig, rk)
+                if rows_too and (a, b) != (y0, y0 + nr):
+                    rows = self._shift_rows(frame, v, y0, y0 + nr)
+            else:
+                rows = self._shift_rows(frame, v, y0, y0 + nr)
+                dev.bil.slice(rows[3], out, w, nr, y0, y0, nr, geom, rk)
+            return out, rows
+
+        bmin, bmax = np.inf, -np.inf
+        for y0, nr in bands:
+            bh = np.empty(nr * w, np.float32)
+            cl.enqueue_copy(q_, bh, base(y0, nr, False)[0])
+            bmin, bmax = min(bmin, float(bh.min())), max(bmax, float(bh.max()))
+        span = bmax - bmin
+        c = min(1.0, np.log10(s.target_contrast) / span) if span > 0 else 1.0
+        u = op.display.white_cd / op.display.unit_cd
+        blend = frame.wavelengths is None
+
+        def compose(y0, nr):
+            bb, (src, shifted, wb, lb, _) = base(y0, nr)
+            m = nr * w
+            out = dev._buf(m * 12)
+            dev._k_compose(q_, (round_up(m, 64),), (64,), src, shifted, wb, lb, bb,
+                           np.int32(m), np.float32(c), np.float32(bmax), np.float32(s.beta),
+                           np.float32(s.gamma), np.float32(u), np.int32(1 if blend else 0),
+                           out, np.int32(0 if s.paper else 1))
+            res = np.empty((nr, w, 3), np.float32)
+            cl.enqueue_copy(q_, res, out)
+            return res
+
+        gain = 1.0
+        if not s.paper:                         # the frame's log-average for the anchor
+            log_sum = 0.0
+            for y0, nr in bands:
+                Y = compose(y0, nr).reshape(-1, 3).astype(np.float64) @ Y_WEIGHTS / u
+                log_sum += float(np.log(np.maximum(Y, 1e-6)).sum())
+            gain = anchor_gain(np.array([np.exp(log_sum / n)]), stats.G_cone,
+                               v["levels"]["A_cone"])
+        res = np.empty((h, w, 3), np.float32) if sink is None else None
+        for y0, nr in bands:
+            band = finish_band(op, compose(y0, nr), gain)
+            if sink is None:
+                res[y0:y0 + nr] = band
+            else:
+                sink(y0, band)
+        return res
 
     def summary(self, stats) -> dict:
+        """The frame's record; a banded frame streamed to a sink is summarised before
+        its apply, so the shift pass runs here then."""
         from ..reference import kirk_summary
+        if "w_mean" not in stats.values and isinstance(stats.handle, _Banded):
+            self._shift_pass(stats.handle.frame, stats)
         return kirk_summary(stats)
