@@ -58,6 +58,11 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--encode", action="store_true",
                    help="EXR/HDR outputs: display-encoded code values (tagged with the display "
                    "colourspace) instead of display-linear light (the default for float outputs)")
+    p.add_argument("--display-encode", choices=["auto", "table", "ocio"], default="auto",
+                   help="display encoding: table (the OCIO display/view baked into a table, "
+                   "applied on the OpenCL device), ocio (OCIO's CPU processor, the reference) "
+                   "or auto (default: the table with the OpenCL backend when it is within one "
+                   "10-bit code value of OCIO, else ocio)")
     p.add_argument("--preadapt", help="initial adaptation: CD_M2 (fully adapted) or "
                    "CD_M2:SECONDS (exposed that long from dark)")
     p.add_argument("--state-in", help="start from this adaptation state: a state JSON, or an "
@@ -136,6 +141,7 @@ def _options(a, input_, output):
         checkpoint_every=a.checkpoint_every,
         channels=[c.strip() for c in a.channels.split(",")] if a.channels else None,
         png_level=a.png_level, max_memory=a.max_memory, overlap_io=not a.serial_io,
+        display_encode=a.display_encode,
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
 
 

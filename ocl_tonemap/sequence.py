@@ -93,6 +93,7 @@ class JobOptions:
     checkpoint: bool = True         # write the state after every frame ...
     checkpoint_every: int = 1       # ... or every N frames (local operators: per-pixel planes)
     overlap_io: bool = True         # read the next frame and write the last one beside the work
+    display_encode: str = "auto"    # display encoding: auto | table (device) | ocio (CPU)
 
     def __post_init__(self):
         if self.fps is not None and not (math.isfinite(self.fps) and 0 < self.fps <= 1e6):
@@ -108,6 +109,9 @@ class JobOptions:
             raise ValueError(f"--checkpoint-every must be >= 1 (got {self.checkpoint_every})")
         if not (isinstance(self.png_level, int) and 0 <= self.png_level <= 9):
             raise ValueError(f"--png-level must be 0..9 (got {self.png_level})")
+        if self.display_encode not in ("auto", "table", "ocio"):  # colour.DISPLAY_ENCODE_MODES
+            raise ValueError(f"--display-encode must be auto, table or ocio "
+                             f"(got {self.display_encode!r})")
         if self.missing not in MISSING_POLICIES:
             raise ValueError(f"--missing must be one of {', '.join(MISSING_POLICIES)} "
                              f"(got {self.missing!r})")
@@ -292,6 +296,9 @@ class RunSetup:
         self.config_source = resolve_config_source(opts.colorconfig)
         self.cfg = load_config(opts.colorconfig)
         self.colour = _colour(self.cfg, opts)
+        # --display-encode: the baked device table or OCIO's CPU processor (encode_pixels)
+        log.info("%s", self.colour.set_display_encode(opts.display_encode, opts.backend,
+                                                      opts.device))
         self.disp = display_for(self.colour.display, opts.display_white, opts.display_peak,
                                 opts.display_model, opts.display_black)
         self.request = CalibrationRequest.parse(opts.luminance_scale)
@@ -669,7 +676,7 @@ def _stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, 
                 writer = BandWriter(outp, fr.spec, 4 if has_alpha else 3, out_cs, meta,
                                     run.opts.out_bits, f, chroma, white, straight,
                                     run.opts.png_level)
-            px = run.colour.linear(band) if linear else run.colour.encode(band)
+            px = run.colour.linear(band) if linear else run.colour.encode_fast(band)
             a = source.alpha(y0)
             if a is not None:
                 px = restore_alpha(px, a)
@@ -873,17 +880,19 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, t, cs_text, scale, scale_
 
 def encode_pixels(colour, disp_lin: np.ndarray, alpha_info, linear: bool) -> np.ndarray:
     """Display-linear light (with alpha) to the output's values: the display's linear
-    colourspace, or the display encoding (OCIO)."""
+    colourspace, or the display encoding (``colour.encode_fast``: the baked device table
+    chosen by ``--display-encode``, else OCIO's CPU processor)."""
     rgb = disp_lin[..., :3]
     alpha = disp_lin.shape[2] == 4
     pm = alpha and alpha_info is not None and alpha_info[2]
+    encode = getattr(colour, "encode_fast", colour.encode)
     if pm and not linear:
         # a display encoding is not linear: encode the straight colour, then
         # premultiply the code values again (encode(c) a, not encode(c a))
         a = disp_lin[..., 3:4]
         rgb = np.where(a > 0, rgb / np.where(a > 0, a, 1.0), rgb).astype(np.float32)
-        return restore_alpha(colour.encode(rgb), alpha_info)
-    pixels = colour.linear(rgb) if linear else colour.encode(rgb)
+        return restore_alpha(encode(rgb), alpha_info)
+    pixels = colour.linear(rgb) if linear else encode(rgb)
     if alpha:
         pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
     return pixels

@@ -1,0 +1,90 @@
+"""The baked display transform on an OpenCL device (kernels/display.cl).
+
+:class:`DeviceDisplayTable` holds one :class:`~ocl_tonemap.colour.DisplayTable` on the
+device and encodes frames with it: upload, one kernel, download. It may be called from
+any thread (the writer thread of ``sequence._FrameIO``): it has its own command queue
+and kernel object in the chosen device's context, and a lock around each frame.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+from .runtime import get_runtime, round_up
+
+_WG = 64
+
+
+class DeviceDisplayTable:
+    """A display table on the device: :meth:`encode` (H, W, C >= 3) float32 -> code values."""
+
+    def __init__(self, table, runtime=None, device: str | None = None):
+        import pyopencl as cl
+        if table.kind not in ("1d", "3d"):
+            raise ValueError(f"no device form for a {table.kind!r} display table")
+        self.table = table
+        self.rt = runtime if runtime is not None else get_runtime(device)
+        ctx = self.rt.context
+        self.queue = cl.CommandQueue(ctx, self.rt.device)
+        name = "display_lut1d" if table.kind == "1d" else "display_lut3d"
+        # the program is built once per process (runtime's cache); the kernel object is
+        # this table's own, so that its arguments are not shared with another thread
+        self._kernel = cl.Kernel(self.rt.kernel("display.cl", name).program, name)
+        par = np.zeros(16, np.float32)
+        par[0:9] = np.asarray(table.matrix, np.float64).reshape(9)
+        par[9:12] = np.asarray(table.offset, np.float64)
+        par[12] = table.eps
+        par[13] = table.s_lo
+        par[14] = (table.size - 1) / (table.s_hi - table.s_lo)
+        self._e_eps = np.int32(round(np.log2(table.eps)) + 127)
+        mf = cl.mem_flags
+        self._par = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=par)
+        lut = np.ascontiguousarray(table.table, np.float32).reshape(-1)
+        self._lut = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=lut)
+        self._lock = threading.Lock()
+        self._bufs: dict = {}
+
+    def describe(self) -> str:
+        return f"{self.table.describe()} on {self.rt.name}"
+
+    def _buffer(self, role: str, nbytes: int):
+        import pyopencl as cl
+        buf = self._bufs.get(role)
+        if buf is None or buf.size < nbytes:
+            self._bufs[role] = buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE,
+                                               max(int(nbytes), 4))
+        return buf
+
+    def encode(self, pixels: np.ndarray) -> np.ndarray:
+        """Display-linear working-space RGB (..., C >= 3) -> display code values (new
+        float32 array of the same shape; channels after RGB copied as they are)."""
+        import pyopencl as cl
+        x = np.asarray(pixels)
+        if x.ndim < 1 or x.shape[-1] < 3:
+            raise ValueError(f"display encoding needs RGB pixels (got shape {x.shape})")
+        c = x.shape[-1]
+        if c not in (3, 4):
+            out = np.array(x, dtype=np.float32, copy=True, order="C")
+            out[..., :3] = self.encode(x[..., :3])
+            return out
+        x = np.ascontiguousarray(x, np.float32)
+        n = x.size // c
+        out = np.empty(x.shape, np.float32)
+        if n == 0:
+            return out
+        with self._lock:
+            src = self._buffer("src", x.nbytes)
+            dst = self._buffer("dst", out.nbytes)
+            cl.enqueue_copy(self.queue, src, x, is_blocking=False)
+            self._kernel(self.queue, (round_up(n, _WG),), None, src, dst, np.int32(n),
+                         np.int32(c), np.int32(c), self._par, self._e_eps,
+                         np.int32(self.table.size), self._lut)
+            cl.enqueue_copy(self.queue, out, dst, is_blocking=True)
+        return out
+
+    def release(self) -> None:
+        """Drop the frame buffers (they are made again on the next :meth:`encode`)."""
+        with self._lock:
+            self._bufs.clear()
