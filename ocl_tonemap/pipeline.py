@@ -16,6 +16,7 @@ compositing pipeline step.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
 
@@ -29,6 +30,8 @@ from .models.photometry import RepairCounts, Y_WEIGHTS
 from .operators import get_operator
 from .operators.base import Frame, FrameStats
 from .state import AdaptationState
+
+log = logging.getLogger("ocl_tonemap")
 
 
 @dataclass
@@ -47,8 +50,9 @@ class FrameInfo:
 
 
 class NeedsWholeFrame(RuntimeError):
-    """A streamed frame turned out to need an effect that works on whole frames;
-    nothing was mapped or written, the state is as before."""
+    """A streamed frame turned out to need the whole frame; nothing was mapped or
+    written, the state is as before. (The built-in effects all stream now and
+    raise it no more; a schedule may.)"""
 
 
 def as_float_pixels(frame) -> np.ndarray:
@@ -278,18 +282,13 @@ class Tonemapper:
 
     def can_stream(self) -> str | None:
         """Why frames cannot be streamed in bands (None: they can): operators whose
-        schedule streams and whose effects need no whole frame. Flare and acuity on
-        ``auto`` stream the frames that turn out not to need them (else
-        :class:`NeedsWholeFrame`)."""
+        schedule streams; every built-in effect streams (flare, Purkinje and
+        chromatic adaptation wrap the band source, acuity the sink), effect
+        plugins see whole frames."""
         if not getattr(self.schedule, "streams", False):
             if self.op.metering == "local":
                 return f"{self.operator_name} adapts locally"
             return f"the {self.backend.name} backend works on whole frames"
-        fx = self.effects.s
-        for name in ("flare", "acuity", "purkinje"):
-            v = getattr(fx, name)
-            if v == "on" or (v == "auto" and name == "purkinje"):
-                return f"the {name} effect needs the whole frame"
         if self.effects.plugins:
             return "effect plugins need the whole frame"
         return None
@@ -299,9 +298,19 @@ class Tonemapper:
                        luminance_scale: float = 1.0, illuminant=None) -> None:
         """One frame in row bands, never whole in memory: ``source[y0:y1]`` gives
         working-space bands (straight colour), ``source.shape`` is (H, W, C);
-        ``sink(y0, band)`` receives the display-linear bands (3 channels) after
-        the state has advanced (``self.last`` is set before the first band comes).
-        Operators and effects that stream (:meth:`can_stream`)."""
+        ``sink(y0, band)`` receives the display-linear bands (3 channels) in order
+        after the state has advanced (``self.last`` is set before the first band
+        comes). Operators that stream (:meth:`can_stream`).
+
+        The effects as on whole frames: the scene effects (flare, Purkinje,
+        chromatic adaptation where the schedule cannot put it on the cone
+        signals) after a metering pass over the unchanged frame, as
+        ``_scene_effects`` meters it, each band made from the source's rows around
+        it (``_SceneBands``; flare: ``effects/flare.py`` ``BandedFlare``); the
+        acuity blur on the display bands on their way to ``sink``
+        (``effects/acuity.py`` ``BandedAcuity``). A source with ``alpha(y0)``
+        (``sequence._WorkingBands``) is read again at a band whose alpha it no
+        longer holds when the sink gets it."""
         why = self.can_stream()
         if why:
             raise ValueError(f"cannot stream this frame: {why}")
@@ -310,28 +319,80 @@ class Tonemapper:
         time_s, step_dt, fresh = self._frame_time(dt, time_s)
         eff: dict = {}
         before = self._state.copy()
-        fx = self.effects
-        frame = Frame(source, luminance_scale, None, self.display_primaries)
-        stats = self.measure(frame)
-        # effects on auto: does this frame need the whole of itself after all?
-        if fx.s.flare == "auto" and \
-                self.backend.last_max_Y > fx.s.flare_threshold * stats.G_cone:
-            raise NeedsWholeFrame("it has light sources (flare)")
-        if fx.s.acuity == "auto" and fx.acuity_needed(stats.G_rod, source.shape[1]):
-            raise NeedsWholeFrame("the eye's acuity is below the pixels' (acuity)")
-        for name in ("flare", "acuity"):
-            if getattr(fx.s, name) == "auto":
-                eff[name] = {"ran": False, "reason": "not needed (streamed frame)"}
-        params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh, illuminant,
-                                       eff)
-        self.last = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
-                              stats.repairs, self._state.copy(), self._summary(params, stats), eff)
         self.last_output = None
+        h, w = source.shape[:2]
         try:
-            self.apply(frame, stats, params, gains, sink)
+            src, scale, pre_repairs, sweep = self._stream_scene_effects(
+                source, luminance_scale, eff, step_dt, fresh, illuminant)
+            frame = Frame(src, scale, None, self.display_primaries)
+            stats = self.measure(frame)
+            for finish in sweep:          # sums over the frame the measure pass swept
+                finish()
+            params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh,
+                                           illuminant, eff)
+            out, eff["acuity"] = self.effects.acuity_stream(
+                _alpha_sink(source, sink), stats.G_rod, (h, w),
+                STREAM_EFFECT_BANDS * _band_pixels(self.backend, h, w))
+            self.last = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod,
+                                  stats.G_cone, pre_repairs or stats.repairs,
+                                  self._state.copy(), self._summary(params, stats), eff)
+            self.apply(frame, stats, params, gains, out)
+            if not getattr(out, "done", True):
+                raise RuntimeError(f"the schedule sent rows up to {out.got} of {h}")
         except NeedsWholeFrame:
             self._state = before
             raise
+
+    def _stream_scene_effects(self, source, scale, eff: dict, dt: float, fresh: bool,
+                              illuminant):
+        """``_scene_effects`` for a frame in row bands: (band source to tone map, its
+        scale, the repairs of the original or None, functions to call once the
+        measure pass has swept the frame)."""
+        fx = self.effects
+        own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
+        if fx.s.flare == "off" and fx.s.purkinje == "off" and not own_chroma:
+            return source, scale, None, []
+        h, w, nc = source.shape
+        be = self.backend
+        band_px = _band_pixels(be, h, w)
+        # the unchanged frame's levels, as backend.working gives them to _scene_effects
+        if hasattr(be, "meter_pass"):
+            _, repairs, (G_rod, G_cone), illum = be.meter_pass(source, scale, self.metering,
+                                                               own_chroma, None)
+            max_Y = getattr(be, "last_max_Y", None)
+        else:
+            _, repairs, (G_rod, G_cone), est = be.working(source[0:h], scale, self.metering)
+            illum, max_Y = (est() if own_chroma else None), None
+        rows = _WorkingRows(be, source, scale, max(1, band_px // max(w, 1)))
+        flare, eff["flare"] = fx.flare_stream((h, w), G_rod, G_cone, rows.get, band_px, max_Y,
+                                              STREAM_EFFECT_BANDS * band_px)
+        if "streamed" in eff["flare"] and not getattr(self, "_said_fast", False):
+            log.warning("flare: streamed frames use --flare-method fast (the exact "
+                        "method's FFT needs the whole frame)")
+            self._said_fast = True
+        purk, eff["purkinje"] = fx.purkinje_stream(G_rod, G_cone, self._state.extra, dt,
+                                                   fresh, self.preadapt, h)
+        gains = None
+        if own_chroma:
+            goal, src = fx.illuminant_goal(illuminant, lambda: np.asarray(illum)[:3])
+            gains, eff["chromatic_adaptation"] = fx.chromatic(
+                self._state.extra, goal, src, dt, fresh, self.preadapt is not None)
+        if flare is None and purk is None and gains is None:
+            return source, scale, None, []
+        sweep = []
+        if flare is not None:
+            def flare_done(info=eff["flare"]):
+                e = flare.energy_in_frame()
+                if e is not None:
+                    info["energy_in_frame"] = e
+            sweep.append(flare_done)
+        if purk is not None:
+            def purkinje_done(info=eff["purkinje"]):
+                fb = purk.fallback_fraction()
+                if fb is not None:
+                    info["fallback_fraction"] = fb
+            sweep.append(purkinje_done)
+        return _SceneBands(rows, flare, purk, gains, nc), 1.0, repairs, sweep
 
     def _process_spectral(self, frame, dt, time_s, frame_number, scale, wavelengths):
         if "spectral" not in self.op.inputs:
@@ -469,6 +530,114 @@ class Tonemapper:
                                 spec.z, spec.z + max(spec.depth, 1), 0, nch),
                        np.ascontiguousarray(r.pixels, np.float32))
         return res
+
+
+#: Effects that reach across band edges (flare, acuity) work on this many bands' pixels
+#: at a time when frames stream: their halo rows cost less the more rows share them
+#: (~100 bytes a pixel each while they work, inside the streaming path's budget).
+STREAM_EFFECT_BANDS = 1
+
+
+def _band_pixels(be, h: int, w: int) -> int:
+    return int(getattr(be, "max_band_pixels", None) or h * w)
+
+
+class _WorkingRows:
+    """Rows of a band source through the backend's colour stage (working RGB in
+    cd/m^2, float32; the straight alpha after it when the source has one), read
+    in pieces of at most ``max_rows`` rows. The rows of the last request are kept:
+    the next band's rows around it mostly overlap them and are not read again."""
+
+    def __init__(self, backend, source, scale: float, max_rows: int):
+        self.be, self.source, self.scale = backend, source, float(scale)
+        self.h, self.w, self.nc = source.shape
+        self.max_rows = max(1, int(max_rows))
+        self._rows = np.zeros((0, self.w, 4 if self.nc == 4 else 3), np.float32)
+        self._c0 = 0
+
+    def _read(self, a: int, b: int) -> np.ndarray:
+        nc = 4 if self.nc == 4 else 3
+        out = np.empty((b - a, self.w, nc), np.float32)
+        for y in range(a, b, self.max_rows):
+            z = min(b, y + self.max_rows)
+            pix = np.asarray(self.source[y:z], np.float32)
+            out[y - a:z - a, :, :3] = _working(self.be, pix, self.scale)
+            if nc == 4:
+                out[y - a:z - a, :, 3] = pix[..., 3]
+        return out
+
+    def get(self, a: int, b: int) -> np.ndarray:
+        """Rows [a, b) (H x W x 3, or 4 with alpha)."""
+        a, b = max(0, int(a)), min(self.h, int(b))
+        c0, c1 = self._c0, self._c0 + len(self._rows)
+        if c0 <= a and b <= c1:
+            return self._rows[a - c0:b - c0]
+        lo, hi = max(a, c0), min(b, c1)
+        if lo >= hi:
+            rows = self._read(a, b)
+        else:
+            parts = [self._read(a, lo)] if a < lo else []
+            parts.append(self._rows[lo - c0:hi - c0])
+            if hi < b:
+                parts.append(self._read(hi, b))
+            rows = np.concatenate(parts)
+        self._rows, self._c0 = rows, a
+        return rows
+
+
+def _working(be, pix: np.ndarray, scale: float) -> np.ndarray:
+    """The backend's colour stage on one band: working RGB in cd/m^2 (float32)."""
+    if hasattr(be, "to_working"):
+        import pyopencl as cl
+        be.to_working(pix, scale, count=False)
+        out = np.empty(pix.shape[:2] + (3,), np.float32)
+        cl.enqueue_copy(be.rt.queue, out, be.bufs["rgb"])
+        return out
+    from .models.photometry import sanitize
+    rgb, _ = sanitize(pix[..., :3], scale)
+    return np.asarray(rgb, np.float32)
+
+
+class _SceneBands:
+    """A band source with the scene effects on (``Tonemapper.process_stream``):
+    rows [y0, y1) are the working rows flared (from the rows around them),
+    Purkinje-shifted and multiplied by the chromatic gains, as ``_scene_effects``
+    changes the whole frame; cd/m^2, so the frame's scale is 1."""
+
+    def __init__(self, rows: _WorkingRows, flare, purkinje, gains, channels: int):
+        self.rows, self.flare, self.purkinje, self.gains = rows, flare, purkinje, gains
+        self._alpha = channels == 4
+        self.shape = (rows.h, rows.w, 4 if self._alpha else 3)
+
+    def __getitem__(self, sl: slice) -> np.ndarray:
+        y0, y1, _ = sl.indices(self.rows.h)
+        if self.flare is not None:
+            rgb = self.flare.rows(y0, y1)
+        else:
+            rgb = np.array(self.rows.get(y0, y1)[..., :3])
+        if self.purkinje is not None:
+            rgb = self.purkinje(y0, rgb)
+        if self.gains is not None:
+            rgb = (rgb * self.gains).astype(np.float32)
+        if self._alpha:
+            rgb = np.concatenate([rgb, self.rows.get(y0, y1)[..., 3:4]], axis=2)
+        return np.ascontiguousarray(rgb, np.float32)
+
+
+def _alpha_sink(source, sink):
+    """``sink`` behind a check that the source still holds the alpha of the band
+    the sink gets (``sequence._WorkingBands.alpha``: that of the last band read):
+    effects that read rows around a band, or send bands on later, read it again."""
+    alpha = getattr(source, "alpha", None)
+    if alpha is None or not callable(alpha) or source.shape[2] != 4:
+        return sink
+
+    def out(y0, band):
+        a = alpha(y0)
+        if a is None or len(a[0]) != len(band):
+            source[y0:y0 + len(band)]
+        sink(y0, band)
+    return out
 
 
 def restore_alpha(rgb: np.ndarray, alpha_info) -> np.ndarray:

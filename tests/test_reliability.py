@@ -354,15 +354,16 @@ def test_operators_that_cannot_stream_say_so(tmp_path, caplog):
 
 
 def test_durand00_defaults_stream_unless_a_frame_needs_flare(tmp_path, caplog):
-    """flare and acuity on auto: a frame that needs neither streams; one with a light
-    source is read whole (said once), and both equal the whole-frame renders."""
+    """flare and acuity on auto: every frame streams now, one with a light source too
+    (the flare in row bands: tests/test_stream_effects.py), and both equal the
+    whole-frame renders; nothing is read whole."""
     import logging
     rng = np.random.default_rng(7)                             # an even, daylit field
     pix = (500.0 * rng.uniform(0.5, 2.0, (203, 301, 3))).astype(np.float32)
     plain = _exr(tmp_path / "plain.exr", pix, None, whiteLuminance=1.0)
     pix[100:104, 150:154] = 1e6                                  # a lamp
     lamp = _exr(tmp_path / "lamp.exr", pix, None, whiteLuminance=1.0)
-    for src, streamed in ((plain, True), (lamp, False)):
+    for src, flared in ((plain, False), (lamp, True)):
         w, s = str(tmp_path / "w.exr"), str(tmp_path / "s.exr")
         assert main(["run", src, w, "--operator", "durand00", "-q", "--no-checkpoint",
                      "--out-bits", "float"]) == 0
@@ -371,8 +372,10 @@ def test_durand00_defaults_stream_unless_a_frame_needs_flare(tmp_path, caplog):
             assert main(["run", src, s, "--operator", "durand00", "--no-checkpoint",
                          "--max-memory", "8", "--out-bits", "float"]) == 0
         b = oiio.ImageBuf(s)
-        assert (b.spec().getattribute("ocltm:streamed") is not None) == streamed
-        assert any("not streamed" in r.getMessage() for r in caplog.records) == (not streamed)
+        assert b.spec().getattribute("ocltm:streamed") is not None
+        assert not any("not streamed" in r.getMessage() for r in caplog.records)
+        ran = b.spec().getattribute("ocltm:effects_ran").split(",")
+        assert ("flare" in ran) == flared
         np.testing.assert_allclose(b.get_pixels(oiio.FLOAT),
                                    oiio.ImageBuf(w).get_pixels(oiio.FLOAT), atol=1e-4, rtol=1e-4)
 

@@ -13,6 +13,14 @@ effect                   slot       module
 *receptor* effects act on the cone signals (the schedule places them, see
 ``chromatic.py``); *display* effects change the display-linear output.
 
+Frames streamed in row bands (``Tonemapper.process_stream``, ``--max-memory``)
+get every built-in effect: the scene effects make each band from the rows
+around it after a metering pass over the unchanged frame (flare: the fast
+method's pyramid cut where its image fits the budget, ``flare.BandedFlare``;
+Purkinje and chromatic gains: pointwise), acuity blurs the display bands on
+their way out (``acuity.BandedAcuity``); the values are the whole frame's
+(flare ``exact`` streams as ``fast``). Effect plugins see whole frames.
+
 Each takes ``on | off | auto``. ``auto`` runs an effect only where the frame
 needs it (light sources present; cut-off frequency below the pixel frequency;
 illuminant away from the working white by more than 1%; rods active), so its
@@ -33,6 +41,7 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from ..models import spencer1995 as fl
+from ..models.convolution import EDGE_CLAMP
 from ..models.durand2000 import parse_illuminant
 from . import acuity as _acuity
 from . import chromatic as _chromatic
@@ -158,3 +167,25 @@ class Effects:
 
     def acuity_needed(self, G_rod: float, width: int) -> bool:
         return _acuity.needed(self.s, G_rod, width)
+
+    # -- frames in row bands (Tonemapper.process_stream) -------------------------------
+    def flare_stream(self, shape, G_rod: float, G_cone: float, rgb_rows, max_pixels: int,
+                     max_Y: float | None = None, block_pixels: int | None = None):
+        """(:class:`~.flare.BandedFlare` or None, info); see :func:`.flare.stream`."""
+        return _flare.stream(self.s, shape, G_rod, G_cone, rgb_rows, max_pixels, self._blur,
+                             max_Y, block_pixels)
+
+    def purkinje_stream(self, G_rod: float, G_cone: float, extra: dict | None, dt: float,
+                        fresh: bool, preadapt, height: int):
+        """(:class:`~.purkinje.BandedPurkinje` or None, info); levels advanced."""
+        if self.s.purkinje != "off" and self._purkinje_dev is None and \
+                hasattr(self.backend, "purkinje_device"):
+            self._purkinje_dev = self.backend.purkinje_device()
+        return _purkinje.stream(self.s, G_rod, G_cone, extra, dt, fresh, preadapt,
+                                self._purkinje_dev, height)
+
+    def acuity_stream(self, sink, G_rod: float, shape, block_pixels: int | None = None):
+        """(sink, info): ``sink`` behind a :class:`~.acuity.BandedAcuity` when it blurs."""
+        dev = getattr(getattr(self._blur, "__self__", None), "blur_axis", None)
+        pas = None if dev is None else (lambda im, taps, axis: dev(im, taps, EDGE_CLAMP, axis))
+        return _acuity.stream(self.s, sink, G_rod, shape, pas, block_pixels)

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.convolution import EDGE_CLAMP
-from ..models.shaler1937 import acuity_a_px, acuity_blend, apply_acuity
+from ..models.convolution import EDGE_CLAMP, blur_axis_reference, gaussian_taps
+from ..models.shaler1937 import acuity_a_px, acuity_blend, acuity_info, apply_acuity
 
 NAME = "acuity"
 SLOT = "display"
@@ -30,3 +30,78 @@ def run(settings, img: np.ndarray, G_rod: float, blur=None):
     out, info = apply_acuity(img, G_rod, settings.fov_deg, dev)
     info["ran"] = info["blend"] > 0
     return out, info
+
+
+class BandedAcuity:
+    """A sink that blurs display-linear bands on their way to ``sink`` (frames in
+    row bands, ``Tonemapper.process_stream``): the rows come in order, are blurred
+    along x as they come, and go on once the rows the taps reach below them have
+    come (a window of the rows and their halo is kept), blurred along y with
+    clamped edges and blended as :func:`run` does: the whole frame's values (the
+    blur's two passes, x then y, with the same intermediate values). Rows go on
+    ``min_rows`` at a time at least: the y pass of the halo rows costs less as
+    they grow (~70 bytes a pixel of the window)."""
+
+    def __init__(self, sink, shape, taps: np.ndarray, blend: float, blur_axis=None,
+                 min_rows: int = 1):
+        self.sink, self.h = sink, int(shape[0])
+        self.taps, self.t = taps, float(blend)
+        self.R = len(taps) - 1
+        pas = blur_axis or (lambda im, tp, axis: blur_axis_reference(im, tp, EDGE_CLAMP, axis))
+        self.blur_x = lambda im: pas(im, self.taps, 0)
+        self.blur_y = lambda im: pas(im, self.taps, 1)
+        w = int(shape[1])
+        self.win = np.zeros((0, w, 3), np.float32)       # the rows as they came
+        self.winx = None                                  # ... blurred along x
+        self.w0 = 0                          # first row held in the window
+        self.got = 0                         # rows received
+        self.sent = 0                        # rows sent on
+        self.min_rows = max(1, int(min_rows))
+
+    def __call__(self, y0: int, band: np.ndarray) -> None:
+        if y0 != self.got:
+            raise RuntimeError(f"acuity: bands out of order (row {y0}, expected {self.got})")
+        band = np.asarray(band[..., :3], np.float32)
+        bx = self.blur_x(band)
+        self.win = np.concatenate([self.win, band])
+        self.winx = bx if self.winx is None or not len(self.winx) else \
+            np.concatenate([self.winx, bx])
+        self.got += len(band)
+        e1 = self.h if self.got >= self.h else self.got - self.R
+        if e1 >= min(self.h, self.sent + self.min_rows):
+            e0 = self.sent
+            lo = max(0, e0 - self.R) - self.w0              # the rows with their halo
+            hi = min(self.h, e1 + self.R) - self.w0
+            blurred = self.blur_y(self.winx[lo:hi])
+            k0, k1 = e0 - self.w0 - lo, e1 - self.w0 - lo
+            img = self.win[e0 - self.w0:e1 - self.w0]
+            out = (np.asarray(blurred[k0:k1], np.float64) * self.t
+                   + np.asarray(img, np.float64) * (1.0 - self.t))
+            del blurred
+            self.sent = e1
+            keep = max(0, e1 - self.R) - self.w0             # rows still needed above
+            self.win, self.winx, self.w0 = self.win[keep:], self.winx[keep:], self.w0 + keep
+            self.sink(e0, out.astype(np.float32))
+
+    @property
+    def done(self) -> bool:
+        return self.sent >= self.h
+
+
+def stream(settings, sink, G_rod: float, shape, blur_axis=None, block_pixels: int | None = None):
+    """(sink, info) for a frame in row bands: ``sink`` itself when nothing blurs,
+    else a :class:`BandedAcuity` in front of it (``blur_axis(img, taps, axis)``:
+    one pass of the device blur, clamped), sending rows on ``block_pixels`` at a
+    time at least, or twice that where the taps reach further (up to four times
+    their radius)."""
+    if settings.acuity == "off":
+        return sink, {"ran": False}
+    info = acuity_info(G_rod, settings.fov_deg, int(shape[1]))
+    info["ran"] = info["blend"] > 0
+    if not info["ran"]:
+        return sink, info
+    taps = gaussian_taps(info["sigma_px"])
+    R = len(taps) - 1
+    band = int(block_pixels or 0) // max(1, int(shape[1]))
+    rows = min(4 * R, max(band, min(2 * R, 2 * band)))
+    return BandedAcuity(sink, shape, taps, info["blend"], blur_axis, rows), info

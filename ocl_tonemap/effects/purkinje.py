@@ -59,14 +59,9 @@ def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None,
 
 
 
-def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
-        dt: float = 0.0, fresh: bool = True, preadapt=None, device=None):
-    """(new rgb or None, info): the kirk11 shift applied to chromaticity only (each
-    pixel keeps its Y), its strength from the shared receptor scheduler: the
-    adapted scotopic level and the rods' dark adaptation (``extra`` keeps the
-    levels in the adaptation state; without it, steady state at the frame)."""
-    if settings.purkinje == "off":
-        return None, {"ran": False}
+def _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt):
+    """Advance the shared receptor levels over one frame (kept in ``extra``);
+    returns (levels, rods' sensitivity)."""
     prev = (extra or {}).get(LEVELS_KEY)
     if prev is None or fresh:
         lv = (receptor_levels_preadapted(preadapt[0] * neutral_scotopic_ratio(),
@@ -76,10 +71,64 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | No
         lv = receptor_levels_advance(prev, G_rod, G_cone, dt)
     if extra is not None:
         extra[LEVELS_KEY] = {k: float(v) for k, v in lv.items()}
-    sens = rod_sensitivity(lv)
+    return lv, rod_sensitivity(lv)
+
+
+def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
+        dt: float = 0.0, fresh: bool = True, preadapt=None, device=None):
+    """(new rgb or None, info): the kirk11 shift applied to chromaticity only (each
+    pixel keeps its Y), its strength from the shared receptor scheduler: the
+    adapted scotopic level and the rods' dark adaptation (``extra`` keeps the
+    levels in the adaptation state; without it, steady state at the frame)."""
+    if settings.purkinje == "off":
+        return None, {"ran": False}
+    lv, sens = _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt)
     out, info = apply_purkinje(rgb, lv["A_rod"], lv["A_cone"], device, sens)
     info.update({"A_rod": lv["A_rod"], "rod_sensitivity": sens})
     if settings.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
         return None, {"ran": False, "reason": "photopic", **info}
     info["ran"] = True
     return out, info
+
+
+class BandedPurkinje:
+    """The shift of a frame in row bands (``Tonemapper.process_stream``): pointwise
+    once the frame's levels are known, so each band is shifted as the whole frame
+    is; ``fallback_fraction`` is summed over the first sweep of the frame."""
+
+    def __init__(self, levels: dict, sensitivity: float, device, height: int):
+        self.lv, self.sens, self.device, self.h = levels, sensitivity, device, int(height)
+        self._fb, self._swept = 0.0, 0
+
+    def __call__(self, y0: int, rgb: np.ndarray) -> np.ndarray:
+        out, info = apply_purkinje(rgb, self.lv["A_rod"], self.lv["A_cone"], self.device,
+                                   self.sens)
+        y1 = y0 + len(rgb)
+        if y0 <= self._swept < y1:
+            self._fb += info["fallback_fraction"] * (y1 - self._swept)
+            self._swept = y1
+        return np.asarray(out, np.float32)
+
+    def fallback_fraction(self) -> float | None:
+        return self._fb / self.h if self._swept >= self.h else None
+
+
+def stream(settings, G_rod: float, G_cone: float, extra: dict | None = None, dt: float = 0.0,
+           fresh: bool = True, preadapt=None, device=None, height: int = 1):
+    """(:class:`BandedPurkinje` or None, info) for a frame in row bands: the levels
+    advanced as :func:`run` advances them, the shift left to the bands (the info's
+    ``fallback_fraction`` once every row has been shifted)."""
+    if settings.purkinje == "off":
+        return None, {"ran": False}
+    lv, sens = _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt)
+    k1, _, gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), lv["A_rod"])
+    k1, gain = k1 * sens, gain * sens
+    info = ({"rod_gain": 0.0, "fallback_fraction": 0.0} if gain <= 0.0 else
+            {"rod_gain": float(gain), "k1": float(k1)})
+    info.update({"A_rod": lv["A_rod"], "rod_sensitivity": sens})
+    if settings.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
+        return None, {"ran": False, "reason": "photopic", **info}
+    info["ran"] = True
+    if gain <= 0.0:
+        return None, info
+    return BandedPurkinje(lv, sens, device, height), info

@@ -49,3 +49,15 @@ def blur_reference(img: np.ndarray, taps: np.ndarray, edge: int = EDGE_ZERO) -> 
             out = out + taps[r] * (_shift(a, -r, axis, edge) + _shift(a, r, axis, edge))
         a = out
     return a
+
+
+def blur_axis_reference(img: np.ndarray, taps: np.ndarray, edge: int = EDGE_ZERO,
+                        axis: int = 0) -> np.ndarray:
+    """One of :func:`blur_reference`'s passes (``axis`` 0: along x, its first; 1:
+    along y), float64: x then y gives its values."""
+    a = np.asarray(img, np.float64)
+    ax = 1 if axis == 0 else 0
+    out = taps[0] * a
+    for r in range(1, len(taps)):
+        out = out + taps[r] * (_shift(a, -r, ax, edge) + _shift(a, r, ax, edge))
+    return out

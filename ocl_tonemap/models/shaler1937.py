@@ -62,3 +62,11 @@ def apply_acuity(img: np.ndarray, L_waR: float, fov_deg: float, blur=None):
     blurred = blur(img, taps) if blur is not None else blur_reference(img, taps, EDGE_CLAMP)
     out = np.asarray(blurred, np.float64) * t + np.asarray(img, np.float64) * (1.0 - t)
     return out.astype(np.float32), info
+
+
+def acuity_info(L_waR: float, fov_deg: float, width: int) -> dict:
+    """What :func:`apply_acuity` reports for a frame ``width`` px wide (its blur:
+    ``gaussian_taps(sigma_px)`` blended by ``blend``), without the frame."""
+    a = float(acuity_a_px(L_waR, fov_deg, width))
+    return {"a_px": a, "cutoff_cpd": float(acuity_cutoff(L_waR)), "blend": float(acuity_blend(a)),
+            "sigma_px": float(acuity_sigma_px(a))}

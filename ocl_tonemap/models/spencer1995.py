@@ -400,3 +400,202 @@ def apply_flare(rgb: np.ndarray, L_wa: float, L_waR: float, fov_deg: float,
         raise ValueError(f"unknown flare method {method!r} (fast | exact)")
     info["energy_in_frame"] = float(F.sum() / max(S.sum(), 1e-300))
     return rgb - S + F, info
+
+
+# --- the fast method in row bands (frames streamed with bounded memory) ------------------
+
+@dataclass(frozen=True)
+class BandedFast:
+    """:func:`convolve_fast` split for frames that are never whole in memory.
+
+    The pyramid is cut at level ``split``: the levels from ``split`` up (the
+    wide Gaussians and the halo ring, whose supports reach across the frame)
+    are computed whole from level ``split`` alone, a ``2^split``-times smaller
+    image built band by band (:meth:`coarse`); the delta and the Gaussians of
+    the finer levels (each <= ~4 px wide on its level, so a few dozen rows
+    reach) are computed per output band from the source rows around it
+    (:meth:`rows`), and the wide part is brought up through the same bilinear
+    steps. Box averages over rows aligned to ``2^split``, the zero-edged blurs
+    with halo rows and the clamped upsampling steps are the whole-frame ones,
+    so the result is :func:`convolve_fast`'s to rounding (float32 blurs on the
+    device: ~1e-6 relative; the float64 reference blur: ~1e-12), not a further
+    approximation. ``split`` <= the ring's level (the ring stays whole);
+    memory: a few float64 copies of level ``split`` plus the band and its halo.
+    """
+
+    shape: tuple            # (H, W) of the frame
+    deg_per_px: float
+    a0: float               # weight of the delta
+    by_level: dict          # level -> [(coarse sigma, weight), ...]
+    lring: int              # level of the f3 ring (-1: no ring)
+    w3: float
+    top: int                # coarsest level used
+    split: int              # levels >= split are computed whole
+
+    @property
+    def sizes(self) -> list:
+        """(H_l, W_l) of every level 0..top (``_down2`` pads odd sizes)."""
+        s = [tuple(self.shape)]
+        for _ in range(self.top):
+            h, w = s[-1]
+            s.append(((h + 1) // 2, (w + 1) // 2))
+        return s
+
+    def radius(self, lev: int) -> int:
+        """Rows the Gaussians of level ``lev`` reach (their taps' radius)."""
+        return max((len(gaussian_taps(sc)) - 1 for sc, _ in self.by_level.get(lev, [])),
+                   default=0)
+
+    def span(self, y0: int, y1: int):
+        """(rows needed on each level 0..split to make rows [y0, y1), source rows
+        [a0, a1) they come from): the band, the taps' halo, the upsampling's
+        neighbours, aligned to the boxes of level ``split - 1``."""
+        L, sizes = self.split, self.sizes
+        need = [(y0, y1)]
+        for lev in range(1, L + 1):
+            p0, p1 = need[-1]
+            need.append((max(0, p0 // 2 - 1), min(sizes[lev][0], (p1 - 1) // 2 + 2)))
+        a0, a1 = y0, y1
+        for lev in range(1, L):
+            R = self.radius(lev)
+            if R:
+                a0 = min(a0, max(0, need[lev][0] - R) * 2 ** lev)
+                a1 = max(a1, min(sizes[lev][0], need[lev][1] + R) * 2 ** lev)
+        R = self.radius(0)
+        a0, a1 = min(a0, max(0, y0 - R)), max(a1, y1 + R)
+        step = 2 ** max(L - 1, 0)
+        return need, (a0 // step) * step, min(self.shape[0], -(-a1 // step) * step)
+
+
+def banded_fast(shape: tuple[int, int], deg_per_px: float, D: float, per_octave: int = 1,
+                max_pixels: int | None = None) -> BandedFast:
+    """The plan of :func:`convolve_fast` for a frame of ``shape`` = (H, W), split at
+    the finest level whose image holds at most ``max_pixels`` pixels (not above
+    the ring's level nor the coarsest level used)."""
+    h, w = shape
+    fit = fit_gaussians((h, w), float(deg_per_px), int(per_octave))
+    w0, w1, w2, w3 = flare_weights(D)
+    a = sum(wi * fit.weights[b] for wi, b in zip((w0, w1, w2), channel_bases(0)))
+    max_level = max(0, int(math.log2(max(1, min(h, w)) / PYRAMID_MIN_SIZE)))
+    by_level: dict[int, list] = {}
+    for k, sg in enumerate(fit.sigmas):
+        if a[k + 1] > 0:
+            lev, sc = pyramid_level(sg, max_level)
+            by_level.setdefault(lev, []).append((sc, a[k + 1]))
+    lring = ring_level(deg_per_px, max_level) if w3 > 0 else -1
+    top = max(max(by_level, default=0), lring)
+    split = 0
+    cap = max(1, int(max_pixels)) if max_pixels else 1
+    hh, ww = h, w
+    while split < top and hh * ww > cap and (lring < 0 or split < lring):
+        split += 1
+        hh, ww = (hh + 1) // 2, (ww + 1) // 2
+    return BandedFast((h, w), float(deg_per_px), float(a[0]), by_level, lring, float(w3),
+                      top, split)
+
+
+def _level_part(plan: BandedFast, lev: int, img: np.ndarray, blur) -> np.ndarray | None:
+    """The Gaussians (and the ring) of pyramid level ``lev`` on ``img``, summed in
+    :func:`convolve_fast`'s order."""
+    part = None
+    for sc, wk in plan.by_level.get(lev, []):
+        b = np.array(blur(img, gaussian_taps(sc)), np.float64)
+        b *= wk                                  # (in place: the same values, less memory)
+        if part is None:
+            part = b
+        else:
+            part += b
+        del b
+    if lev == plan.lring:
+        dl = plan.deg_per_px * 2.0 ** lev
+        ring = np.stack([plan.w3 * _fftconvolve_same(img[..., c], None, _ring_kernel_fft(
+            img.shape[:2], dl, c)) for c in range(3)], axis=-1)
+        part = ring if part is None else part + ring
+    return part
+
+
+def banded_coarse(plan: BandedFast, level_split: np.ndarray, blur=None) -> np.ndarray | None:
+    """The wide part at level ``split``: :func:`convolve_fast`'s accumulator there,
+    from the source part box-averaged to that level (``level_split``, built band
+    by band with :func:`down_rows`). None when no level >= split has anything."""
+    blur = blur or (lambda img, taps: blur_reference(img, taps, EDGE_ZERO))
+    levels = {plan.split: np.asarray(level_split, np.float64)}
+    for lev in range(plan.split + 1, plan.top + 1):
+        levels[lev] = _down2(levels[lev - 1])
+    acc = None
+    for lev in range(plan.top, plan.split - 1, -1):
+        if acc is not None:
+            acc = _up2(acc, levels[lev].shape[:2])
+        part = _level_part(plan, lev, levels[lev], blur)
+        if part is not None:
+            acc = part if acc is None else acc + part
+        del levels[lev]
+    return acc
+
+
+def down_rows(S: np.ndarray, levels: int) -> np.ndarray:
+    """``levels`` 2x box steps of rows that start on a multiple of ``2^levels`` and
+    end on one or at the frame's last row: the same rows as the whole frame's."""
+    for _ in range(levels):
+        S = _down2(S)
+    return S
+
+
+def _up2_rows(c: np.ndarray, c0: int, hc: int, f0: int, f1: int, wf: int) -> np.ndarray:
+    """Rows [f0, f1) of ``_up2`` of a level whose rows [c0, c0 + len(c)) are ``c``
+    (of ``hc`` rows in all; the fine level is ``wf`` wide): the same values, with
+    fewer temporaries."""
+    i = np.arange(f0, f1)
+    j = i // 2
+    nb = np.where(i % 2 == 0, np.maximum(j - 1, 0), np.minimum(j + 1, hc - 1))
+    x = 0.75 * c[j - c0]
+    x += 0.25 * c[nb - c0]
+    out = np.empty((x.shape[0], 2 * x.shape[1]) + x.shape[2:], np.float64)
+    ev, od = out[:, 0::2], out[:, 1::2]
+    np.multiply(x, 0.75, out=ev)                 # .75 x + .25 x[k - 1], held at the edge
+    ev[:, 1:] += 0.25 * x[:, :-1]
+    ev[:, :1] += 0.25 * x[:, :1]
+    np.multiply(x, 0.75, out=od)                 # .75 x + .25 x[k + 1]
+    od[:, :-1] += 0.25 * x[:, 1:]
+    od[:, -1:] += 0.25 * x[:, -1:]
+    return out[:, :wf]
+
+
+def banded_rows(plan: BandedFast, y0: int, y1: int, source_rows, coarse, blur=None):
+    """Rows [y0, y1) of PSF * S (:func:`convolve_fast`'s values): ``source_rows(a,
+    b)`` gives rows [a, b) of the source part S (float64, H x W x 3 sliced);
+    ``coarse`` is :func:`banded_coarse`'s result. Returns (F rows, S rows)."""
+    blur = blur or (lambda img, taps: blur_reference(img, taps, EDGE_ZERO))
+    L, sizes = plan.split, plan.sizes
+    need, a0, a1 = plan.span(y0, y1)
+    S = np.asarray(source_rows(a0, a1), np.float64)
+    parts = {}
+    lv, off = S, a0
+    for lev in range(L):
+        if lev:
+            lv, off = _down2(lv), off // 2
+        if plan.by_level.get(lev):
+            n0, n1 = need[lev]
+            R = plan.radius(lev)              # blur only the rows that reach the band
+            b0, b1 = max(off, n0 - R), min(off + len(lv), n1 + R)
+            parts[lev] = _level_part(plan, lev, lv[b0 - off:b1 - off], blur)[n0 - b0:n1 - b0]
+    acc = None
+    if coarse is not None:
+        n0, n1 = need[L]
+        acc = coarse[n0:n1]
+    for lev in range(L - 1, -1, -1):
+        if acc is not None:
+            acc = _up2_rows(acc, need[lev + 1][0], sizes[lev + 1][0], need[lev][0],
+                            need[lev][1], sizes[lev][1])
+        part = parts.pop(lev, None)
+        if part is not None:
+            if acc is None:
+                acc = part
+            else:
+                acc += part
+    Sy = S[y0 - a0:y1 - a0]
+    out = plan.a0 * Sy
+    if acc is not None:
+        out += acc
+    del acc
+    return np.maximum(out, 0.0, out=out), Sy

@@ -62,3 +62,37 @@ class DeviceBlur:
                 cl.enqueue_copy(q, band, src)
                 out[y0:y1, :, c] = band[y0 - a0:y1 - a0]
         return out[..., 0] if a.ndim == 2 else out
+
+    def blur_axis(self, img: np.ndarray, taps: np.ndarray, edge: int = EDGE_ZERO,
+                  axis: int = 0) -> np.ndarray:
+        """One of :meth:`blur`'s two passes (``axis`` 0: along x, its first; 1: along
+        y) on each plane of an (H, W[, C]) array, float32 out: x then y gives
+        :meth:`blur`'s values, so a frame's rows can be blurred along x as they
+        come and along y once the rows below them have come (streamed acuity)."""
+        import pyopencl as cl
+        a = np.asarray(img, np.float32)
+        planes = a[..., None] if a.ndim == 2 else a
+        h, w, nc = planes.shape
+        R = len(taps) - 1
+        if R == 0:
+            return np.array(a, np.float32) * np.float32(taps[0])
+        q = self.rt.queue
+        tap_buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                            hostbuf=np.asarray(taps, np.float32))
+        halo = R if axis == 1 else 0
+        out = np.empty((h, w, nc), np.float32)
+        for c in range(nc):
+            plane = np.ascontiguousarray(planes[..., c])
+            for y0, nr in row_bands(h, w, self.max_pixels, halo):
+                y1 = y0 + nr
+                a0, a1 = max(0, y0 - halo), min(h, y1 + halo)
+                bh = a1 - a0
+                src, tmp = self._buffers(bh * w)
+                cl.enqueue_copy(q, src, plane[a0:a1])
+                gs = (round_up(w, 16), round_up(bh, 4))
+                self._k(q, gs, (16, 4), src, tmp, np.int32(w), np.int32(bh), tap_buf,
+                        np.int32(R), np.int32(axis), np.int32(edge))
+                band = np.empty((bh, w), np.float32)
+                cl.enqueue_copy(q, band, tmp)
+                out[y0:y1, :, c] = band[y0 - a0:y1 - a0]
+        return out[..., 0] if a.ndim == 2 else out
