@@ -286,9 +286,7 @@ class Tonemapper:
         chromatic adaptation wrap the band source, acuity the sink), effect
         plugins see whole frames."""
         if not getattr(self.schedule, "streams", False):
-            if self.op.metering == "local":
-                return f"{self.operator_name} adapts locally"
-            return f"the {self.backend.name} backend works on whole frames"
+            return f"the {self.backend.name} backend works on whole frames for {self.operator_name}"
         if self.effects.plugins:
             return "effect plugins need the whole frame"
         return None
