@@ -87,8 +87,8 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    help="output sample type (default by extension: EXR half, TIFF 16, PNG/JPEG 8)")
     p.add_argument("--max-memory", type=float, metavar="MIB",
                    help="host memory budget: frames that would take more whole are read, "
-                   "mapped and written in row bands (global operators without flare/acuity; "
-                   "default: stream only frames larger than a quarter of the machine's memory)")
+                   "mapped and written in row bands (every operator and effect; default: "
+                   "stream only frames larger than a quarter of the machine's memory)")
     p.add_argument("--png-level", type=int, default=1, metavar="0-9",
                    help="zlib level of PNG outputs (default 1: 3.5x faster to write than 6, "
                    "files ~13%% larger)")
