@@ -325,6 +325,25 @@ def ring_level(deg_per_px: float, max_level: int) -> int:
     return lev
 
 
+def _pyramid_plan(shape: tuple[int, int], deg_per_px: float, D: float, per_octave: int):
+    """The fast method's plan for a frame of ``shape``: (fit, the four basis weights,
+    the shared Gaussian weights, level -> [(sigma on the level, weight)], the ring's
+    level or -1, the coarsest level used)."""
+    h, w = shape
+    fit = fit_gaussians((h, w), float(deg_per_px), int(per_octave))
+    wts = flare_weights(D)
+    a = sum(wi * fit.weights[b] for wi, b in zip(wts[:3], channel_bases(0)))
+    max_level = max(0, int(math.log2(max(1, min(h, w)) / PYRAMID_MIN_SIZE)))
+    by_level: dict[int, list] = {}
+    for k, sg in enumerate(fit.sigmas):
+        if a[k + 1] > 0:
+            lev, sc = pyramid_level(sg, max_level)
+            by_level.setdefault(lev, []).append((sc, a[k + 1]))
+    lring = ring_level(deg_per_px, max_level) if wts[3] > 0 else -1
+    top = max(max(by_level, default=0), lring)
+    return fit, wts, a, by_level, lring, top
+
+
 def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int = 1,
                   blur=None) -> np.ndarray:
     """PSF * src approximated on a pyramid.
@@ -338,17 +357,8 @@ def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int 
     """
     blur = blur or (lambda img, taps: blur_reference(img, taps, EDGE_ZERO))
     h, w, _ = src.shape
-    fit = fit_gaussians((h, w), float(deg_per_px), int(per_octave))
-    w0, w1, w2, w3 = flare_weights(D)
-    a = sum(wi * fit.weights[b] for wi, b in zip((w0, w1, w2), channel_bases(0)))
-    max_level = max(0, int(math.log2(max(1, min(h, w)) / PYRAMID_MIN_SIZE)))
-    by_level: dict[int, list] = {}
-    for k, sg in enumerate(fit.sigmas):
-        if a[k + 1] > 0:
-            lev, sc = pyramid_level(sg, max_level)
-            by_level.setdefault(lev, []).append((sc, a[k + 1]))
-    lring = ring_level(deg_per_px, max_level) if w3 > 0 else -1
-    top = max(max(by_level, default=0), lring)
+    fit, (w0, w1, w2, w3), a, by_level, lring, top = _pyramid_plan((h, w), deg_per_px, D,
+                                                                  per_octave)
     levels = [np.asarray(src, np.float64)]
     for _ in range(top):
         levels.append(_down2(levels[-1]))
@@ -473,17 +483,8 @@ def banded_fast(shape: tuple[int, int], deg_per_px: float, D: float, per_octave:
     the finest level whose image holds at most ``max_pixels`` pixels (not above
     the ring's level nor the coarsest level used)."""
     h, w = shape
-    fit = fit_gaussians((h, w), float(deg_per_px), int(per_octave))
-    w0, w1, w2, w3 = flare_weights(D)
-    a = sum(wi * fit.weights[b] for wi, b in zip((w0, w1, w2), channel_bases(0)))
-    max_level = max(0, int(math.log2(max(1, min(h, w)) / PYRAMID_MIN_SIZE)))
-    by_level: dict[int, list] = {}
-    for k, sg in enumerate(fit.sigmas):
-        if a[k + 1] > 0:
-            lev, sc = pyramid_level(sg, max_level)
-            by_level.setdefault(lev, []).append((sc, a[k + 1]))
-    lring = ring_level(deg_per_px, max_level) if w3 > 0 else -1
-    top = max(max(by_level, default=0), lring)
+    fit, (w0, w1, w2, w3), a, by_level, lring, top = _pyramid_plan((h, w), deg_per_px, D,
+                                                                  per_octave)
     split = 0
     cap = max(1, int(max_pixels)) if max_pixels else 1
     hh, ww = h, w

@@ -30,18 +30,27 @@ class DeviceBlur:
             self._cap = n
         return self._bufs
 
-    def blur(self, img: np.ndarray, taps: np.ndarray, edge: int = EDGE_ZERO) -> np.ndarray:
-        """Blur each plane of an (H, W[, C]) float array; returns float32 of the same shape."""
+    def _prepare(self, img, taps):
+        """(float32 image, its (H, W, C) planes view, tap radius, tap buffer or None
+        when the taps are one weight)."""
         import pyopencl as cl
         a = np.asarray(img, np.float32)
         planes = a[..., None] if a.ndim == 2 else a
-        h, w, nc = planes.shape
         R = len(taps) - 1
         if R == 0:
-            return np.array(a, np.float32) * np.float32(taps[0])
-        q = self.rt.queue
+            return a, planes, R, None
         tap_buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                             hostbuf=np.asarray(taps, np.float32))
+        return a, planes, R, tap_buf
+
+    def blur(self, img: np.ndarray, taps: np.ndarray, edge: int = EDGE_ZERO) -> np.ndarray:
+        """Blur each plane of an (H, W[, C]) float array; returns float32 of the same shape."""
+        import pyopencl as cl
+        a, planes, R, tap_buf = self._prepare(img, taps)
+        if tap_buf is None:
+            return np.array(a, np.float32) * np.float32(taps[0])
+        h, w, nc = planes.shape
+        q = self.rt.queue
         out = np.empty((h, w, nc), np.float32)
         for c in range(nc):
             plane = np.ascontiguousarray(planes[..., c])
@@ -70,15 +79,11 @@ class DeviceBlur:
         :meth:`blur`'s values, so a frame's rows can be blurred along x as they
         come and along y once the rows below them have come (streamed acuity)."""
         import pyopencl as cl
-        a = np.asarray(img, np.float32)
-        planes = a[..., None] if a.ndim == 2 else a
-        h, w, nc = planes.shape
-        R = len(taps) - 1
-        if R == 0:
+        a, planes, R, tap_buf = self._prepare(img, taps)
+        if tap_buf is None:
             return np.array(a, np.float32) * np.float32(taps[0])
+        h, w, nc = planes.shape
         q = self.rt.queue
-        tap_buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                            hostbuf=np.asarray(taps, np.float32))
         halo = R if axis == 1 else 0
         out = np.empty((h, w, nc), np.float32)
         for c in range(nc):
