@@ -8,6 +8,7 @@ import os
 import sys
 
 from . import __version__
+from .backends.plan import QUALITY_NAMES
 from .operators import registry
 
 log = logging.getLogger("ocl_tonemap")
@@ -58,7 +59,7 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--encode", action="store_true",
                    help="EXR/HDR outputs: display-encoded code values (tagged with the display "
                    "colourspace) instead of display-linear light (the default for float outputs)")
-    p.add_argument("--display-encode", choices=["auto", "table", "ocio"], default="auto",
+    p.add_argument("--display-encode", choices=["auto", "table", "ocio"], default=None,
                    help="display encoding: table (the OCIO display/view baked into a table, "
                    "applied on the OpenCL device), ocio (OCIO's CPU processor, the reference) "
                    "or auto (default: the table with the OpenCL backend when it is within one "
@@ -81,7 +82,12 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--missing", choices=["error", "hold", "skip"], default="error",
                    help="a frame missing inside a sequence: error (default, before any frame "
                    "is processed), hold (repeat the previous frame at its time) or skip")
-    p.add_argument("--backend", default="opencl", choices=["opencl", "reference"])
+    p.add_argument("--backend", default=None, choices=["opencl", "reference"],
+                   help="opencl (default) or reference (float64 NumPy)")
+    p.add_argument("--quality", choices=list(QUALITY_NAMES), default=None,
+                   help="the default of every speed/accuracy knob: draft (fastest: coarsest "
+                   "bilateral grid, tables), balanced (default), reference (float64, exact "
+                   "filters and flare, OCIO on the CPU); knobs given explicitly win")
     p.add_argument("--device", help="OpenCL device: P:D index, gpu, cpu or a name substring")
     p.add_argument("--out-bits", choices=["8", "16", "half", "float"],
                    help="output sample type (default by extension: EXR half, TIFF 16, PNG/JPEG 8)")
@@ -122,8 +128,10 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
 
 
 def _options(a, input_, output):
+    from .backends.plan import quality_tier
     from .imageio import parse_frames
     from .sequence import JobOptions, parse_preadapt
+    tier = quality_tier(a.quality)
     return JobOptions(
         input=input_, output=output,
         frames=parse_frames(a.frames) if a.frames else None, fps=a.fps, operator=a.operator,
@@ -133,31 +141,43 @@ def _options(a, input_, output):
         display_peak=a.display_peak, display_black=a.display_black, unpremult=a.unpremult,
         encode=a.encode,
         preadapt=parse_preadapt(a.preadapt) if a.preadapt else None,
-        state_in=a.state_in, state_out=a.state_out, backend=a.backend, device=a.device,
+        state_in=a.state_in, state_out=a.state_out, backend=a.backend or tier.backend,
+        device=a.device, quality=tier.name,
         out_bits=a.out_bits, plot=a.plot,
         plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
-        max_band_pixels=a.max_band_pixels, operator_options=_operator_options(a),
-        effects=_effects(a), missing=a.missing, resume=a.resume, checkpoint=a.checkpoint,
+        max_band_pixels=a.max_band_pixels, operator_options=_tier_options(a, tier),
+        effects=_effects(a, tier), missing=a.missing, resume=a.resume, checkpoint=a.checkpoint,
         checkpoint_every=a.checkpoint_every,
         channels=[c.strip() for c in a.channels.split(",")] if a.channels else None,
         png_level=a.png_level, max_memory=a.max_memory, overlap_io=not a.serial_io,
-        display_encode=a.display_encode,
+        display_encode=a.display_encode or tier.display_encode,
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
 
 
-def _effects(a):
-    fx = _effect_settings(a)
+def _effects(a, tier=None):
+    fx = _effect_settings(a, tier)
     _check_effect_flags(a, fx)
     return fx
 
 
-def _effect_settings(a):
+def _effect_settings(a, tier=None):
+    """The effects asked for, over the ``--quality`` tier's defaults."""
     from .effects import EffectSettings
+    given = dict(flare=a.flare, acuity=a.acuity, chromatic_adaptation=a.chromatic_adaptation,
+                 purkinje=a.purkinje, fov_deg=a.fov, illuminant=a.illuminant,
+                 flare_method=a.flare_method, flare_threshold=a.flare_threshold,
+                 flare_per_octave=a.flare_sampling)
+    base = dict(tier.effects) if tier is not None else {}
     return EffectSettings.for_operator(
-        a.operator, flare=a.flare, acuity=a.acuity, chromatic_adaptation=a.chromatic_adaptation,
-        purkinje=a.purkinje,
-        fov_deg=a.fov, illuminant=a.illuminant, flare_method=a.flare_method,
-        flare_threshold=a.flare_threshold, flare_per_octave=a.flare_sampling)
+        a.operator, **{**base, **{k: v for k, v in given.items() if v is not None}})
+
+
+def _tier_options(a, tier) -> dict | None:
+    """The operator's options given on the command line over the ``--quality`` tier's
+    (only those the chosen operator declares: no warning for the others)."""
+    given = _operator_options(a) or {}
+    declared = [o.name for o in registry()[a.operator].options]
+    return {**tier.options_for(declared), **given} or None
 
 
 def operator_flags() -> list:

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backends import make_backend
+from .backends.plan import quality_tier
 from .effects import EffectSettings, Effects
 from .models.display import DisplaySpec, display_for
 from .models.metering import MeteringSpec
@@ -86,17 +87,27 @@ class Tonemapper:
     effects : :class:`~ocl_tonemap.effects.EffectSettings` (flare, acuity, chromatic
         adaptation, Purkinje); default: the operator's defaults.
     plugin_effects : names of installed effect plugins to run (entry points).
+    quality : ``draft``, ``balanced`` (default) or ``reference``: the defaults of every
+        speed/accuracy knob (``backends/plan.py`` ``QUALITY_TIERS``); the backend,
+        options and effects given here win over the tier's.
     """
 
-    def __init__(self, operator: str = "pattanaik00", backend: str = "opencl",
+    def __init__(self, operator: str = "pattanaik00", backend: str | None = None,
                  metering: str | MeteringSpec | None = "logmean",
                  display: DisplaySpec | None = None,
                  preadapt: tuple[float, float | None] | None = None,
                  state: AdaptationState | None = None, device: str | None = None,
                  max_band_pixels: int | None = None, options: dict | None = None,
-                 effects: EffectSettings | None = None, plugin_effects=()):
+                 effects: EffectSettings | None = None, plugin_effects=(),
+                 quality: str | None = None):
         self.operator_name = operator
         op_cls = get_operator(operator)
+        tier = quality_tier(quality)
+        self.quality = tier.name
+        backend = backend or tier.backend
+        options = {**tier.options_for(o.name for o in op_cls.options), **(options or {})}
+        if effects is None:
+            effects = EffectSettings.for_operator(operator, **dict(tier.effects))
         self.backend = make_backend(backend, device, max_band_pixels)
         self.metering = metering if isinstance(metering, MeteringSpec) else MeteringSpec.parse(metering)
         self.display = display or display_for("sRGB - Display")

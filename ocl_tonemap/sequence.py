@@ -28,6 +28,7 @@ from .imageio import illuminant_from_metadata
 from .imageio import (LINEAR_FORMATS, FrameError, find_frames, frame_path, is_sequence,
                       read_frame, same_file, write_frame)
 from .models.photometry import Y_WEIGHTS
+from .backends.plan import quality_tier
 from .pipeline import NeedsWholeFrame, Tonemapper, restore_alpha
 from .models.photometry import RepairCounts
 
@@ -76,7 +77,7 @@ class JobOptions:
     preadapt: tuple[float, float | None] | None = None
     state_in: str | None = None
     state_out: str | None = None
-    backend: str = "opencl"
+    backend: str | None = None          # None: the --quality tier's (opencl but for reference)
     device: str | None = None
     out_bits: str | None = None
     plot: str | None = None
@@ -93,9 +94,14 @@ class JobOptions:
     checkpoint: bool = True         # write the state after every frame ...
     checkpoint_every: int = 1       # ... or every N frames (local operators: per-pixel planes)
     overlap_io: bool = True         # read the next frame and write the last one beside the work
-    display_encode: str = "auto"    # display encoding: auto | table (device) | ocio (CPU)
+    display_encode: str | None = None   # auto | table (device) | ocio (CPU); None: the tier's
+    quality: str | None = None      # --quality: draft | balanced (None) | reference
 
     def __post_init__(self):
+        tier = quality_tier(self.quality)          # the defaults a knob not given takes
+        self.quality = tier.name
+        self.backend = self.backend or tier.backend
+        self.display_encode = self.display_encode or tier.display_encode
         if self.fps is not None and not (math.isfinite(self.fps) and 0 < self.fps <= 1e6):
             raise ValueError(f"--fps must be a positive number of frames per second, at most "
                              f"1e6 (got {self.fps:g})")
@@ -237,6 +243,7 @@ def run_fingerprint(opts: JobOptions) -> dict:
             "iscolorspace": opts.iscolorspace, "display": opts.display, "view": opts.view,
             "display_model": opts.display_model, "display_white": opts.display_white,
             "display_black": opts.display_black, "backend": opts.backend,
+            "quality": opts.quality, "display_encode": opts.display_encode,
             "options": json.loads(json.dumps(opts.operator_options or {}, default=str)),
             "effects": json.loads(json.dumps(dataclasses.asdict(fx), default=str))
             if dataclasses.is_dataclass(fx) else None,
@@ -270,7 +277,8 @@ def _resume_point(opts: JobOptions, jobs, ckpt: str, operator: str):
                          f"not {operator!r}")
     was, now = st.extra.get(RUN_KEY), run_fingerprint(opts)
     if isinstance(was, dict):
-        diff = [k for k in sorted(set(was) | set(now)) if was.get(k) != now.get(k)]
+        # keys added since the checkpoint was written are not compared
+        diff = [k for k in sorted(was) if was.get(k) != now.get(k)]
         if diff:
             raise ValueError("--resume: the checkpoint " + ckpt + " was written by a run with "
                              "other settings (" + "; ".join(
@@ -807,9 +815,10 @@ def _colour(cfg, opts: JobOptions) -> ColourPipeline:
 
 def _make_tonemapper(opts: JobOptions, colour: ColourPipeline, state, disp) -> Tonemapper:
     tm = Tonemapper(opts.operator, opts.backend, opts.metering, disp, opts.preadapt, state,
-                    opts.device, opts.max_band_pixels, opts.operator_options, opts.effects)
+                    opts.device, opts.max_band_pixels, opts.operator_options, opts.effects,
+                    quality=opts.quality)
     tm.set_display_primaries(colour.display_primaries())
-    log.info("backend: %s", tm.backend.describe())
+    log.info("quality %s; backend: %s", tm.quality, tm.backend.describe())
     log.info("OCIO: working %s, display %r view %r -> %s", colour.working, colour.display,
              colour.view, colour.output_colorspace)
     log.info("display: white %g cd/m^2, black %g cd/m^2%s", disp.white_cd, disp.black_cd,
@@ -848,6 +857,7 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, t, cs_text, scale, scale_
         "Software": f"ocl-tonemap {__version__}",
         "ocltm:operator": tm.operator_name,
         "ocltm:backend": tm.backend.name,
+        "ocltm:quality": tm.quality,
         "ocltm:metering": tm.metering.describe() if tm.op.metering != "local"
         else "local (bilateral)",
         "ocltm:input_colorspace": cs_text,
