@@ -57,3 +57,54 @@ inline float3 shoulder3(float3 c, const float inv_white, const float knee)
     const float t = top > cap ? clamp((cap - Ys) / fmax(top - Ys, 1.0e-30f), 0.0f, 1.0f) : 1.0f;
     return (Ys + (c * g - Ys) * t) / inv_white;
 }
+
+/* Four pixels at a time, their channels apart (r, g, b hold pixels 4q .. 4q+3):
+ * twelve interleaved floats in and out, and shoulder3 on each of the four. */
+inline void load_rgb4(const int q, __global const float *rgb, float4 *r, float4 *g, float4 *b)
+{
+    const float4 a0 = vload4(3 * q, rgb), a1 = vload4(3 * q + 1, rgb), a2 = vload4(3 * q + 2, rgb);
+    *r = (float4)(a0.x, a0.w, a1.z, a2.y);
+    *g = (float4)(a0.y, a1.x, a1.w, a2.z);
+    *b = (float4)(a0.z, a1.y, a2.x, a2.w);
+}
+
+inline void store_rgb4(const int q, __global float *rgb, const float4 r, const float4 g,
+                       const float4 b)
+{
+    vstore4((float4)(r.x, g.x, b.x, r.y), 3 * q, rgb);
+    vstore4((float4)(g.y, b.y, r.z, g.z), 3 * q + 1, rgb);
+    vstore4((float4)(b.z, r.w, g.w, b.w), 3 * q + 2, rgb);
+}
+
+inline float4 shoulder_curve4(const float4 x, const float knee)
+{
+    const float4 t = (x - knee) / (1.0f - knee);
+    return select(x, knee + (1.0f - knee) * t / (1.0f + t), isgreater(x, (float4)(knee)));
+}
+
+/* shoulder3 of four pixels: the same steps, each pixel's branches as selects. */
+inline void shoulder4(float4 *r, float4 *g, float4 *b, const float inv_white, const float knee)
+{
+    if (!(knee > 0.0f)) return;
+    const float4 cr = fmax(*r * inv_white, 0.0f), cg = fmax(*g * inv_white, 0.0f),
+                 cb = fmax(*b * inv_white, 0.0f);
+    const float4 m = fmax(fmax(cr, cg), cb);
+    const int4 bright = isgreater(m, (float4)(knee));
+    if (!any(bright)) {                        /* the common case: all four below the knee */
+        *r = cr / inv_white; *g = cg / inv_white; *b = cb / inv_white;
+        return;
+    }
+    const float4 Y = M_YR * cr + M_YG * cg + M_YB * cb;
+    const float4 Ys = shoulder_curve4(Y, knee);
+    const float4 gY = Ys / Y;
+    const float4 top = m * gY, cap = shoulder_curve4(m, CHANNEL_KNEE);
+    const float4 t = select((float4)(1.0f),
+                            clamp((cap - Ys) / fmax(top - Ys, 1.0e-30f), 0.0f, 1.0f),
+                            isgreater(top, cap));
+    const int4 lit = isgreater(Y, (float4)(0.0f));
+    const float4 zero = (float4)(0.0f);
+    *r = select(cr, select(zero, Ys + (cr * gY - Ys) * t, lit), bright) / inv_white;
+    *g = select(cg, select(zero, Ys + (cg * gY - Ys) * t, lit), bright) / inv_white;
+    *b = select(cb, select(zero, Ys + (cb * gY - Ys) * t, lit), bright) / inv_white;
+}
+

@@ -21,6 +21,35 @@ __kernel void durand00_map(__global const float *rgb, __global const float *Y,
     vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
 }
 
+/* durand00_map four pixels per work-item (float4 across pixels; the tail scalar). */
+__kernel void durand00_map4(__global const float *rgb, __global const float *Y,
+                            __global const float *Ys, __global float *out, const int n,
+                            __constant const float *p)
+{
+    const int q = get_global_id(0), i0 = 4 * q;
+    if (i0 >= n) return;
+    const float m_cone = p[P_m_cone];
+    const float rod_r = p[P_rod_r], rod_g = p[P_rod_g], rod_b = p[P_rod_b];
+    const float inv_white = p[P_inv_white], knee = p[P_knee];
+    if (i0 + 4 > n) {
+        for (int i = i0; i < n; ++i) {
+            const float3 o = fmin(m_cone * vload3(i, rgb) + Ys[i] * (float3)(rod_r, rod_g, rod_b),
+                                  SIGNAL_CEILING);
+            vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
+        }
+        return;
+    }
+    float4 r, g, b;
+    load_rgb4(q, rgb, &r, &g, &b);
+    const float4 s = vload4(q, Ys);
+    r = fmin(m_cone * r + s * rod_r, SIGNAL_CEILING);                      /* Eq. 5 */
+    g = fmin(m_cone * g + s * rod_g, SIGNAL_CEILING);
+    b = fmin(m_cone * b + s * rod_b, SIGNAL_CEILING);
+    shoulder4(&r, &g, &b, inv_white, knee);
+    store_rgb4(q, out, clamp(r, 0.0f, DISPLAY_LINEAR_MAX), clamp(g, 0.0f, DISPLAY_LINEAR_MAX),
+               clamp(b, 0.0f, DISPLAY_LINEAR_MAX));
+}
+
 /* Sec. 5: the same through per-frame tables T_C (entries 0..n-1) and T_R
  * (n..2n-1), indexed by log10 of the signal, nearest entry (no interpolation,
  * as the paper). */

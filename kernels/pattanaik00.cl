@@ -112,7 +112,6 @@ __kernel void pattanaik00_map4(__global const float *rgb, __global const float *
     const float4 r0 = select((float4)(1.0f), c0 / L0, L0 > L_FLOOR);
     const float4 r1 = select((float4)(1.0f), c1 / L1, L1 > L_FLOOR);
     const float4 r2 = select((float4)(1.0f), c2 / L2, L2 > L_FLOOR);
-    __global float *dst = out + 12 * q;
     float4 o0, o1, o2;
     if (colour_k > 0.0f) {
         o0 = D0 * powp4(fmax(r0, RATIO_FLOOR), e0);
@@ -123,15 +122,10 @@ __kernel void pattanaik00_map4(__global const float *rgb, __global const float *
         o1 = D1 * fmax(1.0f + chroma * (r1 - 1.0f), 0.0f);
         o2 = D2 * fmax(1.0f + chroma * (r2 - 1.0f), 0.0f);
     }
-    vstore4(clamp(o0, 0.0f, DISPLAY_LINEAR_MAX), 0, dst);
-    vstore4(clamp(o1, 0.0f, DISPLAY_LINEAR_MAX), 1, dst);
-    vstore4(clamp(o2, 0.0f, DISPLAY_LINEAR_MAX), 2, dst);
-    if (knee > 0.0f) {                         /* the shoulder mixes a pixel's channels */
-        for (int k = 0; k < 4; ++k) {
-            const float3 v = (float3)(k == 0 ? o0.x : k == 1 ? o0.w : k == 2 ? o1.z : o2.y,
-                                      k == 0 ? o0.y : k == 1 ? o1.x : k == 2 ? o1.w : o2.z,
-                                      k == 0 ? o0.z : k == 1 ? o1.y : k == 2 ? o2.x : o2.w);
-            vstore3(clamp(shoulder3(v, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i0 + k, out);
-        }
-    }
+    /* the shoulder mixes a pixel's channels: take them apart (r, g, b of 4 pixels) */
+    float4 r = (float4)(o0.x, o0.w, o1.z, o2.y), g = (float4)(o0.y, o1.x, o1.w, o2.z),
+           bl = (float4)(o0.z, o1.y, o2.x, o2.w);
+    shoulder4(&r, &g, &bl, inv_white, knee);
+    store_rgb4(q, out, clamp(r, 0.0f, DISPLAY_LINEAR_MAX), clamp(g, 0.0f, DISPLAY_LINEAR_MAX),
+               clamp(bl, 0.0f, DISPLAY_LINEAR_MAX));
 }

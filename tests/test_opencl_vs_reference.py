@@ -175,3 +175,52 @@ def test_float4_kernel_equals_scalar_kernel(rt, n):
         cl.enqueue_copy(rt.queue, o, b["out"])
         outs.append(o)
     np.testing.assert_allclose(outs[0], outs[1], rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("channels", [3, 4])
+@pytest.mark.parametrize("n", [1, 5, 64, 1027])
+def test_colour_stage_quads_equal_scalar(rt, channels, n):
+    """scene_to_working4 (four pixels per work-item, the scalar policy for any quad with
+    a bad value) gives the scalar kernel's values bit for bit, and the same counts."""
+    import pyopencl as cl
+    from ocl_tonemap.backends.opencl.runtime import round_up
+    rng = np.random.default_rng(n)
+    src = (10.0 ** rng.uniform(-8, 9, (n, channels))).astype(np.float32)
+    hit = rng.choice(src.size, min(src.size, 25), replace=False)
+    src.reshape(-1)[hit] = np.resize(np.append(BAD, [1e-39, 3e-38]), hit.size)
+    mf = cl.mem_flags
+    sbuf = cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=src)
+    got = []
+    for name, items in (("scene_to_working", n), ("scene_to_working4", -(-n // 4))):
+        bufs = [cl.Buffer(rt.context, mf.READ_WRITE, n * k * 4) for k in (3, 1, 1)]
+        counts = cl.Buffer(rt.context, mf.READ_WRITE | mf.COPY_HOST_PTR,
+                           hostbuf=np.zeros(8, np.int32))
+        rt.kernel("colour.cl", name)(rt.queue, (round_up(items, 64),), (64,), sbuf,
+                                     np.int32(channels), np.int32(n), np.float32(1e3),
+                                     *bufs, counts, np.int32(0), np.int32(n))
+        host = [np.empty(n * k, np.float32) for k in (3, 1, 1)] + [np.empty(8, np.int32)]
+        for h, d in zip(host, bufs + [counts]):
+            cl.enqueue_copy(rt.queue, h, d)
+        got.append(host)
+    for a, b in zip(*got):
+        np.testing.assert_array_equal(a.view(np.uint32), b.view(np.uint32))
+    assert got[0][3][:6].sum() > 0                          # repairs were made and counted
+
+
+@pytest.mark.parametrize("n", [1, 3, 4, 5, 1023])
+def test_durand00_float4_kernel_equals_scalar_kernel(rt, n):
+    import dataclasses
+    import pyopencl as cl
+    tm = Tonemapper("durand00")
+    img = hdr_image(1, n, seed=n, lo=-3, hi=6)              # highlights over the knee
+    tm.process(img)
+    b = tm.backend.bufs
+    call = tm.op.kernel_call(tm.op.params(tm._state, None))
+    assert call.kernel == "durand00_map4" and dict(call.params)["knee"] > 0
+    outs = []
+    for c in (call, dataclasses.replace(call, kernel="durand00_map", vector=False)):
+        tm.backend.run_pointwise(c, b["rgb"], b["Y"], b["Ys"], b["out"], n)
+        o = np.empty((n, 3), np.float32)
+        cl.enqueue_copy(rt.queue, o, b["out"])
+        outs.append(o)
+    np.testing.assert_allclose(outs[0], outs[1], rtol=1e-6, atol=1e-7)

@@ -240,7 +240,7 @@ class Operator:
 
 #: The colour and metering stages every frame-metered operator starts with.
 COLOUR_STAGE = Stage("colour", "colour", "working RGB x scale -> cd/m^2, Y, Y'; bad values "
-                     "repaired", "models.photometry.sanitize", "colour.cl:scene_to_working")
+                     "repaired", "models.photometry.sanitize", "colour.cl:scene_to_working4")
 METER_STAGE = Stage("meter", "reduction", "adaptation goals G_rod (Y'), G_cone (Y) with the "
                     "run's --metering", "models.metering.reference_goal",
                     "metering.cl:meter_partial")

@@ -51,7 +51,7 @@ class Durand00(ModelOperator):
         Stage("adapt", "state", "1/eps filtered with tau 0.4 s (rods), 0.1 s (cones), Sec. 3.3",
               "models.durand2000.advance"),
         Stage("map", "pointwise", "Eq. 5: m_C rgb + k m_R s_w tint (Eq. 6 gains before it)",
-              "models.durand2000.map_reference", "durand00.cl:durand00_map"),
+              "models.durand2000.map_reference", "durand00.cl:durand00_map4"),
     )
 
     def kernel_call(self, p):
@@ -60,7 +60,7 @@ class Durand00(ModelOperator):
             rod = p.rod_rgb
             vals = _packed(m_cone=p.m_cone / p.unit_cd, rod_r=rod[0], rod_g=rod[1],
                            rod_b=rod[2], inv_white=1.0 / p.white_signal, knee=p.shoulder_knee)
-            return KernelCall("durand00.cl", "durand00_map", vals)
+            return KernelCall("durand00.cl", "durand00_map4", vals, vector=True)
         tc, tr, lo, step = model.lut_tables(p)
         vals = _packed(nlut=p.lut, lo=lo, inv_step=1.0 / step, tint_r=p.tint[0],
                        tint_g=p.tint[1], tint_b=p.tint[2], inv_white=1.0 / p.white_signal,

@@ -27,7 +27,7 @@ class OpenCLBackend:
     def __init__(self, device: str | None = None, max_band_pixels: int | None = None):
         self.rt = get_runtime(device)
         self.meter = DeviceMeter(self.rt)
-        self._colour = self.rt.kernel("colour.cl", "scene_to_working")
+        self._colour = self.rt.kernel("colour.cl", "scene_to_working4")
         self._gains = self.rt.kernel("colour.cl", "apply_gains")
         self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
         if max_band_pixels is None:
@@ -104,7 +104,7 @@ class OpenCLBackend:
         lo, hi = count_rows if count_rows is not None else (0, rows)
         cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
         cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)
-        self._colour(q, (round_up(n, 64),), (64,), b["src"], np.int32(channels), np.int32(n),
+        self._colour(q, (round_up(-(-n // 4), 64),), (64,), b["src"], np.int32(channels), np.int32(n),
                      np.float32(scale), b["rgb"], b["Y"], b["Ys"], b["counts"],
                      np.int32(lo * width), np.int32(hi * width))
         rc = RepairCounts()
