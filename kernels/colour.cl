@@ -64,15 +64,6 @@ __kernel void scene_to_working(__global const float *src, const int channels, co
  * whose every value is +-0 or a positive normal number and stays under L_MAX after
  * the scale takes the vector path (the raw bits are tested, as repair_value does); any other quad (and the tail when n % 4 != 0) runs
  * the scalar policy above, value by value, so repairs and their counts are the same. */
-inline float4 scotopic_luminance4(const float4 r, const float4 g, const float4 b,
-                                  const float4 Y)
-{
-    const float4 X = M_XR * r + M_XG * g + M_XB * b;
-    const float4 Z = M_ZR * r + M_ZG * g + M_ZB * b;
-    const float4 ys = fmax(Y * (1.33f * (1.0f + (Y + Z) / X) - 1.68f), 0.0f);
-    return select((float4)(0.0f), ys, isgreater(X, (float4)(0.0f)));
-}
-
 inline int4 clean4(const float4 x)
 {
     const uint4 u = as_uint4(x) & 0x7fffffffu;        /* -0 is clean (kept as -0) */

@@ -24,6 +24,16 @@ inline float scotopic_luminance(float r, float g, float b)
     return fmax(Y * (1.33f * (1.0f + (Y + Z) / X) - 1.68f), 0.0f);
 }
 
+/* scotopic_luminance of four pixels (Y: their photopic luminance). */
+inline float4 scotopic_luminance4(const float4 r, const float4 g, const float4 b,
+                                  const float4 Y)
+{
+    const float4 X = M_XR * r + M_XG * g + M_XB * b;
+    const float4 Z = M_ZR * r + M_ZG * g + M_ZB * b;
+    const float4 ys = fmax(Y * (1.33f * (1.0f + (Y + Z) / X) - 1.68f), 0.0f);
+    return select((float4)(0.0f), ys, isgreater(X, (float4)(0.0f)));
+}
+
 /* x^e for x > 0 as exp2(e*log2(x)): PoCL's scalar pow() is much slower. */
 inline float powp(float x, float e) { return exp2(e * log2(x)); }
 inline float4 powp4(float4 x, float4 e) { return exp2(e * log2(x)); }

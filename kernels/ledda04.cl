@@ -159,3 +159,74 @@ __kernel void ledda04_map(__global const float *rgb, const int rgb_off,
     float3 o = fmin(c * cone_gain + rod_out, SIGNAL_CEILING);
     vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
 }
+
+/* ledda04_map four pixels per work-item: the same steps in float4 (both branches of
+ * the time course computed, one selected per pixel); the tail pixels scalar. */
+inline float4 dark_fraction4(const float4 t, const float4 K, const float tau)
+{
+    const float4 e_tau = exp(K / tau);
+    const float4 f = clamp((exp(K / fmax(t, 1.0f)) - e_tau) / (exp(K) - e_tau), 0.0f, 1.0f);
+    return select(f, (float4)(0.0f), isgreaterequal(t, (float4)(tau)));
+}
+
+inline float4 light_fraction4(const float4 t, const float ln_rho)
+{
+    return clamp(1.0f - log(fmax(t, 1.0f)) / ln_rho, 0.0f, 1.0f);
+}
+
+__kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
+                           __global const float *Ic, __global const float *state,
+                           const int stride, const int n, const float sigma_disp,
+                           const float inv_unit, __global float *out, const float strength,
+                           const float ln_global_c, const float inv_white, const float knee,
+                           const int ward)
+{
+    const int q = get_global_id(0), i0 = 4 * q;
+    if (i0 >= n) return;
+    if (i0 + 4 > n) {
+        for (int i = i0; i < n; ++i) {
+            __global const float *s = state + i;
+            float ic = Ic[i];
+            if (strength < 1.0f)
+                ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
+            const float sc = sigma_cone_at(s[0], s[stride], s[6 * stride], s[8 * stride]);
+            const float sr = sigma_rod_at(s[3 * stride], s[4 * stride], s[6 * stride],
+                                          s[8 * stride]);
+            const float u = clamp((log10(fmax(ic, V_FLOOR)) + 2.0f) / 2.6f, 0.0f, 1.0f);
+            const float mes = u * u * (3.0f - 2.0f * u);
+            const float3 c = vload3(rgb_off + i, rgb);
+            const float3 o = fmin(c * (mes * sigma_disp / sc * inv_unit)
+                                  + (1.0f - mes) * sigma_disp * ledda_Ys(c, ward) / sr * inv_unit,
+                                  SIGNAL_CEILING);
+            vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
+        }
+        return;
+    }
+    __global const float *s = state + i0;
+    float4 ic = vload4(q, Ic);
+    if (strength < 1.0f)
+        ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
+    const float4 sic = vload4(0, s), sfc = vload4(0, s + stride);
+    const float4 sir = vload4(0, s + 3 * stride), sfr = vload4(0, s + 4 * stride);
+    const float4 t = vload4(0, s + 6 * stride), K = vload4(0, s + 8 * stride);
+    const float4 fc = select(light_fraction4(t, LN_RHO_CONE), dark_fraction4(t, K, TAU_CONE),
+                             isless(sfc, sic));
+    const float4 fr = select(light_fraction4(t, LN_RHO_ROD),
+                             dark_fraction4(t - TAU_CONE, K, TAU_ROD), isless(sfr, sir));
+    const float4 sc = sfc + fc * (sic - sfc), sr = sfr + fr * (sir - sfr);
+    const float4 u = clamp((log10(fmax(ic, V_FLOOR)) + 2.0f) / 2.6f, 0.0f, 1.0f);
+    const float4 mes = u * u * (3.0f - 2.0f * u);                        /* Eq. 11 */
+    float4 r, g, b;
+    load_rgb4(0, rgb + 3 * (size_t)(rgb_off + i0), &r, &g, &b);
+    const float4 cone_gain = mes * sigma_disp / sc * inv_unit;           /* Eq. 12 */
+    const float4 ys = ward ? scotopic_luminance4(r, g, b, M_YR * r + M_YG * g + M_YB * b)
+                           : fmax(-0.702f * r + 1.039f * g + 0.433f * b, 0.0f);
+    const float4 rod_out = (1.0f - mes) * sigma_disp * ys / sr * inv_unit;  /* Eq. 13 */
+    r = fmin(r * cone_gain + rod_out, SIGNAL_CEILING);
+    g = fmin(g * cone_gain + rod_out, SIGNAL_CEILING);
+    b = fmin(b * cone_gain + rod_out, SIGNAL_CEILING);
+    shoulder4(&r, &g, &b, inv_white, knee);
+    store_rgb4(q, out, clamp(r, 0.0f, DISPLAY_LINEAR_MAX), clamp(g, 0.0f, DISPLAY_LINEAR_MAX),
+               clamp(b, 0.0f, DISPLAY_LINEAR_MAX));
+}
+

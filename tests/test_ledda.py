@@ -254,3 +254,23 @@ def test_grid_fits_device_memory_and_tiny_images(filt):
     for shape in ((1, 1), (1, 7), (5, 1)):
         v = np.full(shape, 3.0)
         assert np.allclose(filt.filter(v, 3.0, LEDDA_RANGE, "fast"), 3.0, rtol=1e-5)
+
+
+@pytest.mark.parametrize("mode", ["default", "paper"])
+@pytest.mark.parametrize("shape", [(9, 11), (16, 24)])
+def test_map_float4_kernel_equals_scalar_kernel(mode, shape):
+    """ledda04_map4 (four pixels per work-item, both branches of the time course
+    selected per pixel) gives the scalar kernel's output through light adaptation,
+    dark adaptation and restarts, on sizes with and without a tail."""
+    img = hdr_image(*shape, seed=11, lo=-3, hi=5)
+    img[:, : shape[1] // 2] *= 1e-3                      # half the frame mesopic/scotopic
+    tms = []
+    for vector in (True, False):
+        tm = Tonemapper("ledda04", options={"mode": mode, "bilateral": "exact"})
+        tm.schedule.set_map_kernel(vector=vector)
+        tms.append(tm)
+    for k, (scale, dt) in enumerate([(1.0, 0.0), (1e-4, 0.5), (1e-4, 20.0), (1e2, 0.2),
+                                     (1e2, 3.0)]):
+        a, b = (tm.process(img * scale, dt=dt if k else None) for tm in tms)
+        np.testing.assert_allclose(a, b, rtol=2e-6, atol=1e-7)
+        assert a.max() > 0

@@ -135,7 +135,7 @@ class Ledda04(Operator):
         Stage("adapt", "state", "per-pixel time course, Eqs. 14-17 (dark/light, restarts)",
               "models.ledda2004.step_reference", "ledda04.cl:ledda04_step"),
         Stage("map", "pointwise", "Eqs. 11-13 with the current sigmas, shoulder",
-              "models.ledda2004.map_reference", "ledda04.cl:ledda04_map"),
+              "models.ledda2004.map_reference", "ledda04.cl:ledda04_map4"),
     )
 
     def __init__(self, options=None, display=None, preadapt=None):

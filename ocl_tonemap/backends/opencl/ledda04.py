@@ -7,7 +7,7 @@ measure    colour stage and Y, Y' per band; the frame's log-average levels; the
            adaptation levels I_A, I_A' (resident for one band, host planes for more);
 integrate  ``ledda04_step`` on the per-pixel state (resident on the device between
            frames when the frame is one band, on the host otherwise);
-apply      ``ledda04_map`` per band.
+apply      ``ledda04_map4`` per band (four pixels per work-item).
 """
 
 from __future__ import annotations
@@ -52,7 +52,14 @@ class LeddaSchedule(PixelStateMixin):
         rt = backend.rt
         self._k_lum = rt.kernel("ledda04.cl", "ledda04_luminance", KERNEL_CONSTANTS)
         self._k_step = rt.kernel("ledda04.cl", "ledda04_step", KERNEL_CONSTANTS)
-        self._k_map = rt.kernel("ledda04.cl", "ledda04_map", KERNEL_CONSTANTS)
+        self.set_map_kernel(vector=True)
+
+    def set_map_kernel(self, vector: bool = True) -> None:
+        """``ledda04_map4`` (four pixels per work-item, the default) or the scalar
+        ``ledda04_map`` (kept to test the one against the other)."""
+        self._map_vector = vector
+        self._k_map = self.backend.rt.kernel("ledda04.cl", "ledda04_map4" if vector
+                                             else "ledda04_map", KERNEL_CONSTANTS)
 
     # -- per-pixel state ---------------------------------------------------------------
     def pixel_state(self):
@@ -279,7 +286,7 @@ class LeddaSchedule(PixelStateMixin):
 
     # -- apply -------------------------------------------------------------------------
     def apply(self, frame, state, stats, params=None, gains=None, sink=None):
-        """``ledda04_map`` per band (rows re-read for banded frames); with
+        """``ledda04_map4`` per band (rows re-read for banded frames); with
         ``sink(y0, band)`` the bands go there and None is returned."""
         import pyopencl as cl
         be, op = self.backend, self.op
@@ -301,7 +308,8 @@ class LeddaSchedule(PixelStateMixin):
                 cl.enqueue_copy(q, st, read_rows(self._host, self.planes, y0, y0 + nr))
             else:
                 ic, st = stats.planes["I_c"], self._dev[0]
-            self._k_map(q, (round_up(n, 64),), (64,), be.bufs["rgb"], i32(0), ic, st, i32(n),
+            items = -(-n // 4) if self._map_vector else n
+            self._k_map(q, (round_up(items, 64),), (64,), be.bufs["rgb"], i32(0), ic, st, i32(n),
                         i32(n), f32(sd), f32(1.0 / op.display.unit_cd), be.bufs["out"], strength,
                         lgc, f32(1.0 / white), f32(knee), i32(op.ward))
             if sink is None:
