@@ -195,23 +195,26 @@ __kernel void grid_blur(__global const float2 *src, __global float2 *dst,
 }
 
 /* Slice: trilinear interpolation of the blurred grid at each pixel's
- * (x/s_s, y/s_s, z); output = interpolated sum(w v) / sum(w). */
+ * (x/s_s, y/s_s, z); output = interpolated sum(w v) / sum(w). z: the pixels' z
+ * (grid_z_map, laid out as v), the same values the splat used. */
 __kernel void grid_slice(__global const float *v, const int width, const int rows_in,
                          const int in_y0, const int out_y0, const int rows_out,
                          const int ratio, const float s_s, const float z0,
                          const float inv_s_r, const int gw, const int gh, const int nz,
-                         __global const float2 *grid, __global float *out)
+                         __global const float2 *grid, __global float *out,
+                         __global const float *zv)
 {
     const int x = get_global_id(0), ro = get_global_id(1);
     if (x >= width || ro >= rows_out) return;
     const int y = out_y0 + ro;
-    const float val = v[(size_t)(y - in_y0) * width + x];
+    const size_t iv = (size_t)(y - in_y0) * width + x;
+    const float val = v[iv];
     const float inv_s = 1.0f / s_s;
     const float gx = x * inv_s, gy = y * inv_s;
     const int ix = min((int)gx, gw - 2 >= 0 ? gw - 2 : 0);
     const int iy = min((int)gy, gh - 2 >= 0 ? gh - 2 : 0);
     const float fx = gw > 1 ? gx - ix : 0.0f, fy = gh > 1 ? gy - iy : 0.0f;
-    float gz = clamp((grid_z(val, ratio) - z0) * inv_s_r, 0.0f, (float)(nz - 1));
+    float gz = clamp((zv[iv] - z0) * inv_s_r, 0.0f, (float)(nz - 1));
     const int iz = min((int)gz, nz - 2 >= 0 ? nz - 2 : 0);
     const float fz = nz > 1 ? gz - iz : 0.0f;
     const int dx = gw > 1 ? nz : 0, dy = gh > 1 ? gw * nz : 0, dz = nz > 1 ? 1 : 0;

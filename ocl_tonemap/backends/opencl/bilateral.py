@@ -41,6 +41,10 @@ class GridGeometry:
         return self.cells * 8
 
 
+#: z_range over values that are z already (the z buffer): no log taken again.
+Z_IDENTITY = RangeKernel("difference", 1.0)
+
+
 def grid_geometry(width: int, height: int, z_min: float, z_max: float, sigma_s: float,
                   rk: RangeKernel, q_s: float, q_r: float) -> GridGeometry:
     """Grid spacing sigma_s/q_s (>= 1 px) and sigma_z/q_r; blur widths compensated
@@ -132,7 +136,8 @@ class DeviceBilateral:
 
     # -- grid ------------------------------------------------------------------
     def z_range(self, v_buf, n: int, rk: RangeKernel) -> tuple[float, float]:
-        """Min and max of z over n values (device reduction, host finishes)."""
+        """Min and max of z over n values (device reduction, host finishes); ``v_buf``
+        may be the z buffer itself with an identity (difference) kernel ``rk``."""
         cl = self._cl
         wg, groups = 64, 64
         if self._mm is None:
@@ -154,18 +159,25 @@ class DeviceBilateral:
             self._grid_bytes = need
         cl.enqueue_fill_buffer(self.rt.queue, self._grid[0], np.float32(0), 0, need)
 
-    def splat(self, v_buf, width: int, rows_in: int, in_y0: int, geom: GridGeometry,
-              rk: RangeKernel):
-        """Add the pixels of one band (image rows [in_y0, in_y0+rows_in)) to the grid."""
-        cy_lo = max(0, int(math.floor(in_y0 / geom.s_s)) - 1)
-        cy_hi = min(geom.gh - 1, int(math.floor((in_y0 + rows_in - 1) / geom.s_s)) + 1)
-        ncy = cy_hi - cy_lo + 1
-        n = width * rows_in
+    def z_map(self, v_buf, n: int, rk: RangeKernel):
+        """z of n values into the z buffer (float4 log2: once per pixel, read by the
+        splat, the slice and the min/max); returns the buffer."""
         cl = self._cl
         if self._zbuf is None or self._zbuf.size < n * 4:
             self._zbuf = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, max(n * 4, 16))
         self._zmap(self.rt.queue, (round_up(-(-n // 4), 64),), (64,), v_buf, np.int32(n),
                    np.int32(1 if rk.ratio else 0), self._zbuf)
+        return self._zbuf
+
+    def splat(self, v_buf, width: int, rows_in: int, in_y0: int, geom: GridGeometry,
+              rk: RangeKernel, z_ready: bool = False):
+        """Add the pixels of one band (image rows [in_y0, in_y0+rows_in)) to the grid
+        (``z_ready``: the z buffer holds this band's z already)."""
+        cy_lo = max(0, int(math.floor(in_y0 / geom.s_s)) - 1)
+        cy_hi = min(geom.gh - 1, int(math.floor((in_y0 + rows_in - 1) / geom.s_s)) + 1)
+        ncy = cy_hi - cy_lo + 1
+        if not z_ready:
+            self.z_map(v_buf, width * rows_in, rk)
         wg = (16, 1)
         self._splat(self.rt.queue, (round_up(geom.gw, wg[0]), ncy), wg,
                     v_buf, np.int32(width), np.int32(rows_in), np.int32(in_y0),
@@ -187,14 +199,16 @@ class DeviceBilateral:
         self._grid = [src, dst]
 
     def slice(self, v_buf, out_buf, width: int, rows_in: int, in_y0: int, out_y0: int,
-              rows_out: int, geom: GridGeometry, rk: RangeKernel):
+              rows_out: int, geom: GridGeometry, rk: RangeKernel, z_ready: bool = False):
+        if not z_ready:
+            self.z_map(v_buf, width * rows_in, rk)
         wg = (64, 1)
         self._slice(self.rt.queue, (round_up(width, wg[0]), rows_out), wg,
                     v_buf, np.int32(width), np.int32(rows_in), np.int32(in_y0),
                     np.int32(out_y0), np.int32(rows_out), np.int32(1 if rk.ratio else 0),
                     np.float32(geom.s_s), np.float32(geom.z0), np.float32(1.0 / geom.s_r),
                     np.int32(geom.gw), np.int32(geom.gh), np.int32(geom.nz), self._grid[0],
-                    out_buf)
+                    out_buf, self._zbuf)
 
     def grid_limit_bytes(self) -> int:
         return int(min(self.rt.max_alloc_bytes(),
@@ -220,12 +234,14 @@ class DeviceBilateral:
     def fast(self, v_buf, out_buf, width: int, height: int, sigma_s: float, rk: RangeKernel,
              q_s: float = 2.0, q_r: float = 2.0) -> GridGeometry:
         """Whole-frame grid filter (signal resident in one buffer)."""
-        z_min, z_max = self.z_range(v_buf, width * height, rk)
+        n = width * height
+        z = self.z_map(v_buf, n, rk)                    # z once per pixel, reused below
+        z_min, z_max = self.z_range(z, n, Z_IDENTITY)
         geom = self.fit_geometry(width, height, z_min, z_max, sigma_s, rk, q_s, q_r)
         self.begin_grid(geom)
-        self.splat(v_buf, width, height, 0, geom, rk)
+        self.splat(v_buf, width, height, 0, geom, rk, z_ready=True)
         self.blur(geom, rk)
-        self.slice(v_buf, out_buf, width, height, 0, 0, height, geom, rk)
+        self.slice(v_buf, out_buf, width, height, 0, 0, height, geom, rk, z_ready=True)
         return geom
 
     def filter_banded(self, v: np.ndarray, sigma_s: float, rk: RangeKernel, method: str,
@@ -249,7 +265,8 @@ class DeviceBilateral:
         if method != "exact":
             lo, hi = np.inf, -np.inf
             for y0, nr in bands:
-                zl, zh = self.z_range(upload(y0, y0 + nr), nr * w, rk)
+                zl, zh = self.z_range(self.z_map(upload(y0, y0 + nr), nr * w, rk), nr * w,
+                                      Z_IDENTITY)
                 lo, hi = min(lo, zl), max(hi, zh)
             geom = self.fit_geometry(w, h, lo, hi, sigma_s, rk, q_s, q_r)
             self.begin_grid(geom)

@@ -24,7 +24,7 @@ from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
 from ..planes import PlaneStore, UniformPlanes, read_rows
 from ..reference import PixelStateMixin, ledda_summary
-from .bilateral import DeviceBilateral
+from .bilateral import Z_IDENTITY, DeviceBilateral
 from .runtime import round_up
 
 #: Model constants of kernels/ledda04.cl, given as build options (never retyped).
@@ -129,7 +129,9 @@ class LeddaSchedule(PixelStateMixin):
                 gsums.add(gs)
             if method == "fast":
                 for k, (flt, buf) in enumerate(((fc, yl), (fr, ysl))):
-                    lo, hi = flt.z_range(buf, n, LEDDA_RANGE)
+                    # z once per pixel: the resident band's stays in the filter's z
+                    # buffer for its splat and slice
+                    lo, hi = flt.z_range(flt.z_map(buf, n, LEDDA_RANGE), n, Z_IDENTITY)
                     zr[k] = [min(zr[k][0], lo), max(zr[k][1], hi)]
         G_rod_g, G_cone_g = gsums.goal(LOGMEAN)
         geoms = None
@@ -143,8 +145,8 @@ class LeddaSchedule(PixelStateMixin):
                     _, n, yl, ysl = self._colour_and_lum(frame, y0, y0 + nr, None)
                 else:
                     _, n, yl, ysl = resident
-                fc.splat(yl, w, nr, y0, geoms[0], LEDDA_RANGE)
-                fr.splat(ysl, w, nr, y0, geoms[1], LEDDA_RANGE)
+                fc.splat(yl, w, nr, y0, geoms[0], LEDDA_RANGE, z_ready=not banded)
+                fr.splat(ysl, w, nr, y0, geoms[1], LEDDA_RANGE, z_ready=not banded)
             fc.blur(geoms[0], LEDDA_RANGE)
             fr.blur(geoms[1], LEDDA_RANGE)
         repairs = RepairCounts()
@@ -164,14 +166,15 @@ class LeddaSchedule(PixelStateMixin):
             if method == "exact":
                 fc.exact(yl, ic, w, b - a, a, y0, nr, sig, LEDDA_RANGE)
             else:
-                fc.slice(yl, ic, w, nr, y0, y0, nr, geoms[0], LEDDA_RANGE)
+                fc.slice(yl, ic, w, nr, y0, y0, nr, geoms[0], LEDDA_RANGE, z_ready=not banded)
             rods_needed = banded or op.rods == "always" or \
-                math.exp(fc.z_range(ic, n, LEDDA_RANGE)[0]) < L.PHOTOPIC_FLOOR
+                fc.z_range(ic, n, Z_IDENTITY)[0] < L.PHOTOPIC_FLOOR     # the darkest level
             if rods_needed:
                 if method == "exact":
                     fr.exact(ysl, ir, w, b - a, a, y0, nr, sig, LEDDA_RANGE)
                 else:
-                    fr.slice(ysl, ir, w, nr, y0, y0, nr, geoms[1], LEDDA_RANGE)
+                    fr.slice(ysl, ir, w, nr, y0, y0, nr, geoms[1], LEDDA_RANGE,
+                             z_ready=not banded)
             rods_used = rods_used and rods_needed
             sb = be.meter.band_sums(ic, ir if rods_needed else ic, n, w, h, y0, LOGMEAN)
             if sums is None:
