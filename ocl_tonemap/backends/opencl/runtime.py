@@ -125,8 +125,11 @@ class Runtime:
     def kernel(self, file: str, name: str, defines: tuple = ()):
         """A kernel of ``file``, retrieved once per process (kernel objects are costly).
         ``defines``: (NAME, value) pairs given to the compiler as -DNAME=value (constants
-        and parameter indices generated from the Python side, never retyped)."""
-        return _kernel(self.context, self.device, file, name, tuple(defines))
+        and parameter indices generated from the Python side, never retyped).
+        With ``OCLTM_PROFILE=1`` in the environment each launch is timed
+        (:func:`kernel_times`)."""
+        k = _kernel(self.context, self.device, file, name, tuple(defines))
+        return _TimedKernel(k, name) if PROFILING else k
 
     def max_alloc_bytes(self) -> int:
         return int(self.device.max_mem_alloc_size)
@@ -135,11 +138,47 @@ class Runtime:
         return int(self.device.global_mem_size)
 
 
+#: ``OCLTM_PROFILE=1``: the queue records each kernel's device time (benchmarks,
+#: ``benchmarks/speed_accuracy.py``); costs a little, never on by default.
+PROFILING = os.environ.get("OCLTM_PROFILE", "") not in ("", "0")
+_EVENTS: list = []
+
+
+class _TimedKernel:
+    """A kernel whose launches are recorded (name, event) for :func:`kernel_times`."""
+
+    def __init__(self, kernel, name: str):
+        self._k, self.name = kernel, name
+
+    def __call__(self, *args, **kw):
+        ev = self._k(*args, **kw)
+        _EVENTS.append((self.name, ev))
+        return ev
+
+    def __getattr__(self, attr):
+        return getattr(self._k, attr)
+
+
+def kernel_times(reset: bool = True) -> dict:
+    """Device milliseconds per kernel name launched since the last reset, and launches:
+    {name: (ms, count)} (``OCLTM_PROFILE=1`` only; else empty)."""
+    out: dict = {}
+    for name, ev in _EVENTS:
+        ev.wait()
+        ms = (ev.profile.end - ev.profile.start) * 1e-6
+        t, c = out.get(name, (0.0, 0))
+        out[name] = (t + ms, c + 1)
+    if reset:
+        _EVENTS.clear()
+    return out
+
+
 @functools.lru_cache(maxsize=None)
 def _runtime_for(device) -> Runtime:
     cl = _cl()
     ctx = cl.Context([device])
-    q = cl.CommandQueue(ctx)
+    props = cl.command_queue_properties.PROFILING_ENABLE if PROFILING else 0
+    q = cl.CommandQueue(ctx, properties=props)
     return Runtime(device, ctx, q)
 
 
