@@ -224,3 +224,37 @@ def test_durand00_float4_kernel_equals_scalar_kernel(rt, n):
         cl.enqueue_copy(rt.queue, o, b["out"])
         outs.append(o)
     np.testing.assert_allclose(outs[0], outs[1], rtol=1e-6, atol=1e-7)
+
+
+def test_profiling_hook_times_every_kernel_launched(tmp_path):
+    """OCLTM_PROFILE=1 (the benchmarks' per-kernel tables): each operator's frame
+    records its kernels with positive device times; without it nothing is kept."""
+    import json
+    import subprocess
+    import sys
+    code = (
+        "import json, numpy as np\n"
+        "from ocl_tonemap.pipeline import Tonemapper\n"
+        "from ocl_tonemap.backends.opencl.runtime import kernel_times\n"
+        "img = (10.0 ** np.random.default_rng(1).uniform(-2, 3, (37, 53, 3))).astype(np.float32)\n"
+        "out = {}\n"
+        "for op in ('pattanaik00', 'durand00', 'ledda04', 'kirk11'):\n"
+        "    tm = Tonemapper(operator=op, backend='opencl')\n"
+        "    tm.process(img, 0.0); tm.process(img, 0.04)\n"
+        "    out[op] = kernel_times()\n"
+        "print(json.dumps(out))\n")
+    for env, on in (({"OCLTM_PROFILE": "1"}, True), ({"OCLTM_PROFILE": "0"}, False)):
+        p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           env={**__import__("os").environ, **env})
+        assert p.returncode == 0, p.stderr
+        times = json.loads(p.stdout.strip().splitlines()[-1])
+        for op, kt in times.items():
+            if not on:
+                assert kt == {}, op
+                continue
+            assert kt, op
+            assert all(ms >= 0 and n >= 1 for ms, n in kt.values()), (op, kt)
+            assert sum(ms for ms, _ in kt.values()) > 0, op
+        if on:
+            assert any(k.startswith("ledda04") for k in times["ledda04"])
+            assert "bilateral_exact" in times["ledda04"] and "kirk11_shift" in times["kirk11"]
