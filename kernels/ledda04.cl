@@ -81,6 +81,50 @@ inline float2 adaptation_levels(__global const float *Ic, __global const float *
  *           rod_scale * Ic[i] when rod_from_cone is set (rods not filtered).
  *   state:  NSTATE planes of `stride` floats; this band starts at plane offset 0.
  *   counts[0] += pixels restarted. */
+/* One pixel of ledda04_step; returns 1 when its course restarted. */
+inline int ledda04_step_one(__global const float *Ic, __global const float *Ir,
+                            const int rod_from_cone, const float rod_scale,
+                            __global float *state, const int stride, const int i,
+                            const float dt, const int init, const float E_init,
+                            const float change_log2, const float strength,
+                            const float ln_global_c, const float ln_global_r)
+{
+    __global float *s = state + i;
+    const float2 lv = adaptation_levels(Ic, Ir, i, rod_from_cone, rod_scale, strength,
+                                        ln_global_c, ln_global_r);
+    const float gc = sigma_of(lv.x, BETA_CONE), gr = sigma_of(lv.y, BETA_ROD);
+    float sic, sfc, sac, sir, sfr, sar, t, E, K;
+    int restarted = 0;
+    if (init) {
+        sic = sfc = sac = gc;
+        sir = sfr = sar = gr;
+        t = T_DONE; E = E_init; K = K_of_energy(E_init);
+    } else {
+        sic = s[0]; sfc = s[stride]; sac = s[2 * stride];
+        sir = s[3 * stride]; sfr = s[4 * stride]; sar = s[5 * stride];
+        t = s[6 * stride]; E = s[7 * stride]; K = s[8 * stride];
+        const float tn = t + dt;
+        const float i_prev = powp(sfc / BETA_CONE, 1.0f / ALPHA);
+        E = fmin(E + i_prev * dt, 1.0e30f);
+        const bool change = fabs(log2(gc / sac)) > change_log2 ||
+                            fabs(log2(gr / sar)) > change_log2;
+        if (change) {
+            sic = sigma_cone_at(sic, sfc, tn, K);
+            sir = sigma_rod_at(sir, sfr, tn, K);
+            sac = gc; sar = gr;
+            t = 0.0f; K = K_of_energy(E); E = 0.0f;
+            restarted = 1;
+        } else {
+            t = fmin(tn, T_DONE);
+        }
+        sfc = gc; sfr = gr;
+    }
+    s[0] = sic; s[stride] = sfc; s[2 * stride] = sac;
+    s[3 * stride] = sir; s[4 * stride] = sfr; s[5 * stride] = sar;
+    s[6 * stride] = t; s[7 * stride] = E; s[8 * stride] = K;
+    return restarted;
+}
+
 __kernel void ledda04_step(__global const float *Ic, __global const float *Ir,
                            const int rod_from_cone, const float rod_scale,
                            __global float *state, const int stride, const int n,
@@ -93,40 +137,10 @@ __kernel void ledda04_step(__global const float *Ic, __global const float *Ir,
     if (get_local_id(0) == 0) lrestart = 0;
     barrier(CLK_LOCAL_MEM_FENCE);
     const int i = get_global_id(0);
-    if (i < n) {
-        __global float *s = state + i;
-        const float2 lv = adaptation_levels(Ic, Ir, i, rod_from_cone, rod_scale, strength,
-                                            ln_global_c, ln_global_r);
-        const float gc = sigma_of(lv.x, BETA_CONE), gr = sigma_of(lv.y, BETA_ROD);
-        float sic, sfc, sac, sir, sfr, sar, t, E, K;
-        if (init) {
-            sic = sfc = sac = gc;
-            sir = sfr = sar = gr;
-            t = T_DONE; E = E_init; K = K_of_energy(E_init);
-        } else {
-            sic = s[0]; sfc = s[stride]; sac = s[2 * stride];
-            sir = s[3 * stride]; sfr = s[4 * stride]; sar = s[5 * stride];
-            t = s[6 * stride]; E = s[7 * stride]; K = s[8 * stride];
-            const float tn = t + dt;
-            const float i_prev = powp(sfc / BETA_CONE, 1.0f / ALPHA);
-            E = fmin(E + i_prev * dt, 1.0e30f);
-            const bool change = fabs(log2(gc / sac)) > change_log2 ||
-                                fabs(log2(gr / sar)) > change_log2;
-            if (change) {
-                sic = sigma_cone_at(sic, sfc, tn, K);
-                sir = sigma_rod_at(sir, sfr, tn, K);
-                sac = gc; sar = gr;
-                t = 0.0f; K = K_of_energy(E); E = 0.0f;
-                atomic_inc(&lrestart);
-            } else {
-                t = fmin(tn, T_DONE);
-            }
-            sfc = gc; sfr = gr;
-        }
-        s[0] = sic; s[stride] = sfc; s[2 * stride] = sac;
-        s[3 * stride] = sir; s[4 * stride] = sfr; s[5 * stride] = sar;
-        s[6 * stride] = t; s[7 * stride] = E; s[8 * stride] = K;
-    }
+    if (i < n && ledda04_step_one(Ic, Ir, rod_from_cone, rod_scale, state, stride, i, dt,
+                                  init, E_init, change_log2, strength, ln_global_c,
+                                  ln_global_r))
+        atomic_inc(&lrestart);
     barrier(CLK_LOCAL_MEM_FENCE);
     if (get_local_id(0) == 0 && lrestart) atomic_add(&counts[0], lrestart);
 }
@@ -230,3 +244,83 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
                clamp(b, 0.0f, DISPLAY_LINEAR_MAX));
 }
 
+
+/* ledda04_step four pixels per work-item (same arguments; launched over n/4 items):
+ * the adaptation levels, goals and energy in float4; the Eq. 14/15 restart branch
+ * computed only where a lane's goal moved, and selected per lane. Tail pixels scalar. */
+inline float4 sigma_of4(const float4 I, const float beta)
+{
+    return beta * powp4(fmax(I, V_FLOOR), (float4)(ALPHA));
+}
+
+__kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
+                            const int rod_from_cone, const float rod_scale,
+                            __global float *state, const int stride, const int n,
+                            const float dt, const int init, const float E_init,
+                            const float change_log2, __global int *counts,
+                            const float strength, const float ln_global_c,
+                            const float ln_global_r)
+{
+    __local int lrestart;
+    if (get_local_id(0) == 0) lrestart = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const int q = get_global_id(0), i0 = 4 * q;
+    if (i0 + 4 > n) {
+        for (int i = i0; i < n; ++i)
+            if (ledda04_step_one(Ic, Ir, rod_from_cone, rod_scale, state, stride, i, dt, init,
+                                 E_init, change_log2, strength, ln_global_c, ln_global_r))
+                atomic_inc(&lrestart);
+    } else {
+        __global float *s = state + i0;
+        float4 ic = vload4(q, Ic);
+        float4 ir = rod_from_cone ? rod_scale * ic : vload4(q, Ir);
+        if (strength < 1.0f) {
+            ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
+            ir = rod_from_cone ? rod_scale * ic
+                               : exp(strength * log(fmax(ir, V_FLOOR))
+                                     + (1.0f - strength) * ln_global_r);
+        }
+        const float4 gc = sigma_of4(ic, BETA_CONE), gr = sigma_of4(ir, BETA_ROD);
+        float4 sic, sfc, sac, sir, sfr, sar, t, E, K;
+        if (init) {
+            sic = sfc = sac = gc;
+            sir = sfr = sar = gr;
+            t = (float4)(T_DONE); E = (float4)(E_init); K = (float4)(K_of_energy(E_init));
+        } else {
+            sic = vload4(0, s); sfc = vload4(0, s + stride); sac = vload4(0, s + 2 * stride);
+            sir = vload4(0, s + 3 * stride); sfr = vload4(0, s + 4 * stride);
+            sar = vload4(0, s + 5 * stride);
+            t = vload4(0, s + 6 * stride); E = vload4(0, s + 7 * stride);
+            K = vload4(0, s + 8 * stride);
+            const float4 tn = t + dt;
+            const float4 i_prev = powp4(sfc / BETA_CONE, (float4)(1.0f / ALPHA));
+            E = fmin(E + i_prev * dt, 1.0e30f);
+            const int4 change = isgreater(fabs(log2(gc / sac)), (float4)(change_log2)) |
+                                isgreater(fabs(log2(gr / sar)), (float4)(change_log2));
+            t = fmin(tn, T_DONE);
+            if (any(change)) {
+                const float4 fc = select(light_fraction4(tn, LN_RHO_CONE),
+                                         dark_fraction4(tn, K, TAU_CONE), isless(sfc, sic));
+                const float4 fr = select(light_fraction4(tn, LN_RHO_ROD),
+                                         dark_fraction4(tn - TAU_CONE, K, TAU_ROD),
+                                         isless(sfr, sir));
+                sic = select(sic, sfc + fc * (sic - sfc), change);
+                sir = select(sir, sfr + fr * (sir - sfr), change);
+                sac = select(sac, gc, change);
+                sar = select(sar, gr, change);
+                t = select(t, (float4)(0.0f), change);
+                K = select(K, K_MAX + K_SLOPE * clamp(E, 0.0f, E_MAX), change);
+                E = select(E, (float4)(0.0f), change);
+                atomic_add(&lrestart, -(change.x + change.y + change.z + change.w));
+            }
+            sfc = gc; sfr = gr;
+        }
+        vstore4(sic, 0, s); vstore4(sfc, 0, s + stride); vstore4(sac, 0, s + 2 * stride);
+        vstore4(sir, 0, s + 3 * stride); vstore4(sfr, 0, s + 4 * stride);
+        vstore4(sar, 0, s + 5 * stride);
+        vstore4(t, 0, s + 6 * stride); vstore4(E, 0, s + 7 * stride);
+        vstore4(K, 0, s + 8 * stride);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (get_local_id(0) == 0 && lrestart) atomic_add(&counts[0], lrestart);
+}

@@ -274,3 +274,35 @@ def test_map_float4_kernel_equals_scalar_kernel(mode, shape):
         a, b = (tm.process(img * scale, dt=dt if k else None) for tm in tms)
         np.testing.assert_allclose(a, b, rtol=2e-6, atol=1e-7)
         assert a.max() > 0
+
+
+@pytest.mark.parametrize("mode", ["default", "paper"])
+@pytest.mark.parametrize("shape", [(9, 11), (16, 24)])
+def test_step_float4_kernel_equals_scalar_kernel(mode, shape):
+    """ledda04_step4 (four pixels per work-item, the restart branch selected per lane)
+    leaves the scalar kernel's per-pixel state and restart count through light
+    adaptation, dark adaptation and restarts of part of the frame, with and without a
+    tail."""
+    img = hdr_image(*shape, seed=12, lo=-3, hi=5)
+    tms = []
+    for vector in (True, False):
+        tm = Tonemapper("ledda04", options={"mode": mode, "bilateral": "exact"})
+        tm.schedule.set_step_kernel(vector=vector)
+        tms.append(tm)
+    part = np.ones_like(img)
+    part[:, : shape[1] // 3] = 1e-3                  # only some pixels' goals move
+    steps = [(img, None), (img * 1e-4, 0.5), (img * 1e-4, 20.0), (img, 0.2),
+             (img * part, 3.0), (img * part, 0.04)]
+    restarts = []
+    for frame, dt in steps:
+        a, b = (tm.process(frame, dt=dt) for tm in tms)
+        np.testing.assert_allclose(a, b, rtol=2e-6, atol=1e-7)
+        sa, sb = (tm.schedule.pixel_state() for tm in tms)
+        for k in sa:
+            np.testing.assert_allclose(sa[k], sb[k], rtol=2e-6, atol=1e-30, err_msg=k)
+        ra, rb = (tm.last.params["restarted_fraction"] for tm in tms)
+        assert ra == rb
+        restarts.append(ra)
+    assert restarts[1] == 1.0 and restarts[2] == 0.0 and restarts[-1] == 0.0
+    if mode == "paper":           # purely local levels: only the darkened third restarts
+        assert 0.0 < restarts[4] < 1.0

@@ -5,7 +5,7 @@ measure    colour stage and Y, Y' per band; the frame's log-average levels; the
            bilateral filter of Y and Y' (exact: bands with halo rows; grid: the
            frame's z range, splat band by band, blur, slice band by band) into the
            adaptation levels I_A, I_A' (resident for one band, host planes for more);
-integrate  ``ledda04_step`` on the per-pixel state (resident on the device between
+integrate  ``ledda04_step4`` on the per-pixel state (resident on the device between
            frames when the frame is one band, on the host otherwise);
 apply      ``ledda04_map4`` per band (four pixels per work-item).
 """
@@ -51,8 +51,8 @@ class LeddaSchedule(PixelStateMixin):
         self._filters = None
         rt = backend.rt
         self._k_lum = rt.kernel("ledda04.cl", "ledda04_luminance", KERNEL_CONSTANTS)
-        self._k_step = rt.kernel("ledda04.cl", "ledda04_step", KERNEL_CONSTANTS)
         self.set_map_kernel(vector=True)
+        self.set_step_kernel(vector=True)
 
     def set_map_kernel(self, vector: bool = True) -> None:
         """``ledda04_map4`` (four pixels per work-item, the default) or the scalar
@@ -60,6 +60,13 @@ class LeddaSchedule(PixelStateMixin):
         self._map_vector = vector
         self._k_map = self.backend.rt.kernel("ledda04.cl", "ledda04_map4" if vector
                                              else "ledda04_map", KERNEL_CONSTANTS)
+
+    def set_step_kernel(self, vector: bool = True) -> None:
+        """``ledda04_step4`` (four pixels per work-item, the default) or the scalar
+        ``ledda04_step`` (kept to test the one against the other)."""
+        self._step_vector = vector
+        self._k_step = self.backend.rt.kernel("ledda04.cl", "ledda04_step4" if vector
+                                              else "ledda04_step", KERNEL_CONSTANTS)
 
     # -- per-pixel state ---------------------------------------------------------------
     def pixel_state(self):
@@ -265,7 +272,8 @@ class LeddaSchedule(PixelStateMixin):
                 if not init:
                     cl.enqueue_copy(q, st, read_rows(self._host, self.planes, 0, h))
             rods = stats.values["rods"]
-            self._k_step(q, (round_up(n, 64),), (64,), ic, ir, i32(0 if rods else 1),
+            items = -(-n // 4) if self._step_vector else n
+            self._k_step(q, (round_up(items, 64),), (64,), ic, ir, i32(0 if rods else 1),
                          f32(op.rod_ratio), st, i32(n), i32(n), f32(dt), i32(1 if init else 0),
                          f32(L.E_MAX), f32(op.settings.change_log10 * math.log2(10.0)), counts,
                          strength, lgc, lgr)
