@@ -113,12 +113,30 @@ __kernel void z_minmax(__global const float *v, const int n, const int ratio,
                        __global float *partial, __local float *scratch)
 {
     const int lid = get_local_id(0), lsz = get_local_size(0);
-    float lo = INFINITY, hi = -INFINITY;
-    for (int i = get_global_id(0); i < n; i += get_global_size(0)) {
-        float z = grid_z(v[i], ratio);
-        lo = fmin(lo, z);
-        hi = fmax(hi, z);
+    /* four values at a time, z as grid_z_map takes it (float4 log2), so the range
+     * is that of the z the splat reads */
+    float4 lo4 = (float4)(INFINITY), hi4 = (float4)(-INFINITY);
+    const int nq = n / 4, gsz = get_global_size(0);
+    if (ratio) {
+        for (int q = get_global_id(0); q < nq; q += gsz) {
+            const float4 z = log2(vload4(q, v)) * M_LN2_F;
+            lo4 = fmin(lo4, z);
+            hi4 = fmax(hi4, z);
+        }
+    } else {
+        for (int q = get_global_id(0); q < nq; q += gsz) {
+            const float4 z = vload4(q, v);
+            lo4 = fmin(lo4, z);
+            hi4 = fmax(hi4, z);
+        }
     }
+    for (int i = 4 * nq + get_global_id(0); i < n; i += gsz) {
+        const float z = ratio ? log2(v[i]) * M_LN2_F : v[i];
+        lo4.x = fmin(lo4.x, z);
+        hi4.x = fmax(hi4.x, z);
+    }
+    float lo = fmin(fmin(lo4.x, lo4.y), fmin(lo4.z, lo4.w));
+    float hi = fmax(fmax(hi4.x, hi4.y), fmax(hi4.z, hi4.w));
     scratch[2 * lid] = lo;
     scratch[2 * lid + 1] = hi;
     barrier(CLK_LOCAL_MEM_FENCE);
