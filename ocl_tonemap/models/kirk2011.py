@@ -81,6 +81,13 @@ TARGET_CONTRAST = 5.0
 #: 5:1 the base compression reordered luminances (Spearman 0.73, gradient reversal
 #: 8% on photographs; 100:1: 0.93 and 1.4%; 300:1: under 1% on the lamp scene).
 TARGET_CONTRAST_DEFAULT = 300.0
+#: Default mode: the base layer's range for the compression and the white anchor
+#: from its 1st and 99th percentiles (as pfstools' ``pfstmo_durand02``), not its
+#: extremes (the paper's, ``--mode paper``): a small lamp then neither sets the
+#: frame's exposure nor, smoothed differently by the bilateral grid than by the
+#: exact filter, moves it (models/durand2002.py, BaseRange; docs/models.md).
+BASE_PERCENTILES_DEFAULT = (1.0, 99.0)
+BASE_PERCENTILES_PAPER = (0.0, 100.0)
 SIGMA_RANGE_LOG10 = 0.4
 #: Floor on luminances before the log, cd/m^2.
 Y_FLOOR = 1.0e-10
@@ -256,6 +263,8 @@ class KirkSettings:
     target_contrast: float | None = None   # None: 5 (paper) or 300 (default)
     sigma_spatial: float | None = None   # px; default 2% of the larger side
     mode: str = "default"
+    base_percentiles: tuple | None = None  # None: (1, 99) default, (0, 100) paper
+
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -265,6 +274,14 @@ class KirkSettings:
         if self.target_contrast is None:
             object.__setattr__(self, "target_contrast",
                                TARGET_CONTRAST if self.mode == "paper" else TARGET_CONTRAST_DEFAULT)
+        if self.base_percentiles is None:
+            object.__setattr__(self, "base_percentiles", BASE_PERCENTILES_PAPER
+                               if self.mode == "paper" else BASE_PERCENTILES_DEFAULT)
+        object.__setattr__(self, "base_percentiles",
+                           tuple(float(v) for v in self.base_percentiles))
+        if len(self.base_percentiles) != 2 or not (
+                0 <= self.base_percentiles[0] < self.base_percentiles[1] <= 100):
+            raise ValueError("--base-percentiles needs LO,HI with 0 <= LO < HI <= 100")
         if self.shift_xyz is None:
             object.__setattr__(self, "shift_xyz",
                                SHIFT_XYZ_PAPER if self.mode == "paper" else SHIFT_XYZ)
@@ -308,7 +325,8 @@ def compose_reference(src_rgb, shift_rgb, w, logY, base, settings: KirkSettings,
     the same output luminance), the mesopic dimming of the pixel (Sec. 3.2: "a pixel
     with mesopic factor w is linearly mapped into [0, x]", the blended pixel, not only
     its mesopic part), and the absolute level (``anchor_gain``). Display-linear."""
-    logY_out = range_reduce(logY, base, settings.target_contrast)
+    logY_out = range_reduce(logY, base, settings.target_contrast,
+                            settings.base_percentiles)
     s = 10.0 ** (logY_out - logY)                                    # per-pixel scale
     dim = np.maximum(1.0 - w / settings.beta, settings.gamma)         # Sec. 3.2 (see docs)
     out = shift_rgb * (s if not settings.paper else s * dim)[..., None]

@@ -61,6 +61,10 @@ class Kirk11(Operator):
         Option("target_contrast", "--target-contrast", "base-layer contrast after Durand & "
                "Dorsey 2002 compression (default 300; the paper's 5 with --mode paper)",
                type=float),
+        Option("base_percentiles", "--base-percentiles", "percentiles of the base layer "
+               "taken as its range and white (default 1,99 as pfstmo_durand02; 0,100 = its "
+               "minimum and maximum, the paper's and --mode paper's)", metavar="LO,HI",
+               convert=lambda v: tuple(float(x) for x in str(v).split(","))),
     )
     state = StateSpec(scalars=("logmean_I_A_cone", "logmean_I_A_rod", *LEVEL_KEYS))
     inputs = ("rgb", "spectral")

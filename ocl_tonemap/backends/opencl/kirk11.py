@@ -15,6 +15,7 @@ import numpy as np
 
 from ...models import lmsr
 from ...models.bilateral import RangeKernel, spatial_radius
+from ...models.durand2002 import BaseRange, compression
 from ...models.display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, apply_shoulder
 from ...models.kirk2011 import (RHO, SIGMA_RANGE_LOG10, anchor_gain, display_matrix, logmean,
                                 model_scale, subset_solvers, white_norm)
@@ -210,9 +211,8 @@ class KirkSchedule(NoPixelState):
             dev.bil.fast(logY, base, w, h, sig, rk, op.bilateral.q_s, op.bilateral.q_r)
         bh = np.empty(n, np.float32)
         cl.enqueue_copy(q_, bh, base)
-        bmin, bmax = float(bh.min()), float(bh.max())
-        span = bmax - bmin
-        c = min(1.0, np.log10(s.target_contrast) / span) if span > 0 else 1.0
+        _, bmax = brange = BaseRange(s.base_percentiles).add(bh).result()
+        c = compression(brange, s.target_contrast)
         out = dev._buf(n * 12)
         blend = frame.wavelengths is None
         dev._k_compose(q_, gsz, wg, src if blend else shifted, shifted, wbuf, logY, base,
@@ -320,13 +320,13 @@ class KirkSchedule(NoPixelState):
                 dev.bil.slice(rows[3], out, w, nr, y0, y0, nr, geom, rk)
             return out, rows
 
-        bmin, bmax = np.inf, -np.inf
+        acc = BaseRange(s.base_percentiles)
         for y0, nr in bands:
             bh = np.empty(nr * w, np.float32)
             cl.enqueue_copy(q_, bh, base(y0, nr, False)[0])
-            bmin, bmax = min(bmin, float(bh.min())), max(bmax, float(bh.max()))
-        span = bmax - bmin
-        c = min(1.0, np.log10(s.target_contrast) / span) if span > 0 else 1.0
+            acc.add(bh)
+        _, bmax = brange = acc.result()
+        c = compression(brange, s.target_contrast)
         u = op.display.white_cd / op.display.unit_cd
         blend = frame.wavelengths is None
 
