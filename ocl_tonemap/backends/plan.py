@@ -82,10 +82,12 @@ class QualityTier:
 QUALITY_TIERS = {
     "draft": QualityTier(
         "draft", "opencl",
-        (("bilateral", "fast"), ("bilateral_sampling", "1"), ("lut", 1024)),
+        (("bilateral", "fast"), ("bilateral_sampling", "1")),
         (("flare_method", "fast"), ("flare_per_octave", 1)), "table",
-        "coarsest bilateral grid (1 sample per sigma), durand00 through tables, fast flare, "
-        "the display transform through device tables"),
+        "coarsest bilateral grid (1 sample per sigma), fast flare, the display transform "
+        "through device tables (durand00's --lut is left off: its kernel is ~1% of the "
+        "frame, so the table bought no time and added error; benchmarks/results/"
+        "speed_accuracy.md)"),
     "balanced": QualityTier(
         "balanced", "opencl", (), (), "auto",
         "the defaults: bilateral exact when cheap else the grid at 2 samples per sigma, "
