@@ -32,6 +32,21 @@ inline float repair_and_scale(const float raw, const float scale, const bool cou
     return x;
 }
 
+/* One pixel: repaired, scaled to cd/m^2, stored with its Y and Y'. */
+inline void working_pixel(__global const float *src, const int channels, const int i,
+                          const float scale, __global float *rgb, __global float *Y,
+                          __global float *Ys, __local int *lc, const int count_lo,
+                          const int count_hi)
+{
+    float v[3];
+    const bool counted = i >= count_lo && i < count_hi;
+    for (int k = 0; k < 3; ++k)
+        v[k] = repair_and_scale(src[(size_t)i * channels + k], scale, counted, lc);
+    vstore3((float3)(v[0], v[1], v[2]), i, rgb);
+    Y[i] = M_YR * v[0] + M_YG * v[1] + M_YB * v[2];
+    Ys[i] = scotopic_luminance(v[0], v[1], v[2]);
+}
+
 /* src: n pixels of `channels` floats (RGB first); rgb out: n*3 floats.
  * Repairs are counted for pixels [count_lo, count_hi) only (a band's halo
  * rows are another band's own). */
@@ -45,15 +60,7 @@ __kernel void scene_to_working(__global const float *src, const int channels, co
     if (lid < NREPAIR) lc[lid] = 0;
     barrier(CLK_LOCAL_MEM_FENCE);
     const int i = get_global_id(0);
-    if (i < n) {
-        float v[3];
-        const bool counted = i >= count_lo && i < count_hi;
-        for (int k = 0; k < 3; ++k)
-            v[k] = repair_and_scale(src[(size_t)i * channels + k], scale, counted, lc);
-        vstore3((float3)(v[0], v[1], v[2]), i, rgb);
-        Y[i] = M_YR * v[0] + M_YG * v[1] + M_YB * v[2];
-        Ys[i] = scotopic_luminance(v[0], v[1], v[2]);
-    }
+    if (i < n) working_pixel(src, channels, i, scale, rgb, Y, Ys, lc, count_lo, count_hi);
     barrier(CLK_LOCAL_MEM_FENCE);
     if (lid < NREPAIR && lc[lid]) atomic_add(&counts[lid], lc[lid]);
 }
@@ -110,15 +117,8 @@ __kernel void scene_to_working4(__global const float *src, const int channels, c
         }
     }
     if (!done) {
-        for (int i = i0; i < min(i0 + 4, n); ++i) {
-            float v[3];
-            const bool counted = i >= count_lo && i < count_hi;
-            for (int k = 0; k < 3; ++k)
-                v[k] = repair_and_scale(src[(size_t)i * channels + k], scale, counted, lc);
-            vstore3((float3)(v[0], v[1], v[2]), i, rgb);
-            Y[i] = M_YR * v[0] + M_YG * v[1] + M_YB * v[2];
-            Ys[i] = scotopic_luminance(v[0], v[1], v[2]);
-        }
+        for (int i = i0; i < min(i0 + 4, n); ++i)
+            working_pixel(src, channels, i, scale, rgb, Y, Ys, lc, count_lo, count_hi);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     if (lid < NREPAIR && lc[lid]) atomic_add(&counts[lid], lc[lid]);
