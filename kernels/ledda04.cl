@@ -188,6 +188,29 @@ inline float4 light_fraction4(const float4 t, const float ln_rho)
     return clamp(1.0f - log(fmax(t, 1.0f)) / ln_rho, 0.0f, 1.0f);
 }
 
+/* sigma_cone_at / sigma_rod_at on four pixels: both branches, selected per pixel. */
+inline float4 sigma_cone_at4(const float4 s_in, const float4 s_fin, const float4 t,
+                             const float4 K)
+{
+    const float4 f = select(light_fraction4(t, LN_RHO_CONE), dark_fraction4(t, K, TAU_CONE),
+                            isless(s_fin, s_in));
+    return s_fin + f * (s_in - s_fin);
+}
+
+inline float4 sigma_rod_at4(const float4 s_in, const float4 s_fin, const float4 t,
+                            const float4 K)
+{
+    const float4 f = select(light_fraction4(t, LN_RHO_ROD),
+                            dark_fraction4(t - TAU_CONE, K, TAU_ROD), isless(s_fin, s_in));
+    return s_fin + f * (s_in - s_fin);
+}
+
+/* The default mode's blend of a local level with the frame's global one, I^s G^(1-s). */
+inline float4 blend_global4(const float4 v, const float strength, const float ln_global)
+{
+    return exp(strength * log(fmax(v, V_FLOOR)) + (1.0f - strength) * ln_global);
+}
+
 __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
                            __global const float *Ic, __global const float *state,
                            const int stride, const int n, const float sigma_disp,
@@ -219,15 +242,10 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
     __global const float *s = state + i0;
     float4 ic = vload4(q, Ic);
     if (strength < 1.0f)
-        ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
-    const float4 sic = vload4(0, s), sfc = vload4(0, s + stride);
-    const float4 sir = vload4(0, s + 3 * stride), sfr = vload4(0, s + 4 * stride);
+        ic = blend_global4(ic, strength, ln_global_c);
     const float4 t = vload4(0, s + 6 * stride), K = vload4(0, s + 8 * stride);
-    const float4 fc = select(light_fraction4(t, LN_RHO_CONE), dark_fraction4(t, K, TAU_CONE),
-                             isless(sfc, sic));
-    const float4 fr = select(light_fraction4(t, LN_RHO_ROD),
-                             dark_fraction4(t - TAU_CONE, K, TAU_ROD), isless(sfr, sir));
-    const float4 sc = sfc + fc * (sic - sfc), sr = sfr + fr * (sir - sfr);
+    const float4 sc = sigma_cone_at4(vload4(0, s), vload4(0, s + stride), t, K);
+    const float4 sr = sigma_rod_at4(vload4(0, s + 3 * stride), vload4(0, s + 4 * stride), t, K);
     const float4 u = clamp((log10(fmax(ic, V_FLOOR)) + 2.0f) / 2.6f, 0.0f, 1.0f);
     const float4 mes = u * u * (3.0f - 2.0f * u);                        /* Eq. 11 */
     float4 r, g, b;
@@ -275,10 +293,8 @@ __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
         float4 ic = vload4(q, Ic);
         float4 ir = rod_from_cone ? rod_scale * ic : vload4(q, Ir);
         if (strength < 1.0f) {
-            ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
-            ir = rod_from_cone ? rod_scale * ic
-                               : exp(strength * log(fmax(ir, V_FLOOR))
-                                     + (1.0f - strength) * ln_global_r);
+            ic = blend_global4(ic, strength, ln_global_c);
+            ir = rod_from_cone ? rod_scale * ic : blend_global4(ir, strength, ln_global_r);
         }
         const float4 gc = sigma_of4(ic, BETA_CONE), gr = sigma_of4(ir, BETA_ROD);
         float4 sic, sfc, sac, sir, sfr, sar, t, E, K;
@@ -299,13 +315,8 @@ __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
                                 isgreater(fabs(log2(gr / sar)), (float4)(change_log2));
             t = fmin(tn, T_DONE);
             if (any(change)) {
-                const float4 fc = select(light_fraction4(tn, LN_RHO_CONE),
-                                         dark_fraction4(tn, K, TAU_CONE), isless(sfc, sic));
-                const float4 fr = select(light_fraction4(tn, LN_RHO_ROD),
-                                         dark_fraction4(tn - TAU_CONE, K, TAU_ROD),
-                                         isless(sfr, sir));
-                sic = select(sic, sfc + fc * (sic - sfc), change);
-                sir = select(sir, sfr + fr * (sir - sfr), change);
+                sic = select(sic, sigma_cone_at4(sic, sfc, tn, K), change);
+                sir = select(sir, sigma_rod_at4(sir, sfr, tn, K), change);
                 sac = select(sac, gc, change);
                 sar = select(sar, gr, change);
                 t = select(t, (float4)(0.0f), change);
