@@ -45,6 +45,9 @@ class FrameError(RuntimeError):
         self.path, self.frame, self.why = str(path), frame, str(why)
         super().__init__(f"{self.path}{'' if frame is None else f' frame {frame}'}: {why}")
 
+    def __reduce__(self):          # pickled whole (a Dask worker's error reaches the client)
+        return (type(self), (self.path, self.frame, self.why))
+
 
 def is_sequence(pattern: str) -> bool:
     return bool(_PAT.search(os.path.basename(pattern)))

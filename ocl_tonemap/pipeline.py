@@ -159,6 +159,29 @@ class Tonemapper:
         self.schedule_set_pixels(self._state.pixels)
         self._state.pixels = None
 
+    def reset_adaptation(self) -> None:
+        """A scene cut (``--cuts``): the observer starts again fully adapted to the
+        next frame, as at the start of a shot (no pre-adaptation), with no memory
+        of the last shot (operator and effect state); the time and the run's
+        calibration constant are kept."""
+        from .state import AUTO_SCALE_KEY
+        keep = {k: v for k, v in self._state.extra.items() if k == AUTO_SCALE_KEY}
+        self.preadapt = None
+        self.op.preadapt = None
+        self.state = AdaptationState(self.operator_name, time_s=self._state.time_s,
+                                     frame=self._state.frame, extra=keep)
+
+    @property
+    def adapted(self) -> bool:
+        """Whether the observer has seen a frame (or was given a state)."""
+        return bool(self._state.values)
+
+    def scalar_state(self) -> AdaptationState:
+        """A copy of the state without the per-pixel planes (cheap)."""
+        st = self._state.copy()
+        st.pixels = None
+        return st
+
     @property
     def last_alpha(self):
         """(alpha, empty-pixel mask, premultiplied?) of the last RGBA frame, or None."""
@@ -202,7 +225,8 @@ class Tonemapper:
     # -- frames ----------------------------------------------------------------
     def process(self, frame: np.ndarray, dt: float | None = None, time_s: float | None = None,
                 frame_number: int | None = None, luminance_scale: float = 1.0,
-                illuminant=None, wavelengths=None, premultiplied: bool = True) -> np.ndarray:
+                illuminant=None, wavelengths=None, premultiplied: bool = True,
+                measure_only: bool = False) -> np.ndarray:
         """Tone map one working-space frame (H x W x 3 or 4, float).
 
         ``frame * luminance_scale`` must be cd/m^2. Time advances by ``dt``
@@ -218,10 +242,15 @@ class Tonemapper:
         ``wavelengths``: the frame is spectral radiance (H x W x N, W sr^-1 m^-2
         nm^-1 times ``luminance_scale`` / 683 ... see models/lmsr.py) sampled at these
         wavelengths (nm); operators that take spectral input (kirk11) only.
+        ``measure_only``: the frame's :class:`FrameStats` as the run would measure them
+        (after the scene effects), the state untouched: the measure pass of a shot
+        split over machines (``shot/``); see :meth:`check_measure_only`.
         """
+        if measure_only:
+            self.check_measure_only()
         if wavelengths is not None:
             return self._process_spectral(frame, dt, time_s, frame_number, luminance_scale,
-                                          wavelengths)
+                                          wavelengths, measure_only)
         pix = as_float_pixels(frame)
         grey = None                                   # the input's own grey layout
         if pix.ndim == 2:
@@ -232,24 +261,31 @@ class Tonemapper:
         if pix.shape[2] == 1:
             pix, grey = np.repeat(pix, 3, axis=2), grey or "1"
         out = self._process_rgb(pix, dt, time_s, frame_number, luminance_scale, illuminant,
-                                premultiplied)
+                                premultiplied, measure_only)
+        if measure_only:
+            return out
         if grey is not None:                          # luminance in, luminance out
             y = (np.asarray(out[..., :3], np.float64) @ Y_WEIGHTS).astype(np.float32)
             return y if grey == "2d" else y[..., None]
         return out
 
     def _process_rgb(self, pix, dt, time_s, frame_number, luminance_scale, illuminant,
-                     premultiplied):
+                     premultiplied, measure_only=False):
         if not (math.isfinite(luminance_scale) and luminance_scale > 0):
             raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
         pix = np.ascontiguousarray(pix, np.float32)
         self._alpha = None
         if pix.shape[2] == 4:
             pix, self._alpha = straight_colour(pix, premultiplied)
-        time_s, step_dt, fresh = self._frame_time(dt, time_s)
+        if measure_only:             # (no stateful scene effect: check_measure_only)
+            step_dt, fresh = 0.0, True
+        else:
+            time_s, step_dt, fresh = self._frame_time(dt, time_s)
         eff: dict = {}
         work, scale, pre_repairs = self._scene_effects(pix, luminance_scale, eff, step_dt, fresh,
                                                        illuminant)
+        if measure_only:
+            return self.measure(Frame(work, scale, None, self.display_primaries))
         out = self._run_frame(Frame(work, scale, None, self.display_primaries), time_s,
                               frame_number, step_dt, fresh, illuminant, eff, pre_repairs)
         return self._finish(out, pix)
@@ -291,6 +327,25 @@ class Tonemapper:
                              f"this one at {time_s} s")
         return time_s, step_dt, fresh
 
+    def check_measure_only(self) -> None:
+        """A frame's statistics can be measured apart from the run (``measure_only``)
+        when nothing before the metering depends on the adaptation state: the
+        Purkinje effect (its own time course) and chromatic adaptation applied to the
+        scene (operators without receptor gains) change the pixels that are metered,
+        so they are refused here."""
+        fx = self.effects.s
+        why = []
+        if fx.purkinje != "off":
+            why.append("--purkinje")
+        if not self.schedule.receptor_gains and fx.chromatic_adaptation != "off":
+            why.append(f"--chromatic-adaptation (on the scene for {self.operator_name})")
+        if why:
+            raise ValueError(
+                f"{' and '.join(why)} change the frame before it is metered, from their "
+                "own time course, so its statistics cannot be measured apart from the "
+                "serial run; switch them off for measure/integrate/apply, or split the "
+                "shot serially with --state-in/--state-out")
+
     def can_stream(self) -> str | None:
         """Why frames cannot be streamed in bands (None: they can): operators whose
         schedule streams; every built-in effect streams (flare, Purkinje and
@@ -304,7 +359,8 @@ class Tonemapper:
 
     def process_stream(self, source, sink, dt: float | None = None,
                        time_s: float | None = None, frame_number: int | None = None,
-                       luminance_scale: float = 1.0, illuminant=None) -> None:
+                       luminance_scale: float = 1.0, illuminant=None,
+                       measure_only: bool = False):
         """One frame in row bands, never whole in memory: ``source[y0:y1]`` gives
         working-space bands (straight colour), ``source.shape`` is (H, W, C);
         ``sink(y0, band)`` receives the display-linear bands (3 channels) in order
@@ -323,6 +379,8 @@ class Tonemapper:
         why = self.can_stream()
         if why:
             raise ValueError(f"cannot stream this frame: {why}")
+        if measure_only:
+            self.check_measure_only()
         if not (math.isfinite(luminance_scale) and luminance_scale > 0):
             raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
         time_s, step_dt, fresh = self._frame_time(dt, time_s)
@@ -337,6 +395,9 @@ class Tonemapper:
             stats = self.measure(frame)
             for finish in sweep:          # sums over the frame the measure pass swept
                 finish()
+            if measure_only:
+                self._state = before
+                return stats
             params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh,
                                            illuminant, eff)
             out, eff["acuity"] = self.effects.acuity_stream(
@@ -403,7 +464,8 @@ class Tonemapper:
             sweep.append(purkinje_done)
         return _SceneBands(rows, flare, purk, gains, nc), 1.0, repairs, sweep
 
-    def _process_spectral(self, frame, dt, time_s, frame_number, scale, wavelengths):
+    def _process_spectral(self, frame, dt, time_s, frame_number, scale, wavelengths,
+                          measure_only=False):
         if "spectral" not in self.op.inputs:
             from .operators import registry
             which = [n for n, c in registry().items() if "spectral" in c.inputs]
@@ -419,6 +481,8 @@ class Tonemapper:
             raise ValueError(f"spectral frame must be H x W x {len(lam)} (got {pix.shape})")
         if not (math.isfinite(scale) and scale > 0):
             raise ValueError(f"luminance scale must be a positive finite number (got {scale})")
+        if measure_only:
+            return self.measure(Frame(pix, scale, lam, self.display_primaries))
         st = self._state
         fresh = not st.values
         if time_s is None:

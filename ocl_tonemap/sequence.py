@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import __version__
-from .state import AdaptationState
+from .state import AUTO_SCALE_KEY, AdaptationState
 from .calibration import ASSUMED_HELP, CalibrationRequest, Calibrator
 from .colour import (ColourPipeline, InputColour, is_builtin_source, load_config,
                      resolve_config_source, resolve_input)
@@ -96,6 +96,7 @@ class JobOptions:
     overlap_io: bool = True         # read the next frame and write the last one beside the work
     display_encode: str | None = None   # auto | table (device) | ocio (CPU); None: the tier's
     quality: str | None = None      # --quality: draft | balanced (None) | reference
+    cuts: list[int] | str | None = None  # --cuts: frames where the eyes start afresh, or "detect"
 
     def __post_init__(self):
         tier = quality_tier(self.quality)          # the defaults a knob not given takes
@@ -118,6 +119,8 @@ class JobOptions:
         if self.display_encode not in ("auto", "table", "ocio"):  # colour.DISPLAY_ENCODE_MODES
             raise ValueError(f"--display-encode must be auto, table or ocio "
                              f"(got {self.display_encode!r})")
+        if isinstance(self.cuts, str) and self.cuts != "detect":
+            raise ValueError(f"cuts must be frame numbers or 'detect' (got {self.cuts!r})")
         if self.missing not in MISSING_POLICIES:
             raise ValueError(f"--missing must be one of {', '.join(MISSING_POLICIES)} "
                              f"(got {self.missing!r})")
@@ -248,7 +251,9 @@ def run_fingerprint(opts: JobOptions) -> dict:
             "effects": json.loads(json.dumps(dataclasses.asdict(fx), default=str))
             if dataclasses.is_dataclass(fx) else None,
             "missing": opts.missing, "channels": opts.channels, "unpremult": opts.unpremult,
-            "encode": opts.encode, "out_bits": opts.out_bits}
+            "encode": opts.encode, "out_bits": opts.out_bits,
+            "cuts": opts.cuts if isinstance(opts.cuts, str) else
+            (sorted(opts.cuts) if opts.cuts else None)}
 
 
 def checkpoint_path(opts: JobOptions) -> str:
@@ -343,19 +348,20 @@ class RunSetup:
         return not fr.unassociated_alpha
 
 
-#: AdaptationState.extra key of the ``auto`` calibration constant of a run.
-AUTO_SCALE_KEY = "luminance_scale_auto"
 
 
-def run_job(opts: JobOptions) -> JobResult:
+def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -> JobResult:
     """The main job. Writes the state after every frame (``checkpoint_path``); SIGINT
-    and SIGTERM end it after the frame in flight (:class:`Interrupted`)."""
+    and SIGTERM end it after the frame in flight (:class:`Interrupted`).
+    ``jobs`` (a slice of ``_jobs(opts)``) and ``state`` (to start from, over
+    ``--state-in``): one chunk of a shot (``shot/passes.py`` apply)."""
     t_start = time.perf_counter()
-    jobs = _jobs(opts)
+    jobs = _jobs(opts) if jobs is None else list(jobs)
     ckpt = checkpoint_path(opts) if (opts.checkpoint or opts.resume) else None
     _remove_stale_temps(jobs, [p for p in {ckpt, opts.state_out} if p])
     _check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p])
-    state = AdaptationState.load(opts.state_in) if opts.state_in else None
+    if state is None and opts.state_in:
+        state = AdaptationState.load(opts.state_in)
     if state is not None:
         state.extra.pop(RUN_KEY, None)
     if opts.resume:
@@ -372,6 +378,12 @@ def run_job(opts: JobOptions) -> JobResult:
     t_prev = tm.state.time_s
     n = len(jobs)
     rows_of: dict = {}
+    if opts.cuts == "detect":
+        raise ValueError("--cuts detect finds cuts in the shot's statistics: it needs the "
+                         "measure and integrate passes (ocl-tonemap measure / integrate / "
+                         "apply, or run --scheduler dask); give a file of frame numbers for "
+                         "a serial run")
+    cuts = set(opts.cuts or ())
 
     def rows(k):                       # streamed in bands? (decided once per frame)
         if k not in rows_of:
@@ -385,6 +397,9 @@ def run_job(opts: JobOptions) -> JobResult:
                 io.prefetch(k + 1, lambda inp1=inp1, f1=jobs[k + 1][0]:
                             read_frame(inp1, f1, opts.channels))
             try:
+                if f in cuts and tm.adapted:     # a scene cut: the eyes start afresh
+                    tm.reset_adaptation()
+                    log.info("frame %s: scene cut, adaptation reset", f)
                 if rows(k):
                     io.drain()                        # a streamed frame writes in bands
                     streamed = _stream_frame(run, tm, inp, outp, f, held, rows(k), fps, t_prev)
@@ -440,25 +455,33 @@ def run_job(opts: JobOptions) -> JobResult:
     return result
 
 
+def frame_time(fr, f, held: bool, fps, t_prev) -> tuple[float, float]:
+    """(the frame's time in seconds, the run's fps): its timestamp metadata (not for
+    a held frame), else frame number / fps; fps: ``--fps``, else the first frame's
+    FramesPerSecond, else 24."""
+    if fps is None:
+        fps = fr.fps or DEFAULT_FPS
+        if fr.fps is None:
+            log.info("no --fps and no FramesPerSecond metadata: %g fps", fps)
+    if fr.timestamp is not None and not held:
+        t = fr.timestamp
+    elif f is not None:
+        t = f / fps
+    else:
+        t = t_prev if t_prev is not None else 0.0
+    if t_prev is not None and t < t_prev:
+        raise ValueError(f"frame time {t:.6g} s is before the previous frame's "
+                         f"{t_prev:.6g} s (frames out of order, or --state-in from a "
+                         "later chunk)")
+    return t, fps
+
+
 def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_prev):
     """One frame (read whole) mapped; returns (time, info, fps, write): ``write()``
     encodes it for the display and writes it (on the writer thread when the I/O
     overlaps), from what this frame left, whatever the next frame does."""
     try:
-        if fps is None:
-            fps = fr.fps or DEFAULT_FPS
-            if fr.fps is None:
-                log.info("no --fps and no FramesPerSecond metadata: %g fps", fps)
-        if fr.timestamp is not None and not held:
-            t = fr.timestamp
-        elif f is not None:
-            t = f / fps
-        else:
-            t = t_prev if t_prev is not None else 0.0
-        if t_prev is not None and t < t_prev:
-            raise ValueError(f"frame time {t:.6g} s is before the previous frame's "
-                             f"{t_prev:.6g} s (frames out of order, or --state-in from a "
-                             "later chunk)")
+        t, fps = frame_time(fr, f, held, fps, t_prev)
         pix, lam, cs_text, scale, scale_why = frame_input(run, tm, fr, inp)
         tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
                    illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam,
@@ -640,18 +663,17 @@ class _WorkingBands:
         return self._alpha.get(y0)
 
 
-def _stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t_prev):
-    """One frame read, mapped and written in bands of ``rows`` rows; returns (time, info)."""
+def _stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t_prev,
+                  measure_only: bool = False):
+    """One frame read, mapped and written in bands of ``rows`` rows; returns (time, info,
+    fps). ``measure_only``: its statistics only, (time, FrameStats, fps, illuminant
+    hint), nothing written (``shot/passes.py``)."""
     from .imageio import BandReader, BandWriter
     reader = BandReader(inp, f, run.opts.channels)
     writer = None
     try:
         fr = reader.header
-        fps = fps or fr.fps or DEFAULT_FPS
-        t = (fr.timestamp if (fr.timestamp is not None and not held) else
-             (f / fps if f is not None else (t_prev if t_prev is not None else 0.0)))
-        if t_prev is not None and t < t_prev:
-            raise ValueError(f"frame time {t:.6g} s is before the previous frame's {t_prev:.6g} s")
+        t, fps = frame_time(fr, f, held, fps, t_prev)
         ic = run.input_colour(fr, inp)
         if fr.channel_note:
             run.once(logging.WARNING, "%s: %s", inp, fr.channel_note)
@@ -694,6 +716,12 @@ def _stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, 
         # per-pixel planes of local operators (their state and levels) go to a file
         # beside the output, read and written by bands (backends/planes.py)
         tm.backend.spill_dir = os.path.dirname(os.path.abspath(outp))
+        if measure_only:
+            hint = illuminant_from_metadata(fr.spec)
+            stats = tm.process_stream(source, None, time_s=t, frame_number=f,
+                                      luminance_scale=scale, illuminant=hint,
+                                      measure_only=True)
+            return t, stats, fps, hint
         try:
             tm.process_stream(source, sink, time_s=t, frame_number=f, luminance_scale=scale,
                               illuminant=illuminant_from_metadata(fr.spec))

@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 
 STATE_FORMAT = "ocl-tonemap.adaptation-state/1"
+#: AdaptationState.extra key of the ``auto`` calibration constant of a run.
+AUTO_SCALE_KEY = "luminance_scale_auto"
 
 
 @dataclass

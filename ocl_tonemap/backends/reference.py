@@ -162,6 +162,14 @@ class LeddaSchedule(PixelStateMixin):
                                   "rods": bool(rods), "bilateral": "exact (float64)"},
                           planes={"I_c": I_c, "I_r": I_r}, handle=(frame.pixels, rgb, Ys))
 
+    def stats_planes(self, stats):
+        """The per-pixel adaptation inputs ``integrate`` reads (float64)."""
+        return {k: np.asarray(stats.planes[k]) for k in ("I_c", "I_r")}
+
+    def stats_from_planes(self, stats, planes) -> FrameStats:
+        stats.planes = {k: np.asarray(planes[k], np.float64) for k in ("I_c", "I_r")}
+        return stats
+
     def integrate(self, state, stats, dt: float, fresh: bool) -> None:
         from ..models import ledda2004 as L
         op = self.op

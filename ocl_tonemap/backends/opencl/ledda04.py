@@ -22,7 +22,7 @@ from ...models.display import DISPLAY_LINEAR_MAX
 from ...models.metering import MeteringSpec
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
-from ..planes import PlaneStore, UniformPlanes, read_rows
+from ..planes import PlaneStore, UniformPlanes, band_readable, read_rows
 from ..reference import PixelStateMixin, ledda_summary
 from .bilateral import Z_IDENTITY, DeviceBilateral
 from .runtime import round_up
@@ -208,15 +208,39 @@ class LeddaSchedule(PixelStateMixin):
                                   "bilateral": method + grid},
                           planes=planes, handle=(frame.pixels, bands, banded, halo))
 
+    # -- the statistics apart from the run (shot/: measure -> integrate -> apply) ------
+    def stats_planes(self, stats):
+        """The per-pixel adaptation inputs ``integrate`` reads (I_A, I_A'; float32):
+        host copies, or the band store of a banded frame. I_A' is zero where the
+        frame needed no rods (the step then takes it from I_A, as here)."""
+        import pyopencl as cl
+        planes = stats.planes
+        if band_readable(planes):
+            return planes
+        h, w = stats.height, stats.width
+        out = {"I_c": np.empty((h, w), np.float32), "I_r": np.zeros((h, w), np.float32)}
+        cl.enqueue_copy(self.backend.rt.queue, out["I_c"], planes["I_c"])
+        if stats.values["rods"]:
+            cl.enqueue_copy(self.backend.rt.queue, out["I_r"], planes["I_r"])
+        return out
+
+    def stats_from_planes(self, stats, planes) -> FrameStats:
+        """``stats`` (read back from a statistics store) with the stored planes (a
+        dict of arrays or band-readable), ready for :meth:`integrate`."""
+        stats.planes = planes
+        bands = self.backend.bands(stats.height, stats.width, 0)
+        stats.handle = (None, bands, len(bands) > 1, 0)
+        return stats
+
     # -- integrate ---------------------------------------------------------------------
     def _band_levels(self, stats, y0, nr, rods: bool = True):
         """(Ic, Ir) device buffers of one band: resident, or uploaded from the planes."""
         import pyopencl as cl
         planes = stats.planes
-        if isinstance(planes, PlaneStore):
+        if band_readable(planes) or isinstance(planes.get("I_c"), np.ndarray):
             be = self.backend
-            n = nr * planes.shape[1]
-            lv = planes.read(y0, y0 + nr)
+            n = nr * stats.width
+            lv = read_rows(planes, ("I_c", "I_r"), y0, y0 + nr)
             bc, br = be.buffer("ledda_Ic", n * 4), be.buffer("ledda_Ir", n * 4)
             cl.enqueue_copy(be.rt.queue, bc, lv[0])
             if rods:

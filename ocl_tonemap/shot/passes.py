@@ -1,0 +1,369 @@
+"""A shot in three passes: measure (parallel) -> integrate (serial, cheap) -> apply
+(parallel).
+
+Adaptation is a recurrence over time: frame k's state needs every frame before
+it. Only the *statistics* the recurrence reads (the metering goals, the
+illuminant, for local operators the per-pixel adaptation inputs) need the
+pixels, and those do not depend on the state. So:
+
+1. **measure** any frames, on any machine: each frame's statistics, exactly as a
+   serial run would measure them (the same code: ``Tonemapper.process(...,
+   measure_only=True)``), into the shot's store (``store.py``);
+2. **integrate** once, in frame order: the state advanced over the stored
+   statistics (the serial run's own ``Tonemapper.integrate``), the state after
+   every frame written (local operators: per-pixel keyframes every
+   ``keyframe_every`` frames, scalars for the rest);
+3. **apply** any chunk of frames: the serial run itself (``run_job``) over the
+   chunk, started from the state before the chunk's first frame (a local
+   operator's nearest keyframe, advanced over the stored statistics to it).
+
+The frames are those of one serial run, bit for bit: the same kernels see the
+same inputs (float64 scalars round-trip exactly through JSON, float32 planes
+through uncompressed EXR, the reference backend's float64 planes through .npz;
+the reference backend's per-pixel *state* keyframes are float32, so ledda04 on
+that backend is within 1e-6 instead).
+
+Not split: effects that change the pixels before they are metered from their own
+time course (``--purkinje``, chromatic adaptation on the scene for operators
+without receptor gains) -- ``Tonemapper.check_measure_only`` refuses them with
+the serial alternative.
+
+Scene cuts (``--cuts FILE`` or ``--cuts detect``): the observer starts afresh at
+each cut frame (``Tonemapper.reset_adaptation``), in the serial run as here.
+``detect`` finds them from the statistics: a frame whose cone adaptation goal
+G_cone differs from the last frame's by more than :data:`CUT_LOG10_JUMP` log10
+units (a factor 10 between two frames: no camera move in one frame time, but a
+cut from a street to an interior, or day to night). Default: no cuts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import os
+import re
+
+import numpy as np
+
+from ..imageio import FrameError, illuminant_from_metadata, is_sequence, read_frame
+from ..models.photometry import RepairCounts
+from ..operators.base import FrameStats
+from ..state import AUTO_SCALE_KEY, AdaptationState
+from .store import ShotStore
+
+log = logging.getLogger("ocl_tonemap")
+
+#: ``--cuts detect``: a cut where log10 G_cone jumps by more than this between frames.
+CUT_LOG10_JUMP = 1.0
+#: Local operators' per-pixel state keyframes, every this many frames (the farm's chunk).
+DEFAULT_KEYFRAME_EVERY = 50
+_TOKEN = re.compile(r"[._-]?(#+|@+|%0?\d*d)")
+
+
+# -- the shot and its chunks --------------------------------------------------------------
+def shot_jobs(opts):
+    """Every frame of the shot: ``sequence._jobs`` over ``--frames`` (inputs checked)."""
+    from ..sequence import _jobs
+    if not is_sequence(opts.input):
+        raise FrameError(opts.input, None, "measure/integrate/apply split a shot: the input "
+                         "must be a frame sequence pattern (shot.####.exr)")
+    return _jobs(opts)
+
+
+def parse_chunk(text: str | None) -> tuple[int, int] | None:
+    """``A-B`` (or ``A``): the frames of one task, inclusive."""
+    if text is None:
+        return None
+    m = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+))?\s*", str(text))
+    if not m:
+        raise ValueError(f"bad --chunk {text!r}: use A-B (frame numbers)")
+    a = int(m.group(1))
+    b = int(m.group(2)) if m.group(2) is not None else a
+    if b < a:
+        raise ValueError(f"bad --chunk {text!r}: the end is before the start")
+    return a, b
+
+
+def chunk_jobs(jobs, chunk):
+    if chunk is None:
+        return list(jobs)
+    a, b = chunk
+    out = [j for j in jobs if a <= j[0] <= b]
+    if not out:
+        raise ValueError(f"--chunk {a}-{b} holds no frame of the shot "
+                         f"({jobs[0][0]}-{jobs[-1][0]})")
+    return out
+
+
+def chunks(frames, size: int) -> list[tuple[int, int]]:
+    """The shot's frames cut into runs of ``size`` frames: [(first, last)]."""
+    size = max(1, int(size))
+    return [(frames[i], frames[min(i + size, len(frames)) - 1])
+            for i in range(0, len(frames), size)]
+
+
+def default_store(opts) -> str:
+    """``--store`` default: beside the output, its name without the frame number
+    + ``.shot`` (``out/tunnel.####.png`` -> ``out/tunnel.png.shot``)."""
+    d, b = os.path.split(opts.output)
+    b = _TOKEN.sub("", b).strip("._-") or "ocl-tonemap"
+    return os.path.join(d, b + ".shot")
+
+
+def _settings(opts) -> dict:
+    """The settings a store belongs to (the serial run's fingerprint)."""
+    from ..sequence import run_fingerprint
+    return run_fingerprint(opts)
+
+
+def _state_in(opts) -> AdaptationState | None:
+    if not opts.state_in:
+        return None
+    from ..sequence import RUN_KEY
+    st = AdaptationState.load(opts.state_in)
+    st.extra.pop(RUN_KEY, None)
+    return st
+
+
+def _setup(opts, state):
+    """The serial run's set-up: (RunSetup, Tonemapper)."""
+    from ..sequence import RunSetup, _make_tonemapper
+    run = RunSetup(opts, state.extra if state is not None else None)
+    tm = _make_tonemapper(opts, run.colour, state, run.disp)
+    run.device_band_pixels = getattr(tm.backend, "max_band_pixels", None)
+    return run, tm
+
+
+# -- statistics to and from JSON (exact) ----------------------------------------------------
+def _enc(v):
+    if isinstance(v, np.ndarray):
+        return {"__ndarray__": v.ravel().tolist(), "dtype": str(v.dtype), "shape": list(v.shape)}
+    if isinstance(v, np.generic):
+        return {"__npscalar__": v.item(), "dtype": str(v.dtype)}
+    if isinstance(v, dict):
+        return {str(k): _enc(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_enc(x) for x in v]
+    return v
+
+
+def _dec(v):
+    if isinstance(v, dict):
+        if "__ndarray__" in v:
+            return np.array(v["__ndarray__"], dtype=v["dtype"]).reshape(v["shape"])
+        if "__npscalar__" in v:
+            return np.dtype(v["dtype"]).type(v["__npscalar__"])
+        return {k: _dec(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_dec(x) for x in v]
+    return v
+
+
+def stats_document(stats: FrameStats, illuminant, hint, t: float, held: bool, inp: str) -> dict:
+    """What integrate needs of one frame's statistics (JSON; floats exact)."""
+    return {"time_s": float(t), "held": bool(held), "input": os.path.basename(inp),
+            "width": int(stats.width), "height": int(stats.height),
+            "G_rod": float(stats.G_rod), "G_cone": float(stats.G_cone),
+            "repairs": stats.repairs.as_dict(), "values": _enc(dict(stats.values)),
+            "illuminant": _enc(illuminant), "illuminant_hint": _enc(hint)}
+
+
+def stats_from_document(doc: dict, planes, schedule) -> tuple[FrameStats, object]:
+    """(FrameStats ready for ``Tonemapper.integrate``, the frame's illuminant hint)."""
+    illum = _dec(doc.get("illuminant"))
+    stats = FrameStats(int(doc["width"]), int(doc["height"]), float(doc["G_rod"]),
+                       float(doc["G_cone"]), RepairCounts(**doc.get("repairs", {})),
+                       (lambda: illum) if illum is not None else None,
+                       _dec(doc.get("values") or {}))
+    if planes is not None:
+        stats = schedule.stats_from_planes(stats, planes)
+    return stats, _dec(doc.get("illuminant_hint"))
+
+
+# -- 1. measure -----------------------------------------------------------------------------
+def _shot_constants(opts, jobs, run, tm, store: ShotStore):
+    """(fps, auto calibration constant) of the whole shot, as the serial run fixes
+    them on its first frame: from the store when a worker already did."""
+    from ..imageio import BandReader
+    from ..sequence import frame_input
+    if store.manifest_path.exists():
+        man = store.manifest()
+        return man["fps"], man.get("luminance_scale_auto")
+    f0, inp0, _, held0 = jobs[0]
+    reader = BandReader(inp0, f0, opts.channels)
+    try:
+        fps = opts.fps or reader.header.fps
+    finally:
+        reader.close()
+    from ..sequence import DEFAULT_FPS
+    fps = fps or DEFAULT_FPS
+    auto = run.calibrator.auto_scale
+    if auto is None and run.request.auto_level is not None:
+        try:
+            frame_input(run, tm, read_frame(inp0, f0, opts.channels), inp0)
+        except Exception as exc:                                 # noqa: BLE001
+            raise FrameError(inp0, f0, exc) from exc
+        auto = run.calibrator.auto_scale
+    return fps, auto
+
+
+def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
+    """The measure pass over the frames of ``chunk`` (all: None): each frame's
+    statistics into the store; frames already there are skipped unless ``redo``
+    (a retried task does not measure them again). Returns the frames measured."""
+    from ..sequence import _stream_frame, _stream_rows, frame_input, frame_time
+    jobs = shot_jobs(opts)
+    todo = chunk_jobs(jobs, chunk)
+    state = _state_in(opts)
+    run, tm = _setup(opts, state)
+    tm.check_measure_only()
+    store = ShotStore(store_path)
+    fps, auto = _shot_constants(opts, jobs, run, tm, store)
+    store.open(_settings(opts), [j[0] for j in jobs], fps, auto)
+    if auto is not None:
+        run.calibrator.auto_scale = auto
+    want_illum = tm.effects.s.chromatic_adaptation != "off"
+    export = getattr(tm.schedule, "stats_planes", None)
+    done = []
+    for f, inp, outp, held in todo:
+        if not redo and store.has_stats(f):
+            continue
+        try:
+            rows = _stream_rows(opts, tm, inp, f)
+            streamed = _stream_frame(run, tm, inp, outp, f, held, rows, fps, None,
+                                     measure_only=True) if rows else None
+            if streamed is not None:
+                t, stats, _, hint = streamed
+            else:
+                fr = read_frame(inp, f, opts.channels)
+                t, _ = frame_time(fr, f, held, fps, None)
+                pix, lam, _, scale, _ = frame_input(run, tm, fr, inp)
+                hint = illuminant_from_metadata(fr.spec)
+                stats = tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
+                                   illuminant=hint, wavelengths=lam,
+                                   premultiplied=run.premultiplied(fr), measure_only=True)
+            illum = stats.illuminant() if (want_illum and stats.illuminant) else None
+            store.write_stats(f, stats_document(stats, illum, hint, t, held, inp),
+                              export(stats) if export is not None else None)
+        except FrameError:
+            raise
+        except Exception as exc:
+            raise FrameError(inp, f, exc) from exc
+        done.append(f)
+    return done
+
+
+# -- 2. integrate ---------------------------------------------------------------------------
+def detect_cuts(docs: list[dict], frames: list[int]) -> list[int]:
+    """Frames whose G_cone differs from the previous frame's by more than
+    :data:`CUT_LOG10_JUMP` log10 units."""
+    out = []
+    for k in range(1, len(docs)):
+        a, b = docs[k - 1]["G_cone"], docs[k]["G_cone"]
+        if a > 0 and b > 0 and abs(math.log10(b / a)) > CUT_LOG10_JUMP:
+            out.append(frames[k])
+    return out
+
+
+def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None) -> None:
+    """The serial run's state step over stored statistics, frame by frame;
+    ``after(k, frame)`` once each frame's state is final."""
+    cuts = set(cuts or ())
+    for k, (f, _inp, _outp, _held) in enumerate(jobs):
+        doc, planes = store.read_stats(f)
+        stats, hint = stats_from_document(doc, planes, tm.schedule)
+        if f in cuts and tm.adapted:
+            tm.reset_adaptation()
+        if auto is not None:
+            tm.remember(AUTO_SCALE_KEY, float(auto))
+        time_s, dt, fresh = tm._frame_time(None, float(doc["time_s"]))
+        tm.integrate(stats, time_s, f, dt, fresh, hint, {})
+        if after is not None:
+            after(k, f)
+
+
+def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
+    """The integrate pass: the state after every frame of the shot into the store
+    (local operators: per-pixel keyframes every ``keyframe_every`` frames and at
+    the last). Needs every frame measured. Returns the integrate record."""
+    jobs = shot_jobs(opts)
+    frames = [j[0] for j in jobs]
+    store = ShotStore(store_path)
+    man = store.manifest()
+    store.check(man, _settings(opts), frames)
+    missing = store.missing_stats(frames)
+    if missing:
+        more = f" and {len(missing) - 1} more" if len(missing) > 1 else ""
+        raise ValueError(f"frame {missing[0]}{more} of the shot have no statistics in "
+                         f"{store.path}: run the measure pass over them first")
+    docs = None
+    cuts = opts.cuts
+    if cuts == "detect":
+        docs = [store.read_stats(f)[0] for f in frames]
+        cuts = detect_cuts(docs, frames)
+        log.info("cuts detected (|d log10 G_cone| > %g): %s", CUT_LOG10_JUMP,
+                 ", ".join(map(str, cuts)) or "none")
+    cuts = sorted(set(cuts or ()))
+    state = _state_in(opts)
+    o = dataclasses.replace(opts, cuts=cuts)
+    _, tm = _setup(o, state)
+    local = bool(tm.op.state.planes)
+    every = max(1, int(keyframe_every or DEFAULT_KEYFRAME_EVERY)) if local else 1
+    keyframes = []
+    n = len(jobs)
+
+    def after(k, f):
+        key = (k + 1) % every == 0 or k + 1 == n
+        store.write_state(f, tm.state if (local and key) else tm.scalar_state())
+        if key:
+            keyframes.append(f)
+    _advance(tm, store, jobs, cuts, man.get("luminance_scale_auto"), after)
+    doc = {"frames": frames, "keyframes": keyframes, "cuts": cuts,
+           "cut_rule": f"|log10 G_cone jump| > {CUT_LOG10_JUMP}" if opts.cuts == "detect"
+           else ("given" if cuts else "none"), "per_pixel": local}
+    store.write_integrated(doc)
+    return doc
+
+
+# -- 3. apply -------------------------------------------------------------------------------
+def start_state(opts, store: ShotStore, jobs, k0: int, integ: dict):
+    """The state before ``jobs[k0]``: the stored one after the frame before it (a
+    local operator's nearest keyframe, advanced over the stored statistics)."""
+    if k0 == 0:
+        return _state_in(opts)
+    prev = jobs[k0 - 1][0]
+    keys = [f for f in integ["keyframes"] if f <= prev]
+    if not keys:                                   # before the first keyframe
+        base, k_from = _state_in(opts), 0
+    else:
+        base = store.read_state(keys[-1])
+        k_from = [j[0] for j in jobs].index(keys[-1]) + 1
+    if k_from == k0:
+        return base
+    o = dataclasses.replace(opts, cuts=integ["cuts"])
+    _, tm = _setup(o, base)
+    _advance(tm, store, jobs[k_from:k0], integ["cuts"],
+             store.manifest().get("luminance_scale_auto"))
+    return tm.state
+
+
+def apply(opts, store_path: str, chunk=None):
+    """The apply pass over ``chunk`` (all: None): the serial run over its frames
+    from the integrated state. Returns the run's JobResult."""
+    from ..sequence import run_job
+    jobs = shot_jobs(opts)
+    frames = [j[0] for j in jobs]
+    store = ShotStore(store_path)
+    man = store.manifest()
+    store.check(man, _settings(opts), frames)
+    integ = store.integrated()
+    if integ.get("frames") != frames:
+        raise ValueError(f"the shot store {store.path} was integrated over other frames: "
+                         "run the integrate pass again")
+    todo = chunk_jobs(jobs, chunk)
+    k0 = jobs.index(todo[0])
+    state = start_state(opts, store, jobs, k0, integ)
+    o = dataclasses.replace(opts, fps=man["fps"], cuts=integ["cuts"], checkpoint=False,
+                            resume=False, state_in=None, state_out=None, plot=None)
+    return run_job(o, jobs=todo, state=state)

@@ -1,0 +1,209 @@
+"""The per-shot statistics store: what the measure pass found on every frame, and
+the states the integrate pass computed from it.
+
+A folder on storage every worker sees (``--store``; default beside the output,
+``<output without frame number>.shot``)::
+
+    manifest.json               what shot and settings the store belongs to
+    stats/<frame>.json          one frame's statistics   (ocl-tonemap.frame-stats/1)
+    stats/<frame>.planes.exr    local operators: their per-pixel adaptation inputs
+                                (float32; .npz for the float64 reference backend)
+    states/<frame>.json         the adaptation state after the frame (every frame)
+    states/<frame>.pixels.exr   local operators' per-pixel state, at keyframes only
+    integrate.json              written last by the integrate pass: frames, keyframes, cuts
+
+Every file is written to a temporary name in its folder and renamed, so many
+workers may write at once and a reader never sees half a file; a frame's JSON is
+renamed after its planes, so a JSON that exists is complete. The manifest is
+created once (the first worker to link it wins); a worker with other settings is
+refused, naming the settings that differ.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..state import AdaptationState, _read_planes, _write_planes
+
+STORE_FORMAT = "ocl-tonemap.shot-store/1"
+STATS_FORMAT = "ocl-tonemap.frame-stats/1"
+INTEGRATED_FORMAT = "ocl-tonemap.shot-states/1"
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def fingerprint_diff(was: dict, now: dict) -> list[str]:
+    """The settings that differ between two run fingerprints (keys in both)."""
+    return [f"{k}: {was.get(k)!r} then, {now.get(k)!r} now"
+            for k in sorted(set(was) & set(now)) if was.get(k) != now.get(k)]
+
+
+class ShotStore:
+    """One shot's statistics and states (see the module docstring)."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        self.stats_dir = self.path / "stats"
+        self.states_dir = self.path / "states"
+
+    # -- manifest --------------------------------------------------------------------
+    @property
+    def manifest_path(self) -> Path:
+        return self.path / "manifest.json"
+
+    def manifest(self) -> dict:
+        try:
+            doc = json.loads(self.manifest_path.read_text())
+        except FileNotFoundError:
+            raise ValueError(f"{self.path} is not a shot store yet (no manifest.json): run "
+                             "the measure pass first") from None
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ValueError(f"cannot read {self.manifest_path}: {exc}") from None
+        if doc.get("format") != STORE_FORMAT:
+            raise ValueError(f"{self.manifest_path}: not an ocl-tonemap shot store (format "
+                             f"{doc.get('format')!r}, expected {STORE_FORMAT!r})")
+        return doc
+
+    def open(self, run: dict, frames: list, fps: float, auto_scale: float | None) -> dict:
+        """Create the store for this shot, or check that an existing one was made by
+        the same settings; returns the manifest."""
+        self.stats_dir.mkdir(parents=True, exist_ok=True)
+        self.states_dir.mkdir(parents=True, exist_ok=True)
+        doc = {"format": STORE_FORMAT, "software": f"ocl-tonemap {__version__}", "run": run,
+               "frames": list(frames), "fps": float(fps),
+               "luminance_scale_auto": None if auto_scale is None else float(auto_scale)}
+        if not self.manifest_path.exists():
+            tmp = self.path / f".manifest.json.tmp{os.getpid()}"
+            tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
+            try:
+                os.link(tmp, self.manifest_path)          # fails if another worker won
+            except FileExistsError:
+                pass
+            finally:
+                tmp.unlink()
+        have = self.manifest()
+        self.check(have, run, frames)
+        return have
+
+    def check(self, have: dict, run: dict, frames=None) -> None:
+        diff = fingerprint_diff(have.get("run") or {}, run)
+        if diff:
+            raise ValueError(f"the shot store {self.path} was made with other settings ("
+                             + "; ".join(diff) + "); use the same options in every pass, "
+                             "or another --store")
+        if frames is not None and list(have.get("frames") or []) != list(frames):
+            raise ValueError(f"the shot store {self.path} holds frames "
+                             f"{_span(have.get('frames'))}, this shot is {_span(frames)}; "
+                             "give the same --frames to every pass, or another --store")
+
+    # -- statistics ----------------------------------------------------------------------
+    def stats_path(self, frame: int) -> Path:
+        return self.stats_dir / f"{frame:08d}.json"
+
+    def has_stats(self, frame: int) -> bool:
+        return self.stats_path(frame).exists()
+
+    def missing_stats(self, frames) -> list:
+        return [f for f in frames if not self.has_stats(f)]
+
+    def write_stats(self, frame: int, doc: dict, planes=None) -> None:
+        """One frame's statistics (``doc``, JSON-able) and per-pixel planes (a dict of
+        (h, w) arrays, or band-readable), planes first."""
+        doc = {"format": STATS_FORMAT, "frame": frame, **doc}
+        if planes is not None:
+            name = self._write_stat_planes(frame, planes)
+            doc["planes"] = name
+        _atomic_text(self.stats_path(frame), json.dumps(doc, sort_keys=True) + "\n")
+
+    def _write_stat_planes(self, frame: int, planes) -> str:
+        from ..backends.planes import band_readable
+        if not band_readable(planes) and any(np.asarray(v).dtype == np.float64
+                                             for v in planes.values()):
+            name = f"{frame:08d}.planes.npz"              # the float64 reference: exact
+            path = self.stats_dir / name
+            tmp = self.stats_dir / f".{name}.tmp{os.getpid()}.npz"
+            np.savez(tmp, **{k: np.asarray(v) for k, v in planes.items()})
+            os.replace(tmp, path)
+            return name
+        name = f"{frame:08d}.planes.exr"
+        _write_planes(self.stats_dir / name, planes)
+        return name
+
+    def read_stats(self, frame: int) -> tuple[dict, object]:
+        """(the frame's statistics document, its planes or None)."""
+        p = self.stats_path(frame)
+        try:
+            doc = json.loads(p.read_text())
+        except FileNotFoundError:
+            raise ValueError(f"no statistics for frame {frame} in {self.path}: measure it "
+                             "first") from None
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ValueError(f"cannot read {p}: {exc}") from None
+        if doc.get("format") != STATS_FORMAT:
+            raise ValueError(f"{p}: not ocl-tonemap frame statistics (format "
+                             f"{doc.get('format')!r})")
+        planes = None
+        if doc.get("planes"):
+            pp = self.stats_dir / doc["planes"]
+            if pp.suffix == ".npz":
+                with np.load(pp) as z:
+                    planes = {k: z[k] for k in z.files}
+            else:
+                planes = _read_planes(pp)
+        return doc, planes
+
+    # -- states --------------------------------------------------------------------------
+    def state_path(self, frame: int) -> Path:
+        return self.states_dir / f"{frame:08d}.json"
+
+    def write_state(self, frame: int, state: AdaptationState) -> None:
+        state.save(self.state_path(frame))
+
+    def read_state(self, frame: int) -> AdaptationState:
+        p = self.state_path(frame)
+        if not p.exists():
+            raise ValueError(f"no adaptation state for frame {frame} in {self.path}: run "
+                             "the integrate pass first")
+        return AdaptationState.load(p)
+
+    @property
+    def integrated_path(self) -> Path:
+        return self.path / "integrate.json"
+
+    def write_integrated(self, doc: dict) -> None:
+        _atomic_text(self.integrated_path,
+                     json.dumps({"format": INTEGRATED_FORMAT, **doc}, indent=2,
+                                sort_keys=True) + "\n")
+
+    def integrated(self) -> dict:
+        try:
+            doc = json.loads(self.integrated_path.read_text())
+        except FileNotFoundError:
+            raise ValueError(f"the shot store {self.path} has not been integrated: run the "
+                             "integrate pass (after measure) first") from None
+        if doc.get("format") != INTEGRATED_FORMAT:
+            raise ValueError(f"{self.integrated_path}: unknown format {doc.get('format')!r}")
+        return doc
+
+    def bytes_per_frame(self) -> dict:
+        """Storage per frame of the statistics and of the states (mean bytes)."""
+        out = {}
+        for key, d in (("stats", self.stats_dir), ("states", self.states_dir)):
+            files = [p for p in d.iterdir() if not p.name.startswith(".")] if d.exists() else []
+            n = len([p for p in files if p.suffix == ".json"])
+            out[key] = sum(p.stat().st_size for p in files) / max(n, 1)
+        return out
+
+
+def _span(frames) -> str:
+    frames = list(frames or [])
+    return f"{frames[0]}-{frames[-1]} ({len(frames)})" if frames else "none"
