@@ -79,6 +79,11 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    help="write the state every N frames (default 1; ledda04 at 1080p spends "
                    "~0.3 s per checkpoint on its per-pixel planes); --resume re-renders the "
                    "frames after the last one, identically")
+    p.add_argument("--cuts", metavar="FILE|detect",
+                   help="scene cuts: the observer starts afresh (fully adapted to the frame) "
+                   "at these frames; a file of frame numbers, or detect (from the shot's "
+                   "statistics, a jump of more than 1 log10 unit in the cone adaptation "
+                   "goal; needs the measure/integrate passes). Default: no cuts")
     p.add_argument("--missing", choices=["error", "hold", "skip"], default="error",
                    help="a frame missing inside a sequence: error (default, before any frame "
                    "is processed), hold (repeat the previous frame at its time) or skip")
@@ -150,8 +155,27 @@ def _options(a, input_, output):
         checkpoint_every=a.checkpoint_every,
         channels=[c.strip() for c in a.channels.split(",")] if a.channels else None,
         png_level=a.png_level, max_memory=a.max_memory, overlap_io=not a.serial_io,
+        cuts=parse_cuts(a.cuts),
         display_encode=a.display_encode or tier.display_encode,
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
+
+
+def parse_cuts(text: str | None):
+    """``--cuts``: ``detect``, or a file of frame numbers (whitespace or commas; ``#``
+    starts a comment)."""
+    if text is None:
+        return None
+    if text.strip().lower() == "detect":
+        return "detect"
+    try:
+        with open(text) as fh:
+            body = " ".join(line.split("#", 1)[0] for line in fh)
+    except OSError as exc:
+        raise ValueError(f"--cuts: cannot read {text}: {exc.strerror or exc}") from None
+    try:
+        return sorted({int(v) for v in body.replace(",", " ").split()})
+    except ValueError:
+        raise ValueError(f"--cuts {text}: the file must hold frame numbers") from None
 
 
 def _effects(a, tier=None):
@@ -249,6 +273,53 @@ def _check_effect_flags(a, fx) -> None:
         log.warning("--plot-frames applies to --plot: ignored")
 
 
+def _add_shot_args(g, chunk: bool = False, chunk_frames: bool = False,
+                   keyframes: bool = False) -> None:
+    g.add_argument("--store", help="the shot's statistics and states, a folder every worker "
+                   "sees (default: beside the output, OUTPUT without frame number + .shot)")
+    if chunk:
+        g.add_argument("--chunk", metavar="A-B",
+                       help="this task's frames (default: the whole shot, --frames)")
+    if chunk_frames:
+        g.add_argument("--chunk-frames", type=int, metavar="N",
+                       help="frames per task (and per-pixel keyframe interval); default: "
+                       "four tasks per worker (dask), 50 (farm)")
+    if keyframes:
+        g.add_argument("--keyframe-every", type=int, metavar="N",
+                       help="local operators: keep the per-pixel state every N frames "
+                       "(the apply chunk size; default 50)")
+
+
+#: Options of the shot commands that are not run options (farm-template drops them
+#: from the command lines it writes): flag -> takes a value.
+SHOT_ONLY_FLAGS = {"--format": True, "-o": True, "--job-file": True, "--name": True,
+                   "--command": True, "--chunk-frames": True, "--store": True,
+                   "--scheduler": True, "--workers": True}
+
+
+def run_option_tokens(argv: list[str], a) -> list[str]:
+    """The run options of a command line (its sub-command, INPUT, OUTPUT and the
+    shot-only flags dropped), to be given again to each pass."""
+    toks = list(argv)
+    if a.cmd in toks:
+        toks.remove(a.cmd)
+    out, skip = [], False
+    positional = [a.input, a.output]
+    for t in toks:
+        if skip:
+            skip = False
+            continue
+        flag = t.split("=", 1)[0]
+        if flag in SHOT_ONLY_FLAGS:
+            skip = SHOT_ONLY_FLAGS[flag] and "=" not in t
+            continue
+        if positional and t == positional[0]:
+            positional.pop(0)
+            continue
+        out.append(t)
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="ocl-tonemap", description=(
         "Show an HDR scene or shot as a human observer would see it (time-dependent "
@@ -270,6 +341,41 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", help="image or sequence pattern (shot.#.exr, shot.@@@@.exr, shot.%%04d.exr)")
     p.add_argument("output", help="output image or pattern (format by extension)")
     _add_run_args(p)
+    g = p.add_argument_group("a shot on many machines (measure -> integrate -> apply)")
+    g.add_argument("--scheduler", metavar="dask|tcp://HOST:PORT",
+                   help="run the three passes on Dask: dask starts a local cluster of "
+                   "--workers processes, an address uses a running one (default: serial)")
+    g.add_argument("--workers", type=int, default=2, help="local cluster size (default 2)")
+    _add_shot_args(g, chunk_frames=True)
+    for name, what in (("measure", "pass 1: each frame's statistics into the shot store "
+                        "(parallel over chunks)"),
+                       ("integrate", "pass 2: the adaptation state through the whole shot "
+                        "from the statistics (serial)"),
+                       ("apply", "pass 3: tone map a chunk of frames from the integrated "
+                        "state (parallel over chunks)")):
+        p = sub.add_parser(name, help=what)
+        p.add_argument("input", help="the shot's sequence pattern")
+        p.add_argument("output", help="the output pattern (the store defaults to beside it)")
+        _add_run_args(p)
+        g = p.add_argument_group(f"{name} pass")
+        _add_shot_args(g, chunk=name != "integrate", keyframes=name == "integrate")
+        if name == "measure":
+            g.add_argument("--redo", action="store_true",
+                           help="measure frames again even when their statistics are stored")
+    p = sub.add_parser("farm-template", help="write a render-farm job (OpenJD or OpenCue) "
+                       "that runs the shot as measure -> integrate -> apply")
+    p.add_argument("input", help="the shot's sequence pattern")
+    p.add_argument("output", help="the output pattern")
+    _add_run_args(p)
+    g = p.add_argument_group("job")
+    g.add_argument("--format", required=True, choices=["openjd", "opencue"],
+                   help="openjd: an Open Job Description template (Deadline Cloud ...); "
+                   "opencue: an OpenCue job spec (XML)")
+    g.add_argument("-o", "--job-file", required=True, help="where to write the job")
+    g.add_argument("--name", help="job name (default: from the output name)")
+    g.add_argument("--command", default="ocl-tonemap",
+                   help="the command the farm runs (default ocl-tonemap)")
+    _add_shot_args(g, chunk_frames=True)
     p = sub.add_parser("simulate", help="a still image seen over time after pre-adaptation "
                        "(one output per --at time)")
     p.add_argument("input", help="one image")
@@ -305,6 +411,34 @@ def _size(text: str) -> tuple[int, int]:
         return w, h
     except ValueError:
         raise SystemExit(f"ocl-tonemap ERROR: bad --size {text!r} (use WxH)") from None
+
+
+def _shot_command(a, argv: list[str]) -> int:
+    """``measure`` / ``integrate`` / ``apply`` / ``farm-template``."""
+    from .shot import passes
+    opts = _options(a, a.input, a.output)
+    store = a.store or passes.default_store(opts)
+    if a.cmd == "measure":
+        done = passes.measure(opts, store, passes.parse_chunk(a.chunk), redo=a.redo)
+        if not a.quiet:
+            print(f"measured {len(done)} frame(s) into {store}")
+    elif a.cmd == "integrate":
+        doc = passes.integrate(opts, store, a.keyframe_every)
+        if not a.quiet:
+            print(f"integrated {len(doc['frames'])} frame(s) in {store}; keyframes "
+                  f"{len(doc['keyframes'])}; cuts: {', '.join(map(str, doc['cuts'])) or 'none'}")
+    elif a.cmd == "apply":
+        res = passes.apply(opts, store, passes.parse_chunk(a.chunk))
+        if not a.quiet:
+            print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s")
+    else:
+        from .shot.farm import write_template
+        path = write_template(a.format, opts, run_option_tokens(argv, a), a.job_file,
+                              store=a.store, chunk=a.chunk_frames, name=a.name,
+                              command=a.command)
+        if not a.quiet:
+            print(f"wrote {a.format} job {path}")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -365,6 +499,18 @@ def main(argv: list[str] | None = None) -> int:
             if not a.quiet:
                 for t, o in zip(parse_times(a.at), res.outputs):
                     print(f"t = {t:g} s -> {o}")
+            return 0
+        if a.cmd in ("measure", "integrate", "apply", "farm-template"):
+            return _shot_command(a, argv if argv is not None else sys.argv[1:])
+        if a.scheduler:
+            from .shot.distributed import run_distributed
+            opts = _options(a, a.input, a.output)
+            res = run_distributed(opts, a.scheduler, a.workers, a.chunk_frames, a.store,
+                                  progress=opts.progress,
+                                  pocl_threads=max(1, (os.cpu_count() or 1) // a.workers))
+            if not a.quiet:
+                times = ", ".join(f"{k} {v:.1f} s" for k, v in res.passes.items())
+                print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s ({times})")
             return 0
         from .sequence import Interrupted, run_job
         try:

@@ -1,0 +1,175 @@
+"""The three passes of a shot on Dask (``dask.distributed``).
+
+``ocl-tonemap run IN OUT --scheduler dask --workers N`` starts a ``LocalCluster``
+of N worker processes (one thread each: a worker is one OpenCL queue);
+``--scheduler tcp://HOST:PORT`` uses a running cluster whose workers see the same
+storage (inputs, outputs and the shot store). Each worker process holds one
+OpenCL context (:class:`OpenCLWorker`, a worker plugin: made when the worker
+starts, reused by every task it runs).
+
+measure   one task per chunk of ``chunk`` frames, in parallel; a retried task
+          skips the frames whose statistics are already stored;
+integrate one task, after every measure task;
+apply     one task per chunk, in parallel, each starting at a per-pixel keyframe
+          (keyframes are written every ``chunk`` frames).
+
+A task that fails is retried ``retries`` times (a lost worker, a transient read
+error); a frame that still fails ends the run with its file and frame named, as
+in a serial run. Outputs are written as the serial run writes them: to a
+temporary name, then renamed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import sys
+import time
+
+from . import passes
+
+log = logging.getLogger("ocl_tonemap")
+
+try:                                       # the plugin's base class, when Dask is there
+    from distributed.diagnostics.plugin import WorkerPlugin as _WorkerPlugin
+except ImportError:                        # pragma: no cover -- `pip install ocl-tonemap[dask]`
+    _WorkerPlugin = object
+
+
+class OpenCLWorker(_WorkerPlugin):
+    """One OpenCL context per Dask worker process, created when the worker starts
+    (``get_runtime`` keeps it for the process: every task's backend uses it).
+    ``pocl_threads``: PoCL's thread count in the worker (several PoCL workers on
+    one machine otherwise each start a thread per core)."""
+
+    name = "ocl-tonemap-opencl"
+
+    def __init__(self, device: str | None = None, pocl_threads: int | None = None):
+        self.device = device
+        self.pocl_threads = pocl_threads
+        self.describe = None
+
+    def setup(self, worker=None):
+        if self.pocl_threads:
+            os.environ.setdefault("POCL_MAX_PTHREAD_COUNT", str(int(self.pocl_threads)))
+        from ..backends.opencl.runtime import describe_device, get_runtime
+        rt = get_runtime(self.device)
+        self.describe = describe_device(rt.device)
+
+
+def _worker_logging() -> None:
+    logging.getLogger("ocl_tonemap").setLevel(logging.WARNING)
+
+
+def _measure_task(opts, store, chunk):
+    _worker_logging()
+    return passes.measure(opts, store, chunk)
+
+
+def _integrate_task(opts, store, keyframe_every):
+    _worker_logging()
+    return passes.integrate(opts, store, keyframe_every)
+
+
+def _apply_task(opts, store, chunk):
+    _worker_logging()
+    res = passes.apply(opts, store, chunk)
+    return res.frames, res.outputs, res.repairs.as_dict()
+
+
+def _client(scheduler: str | None, workers: int, pocl_threads: int | None):
+    """(Client, cluster we started or None)."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise RuntimeError("--scheduler dask needs Dask: pip install 'ocl-tonemap[dask]' "
+                           "(dask[distributed])") from None
+    for name in ("distributed", "dask"):          # their INFO lines are not ours
+        logging.getLogger(name).setLevel(max(logging.WARNING, logging.getLogger(name).level))
+    if scheduler in (None, "dask", "local"):
+        env = {"POCL_MAX_PTHREAD_COUNT": str(pocl_threads)} if pocl_threads else {}
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR, env=env)
+        return Client(cluster), cluster
+    if not str(scheduler).startswith(("tcp://", "tls://", "inproc://", "ucx://", "ws://")):
+        raise ValueError(f"--scheduler must be dask (a local cluster) or a scheduler address "
+                         f"such as tcp://HOST:8786 (got {scheduler!r})")
+    return Client(scheduler), None
+
+
+def _gather(futures, what: str, progress: bool, t0: float):
+    """Wait for the futures in completion order, showing progress; the first
+    failure is raised (its FrameError names the file and frame) and the rest cancelled."""
+    from dask.distributed import as_completed
+    out, n = {}, len(futures)
+    try:
+        for k, fut in enumerate(as_completed(futures), 1):
+            out[fut.key] = fut.result()
+            if progress:
+                sys.stderr.write(f"\r{what}: {k}/{n} task(s), {time.perf_counter() - t0:6.1f} s")
+                sys.stderr.flush()
+    except BaseException:
+        for fut in futures:
+            fut.cancel()
+        raise
+    finally:
+        if progress:
+            sys.stderr.write("\n")
+    return [out[f.key] for f in futures]
+
+
+def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
+                    chunk: int | None = None, store: str | None = None,
+                    retries: int = 2, progress: bool = False, pocl_threads: int | None = None):
+    """The shot on Dask: measure -> integrate -> apply. Returns a
+    :class:`~ocl_tonemap.sequence.JobResult` (frames, outputs, repairs, seconds)
+    with the seconds of each pass in ``passes``."""
+    from ..models.photometry import RepairCounts
+    from ..sequence import JobResult
+    t0 = time.perf_counter()
+    if not (isinstance(workers, int) and workers >= 1):
+        raise ValueError(f"--workers must be >= 1 (got {workers})")
+    if opts.resume or opts.state_out or opts.plot:
+        raise ValueError("--resume, --state-out and --plot belong to the serial run; a "
+                         "distributed run keeps every frame's state in its --store "
+                         "(states/<frame>.json)")
+    jobs = passes.shot_jobs(opts)              # inputs checked here, before any worker starts
+    frames = [j[0] for j in jobs]
+    store = store or passes.default_store(opts)
+    size = chunk or max(1, math.ceil(len(frames) / (4 * workers)))
+    parts = passes.chunks(frames, size)
+    client, cluster = _client(scheduler, workers, pocl_threads)
+    timing = {}
+    try:
+        if opts.backend == "opencl":
+            client.register_plugin(OpenCLWorker(opts.device, pocl_threads))
+        t = time.perf_counter()
+        timing["start"] = t - t0
+        futs = [client.submit(_measure_task, opts, store, c, key=f"measure-{c[0]}-{c[1]}",
+                              retries=retries, pure=False) for c in parts]
+        _gather(futs, "measure", progress, t0)
+        timing["measure"] = time.perf_counter() - t
+        t = time.perf_counter()
+        fut = client.submit(_integrate_task, opts, store, size, key="integrate",
+                            retries=retries, pure=False)
+        integ = _gather([fut], "integrate", progress, t0)[0]
+        timing["integrate"] = time.perf_counter() - t
+        t = time.perf_counter()
+        futs = [client.submit(_apply_task, opts, store, c, key=f"apply-{c[0]}-{c[1]}",
+                              retries=retries, pure=False) for c in parts]
+        done = _gather(futs, "apply", progress, t0)
+        timing["apply"] = time.perf_counter() - t
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    res = JobResult([], [])
+    for fr, outs, rep in done:
+        res.frames += fr
+        res.outputs += outs
+        res.repairs += RepairCounts(**rep)
+    res.seconds = time.perf_counter() - t0
+    res.passes = timing
+    res.cuts = integ.get("cuts", [])
+    return res
