@@ -1,0 +1,320 @@
+"""A shot split into measure -> integrate -> apply (ocl_tonemap/shot/): the frames of
+one serial run whatever the chunking, on the real CLI, OIIO, OpenCL (PoCL), a
+real Dask LocalCluster and real OpenJD / OpenCue job descriptions."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from ocl_tonemap.imageio import FrameError, frame_path
+from ocl_tonemap.sequence import JobOptions, run_job
+from ocl_tonemap.shot import passes
+from ocl_tonemap.shot.store import ShotStore
+
+OPERATORS = ("pattanaik00", "durand00", "ledda04", "kirk11")
+
+
+@pytest.fixture(scope="module")
+def shot(tmp_path_factory):
+    """The tunnel drive: 1 s at 30 fps, 48x27, entering the tunnel (EXR, cd/m^2)."""
+    from ocl_tonemap.sample import write_tunnel_sequence
+    d = tmp_path_factory.mktemp("shot")
+    pattern, frames = write_tunnel_sequence(str(d / "scene"), 48, 27, 30.0, 1.0)
+    return d, pattern, frames
+
+
+def _read(path):
+    buf = oiio.ImageBuf(str(path))
+    return buf.get_pixels(oiio.FLOAT), buf.spec().getattribute("ocltm:state")
+
+
+def _serial(d, pattern, op, name="serial", **kw):
+    out = d / op / name / "o.####.exr"
+    if not out.parent.exists():
+        out.parent.mkdir(parents=True)
+        run_job(JobOptions(pattern, str(out), operator=op, checkpoint=False, out_bits="float",
+                           **kw))
+    return out
+
+
+def _split(d, pattern, op, size, name, keyframe_every=None, **kw):
+    out = d / op / name / "o.####.exr"
+    out.parent.mkdir(parents=True)
+    o = JobOptions(pattern, str(out), operator=op, checkpoint=False, out_bits="float", **kw)
+    store = passes.default_store(o)
+    frames = [j[0] for j in passes.shot_jobs(o)]
+    for c in reversed(passes.chunks(frames, size)):       # any order
+        passes.measure(o, store, c)
+    passes.integrate(o, store, keyframe_every or size)
+    for c in reversed(passes.chunks(frames, size)):
+        passes.apply(o, store, c)
+    return out, store
+
+
+def _same_frames(a, b, frames, tol=0.0):
+    worst = 0.0
+    for f in frames:
+        pa, sa = _read(frame_path(str(a), f))
+        pb, sb = _read(frame_path(str(b), f))
+        worst = max(worst, float(np.abs(pa - pb).max()))
+        if tol == 0.0:
+            assert sa == sb, f"frame {f}: the recorded state differs"
+    assert worst <= tol, f"largest difference {worst:g} (tolerance {tol:g})"
+
+
+@pytest.mark.parametrize("op", OPERATORS)
+def test_passes_give_the_serial_frames_bit_for_bit(shot, op):
+    d, pattern, frames = shot
+    ser = _serial(d, pattern, op)
+    for size in (1, 7, len(frames)):
+        out, _ = _split(d, pattern, op, size, f"c{size}")
+        _same_frames(ser, out, frames)
+
+
+def test_local_state_from_an_earlier_keyframe(shot):
+    """Apply chunks that do not start at a keyframe (keyframes every 7, chunks of
+    5): the nearest keyframe is advanced over the stored statistics."""
+    d, pattern, frames = shot
+    ser = _serial(d, pattern, "ledda04")
+    out, store = _split(d, pattern, "ledda04", 5, "kf7", keyframe_every=7)
+    assert ShotStore(store).integrated()["keyframes"] == [7, 14, 21, 28, 30]
+    _same_frames(ser, out, frames)
+
+
+def test_reference_backend_local_operator_within_tolerance(shot):
+    """float64 ledda04: statistics exact (.npz), per-pixel keyframes float32."""
+    d, pattern, frames = shot
+    frames = frames[:12]
+    kw = dict(backend="reference", frames=frames)
+    ser = _serial(d, pattern, "ledda04", "ref-serial", **kw)
+    out, store = _split(d, pattern, "ledda04", 5, "ref-c5", **kw)
+    assert any(p.suffix == ".npz" for p in (ShotStore(store).stats_dir).iterdir())
+    _same_frames(ser, out, frames, tol=1e-4)
+
+
+def _goals(path, frames):
+    return [json.loads(_read(frame_path(str(path), f))[1])["values"] for f in frames]
+
+
+def test_cuts_reset_adaptation_serial_and_split_alike(shot, tmp_path):
+    """At a cut the observer is fully adapted to the frame, as a fresh observer
+    starting there; the serial run (--cuts FILE) and the passes agree."""
+    d, pattern, frames = shot
+    cut = frames[20]
+    cut_run = _serial(d, pattern, "pattanaik00", "cut-serial", cuts=[cut])
+    fresh = _serial(d, pattern, "pattanaik00", "fresh-at-cut", frames=frames[20:])
+    plain = _serial(d, pattern, "pattanaik00")
+    after = _goals(cut_run, frames[20:])
+    assert after == _goals(fresh, frames[20:])
+    assert _goals(cut_run, frames[:20]) == _goals(plain, frames[:20])
+    assert after[0] != _goals(plain, [cut])[0]           # the cut changed something
+    out, _ = _split(d, pattern, "pattanaik00", 7, "cut-split", cuts=[cut])
+    _same_frames(cut_run, out, frames)
+
+
+def test_detected_cuts(tmp_path):
+    """A shot that jumps from daylight to a dim interior between two frames: one cut,
+    there, and nowhere in the tunnel drive's smooth changes."""
+    scene = tmp_path / "scene"
+    scene.mkdir()
+    rng = np.random.default_rng(1)
+    base = rng.uniform(0.2, 1.0, (18, 32, 3)).astype(np.float32)
+    for f in range(1, 13):
+        spec = oiio.ImageSpec(32, 18, 3, oiio.HALF)
+        spec.attribute("whiteLuminance", 1.0)
+        buf = oiio.ImageBuf(spec)
+        buf.set_pixels(oiio.ROI(0, 32, 0, 18, 0, 1, 0, 3),
+                       base * (3000.0 if f <= 6 else 3.0) * (1 + 0.02 * f))
+        buf.write(str(scene / f"s.{f:04d}.exr"))
+    o = JobOptions(str(scene / "s.####.exr"), str(tmp_path / "out" / "s.####.exr"),
+                   checkpoint=False, cuts="detect")
+    (tmp_path / "out").mkdir()
+    store = passes.default_store(o)
+    passes.measure(o, store)
+    assert passes.integrate(o, store)["cuts"] == [7]
+    passes.apply(o, store, (5, 12))
+    st7 = json.loads(_read(tmp_path / "out" / "s.0007.exr")[1])["values"]
+    st8 = json.loads(_read(tmp_path / "out" / "s.0008.exr")[1])["values"]
+    assert st7["A_cone"] == pytest.approx(st8["A_cone"], rel=0.05)   # adapted at once
+    with pytest.raises(ValueError, match="detect"):
+        run_job(JobOptions(o.input, str(tmp_path / "out" / "x.####.exr"), cuts="detect",
+                           checkpoint=False))
+
+
+def test_tunnel_drive_has_no_detected_cut(shot):
+    d, pattern, frames = shot
+    docs = []
+    o = JobOptions(pattern, str(d / "nocut" / "o.####.exr"), checkpoint=False)
+    (d / "nocut").mkdir()
+    store = passes.default_store(o)
+    passes.measure(o, store)
+    docs = [ShotStore(store).read_stats(f)[0] for f in frames]
+    assert passes.detect_cuts(docs, frames) == []
+
+
+def test_store_refuses_other_settings_and_missing_statistics(shot, tmp_path):
+    d, pattern, frames = shot
+    out = str(tmp_path / "o.####.exr")
+    o = JobOptions(pattern, out, operator="ledda04", checkpoint=False)
+    store = passes.default_store(o)
+    assert passes.measure(o, store, (frames[0], frames[5])) == frames[:6]
+    assert passes.measure(o, store, (frames[0], frames[5])) == []      # a retry: nothing redone
+    other = JobOptions(pattern, out, operator="ledda04", checkpoint=False,
+                       operator_options={"sigma_spatial": 0.1})
+    with pytest.raises(ValueError, match="other settings.*options"):
+        passes.measure(other, store, (frames[6], frames[7]))
+    with pytest.raises(ValueError, match=f"frame {frames[6]} and {len(frames) - 7} more"):
+        passes.integrate(o, store)
+    with pytest.raises(ValueError, match="integrate"):
+        passes.apply(o, store, (frames[0], frames[2]))
+    os.remove(ShotStore(store).stats_path(frames[3]))
+    assert passes.measure(o, store, (frames[0], frames[5])) == [frames[3]]
+
+
+def test_state_dependent_scene_effects_are_refused(shot, tmp_path):
+    from ocl_tonemap.effects import EffectSettings
+    d, pattern, frames = shot
+    o = JobOptions(pattern, str(tmp_path / "o.####.exr"), checkpoint=False,
+                   effects=EffectSettings.for_operator("pattanaik00", purkinje="on"))
+    with pytest.raises(ValueError, match="--purkinje.*--state-in"):
+        passes.measure(o, passes.default_store(o))
+
+
+def test_dask_local_cluster_matches_serial(shot, tmp_path):
+    """Two worker processes on PoCL; then a corrupt frame fails with its file and
+    frame named, after the retries, and nothing half-written is left."""
+    pytest.importorskip("distributed")
+    from ocl_tonemap.shot.distributed import run_distributed
+    d, pattern, frames = shot
+    ser = _serial(d, pattern, "ledda04")
+    out = tmp_path / "dask" / "o.####.exr"
+    out.parent.mkdir()
+    o = JobOptions(pattern, str(out), operator="ledda04", checkpoint=False, out_bits="float")
+    res = run_distributed(o, "dask", workers=2, chunk=8)
+    assert res.frames == frames and set(res.passes) >= {"measure", "integrate", "apply"}
+    _same_frames(ser, out, frames)
+
+    bad = tmp_path / "bad"
+    shutil.copytree(os.path.dirname(pattern), bad)
+    victim = bad / os.path.basename(frame_path(pattern, frames[9]))
+    victim.write_bytes(b"not an image")
+    out2 = tmp_path / "dask2" / "o.####.exr"
+    out2.parent.mkdir()
+    o2 = JobOptions(str(bad / os.path.basename(pattern)), str(out2), checkpoint=False)
+    with pytest.raises(FrameError) as e:
+        run_distributed(o2, "dask", workers=2, chunk=8, retries=1)
+    assert e.value.frame == frames[9] and str(victim) in e.value.path
+    assert not [p for p in os.listdir(out2.parent) if ".tmp" in p]
+
+
+def _cli():
+    exe = shutil.which("ocl-tonemap", path=os.path.dirname(sys.executable))
+    return [exe] if exe else [sys.executable, "-m", "ocl_tonemap"]
+
+
+def _run(argv):
+    r = subprocess.run(argv, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return r
+
+
+def test_openjd_template_validates_and_runs_as_a_farm_would(shot, tmp_path):
+    pytest.importorskip("openjd.model")
+    from openjd.model import (StepParameterSpaceIterator, SymbolTable, create_job,
+                              decode_job_template)
+    d, pattern, frames = shot
+    frames = frames[:12]
+    out = tmp_path / "jd" / "o.####.exr"
+    out.parent.mkdir()
+    job_file = tmp_path / "job.json"
+    _run(_cli() + ["farm-template", "--format", "openjd", pattern, str(out), "--frames",
+                   f"{frames[0]}-{frames[-1]}", "--operator", "ledda04", "--chunk-frames", "5",
+                   "--out-bits", "float",
+                   "-o", str(job_file), "-q"])
+    template = decode_job_template(template=json.loads(job_file.read_text()))
+    job = create_job(job_template=template, job_parameter_values={})
+    assert [s.name for s in job.steps] == ["Measure", "Integrate", "Apply"]
+    assert job.steps[1].dependencies[0].dependsOn == "Measure"
+    assert job.steps[2].dependencies[0].dependsOn == "Integrate"
+    exe = _cli()
+    for step in job.steps:                     # in dependency order, tasks one by one
+        tasks = list(StepParameterSpaceIterator(space=step.parameterSpace)) \
+            if step.parameterSpace else [{}]
+        assert len(tasks) == (1 if step.name == "Integrate" else 3)
+        for params in tasks:
+            st = SymbolTable()
+            st["Param.OclTonemapCommand"] = job.parameters["OclTonemapCommand"].value
+            for k, v in params.items():
+                st[f"Task.Param.{k}"] = v.value
+            on = step.script.actions.onRun
+            args = [a.resolve(symtab=st) for a in on.args]
+            assert on.command.resolve(symtab=st) == "ocl-tonemap"
+            _run(exe + args + ["-q"])
+    ser = _serial(d, pattern, "ledda04", "serial12", frames=frames)
+    _same_frames(ser, out, frames)
+
+
+#: cjsl-1.14.dtd (OpenCue): the children each element may have, in order.
+_CUE_ORDER = {
+    "spec": ["facility", "dept", "show", "shot", "user", "email", "uid", "job", "depends"],
+    "job": ["paused", "priority", "maxretries", "maxcores", "maxgpus", "autoeat", "localbook",
+            "os", "env", "layers"],
+    "layer": ["cmd", "range", "chunk", "cores", "threadable", "memory", "gpus", "gpu",
+              "gpu_memory", "timeout", "timeout_llu", "tags", "limits", "env", "services",
+              "outputs"],
+    "depend": ["depjob", "deplayer", "depframe", "onjob", "onlayer", "onframe"],
+}
+
+
+def _check_order(el):
+    allowed = _CUE_ORDER.get(el.tag)
+    if allowed is not None:
+        idx = [allowed.index(c.tag) for c in el]          # unknown child: ValueError
+        assert idx == sorted(idx), f"<{el.tag}> children out of the DTD's order"
+    for c in el:
+        _check_order(c)
+
+
+def test_opencue_spec_follows_the_dtd_and_runs(shot, tmp_path):
+    import shlex
+    d, pattern, frames = shot
+    frames = frames[:12]
+    out = tmp_path / "cue" / "o.####.exr"
+    out.parent.mkdir()
+    job_file = tmp_path / "job.xml"
+    _run(_cli() + ["farm-template", "--format", "opencue", pattern, str(out), "--frames",
+                   f"{frames[0]}-{frames[-1]}", "--chunk-frames", "6", "--out-bits", "float",
+                   "-o", str(job_file),
+                   "-q"])
+    root = ET.parse(job_file).getroot()
+    _check_order(root)
+    for req in ("show", "shot", "user"):
+        assert root.find(req) is not None
+    layers = root.findall("job/layers/layer")
+    assert [(x.get("name"), x.get("type")) for x in layers] == \
+        [("measure", "Render"), ("integrate", "Render"), ("apply", "Render")]
+    deps = [(x.findtext("deplayer"), x.findtext("onlayer"), x.get("type"))
+            for x in root.findall("depends/depend")]
+    assert deps == [("integrate", "measure", "LAYER_ON_LAYER"),
+                    ("apply", "integrate", "LAYER_ON_LAYER")]
+    exe = _cli()
+    for layer in layers:                       # OpenCue's chunking of the layer's range
+        a, _, b = layer.findtext("range").partition("-")
+        fr = list(range(int(a), int(b or a) + 1))
+        size = int(layer.findtext("chunk"))
+        for i in range(0, len(fr), size):
+            part = fr[i:i + size]
+            cmd = layer.findtext("cmd").replace("#FRAME_START#", str(part[0])) \
+                .replace("#FRAME_END#", str(part[-1]))
+            argv = shlex.split(cmd)
+            assert argv[0] == "ocl-tonemap"
+            _run(exe + argv[1:] + ["-q"])
+    ser = _serial(d, pattern, "pattanaik00", "serial12", frames=frames)
+    _same_frames(ser, out, frames)
