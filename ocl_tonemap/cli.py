@@ -509,7 +509,7 @@ def main(argv: list[str] | None = None) -> int:
                                   progress=opts.progress,
                                   pocl_threads=max(1, (os.cpu_count() or 1) // a.workers))
             if not a.quiet:
-                times = ", ".join(f"{k} {v:.1f} s" for k, v in res.passes.items())
+                times = ", ".join(f"{k} {v:.2f} s" for k, v in res.passes.items())
                 print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s ({times})")
             return 0
         from .sequence import Interrupted, run_job

@@ -280,7 +280,7 @@ class Tonemapper:
         if measure_only:             # (no stateful scene effect: check_measure_only)
             step_dt, fresh = 0.0, True
         else:
-            time_s, step_dt, fresh = self._frame_time(dt, time_s)
+            time_s, step_dt, fresh = self.frame_clock(dt, time_s)
         eff: dict = {}
         work, scale, pre_repairs = self._scene_effects(pix, luminance_scale, eff, step_dt, fresh,
                                                        illuminant)
@@ -310,7 +310,7 @@ class Tonemapper:
         own = getattr(self.schedule, "summary", None)
         return own(stats) if own is not None else self.op.summary(params)
 
-    def _frame_time(self, dt, time_s):
+    def frame_clock(self, dt, time_s):
         """(time of this frame, step since the last one, fresh observer?)."""
         st = self._state
         fresh = not st.values
@@ -383,7 +383,7 @@ class Tonemapper:
             self.check_measure_only()
         if not (math.isfinite(luminance_scale) and luminance_scale > 0):
             raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
-        time_s, step_dt, fresh = self._frame_time(dt, time_s)
+        time_s, step_dt, fresh = self.frame_clock(dt, time_s)
         eff: dict = {}
         before = self._state.copy()
         self.last_output = None

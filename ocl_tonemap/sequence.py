@@ -170,7 +170,7 @@ def _sequence_frames(opts: JobOptions) -> tuple[list[int], list[int]]:
     return frames, missing
 
 
-def _jobs(opts: JobOptions) -> list[tuple[int | None, str, str, bool]]:
+def frame_jobs(opts: JobOptions) -> list[tuple[int | None, str, str, bool]]:
     """(frame, input path, output path, held) for every frame to render; ``held``:
     the input is the previous frame's (``--missing hold``). Every input is
     checked before the first frame is processed."""
@@ -353,10 +353,10 @@ class RunSetup:
 def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -> JobResult:
     """The main job. Writes the state after every frame (``checkpoint_path``); SIGINT
     and SIGTERM end it after the frame in flight (:class:`Interrupted`).
-    ``jobs`` (a slice of ``_jobs(opts)``) and ``state`` (to start from, over
+    ``jobs`` (a slice of ``frame_jobs(opts)``) and ``state`` (to start from, over
     ``--state-in``): one chunk of a shot (``shot/passes.py`` apply)."""
     t_start = time.perf_counter()
-    jobs = _jobs(opts) if jobs is None else list(jobs)
+    jobs = frame_jobs(opts) if jobs is None else list(jobs)
     ckpt = checkpoint_path(opts) if (opts.checkpoint or opts.resume) else None
     _remove_stale_temps(jobs, [p for p in {ckpt, opts.state_out} if p])
     _check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p])
@@ -370,7 +370,7 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
     run = RunSetup(opts, state.extra if state is not None else None)
     colour, disp = run.colour, run.disp
     _check_output_depth(opts, disp, jobs)
-    tm = _make_tonemapper(opts, colour, state, disp)
+    tm = make_tonemapper(opts, colour, state, disp)
     run.device_band_pixels = getattr(tm.backend, "max_band_pixels", None)
     fingerprint = run_fingerprint(opts)
     result = JobResult([], [])
@@ -387,7 +387,7 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
 
     def rows(k):                       # streamed in bands? (decided once per frame)
         if k not in rows_of:
-            rows_of[k] = _stream_rows(opts, tm, jobs[k][1], jobs[k][0])
+            rows_of[k] = stream_rows(opts, tm, jobs[k][1], jobs[k][0])
         return rows_of[k]
 
     with _StopSignals() as stop, _FrameIO(opts.overlap_io) as io:
@@ -402,7 +402,7 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
                     log.info("frame %s: scene cut, adaptation reset", f)
                 if rows(k):
                     io.drain()                        # a streamed frame writes in bands
-                    streamed = _stream_frame(run, tm, inp, outp, f, held, rows(k), fps, t_prev)
+                    streamed = stream_frame(run, tm, inp, outp, f, held, rows(k), fps, t_prev)
                 else:
                     streamed = None
                 if streamed is not None:
@@ -604,7 +604,7 @@ WHOLE_FRAME_COPIES = 12.0
 STREAM_BYTES_PER_PIXEL = 160.0
 
 
-def _stream_rows(opts: JobOptions, tm: Tonemapper, inp: str, f) -> int | None:
+def stream_rows(opts: JobOptions, tm: Tonemapper, inp: str, f) -> int | None:
     """Rows per band when this frame is to be streamed, else None: when it would
     take more than ``--max-memory`` whole (or more than the machine can hold),
     for operators that can stream (``Tonemapper.can_stream``)."""
@@ -663,7 +663,7 @@ class _WorkingBands:
         return self._alpha.get(y0)
 
 
-def _stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t_prev,
+def stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t_prev,
                   measure_only: bool = False):
     """One frame read, mapped and written in bands of ``rows`` rows; returns (time, info,
     fps). ``measure_only``: its statistics only, (time, FrameStats, fps, illuminant
@@ -841,7 +841,7 @@ def _colour(cfg, opts: JobOptions) -> ColourPipeline:
     return colour
 
 
-def _make_tonemapper(opts: JobOptions, colour: ColourPipeline, state, disp) -> Tonemapper:
+def make_tonemapper(opts: JobOptions, colour: ColourPipeline, state, disp) -> Tonemapper:
     tm = Tonemapper(opts.operator, opts.backend, opts.metering, disp, opts.preadapt, state,
                     opts.device, opts.max_band_pixels, opts.operator_options, opts.effects,
                     quality=opts.quality)
@@ -1021,7 +1021,7 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
             raise FrameError(o, None, "output would overwrite the input file; choose another OUTPUT")
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
     run = RunSetup(opts, state.extra if state is not None else None)
-    tm = _make_tonemapper(opts, run.colour, state, run.disp)
+    tm = make_tonemapper(opts, run.colour, state, run.disp)
     fr = read_frame(opts.input, None, opts.channels)
     result = JobResult([], [])
     try:

@@ -80,13 +80,15 @@ class AdaptationState:
             raise ValueError(f"state time {t} is not finite")
         return cls(op, vals, t, frame, extra)
 
-    def save(self, path: str | os.PathLike, checkpoint: bool = False) -> None:
+    def save(self, path: str | os.PathLike, checkpoint: bool = False,
+             compression: str = "none") -> None:
         """Write atomically (temp file in the same folder, then rename); per-pixel
         state goes first to a side file beside it, named in ``extra``:
         ``<stem>.pixels.exr``, or with ``checkpoint`` ``<stem>.pixels.<n>.exr``, a new
         name each time, so that the JSON and its planes always belong together
         whenever the writer is killed; older side files are removed after the
-        JSON is replaced."""
+        JSON is replaced. ``compression``: the side file's EXR compression (lossless
+        ``zip`` for a shot store on shared storage: ~5x smaller)."""
         path = Path(path)
         doc = self.to_json()
         stem = path.name[:-len(path.suffix)] if path.suffix else path.name
@@ -98,7 +100,7 @@ class AdaptationState:
                 side = path.with_name(f"{stem}.pixels.{n}.exr")
             else:
                 side = path.with_name(stem + ".pixels.exr")
-            _write_planes(side, self.pixels)
+            write_planes(side, self.pixels, compression)
             doc["extra"] = dict(doc["extra"], pixel_state=side.name)
         tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
         tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
@@ -129,7 +131,7 @@ class AdaptationState:
         st = cls.from_json(doc)
         side = st.extra.pop("pixel_state", None)    # (it names a file beside *this* JSON)
         if side:
-            st.pixels = _read_planes(p.with_name(side))
+            st.pixels = read_planes(p.with_name(side))
         return st
 
 
@@ -162,7 +164,7 @@ LAZY_PLANES_BYTES = 256 * 2**20
 _BAND_BYTES = 64 * 2**20
 
 
-def _write_planes(path: Path, planes) -> None:
+def write_planes(path: Path, planes, compression: str = "none") -> None:
     """Float32 EXR, one channel per plane, written atomically; a band-readable
     source (``backends/planes.py``) is written by row bands, never whole."""
     import OpenImageIO as oiio
@@ -172,9 +174,9 @@ def _write_planes(path: Path, planes) -> None:
     h, w = plane_shape(planes)
     spec = oiio.ImageSpec(w, h, len(names), oiio.FLOAT)
     spec.channelnames = tuple(names)
-    # uncompressed: a checkpoint is written after every frame, and zip took
-    # longer than the frame (1080p ledda04: 0.4 s of a 0.9 s frame)
-    spec.attribute("compression", "none")
+    # uncompressed by default: a checkpoint is written after every frame, and zip
+    # took longer than the frame (1080p ledda04: 0.4 s of a 0.9 s frame)
+    spec.attribute("compression", compression)
     tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.exr")
     out = oiio.ImageOutput.create(str(tmp))
     if out is None or not out.open(str(tmp), spec):
@@ -222,7 +224,7 @@ class PlaneFile:
         return np.ascontiguousarray(np.moveaxis(data[..., idx], -1, 0))
 
 
-def _read_planes(path: Path):
+def read_planes(path: Path):
     """The side file's planes: a dict of (h, w) arrays, or a :class:`PlaneFile`
     when larger than :data:`LAZY_PLANES_BYTES`."""
     import OpenImageIO as oiio

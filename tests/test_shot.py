@@ -178,6 +178,23 @@ def test_store_refuses_other_settings_and_missing_statistics(shot, tmp_path):
     assert passes.measure(o, store, (frames[0], frames[5])) == [frames[3]]
 
 
+def test_a_changed_input_is_measured_again_and_integrate_must_follow(shot, tmp_path):
+    d, pattern, frames = shot
+    scene = tmp_path / "scene"
+    shutil.copytree(os.path.dirname(pattern), scene)
+    o = JobOptions(str(scene / os.path.basename(pattern)), str(tmp_path / "o.####.exr"),
+                   frames=frames[:6], checkpoint=False)
+    store = passes.default_store(o)
+    assert passes.measure(o, store) == frames[:6]
+    passes.integrate(o, store)
+    victim = frame_path(o.input, frames[2])
+    st = os.stat(victim)
+    os.utime(victim, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))   # re-rendered
+    assert passes.measure(o, store) == [frames[2]]
+    with pytest.raises(ValueError, match="not been integrated"):
+        passes.apply(o, store)
+
+
 def test_state_dependent_scene_effects_are_refused(shot, tmp_path):
     from ocl_tonemap.effects import EffectSettings
     d, pattern, frames = shot
@@ -225,19 +242,25 @@ def _run(argv):
     return r
 
 
+def _farm_job(fmt, shot, tmp_path, chunk, *run_options):
+    """``farm-template`` over the shot's first 12 frames: (frames, output, job file)."""
+    _, pattern, frames = shot
+    frames = frames[:12]
+    out = tmp_path / fmt / "o.####.exr"
+    out.parent.mkdir()
+    job_file = tmp_path / ("job.json" if fmt == "openjd" else "job.xml")
+    _run(_cli() + ["farm-template", "--format", fmt, pattern, str(out), "--frames",
+                   f"{frames[0]}-{frames[-1]}", "--chunk-frames", str(chunk), "--out-bits",
+                   "float", *run_options, "-o", str(job_file), "-q"])
+    return frames, out, job_file
+
+
 def test_openjd_template_validates_and_runs_as_a_farm_would(shot, tmp_path):
     pytest.importorskip("openjd.model")
     from openjd.model import (StepParameterSpaceIterator, SymbolTable, create_job,
                               decode_job_template)
-    d, pattern, frames = shot
-    frames = frames[:12]
-    out = tmp_path / "jd" / "o.####.exr"
-    out.parent.mkdir()
-    job_file = tmp_path / "job.json"
-    _run(_cli() + ["farm-template", "--format", "openjd", pattern, str(out), "--frames",
-                   f"{frames[0]}-{frames[-1]}", "--operator", "ledda04", "--chunk-frames", "5",
-                   "--out-bits", "float",
-                   "-o", str(job_file), "-q"])
+    d, pattern, _ = shot
+    frames, out, job_file = _farm_job("openjd", shot, tmp_path, 5, "--operator", "ledda04")
     template = decode_job_template(template=json.loads(job_file.read_text()))
     job = create_job(job_template=template, job_parameter_values={})
     assert [s.name for s in job.steps] == ["Measure", "Integrate", "Apply"]
@@ -284,15 +307,8 @@ def _check_order(el):
 
 def test_opencue_spec_follows_the_dtd_and_runs(shot, tmp_path):
     import shlex
-    d, pattern, frames = shot
-    frames = frames[:12]
-    out = tmp_path / "cue" / "o.####.exr"
-    out.parent.mkdir()
-    job_file = tmp_path / "job.xml"
-    _run(_cli() + ["farm-template", "--format", "opencue", pattern, str(out), "--frames",
-                   f"{frames[0]}-{frames[-1]}", "--chunk-frames", "6", "--out-bits", "float",
-                   "-o", str(job_file),
-                   "-q"])
+    d, pattern, _ = shot
+    frames, out, job_file = _farm_job("opencue", shot, tmp_path, 6)
     root = ET.parse(job_file).getroot()
     _check_order(root)
     for req in ("show", "shot", "user"):

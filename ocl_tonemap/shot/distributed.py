@@ -134,7 +134,9 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
         raise ValueError("--resume, --state-out and --plot belong to the serial run; a "
                          "distributed run keeps every frame's state in its --store "
                          "(states/<frame>.json)")
+    import dataclasses
     jobs = passes.shot_jobs(opts)              # inputs checked here, before any worker starts
+    opts = dataclasses.replace(opts, progress=False)     # (the workers' own: ours is below)
     frames = [j[0] for j in jobs]
     store = store or passes.default_store(opts)
     size = chunk or max(1, math.ceil(len(frames) / (4 * workers)))

@@ -63,12 +63,12 @@ _TOKEN = re.compile(r"[._-]?(#+|@+|%0?\d*d)")
 
 # -- the shot and its chunks --------------------------------------------------------------
 def shot_jobs(opts):
-    """Every frame of the shot: ``sequence._jobs`` over ``--frames`` (inputs checked)."""
-    from ..sequence import _jobs
+    """Every frame of the shot: ``sequence.frame_jobs`` over ``--frames`` (inputs checked)."""
+    from ..sequence import frame_jobs
     if not is_sequence(opts.input):
         raise FrameError(opts.input, None, "measure/integrate/apply split a shot: the input "
                          "must be a frame sequence pattern (shot.####.exr)")
-    return _jobs(opts)
+    return frame_jobs(opts)
 
 
 def parse_chunk(text: str | None) -> tuple[int, int] | None:
@@ -128,9 +128,9 @@ def _state_in(opts) -> AdaptationState | None:
 
 def _setup(opts, state):
     """The serial run's set-up: (RunSetup, Tonemapper)."""
-    from ..sequence import RunSetup, _make_tonemapper
+    from ..sequence import RunSetup, make_tonemapper
     run = RunSetup(opts, state.extra if state is not None else None)
-    tm = _make_tonemapper(opts, run.colour, state, run.disp)
+    tm = make_tonemapper(opts, run.colour, state, run.disp)
     run.device_band_pixels = getattr(tm.backend, "max_band_pixels", None)
     return run, tm
 
@@ -211,8 +211,10 @@ def _shot_constants(opts, jobs, run, tm, store: ShotStore):
 def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
     """The measure pass over the frames of ``chunk`` (all: None): each frame's
     statistics into the store; frames already there are skipped unless ``redo``
-    (a retried task does not measure them again). Returns the frames measured."""
-    from ..sequence import _stream_frame, _stream_rows, frame_input, frame_time
+    (a retried task does not measure them again) unless ``redo`` or the input file
+    changed since (size, modification time); new statistics invalidate an earlier
+    integrate. Returns the frames measured."""
+    from ..sequence import stream_frame, stream_rows, frame_input, frame_time
     jobs = shot_jobs(opts)
     todo = chunk_jobs(jobs, chunk)
     state = _state_in(opts)
@@ -227,11 +229,16 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
     export = getattr(tm.schedule, "stats_planes", None)
     done = []
     for f, inp, outp, held in todo:
-        if not redo and store.has_stats(f):
-            continue
         try:
-            rows = _stream_rows(opts, tm, inp, f)
-            streamed = _stream_frame(run, tm, inp, outp, f, held, rows, fps, None,
+            st = os.stat(inp)
+            input_stat = [st.st_size, st.st_mtime_ns]
+        except OSError:
+            input_stat = None                     # (read_frame names the problem)
+        if not redo and input_stat is not None and store.stats_current(f, input_stat):
+            continue                              # measured from this very file
+        try:
+            rows = stream_rows(opts, tm, inp, f)
+            streamed = stream_frame(run, tm, inp, outp, f, held, rows, fps, None,
                                      measure_only=True) if rows else None
             if streamed is not None:
                 t, stats, _, hint = streamed
@@ -244,8 +251,9 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
                                    illuminant=hint, wavelengths=lam,
                                    premultiplied=run.premultiplied(fr), measure_only=True)
             illum = stats.illuminant() if (want_illum and stats.illuminant) else None
-            store.write_stats(f, stats_document(stats, illum, hint, t, held, inp),
-                              export(stats) if export is not None else None)
+            doc = stats_document(stats, illum, hint, t, held, inp)
+            doc["input_stat"] = input_stat
+            store.write_stats(f, doc, export(stats) if export is not None else None)
         except FrameError:
             raise
         except Exception as exc:
@@ -277,7 +285,7 @@ def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None) -> None:
             tm.reset_adaptation()
         if auto is not None:
             tm.remember(AUTO_SCALE_KEY, float(auto))
-        time_s, dt, fresh = tm._frame_time(None, float(doc["time_s"]))
+        time_s, dt, fresh = tm.frame_clock(None, float(doc["time_s"]))
         tm.integrate(stats, time_s, f, dt, fresh, hint, {})
         if after is not None:
             after(k, f)

@@ -7,7 +7,7 @@ A folder on storage every worker sees (``--store``; default beside the output,
     manifest.json               what shot and settings the store belongs to
     stats/<frame>.json          one frame's statistics   (ocl-tonemap.frame-stats/1)
     stats/<frame>.planes.exr    local operators: their per-pixel adaptation inputs
-                                (float32; .npz for the float64 reference backend)
+                                (float32, zip; .npz for the float64 reference backend)
     states/<frame>.json         the adaptation state after the frame (every frame)
     states/<frame>.pixels.exr   local operators' per-pixel state, at keyframes only
     integrate.json              written last by the integrate pass: frames, keyframes, cuts
@@ -28,11 +28,15 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..state import AdaptationState, _read_planes, _write_planes
+from ..state import AdaptationState, read_planes, write_planes
 
 STORE_FORMAT = "ocl-tonemap.shot-store/1"
 STATS_FORMAT = "ocl-tonemap.frame-stats/1"
 INTEGRATED_FORMAT = "ocl-tonemap.shot-states/1"
+#: EXR compression of the store's planes: lossless zip. Measured on ledda04's
+#: adaptation inputs at 1080p (two float32 planes): 15.8 -> 3.0 MiB a frame,
+#: write 22 -> 99 ms (in the parallel measure pass), read 11 -> 22 ms (integrate).
+PLANES_COMPRESSION = "zip"
 
 
 def _atomic_text(path: Path, text: str) -> None:
@@ -61,17 +65,9 @@ class ShotStore:
         return self.path / "manifest.json"
 
     def manifest(self) -> dict:
-        try:
-            doc = json.loads(self.manifest_path.read_text())
-        except FileNotFoundError:
-            raise ValueError(f"{self.path} is not a shot store yet (no manifest.json): run "
-                             "the measure pass first") from None
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ValueError(f"cannot read {self.manifest_path}: {exc}") from None
-        if doc.get("format") != STORE_FORMAT:
-            raise ValueError(f"{self.manifest_path}: not an ocl-tonemap shot store (format "
-                             f"{doc.get('format')!r}, expected {STORE_FORMAT!r})")
-        return doc
+        return _read_doc(self.manifest_path, STORE_FORMAT, "an ocl-tonemap shot store",
+                         f"{self.path} is not a shot store yet (no manifest.json): run "
+                         "the measure pass first")
 
     def open(self, run: dict, frames: list, fps: float, auto_scale: float | None) -> dict:
         """Create the store for this shot, or check that an existing one was made by
@@ -112,6 +108,17 @@ class ShotStore:
     def has_stats(self, frame: int) -> bool:
         return self.stats_path(frame).exists()
 
+    def stats_current(self, frame: int, input_stat) -> bool:
+        """Whether the frame's statistics are stored and were measured from the input
+        as it is now (``input_stat``: its size and modification time)."""
+        if not self.has_stats(frame):
+            return False
+        try:
+            doc = json.loads(self.stats_path(frame).read_text())
+        except (OSError, ValueError):
+            return False
+        return doc.get("input_stat") == list(input_stat)
+
     def missing_stats(self, frames) -> list:
         return [f for f in frames if not self.has_stats(f)]
 
@@ -123,6 +130,10 @@ class ShotStore:
             name = self._write_stat_planes(frame, planes)
             doc["planes"] = name
         _atomic_text(self.stats_path(frame), json.dumps(doc, sort_keys=True) + "\n")
+        try:                          # new statistics: the integrated states are stale
+            self.integrated_path.unlink()
+        except FileNotFoundError:
+            pass
 
     def _write_stat_planes(self, frame: int, planes) -> str:
         from ..backends.planes import band_readable
@@ -135,22 +146,13 @@ class ShotStore:
             os.replace(tmp, path)
             return name
         name = f"{frame:08d}.planes.exr"
-        _write_planes(self.stats_dir / name, planes)
+        write_planes(self.stats_dir / name, planes, PLANES_COMPRESSION)
         return name
 
     def read_stats(self, frame: int) -> tuple[dict, object]:
         """(the frame's statistics document, its planes or None)."""
-        p = self.stats_path(frame)
-        try:
-            doc = json.loads(p.read_text())
-        except FileNotFoundError:
-            raise ValueError(f"no statistics for frame {frame} in {self.path}: measure it "
-                             "first") from None
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ValueError(f"cannot read {p}: {exc}") from None
-        if doc.get("format") != STATS_FORMAT:
-            raise ValueError(f"{p}: not ocl-tonemap frame statistics (format "
-                             f"{doc.get('format')!r})")
+        doc = _read_doc(self.stats_path(frame), STATS_FORMAT, "ocl-tonemap frame statistics",
+                        f"no statistics for frame {frame} in {self.path}: measure it first")
         planes = None
         if doc.get("planes"):
             pp = self.stats_dir / doc["planes"]
@@ -158,7 +160,7 @@ class ShotStore:
                 with np.load(pp) as z:
                     planes = {k: z[k] for k in z.files}
             else:
-                planes = _read_planes(pp)
+                planes = read_planes(pp)
         return doc, planes
 
     # -- states --------------------------------------------------------------------------
@@ -166,7 +168,7 @@ class ShotStore:
         return self.states_dir / f"{frame:08d}.json"
 
     def write_state(self, frame: int, state: AdaptationState) -> None:
-        state.save(self.state_path(frame))
+        state.save(self.state_path(frame), compression=PLANES_COMPRESSION)
 
     def read_state(self, frame: int) -> AdaptationState:
         p = self.state_path(frame)
@@ -185,14 +187,9 @@ class ShotStore:
                                 sort_keys=True) + "\n")
 
     def integrated(self) -> dict:
-        try:
-            doc = json.loads(self.integrated_path.read_text())
-        except FileNotFoundError:
-            raise ValueError(f"the shot store {self.path} has not been integrated: run the "
-                             "integrate pass (after measure) first") from None
-        if doc.get("format") != INTEGRATED_FORMAT:
-            raise ValueError(f"{self.integrated_path}: unknown format {doc.get('format')!r}")
-        return doc
+        return _read_doc(self.integrated_path, INTEGRATED_FORMAT, "an ocl-tonemap integrate "
+                         "record", f"the shot store {self.path} has not been integrated: run "
+                         "the integrate pass (after measure) first")
 
     def bytes_per_frame(self) -> dict:
         """Storage per frame of the statistics and of the states (mean bytes)."""
@@ -202,6 +199,21 @@ class ShotStore:
             n = len([p for p in files if p.suffix == ".json"])
             out[key] = sum(p.stat().st_size for p in files) / max(n, 1)
         return out
+
+
+def _read_doc(path: Path, fmt: str, what: str, missing: str) -> dict:
+    """A JSON document of the store, checked to be of ``fmt``; ``missing``: the
+    error when there is none."""
+    try:
+        doc = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(missing) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"cannot read {path}: {exc}") from None
+    have = doc.get("format") if isinstance(doc, dict) else None
+    if have != fmt:
+        raise ValueError(f"{path}: not {what} (format {have!r}, expected {fmt!r})")
+    return doc
 
 
 def _span(frames) -> str:
