@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ocl_tonemap.shot.store import ShotStore
+
 HERE = Path(__file__).resolve().parent
 
 
@@ -92,14 +94,6 @@ def same_outputs(a: Path, b: Path, frames: list[int]) -> bool:
     return True
 
 
-def store_sizes(store: Path, n: int) -> dict:
-    out = {}
-    for key in ("stats", "states"):
-        files = [p for p in (store / key).iterdir() if not p.name.startswith(".")]
-        out[key] = sum(p.stat().st_size for p in files) / n
-    return out
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=600)
@@ -136,7 +130,7 @@ def main() -> None:
             row = {"operator": op, "config": f"dask, {nw} worker(s)", "workers": nw,
                    "seconds": t, "fps": n / t, "passes": passes,
                    "identical": same_outputs(serial_dir, d, frames),
-                   "store": store_sizes(store, n)}
+                   "store": ShotStore(store).bytes_per_frame()}
             rows.append(row)
             print(f"{op} dask {nw}: {t:.1f} s {passes} identical={row['identical']} "
                   f"store/frame={row['store']}", flush=True)

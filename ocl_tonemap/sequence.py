@@ -350,6 +350,23 @@ class RunSetup:
 
 
 
+def load_state_in(opts: JobOptions) -> AdaptationState | None:
+    """``--state-in``, without the settings of the run that wrote it (``RUN_KEY``)."""
+    if not opts.state_in:
+        return None
+    st = AdaptationState.load(opts.state_in)
+    st.extra.pop(RUN_KEY, None)
+    return st
+
+
+def setup_run(opts: JobOptions, state: AdaptationState | None):
+    """What a run sets up once: (RunSetup, Tonemapper from ``state``)."""
+    run = RunSetup(opts, state.extra if state is not None else None)
+    tm = make_tonemapper(opts, run.colour, state, run.disp)
+    run.device_band_pixels = getattr(tm.backend, "max_band_pixels", None)
+    return run, tm
+
+
 def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -> JobResult:
     """The main job. Writes the state after every frame (``checkpoint_path``); SIGINT
     and SIGTERM end it after the frame in flight (:class:`Interrupted`).
@@ -360,18 +377,15 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
     ckpt = checkpoint_path(opts) if (opts.checkpoint or opts.resume) else None
     _remove_stale_temps(jobs, [p for p in {ckpt, opts.state_out} if p])
     _check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p])
-    if state is None and opts.state_in:
-        state = AdaptationState.load(opts.state_in)
-    if state is not None:
+    if state is None:
+        state = load_state_in(opts)
+    else:
         state.extra.pop(RUN_KEY, None)
     if opts.resume:
         st, jobs = _resume_point(opts, jobs, ckpt, opts.operator)
         state = st if st is not None else state
-    run = RunSetup(opts, state.extra if state is not None else None)
-    colour, disp = run.colour, run.disp
-    _check_output_depth(opts, disp, jobs)
-    tm = make_tonemapper(opts, colour, state, disp)
-    run.device_band_pixels = getattr(tm.backend, "max_band_pixels", None)
+    run, tm = setup_run(opts, state)
+    _check_output_depth(opts, run.disp, jobs)
     fingerprint = run_fingerprint(opts)
     result = JobResult([], [])
     fps = opts.fps
@@ -1020,8 +1034,7 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
         if same_file(o, opts.input):
             raise FrameError(o, None, "output would overwrite the input file; choose another OUTPUT")
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
-    run = RunSetup(opts, state.extra if state is not None else None)
-    tm = make_tonemapper(opts, run.colour, state, run.disp)
+    run, tm = setup_run(opts, state)
     fr = read_frame(opts.input, None, opts.channels)
     result = JobResult([], [])
     try:

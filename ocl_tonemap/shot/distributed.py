@@ -48,14 +48,12 @@ class OpenCLWorker(_WorkerPlugin):
     def __init__(self, device: str | None = None, pocl_threads: int | None = None):
         self.device = device
         self.pocl_threads = pocl_threads
-        self.describe = None
 
     def setup(self, worker=None):
         if self.pocl_threads:
             os.environ.setdefault("POCL_MAX_PTHREAD_COUNT", str(int(self.pocl_threads)))
-        from ..backends.opencl.runtime import describe_device, get_runtime
-        rt = get_runtime(self.device)
-        self.describe = describe_device(rt.device)
+        from ..backends.opencl.runtime import get_runtime
+        get_runtime(self.device)
 
 
 def _worker_logging() -> None:

@@ -49,7 +49,8 @@ import numpy as np
 from ..imageio import FrameError, illuminant_from_metadata, is_sequence, read_frame
 from ..models.photometry import RepairCounts
 from ..operators.base import FrameStats
-from ..state import AUTO_SCALE_KEY, AdaptationState
+from ..sequence import load_state_in, setup_run
+from ..state import AUTO_SCALE_KEY
 from .store import ShotStore
 
 log = logging.getLogger("ocl_tonemap")
@@ -115,24 +116,6 @@ def _settings(opts) -> dict:
     """The settings a store belongs to (the serial run's fingerprint)."""
     from ..sequence import run_fingerprint
     return run_fingerprint(opts)
-
-
-def _state_in(opts) -> AdaptationState | None:
-    if not opts.state_in:
-        return None
-    from ..sequence import RUN_KEY
-    st = AdaptationState.load(opts.state_in)
-    st.extra.pop(RUN_KEY, None)
-    return st
-
-
-def _setup(opts, state):
-    """The serial run's set-up: (RunSetup, Tonemapper)."""
-    from ..sequence import RunSetup, make_tonemapper
-    run = RunSetup(opts, state.extra if state is not None else None)
-    tm = make_tonemapper(opts, run.colour, state, run.disp)
-    run.device_band_pixels = getattr(tm.backend, "max_band_pixels", None)
-    return run, tm
 
 
 # -- statistics to and from JSON (exact) ----------------------------------------------------
@@ -217,8 +200,8 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
     from ..sequence import stream_frame, stream_rows, frame_input, frame_time
     jobs = shot_jobs(opts)
     todo = chunk_jobs(jobs, chunk)
-    state = _state_in(opts)
-    run, tm = _setup(opts, state)
+    state = load_state_in(opts)
+    run, tm = setup_run(opts, state)
     tm.check_measure_only()
     store = ShotStore(store_path)
     fps, auto = _shot_constants(opts, jobs, run, tm, store)
@@ -313,9 +296,9 @@ def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
         log.info("cuts detected (|d log10 G_cone| > %g): %s", CUT_LOG10_JUMP,
                  ", ".join(map(str, cuts)) or "none")
     cuts = sorted(set(cuts or ()))
-    state = _state_in(opts)
+    state = load_state_in(opts)
     o = dataclasses.replace(opts, cuts=cuts)
-    _, tm = _setup(o, state)
+    _, tm = setup_run(o, state)
     local = bool(tm.op.state.planes)
     every = max(1, int(keyframe_every or DEFAULT_KEYFRAME_EVERY)) if local else 1
     keyframes = []
@@ -339,18 +322,18 @@ def start_state(opts, store: ShotStore, jobs, k0: int, integ: dict):
     """The state before ``jobs[k0]``: the stored one after the frame before it (a
     local operator's nearest keyframe, advanced over the stored statistics)."""
     if k0 == 0:
-        return _state_in(opts)
+        return load_state_in(opts)
     prev = jobs[k0 - 1][0]
     keys = [f for f in integ["keyframes"] if f <= prev]
     if not keys:                                   # before the first keyframe
-        base, k_from = _state_in(opts), 0
+        base, k_from = load_state_in(opts), 0
     else:
         base = store.read_state(keys[-1])
         k_from = [j[0] for j in jobs].index(keys[-1]) + 1
     if k_from == k0:
         return base
     o = dataclasses.replace(opts, cuts=integ["cuts"])
-    _, tm = _setup(o, base)
+    _, tm = setup_run(o, base)
     _advance(tm, store, jobs[k_from:k0], integ["cuts"],
              store.manifest().get("luminance_scale_auto"))
     return tm.state
