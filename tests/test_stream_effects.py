@@ -147,9 +147,13 @@ def _banded(rgb, L_wa, fov, rows, max_pixels, blur=None):
     D = float(fl.pupil_diameter(L_wa))
     plan = fl.banded_fast((h, w), fov / w, D, 1, max_pixels)
     S = fl.source_part(rgb, L_wa)
-    step = 2 ** plan.split
-    br = max(step, rows // step * step)
-    level = np.concatenate([fl.down_rows(S[y:y + br], plan.split) for y in range(0, h, br)])
+    r0, r1 = plan.rows(plan.split)
+    br = max(1, rows >> plan.split)
+    level = []
+    for c in range(r0, r1, br):
+        a0, a1 = plan.source_rows(plan.split, c, min(r1, c + br))[0]
+        level.append(fl.down_rows(plan, S[a0:a1], a0, c, min(r1, c + br)))
+    level = np.concatenate(level)
     coarse = fl.banded_coarse(plan, level, blur)
     F = np.concatenate([fl.banded_rows(plan, y, min(h, y + rows), lambda a, b: S[a:b], coarse,
                                        blur)[0] for y in range(0, h, rows)])
@@ -163,10 +167,10 @@ def test_banded_flare_is_the_fast_method(shape, fov, rows, max_pixels, split):
     """The pyramid cut at a coarse level (2^split smaller), rows made from the rows
     around them: the fast method's values (float64: 1e-12 of the largest flare,
     lamps at the frame's corners included), so its error against the exact PSF is
-    the fast method's: measured on these frames (lamps inside) median 0.6-1.6%,
-    99th percentile 4-10%, largest 7-25% of the flared pixel (next to lamps), light
-    kept 1-1.2% short. (A lamp on the last row or column of a frame of odd size
-    gets up to 3x its flare from the fast method's edge padding, whole or banded.)"""
+    the fast method's: measured on these frames (lamps inside) median 0.14-0.6%,
+    99th percentile 0.9-4.2%, largest 1.2-20% of the flared pixel (the pixels next
+    to lamps, where a sum of Gaussians from 0.5 px cannot follow f1's core at
+    0.05 deg/px), light kept 0.1-0.5% short."""
     for edges in (True, False):
         rgb = _lamps(*shape, edges=edges)
         fast, info = fl.apply_flare(rgb, 1.5, 1.5, fov, "fast")
@@ -175,8 +179,8 @@ def test_banded_flare_is_the_fast_method(shape, fov, rows, max_pixels, split):
         assert np.max(np.abs(got - fast)) <= 1e-12 * fast.max()
     exact, _ = fl.apply_flare(rgb, 1.5, 1.5, fov, "exact")
     rel = np.abs(got - exact) / exact
-    assert np.median(rel) < 0.03 and np.percentile(rel, 99) < 0.15 and rel.max() < 0.35
-    assert abs(got.sum() / exact.sum() - 1) < 0.02
+    assert np.median(rel) < 0.01 and np.percentile(rel, 99) < 0.06 and rel.max() < 0.25
+    assert abs(got.sum() / exact.sum() - 1) < 0.007
 
 
 @pytest.mark.parametrize("shape, fov", [((203, 301), 50.0), ((600, 900), 50.0),

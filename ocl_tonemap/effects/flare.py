@@ -48,11 +48,7 @@ class BandedFlare:
     tests/test_stream_effects.py (device blurs; the float64 reference: 1e-12 of
     the largest flare). ``exact`` is not banded (its FFT spans the frame): streamed
     frames get the fast method (said in the info), whose error against ``exact``
-    measured on frames with lamps inside them is median 0.6-1.6%, 99th percentile
-    4-11%, largest 7-34% of the flared pixel (next to lamps), light 1-1.2% short.
-    Like the whole frame's, it gives a lamp on the last row or column of a frame
-    of odd size up to 3x its flare (the pyramid's edge padding counts that row or
-    column twice on every odd level).
+    measured on frames with lamps inside them is in tests/test_stream_effects.py.
 
     ``rgb_rows(a, b)``: rows [a, b) of the working frame (cd/m^2, float32);
     ``max_pixels``: the split level's image and the bands of the pass that builds
@@ -87,23 +83,26 @@ class BandedFlare:
         return out
 
     def build(self) -> None:
-        """One pass over the frame: its source part box-averaged to the split level
-        (bands aligned to that level's boxes), the sources counted."""
+        """One pass over the frame: its source part decimated to the split level
+        in bands of that level's rows (each band from the source rows it is made
+        of, a few rows of halo read twice), the sources counted once."""
         h, w = self.shape
-        L = self.plan.split
-        step = 2 ** L
-        rows = max(step, (self.max_rows // step) * step)
-        lh, lw = self.plan.sizes[L]
-        level = np.empty((lh, lw, 3), np.float64)
-        for y0 in range(0, h, rows):
-            y1 = min(h, y0 + rows)
-            S = self._S(self.rgb_rows(y0, y1))
-            self.sources += int(np.count_nonzero(S.any(axis=-1)))
-            self.S_sum += float(S.sum())
-            part = fl.down_rows(S, L)
-            level[y0 // step:y0 // step + len(part)] = part
+        plan, L = self.plan, self.plan.split
+        r0, r1 = plan.rows(L)
+        step = max(1, self.max_rows // 2 ** L)
+        level = np.empty((r1 - r0, plan.sizes[L][1] + 2 * fl.level_margin(L), 3), np.float64)
+        counted = 0
+        for c0 in range(r0, r1, step):
+            c1 = min(r1, c0 + step)
+            a0, a1 = plan.source_rows(L, c0, c1)[0]
+            S = self._S(self.rgb_rows(a0, a1))
+            new = S[max(0, counted - a0):]
+            self.sources += int(np.count_nonzero(new.any(axis=-1)))
+            self.S_sum += float(new.sum())
+            counted = max(counted, a1)
+            level[c0 - r0:c1 - r0] = fl.down_rows(plan, S, a0, c0, c1)
         if self.sources:
-            self.coarse = fl.banded_coarse(self.plan, level, self.blur)
+            self.coarse = fl.banded_coarse(plan, level, self.blur)
 
     def rows(self, y0: int, y1: int) -> np.ndarray:
         """Rows [y0, y1) of the flared frame (float32 working rgb, cd/m^2). Made

@@ -162,10 +162,33 @@ def source_part(rgb: np.ndarray, L_wa: float, threshold: float = DEFAULT_THRESHO
     return rgb * f[..., None]
 
 
+def fft_size(n: int) -> int:
+    """The smallest 2^a 3^b 5^c >= n (a length pocketfft transforms fast)."""
+    best = 1 << max(0, (n - 1).bit_length())
+    f5 = 1
+    while f5 < best:
+        f35 = f5
+        while f35 < best:
+            f = f35
+            while f < n:
+                f *= 2
+            best = min(best, f)
+            f35 *= 3
+        f5 *= 5
+    return best
+
+
+def _fft_shape(h: int, w: int) -> tuple[int, int]:
+    """Circular size for a linear 'same' convolution of an (h, w) image with a
+    (2h-1, 2w-1) kernel: 2h-1 is enough (the wrapped part of the full result
+    never reaches the rows kept), rounded up to a fast length."""
+    return fft_size(2 * h - 1), fft_size(2 * w - 1)
+
+
 def _fftconvolve_same(img: np.ndarray, kern: np.ndarray, kern_fft=None) -> np.ndarray:
     """Linear convolution of (H, W) with a (2H-1, 2W-1) centred kernel, cropped to (H, W)."""
     h, w = img.shape
-    H, W = 3 * h - 2, 3 * w - 2
+    H, W = _fft_shape(h, w)
     KF = kern_fft if kern_fft is not None else np.fft.rfft2(kern, (H, W))
     full = np.fft.irfft2(np.fft.rfft2(img, (H, W)) * KF, (H, W))
     return full[h - 1:2 * h - 1, w - 1:2 * w - 1]
@@ -175,7 +198,7 @@ def _fftconvolve_same(img: np.ndarray, kern: np.ndarray, kern_fft=None) -> np.nd
 def _ring_kernel_fft(shape: tuple[int, int], deg_per_px: float, ch: int) -> np.ndarray:
     """FFT of the normalised f3 kernel of channel ``ch`` for the fast method's ring level."""
     h, w = shape
-    return np.fft.rfft2(basis_kernel(channel_bases(ch)[3], shape, deg_per_px), (3 * h - 2, 3 * w - 2))
+    return np.fft.rfft2(basis_kernel(channel_bases(ch)[3], shape, deg_per_px), _fft_shape(h, w))
 
 
 def convolve_exact(src: np.ndarray, deg_per_px: float, D: float) -> np.ndarray:
@@ -239,6 +262,9 @@ def fit_gaussians(shape: tuple[int, int], deg_per_px: float, per_octave: int = 1
         at = np.arange(len(t))
         cols.append(np.interp(ox, at, t, right=0.0) * np.interp(oy, at, t, right=0.0))
     A = np.stack(cols, axis=1)
+    # each column's energy within the diagonal (a wide Gaussian leaves the frame:
+    # counting all of it starved the core of f2, 27% short on the source's pixel)
+    inside = np.array([1.0] + [-math.expm1(-R * R / (2.0 * sg * sg)) for sg in sig])
     weights, errs = {}, {}
     for name in channel_bases(0)[:3]:
             fn = _basis(name)
@@ -254,7 +280,7 @@ def fit_gaussians(shape: tuple[int, int], deg_per_px: float, per_octave: int = 1
                 continue
             scale = 1.0 / np.maximum(prof, prof.max() * 1e-6)
             E = basis_energy_within(name, R * deg_per_px)
-            M = np.vstack([A * scale[:, None], FIT_ENERGY_WEIGHT * np.ones((1, A.shape[1]))])
+            M = np.vstack([A * scale[:, None], FIT_ENERGY_WEIGHT * inside[None, :]])
             b = np.concatenate([prof * scale, [FIT_ENERGY_WEIGHT * E]])
             a, _ = nnls(M, b)
             fit = A @ a
@@ -265,20 +291,27 @@ def fit_gaussians(shape: tuple[int, int], deg_per_px: float, per_octave: int = 1
 
 
 #: A Gaussian goes to the coarsest level where it is still this wide (coarse px):
-#: 1 px is 1.4x faster, 2 px cuts the largest error next to a source from 28% to 10%
-#: (benchmarks/results/flare.md).
+#: 1 px is faster, 2 px keeps the bilinear steps' own error next to a source small
+#: (benchmarks/results/durand00.md).
 PYRAMID_MIN_SIGMA = 2.0
+#: Variance (px^2 of the finer level) one level's round trip adds: the
+#: [1 3 3 1]/8 decimation (0.75) and the bilinear 2x upsampling (0.75).
+PYRAMID_STEP_VARIANCE = 1.5
+#: Coarse levels hold this many samples beyond the frame on every side: the
+#: decimation reaches one sample past the frame (light at its edge keeps its
+#: place), the upsampling one more.
+PYRAMID_MARGIN = 2
 
 
 def pyramid_level(sigma: float, max_level: int,
                   min_coarse: float | None = None) -> tuple[int, float]:
     """(level, coarse sigma) for a Gaussian of ``sigma`` full-resolution px: the
     coarsest level where it is still >= ``min_coarse`` px wide after removing
-    the pyramid's own variance ((4^l - 1)/3 px^2: box down + bilinear up)."""
+    the pyramid's own variance (PYRAMID_STEP_VARIANCE (4^l - 1)/3 px^2)."""
     min_coarse = PYRAMID_MIN_SIGMA if min_coarse is None else min_coarse
     best = (0, sigma)
     for lev in range(1, max_level + 1):
-        v = sigma * sigma - (4.0 ** lev - 1.0) / 3.0
+        v = sigma * sigma - PYRAMID_STEP_VARIANCE * (4.0 ** lev - 1.0) / 3.0
         if v <= 0:
             break
         sc = math.sqrt(v) / 2.0 ** lev
@@ -288,27 +321,73 @@ def pyramid_level(sigma: float, max_level: int,
     return best
 
 
-def _down2(a: np.ndarray) -> np.ndarray:
-    """2x2 box average; an odd last row/column is repeated (edge padding)."""
-    h, w = a.shape[:2]
-    pad = [(0, h % 2), (0, w % 2)] + [(0, 0)] * (a.ndim - 2)
-    p = np.pad(a, pad, mode="edge") if (h % 2 or w % 2) else a
-    return 0.25 * (p[0::2, 0::2] + p[1::2, 0::2] + p[0::2, 1::2] + p[1::2, 1::2])
+def level_sizes(shape: tuple[int, int], top: int) -> list:
+    """(H_l, W_l) of the frame on levels 0..top (each level half the one below,
+    rounded up), margins not counted."""
+    s = [tuple(shape)]
+    for _ in range(top):
+        h, w = s[-1]
+        s.append(((h + 1) // 2, (w + 1) // 2))
+    return s
 
 
-def _up2(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """Bilinear 2x upsampling to ``shape``: fine[2j] = .75 c[j] + .25 c[j-1], the
-    coarse field held at its edges (it is smooth there: blurred light)."""
-    def axis_up(x, n, ax):
-        first = np.take(x, [0], axis=ax)
-        last = np.take(x, [x.shape[ax] - 1], axis=ax)
-        prev = np.concatenate([first, x], axis=ax)[(slice(None),) * ax + (slice(0, -1),)]
-        nxt = np.concatenate([x, last], axis=ax)[(slice(None),) * ax + (slice(1, None),)]
-        even, odd = 0.75 * x + 0.25 * prev, 0.75 * x + 0.25 * nxt
-        out = np.stack([even, odd], axis=ax + 1)
-        out = out.reshape(x.shape[:ax] + (2 * x.shape[ax],) + x.shape[ax + 1:])
-        return np.take(out, np.arange(n), axis=ax)
-    return axis_up(axis_up(a, shape[0], 0), shape[1], 1)
+def level_margin(lev: int) -> int:
+    """Samples a level holds beyond the frame on every side (level 0: none)."""
+    return PYRAMID_MARGIN if lev else 0
+
+
+def level_range(sizes: list, lev: int, axis: int) -> tuple[int, int]:
+    """[first, end) of the samples level ``lev`` holds along ``axis``, margins included."""
+    m = level_margin(lev)
+    return -m, sizes[lev][axis] + m
+
+
+def _down_axis(x: np.ndarray, axis: int, i0: int, j0: int, j1: int) -> np.ndarray:
+    """Samples [j0, j1) along ``axis`` of the next coarser level, from a level
+    whose samples [i0, i0 + n) are ``x`` (zero elsewhere):
+    c[j] = (f[2j - 1] + 3 f[2j] + 3 f[2j + 1] + f[2j + 2]) / 8, the coarse sample
+    centred between its two fine ones (the 2x2 box's cell, a smoother filter:
+    the box let a source's place inside its cell leak into the flare, +-15%)."""
+    x = np.moveaxis(np.asarray(x, np.float64), axis, 0)
+    n, N = x.shape[0], j1 - j0
+    lo = 2 * j0 - 1
+    p = np.zeros((2 * N + 2,) + x.shape[1:], np.float64)
+    a, b = max(lo, i0), min(lo + 2 * N + 2, i0 + n)
+    if b > a:
+        p[a - lo:b - lo] = x[a - i0:b - i0]
+    out = p[0:2 * N:2] + p[3:2 * N + 3:2]
+    out += 3.0 * (p[1:2 * N + 1:2] + p[2:2 * N + 2:2])
+    out *= 0.125
+    return np.moveaxis(out, 0, axis)
+
+
+def _up_axis(c: np.ndarray, axis: int, c0: int, f0: int, f1: int) -> np.ndarray:
+    """Samples [f0, f1) along ``axis`` of the next finer level, bilinear, from a
+    level whose samples [c0, c0 + n) are ``c``: f[2j] = .75 c[j] + .25 c[j - 1],
+    f[2j + 1] = .75 c[j] + .25 c[j + 1] (held at the ends of ``c``, which lie in
+    the margins)."""
+    i = np.arange(f0, f1)
+    j = i // 2
+    nb = np.where(i % 2 == 0, j - 1, j + 1)
+    last = c0 + c.shape[axis] - 1
+    j, nb = np.clip(j, c0, last) - c0, np.clip(nb, c0, last) - c0
+    out = 0.75 * np.take(c, j, axis=axis)
+    out += 0.25 * np.take(c, nb, axis=axis)
+    return out
+
+
+def _down2(img: np.ndarray, sizes: list, lev: int, r0: int, rows: tuple) -> np.ndarray:
+    """Rows ``rows`` = [j0, j1) of level ``lev + 1`` (every column, margins too)
+    from rows [r0, r0 + len(img)) of level ``lev`` (every column)."""
+    c = _down_axis(img, 0, r0, *rows)
+    return _down_axis(c, 1, level_range(sizes, lev, 1)[0], *level_range(sizes, lev + 1, 1))
+
+
+def _up2(acc: np.ndarray, sizes: list, lev: int, r0: int, rows: tuple) -> np.ndarray:
+    """Rows ``rows`` of level ``lev`` (every column) from rows [r0, r0 + len(acc))
+    of level ``lev + 1``."""
+    f = _up_axis(acc, 0, r0, *rows)
+    return _up_axis(f, 1, level_range(sizes, lev + 1, 1)[0], *level_range(sizes, lev, 1))
 
 
 #: The coarsest pyramid level keeps at least this many pixels across.
@@ -325,10 +404,81 @@ def ring_level(deg_per_px: float, max_level: int) -> int:
     return lev
 
 
-def _pyramid_plan(shape: tuple[int, int], deg_per_px: float, D: float, per_octave: int):
-    """The fast method's plan for a frame of ``shape``: (fit, the four basis weights,
-    the shared Gaussian weights, level -> [(sigma on the level, weight)], the ring's
-    level or -1, the coarsest level used)."""
+@dataclass(frozen=True)
+class FastPlan:
+    """What :func:`convolve_fast` does for a frame: the delta's weight, each
+    level's Gaussians, the ring, and the level the work is cut at for frames in
+    row bands (``split``: the levels from it up are computed whole)."""
+
+    shape: tuple            # (H, W) of the frame
+    deg_per_px: float
+    a0: float               # weight of the delta
+    by_level: dict          # level -> [(coarse sigma, weight), ...]
+    lring: int              # level of the f3 ring (-1: no ring)
+    w3: float
+    top: int                # coarsest level used
+    split: int = 0          # levels >= split are computed whole
+
+    @property
+    def sizes(self) -> list:
+        """(H_l, W_l) of every level 0..top, margins not counted."""
+        return level_sizes(self.shape, self.top)
+
+    def rows(self, lev: int) -> tuple[int, int]:
+        """[first, end) of the rows level ``lev`` holds (margins included)."""
+        return level_range(self.sizes, lev, 0)
+
+    def radius(self, lev: int) -> int:
+        """Rows the Gaussians of level ``lev`` reach (their taps' radius)."""
+        return max((len(gaussian_taps(sc)) - 1 for sc, _ in self.by_level.get(lev, [])),
+                   default=0)
+
+    def _clip(self, lev: int, a: int, b: int) -> tuple[int, int]:
+        lo, hi = self.rows(lev)
+        a = max(lo, a)
+        return a, max(a, min(hi, b))
+
+    def source_rows(self, lev: int, c0: int, c1: int) -> list:
+        """Rows of levels 0..lev that rows [c0, c1) of level ``lev`` are made from
+        (each decimation reaches one finer row beyond its pair on each side)."""
+        need = [None] * (lev + 1)
+        need[lev] = (c0, c1)
+        for k in range(lev - 1, -1, -1):
+            a, b = need[k + 1]
+            need[k] = self._clip(k, 2 * a - 1, 2 * b + 1)
+        return need
+
+    def span(self, y0: int, y1: int) -> tuple[list, list]:
+        """For rows [y0, y1) of the flare: (``need``: the rows of the accumulated
+        flare on levels 0..split, each level's rows around the finer level's for
+        the upsampling; ``made``: the rows of the source part decimated to levels
+        0..split-1 the band needs, the Gaussians' halo around ``need`` and what
+        coarser levels are made from, None above the finest level that needs none)."""
+        L = self.split
+        need = [(y0, y1)]
+        for lev in range(1, L + 1):
+            p0, p1 = need[-1]
+            need.append(self._clip(lev, p0 // 2 - 1, (p1 - 1) // 2 + 2))
+        made = [None] * max(L, 1)
+        for lev in range(L - 1, -1, -1):
+            r = None
+            R = self.radius(lev)
+            if self.by_level.get(lev) or lev == 0:
+                n0, n1 = need[lev]
+                r = self._clip(lev, n0 - R, n1 + R)
+            if lev + 1 < L and made[lev + 1] is not None:
+                a, b = made[lev + 1]
+                f = self._clip(lev, 2 * a - 1, 2 * b + 1)
+                r = f if r is None else (min(r[0], f[0]), max(r[1], f[1]))
+            made[lev] = r
+        if L == 0:
+            made[0] = (y0, y1)
+        return need, made
+
+
+def _pyramid_plan(shape: tuple[int, int], deg_per_px: float, D: float,
+                  per_octave: int) -> FastPlan:
+    """The fast method's plan for a frame of ``shape``."""
     h, w = shape
     fit = fit_gaussians((h, w), float(deg_per_px), int(per_octave))
     wts = flare_weights(D)
@@ -341,7 +491,45 @@ def _pyramid_plan(shape: tuple[int, int], deg_per_px: float, D: float, per_octav
             by_level.setdefault(lev, []).append((sc, a[k + 1]))
     lring = ring_level(deg_per_px, max_level) if wts[3] > 0 else -1
     top = max(max(by_level, default=0), lring)
-    return fit, wts, a, by_level, lring, top
+    return FastPlan((h, w), float(deg_per_px), float(a[0]), by_level, lring, float(wts[3]), top)
+
+
+def _level_part(plan: FastPlan, lev: int, img: np.ndarray, blur) -> np.ndarray | None:
+    """The Gaussians (and the ring) of pyramid level ``lev`` on ``img`` (zero
+    beyond it), summed in one order for whole frames and bands alike."""
+    part = None
+    for sc, wk in plan.by_level.get(lev, []):
+        b = np.array(blur(img, gaussian_taps(sc)), np.float64)
+        b *= wk                                  # (in place: the same values, less memory)
+        if part is None:
+            part = b
+        else:
+            part += b
+        del b
+    if lev == plan.lring:
+        dl = plan.deg_per_px * 2.0 ** lev
+        ring = np.stack([plan.w3 * _fftconvolve_same(img[..., c], None, _ring_kernel_fft(
+            img.shape[:2], dl, c)) for c in range(3)], axis=-1)
+        part = ring if part is None else part + ring
+    return part
+
+
+def _wide_part(plan: FastPlan, lev0: int, level: np.ndarray, blur) -> np.ndarray | None:
+    """The accumulated flare of levels lev0..top on level ``lev0`` (all its rows
+    and margins), from the source part on that level (``level``, the same rows)."""
+    sizes = plan.sizes
+    levels = {lev0: np.asarray(level, np.float64)}
+    for lev in range(lev0 + 1, plan.top + 1):
+        levels[lev] = _down2(levels[lev - 1], sizes, lev - 1, plan.rows(lev - 1)[0],
+                             plan.rows(lev))
+    acc = None
+    for lev in range(plan.top, lev0 - 1, -1):
+        if acc is not None:
+            acc = _up2(acc, sizes, lev, plan.rows(lev + 1)[0], plan.rows(lev))
+        part = _level_part(plan, lev, levels.pop(lev), blur)
+        if part is not None:
+            acc = part if acc is None else acc + part
+    return acc
 
 
 def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int = 1,
@@ -349,36 +537,20 @@ def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int 
     """PSF * src approximated on a pyramid.
 
     f0, f1, f2 (monotone): the fitted delta + Gaussians, each Gaussian on the
-    coarsest level where it is >= 1 px wide; ``blur(img, taps)`` does the
-    zero-edged separable blur: the device's (``DeviceBlur.blur``) or, by
-    default, the float64 reference. f3 (a ring, which centred Gaussians cannot
-    make): a direct FFT convolution on the coarsest level where the ring is
-    still RING_MIN_PX wide (a few thousand pixels at video sizes).
+    coarsest level where it is >= PYRAMID_MIN_SIGMA px wide; ``blur(img, taps)``
+    does the zero-edged separable blur: the device's (``DeviceBlur.blur``) or,
+    by default, the float64 reference. f3 (a ring, which centred Gaussians
+    cannot make): a direct FFT convolution on the coarsest level where the ring
+    is still RING_MIN_PX wide (a few thousand pixels at video sizes). Levels
+    above 0 hold PYRAMID_MARGIN samples beyond the frame, so light at the
+    frame's edge stays where it is.
     """
     blur = blur or (lambda img, taps: blur_reference(img, taps, EDGE_ZERO))
     h, w, _ = src.shape
-    fit, (w0, w1, w2, w3), a, by_level, lring, top = _pyramid_plan((h, w), deg_per_px, D,
-                                                                  per_octave)
-    levels = [np.asarray(src, np.float64)]
-    for _ in range(top):
-        levels.append(_down2(levels[-1]))
-    acc = None
-    for lev in range(len(levels) - 1, -1, -1):
-        if acc is not None:
-            acc = _up2(acc, levels[lev].shape[:2])
-        part = None
-        for sc, wk in by_level.get(lev, []):
-            b = wk * np.asarray(blur(levels[lev], gaussian_taps(sc)), np.float64)
-            part = b if part is None else part + b
-        if lev == lring:
-            lv = levels[lev]
-            dl = deg_per_px * 2.0 ** lev
-            ring = np.stack([w3 * _fftconvolve_same(lv[..., c], None, _ring_kernel_fft(
-                lv.shape[:2], dl, c)) for c in range(3)], axis=-1)
-            part = ring if part is None else part + ring
-        if part is not None:
-            acc = part if acc is None else acc + part
-    out = a[0] * np.asarray(src, np.float64)
+    plan = _pyramid_plan((h, w), deg_per_px, D, per_octave)
+    src = np.asarray(src, np.float64)
+    out = plan.a0 * src
+    acc = _wide_part(plan, 0, src, blur)
     if acc is not None:
         out = out + acc
     return np.maximum(out, 0.0)
@@ -414,180 +586,87 @@ def apply_flare(rgb: np.ndarray, L_wa: float, L_waR: float, fov_deg: float,
 
 # --- the fast method in row bands (frames streamed with bounded memory) ------------------
 
-@dataclass(frozen=True)
-class BandedFast:
+def banded_fast(shape: tuple[int, int], deg_per_px: float, D: float, per_octave: int = 1,
+                max_pixels: int | None = None) -> FastPlan:
     """:func:`convolve_fast` split for frames that are never whole in memory.
 
-    The pyramid is cut at level ``split``: the levels from ``split`` up (the
-    wide Gaussians and the halo ring, whose supports reach across the frame)
-    are computed whole from level ``split`` alone, a ``2^split``-times smaller
-    image built band by band (:meth:`coarse`); the delta and the Gaussians of
-    the finer levels (each <= ~4 px wide on its level, so a few dozen rows
-    reach) are computed per output band from the source rows around it
-    (:meth:`rows`), and the wide part is brought up through the same bilinear
-    steps. Box averages over rows aligned to ``2^split``, the zero-edged blurs
-    with halo rows and the clamped upsampling steps are the whole-frame ones,
-    so the result is :func:`convolve_fast`'s to rounding (float32 blurs on the
-    device: ~1e-6 relative; the float64 reference blur: ~1e-12), not a further
-    approximation. ``split`` <= the ring's level (the ring stays whole);
-    memory: a few float64 copies of level ``split`` plus the band and its halo.
-    """
-
-    shape: tuple            # (H, W) of the frame
-    deg_per_px: float
-    a0: float               # weight of the delta
-    by_level: dict          # level -> [(coarse sigma, weight), ...]
-    lring: int              # level of the f3 ring (-1: no ring)
-    w3: float
-    top: int                # coarsest level used
-    split: int              # levels >= split are computed whole
-
-    @property
-    def sizes(self) -> list:
-        """(H_l, W_l) of every level 0..top (``_down2`` pads odd sizes)."""
-        s = [tuple(self.shape)]
-        for _ in range(self.top):
-            h, w = s[-1]
-            s.append(((h + 1) // 2, (w + 1) // 2))
-        return s
-
-    def radius(self, lev: int) -> int:
-        """Rows the Gaussians of level ``lev`` reach (their taps' radius)."""
-        return max((len(gaussian_taps(sc)) - 1 for sc, _ in self.by_level.get(lev, [])),
-                   default=0)
-
-    def span(self, y0: int, y1: int):
-        """(rows needed on each level 0..split to make rows [y0, y1), source rows
-        [a0, a1) they come from): the band, the taps' halo, the upsampling's
-        neighbours, aligned to the boxes of level ``split - 1``."""
-        L, sizes = self.split, self.sizes
-        need = [(y0, y1)]
-        for lev in range(1, L + 1):
-            p0, p1 = need[-1]
-            need.append((max(0, p0 // 2 - 1), min(sizes[lev][0], (p1 - 1) // 2 + 2)))
-        a0, a1 = y0, y1
-        for lev in range(1, L):
-            R = self.radius(lev)
-            if R:
-                a0 = min(a0, max(0, need[lev][0] - R) * 2 ** lev)
-                a1 = max(a1, min(sizes[lev][0], need[lev][1] + R) * 2 ** lev)
-        R = self.radius(0)
-        a0, a1 = min(a0, max(0, y0 - R)), max(a1, y1 + R)
-        step = 2 ** max(L - 1, 0)
-        return need, (a0 // step) * step, min(self.shape[0], -(-a1 // step) * step)
-
-
-def banded_fast(shape: tuple[int, int], deg_per_px: float, D: float, per_octave: int = 1,
-                max_pixels: int | None = None) -> BandedFast:
-    """The plan of :func:`convolve_fast` for a frame of ``shape`` = (H, W), split at
-    the finest level whose image holds at most ``max_pixels`` pixels (not above
-    the ring's level nor the coarsest level used)."""
-    h, w = shape
-    fit, (w0, w1, w2, w3), a, by_level, lring, top = _pyramid_plan((h, w), deg_per_px, D,
-                                                                  per_octave)
+    The pyramid is cut at level ``split``, the finest whose image holds at most
+    ``max_pixels`` pixels (not above the ring's level nor the coarsest level
+    used): the levels from ``split`` up (the wide Gaussians and the halo ring,
+    whose supports reach across the frame) are computed whole from level
+    ``split`` alone (:func:`banded_coarse`), a ``2^split``-times smaller image
+    built band by band (:func:`down_rows`); the delta and the Gaussians of the
+    finer levels (each <= ~4 px wide on its level, so a few dozen rows reach)
+    are computed per output band from the source rows around it
+    (:func:`banded_rows`), and the wide part is brought up through the same
+    bilinear steps. Every sample is computed as the whole frame computes it,
+    from the same neighbours, so the result is :func:`convolve_fast`'s (float64
+    blurs: bit for bit; device blurs: bit for bit as well), not a further
+    approximation. Memory: a few float64 copies of level ``split`` plus the
+    band and its halo."""
+    plan = _pyramid_plan(tuple(shape), deg_per_px, D, per_octave)
     split = 0
     cap = max(1, int(max_pixels)) if max_pixels else 1
-    hh, ww = h, w
-    while split < top and hh * ww > cap and (lring < 0 or split < lring):
+    hh, ww = shape
+    while split < plan.top and hh * ww > cap and (plan.lring < 0 or split < plan.lring):
         split += 1
         hh, ww = (hh + 1) // 2, (ww + 1) // 2
-    return BandedFast((h, w), float(deg_per_px), float(a[0]), by_level, lring, float(w3),
-                      top, split)
+    return FastPlan(plan.shape, plan.deg_per_px, plan.a0, plan.by_level, plan.lring, plan.w3,
+                    plan.top, split)
 
 
-def _level_part(plan: BandedFast, lev: int, img: np.ndarray, blur) -> np.ndarray | None:
-    """The Gaussians (and the ring) of pyramid level ``lev`` on ``img``, summed in
-    :func:`convolve_fast`'s order."""
-    part = None
-    for sc, wk in plan.by_level.get(lev, []):
-        b = np.array(blur(img, gaussian_taps(sc)), np.float64)
-        b *= wk                                  # (in place: the same values, less memory)
-        if part is None:
-            part = b
-        else:
-            part += b
-        del b
-    if lev == plan.lring:
-        dl = plan.deg_per_px * 2.0 ** lev
-        ring = np.stack([plan.w3 * _fftconvolve_same(img[..., c], None, _ring_kernel_fft(
-            img.shape[:2], dl, c)) for c in range(3)], axis=-1)
-        part = ring if part is None else part + ring
-    return part
+def down_rows(plan: FastPlan, S: np.ndarray, a0: int, c0: int, c1: int) -> np.ndarray:
+    """Rows [c0, c1) of level ``plan.split`` (every column, margins too) from the
+    source rows [a0, a0 + len(S)), which must hold ``plan.source_rows(split, c0,
+    c1)[0]``: the whole frame's values of those rows."""
+    need = plan.source_rows(plan.split, c0, c1)
+    sizes = plan.sizes
+    lv, off = np.asarray(S, np.float64), a0
+    for lev in range(1, plan.split + 1):
+        lv, off = _down2(lv, sizes, lev - 1, off, need[lev]), need[lev][0]
+    return lv
 
 
-def banded_coarse(plan: BandedFast, level_split: np.ndarray, blur=None) -> np.ndarray | None:
-    """The wide part at level ``split``: :func:`convolve_fast`'s accumulator there,
-    from the source part box-averaged to that level (``level_split``, built band
-    by band with :func:`down_rows`). None when no level >= split has anything."""
+def banded_coarse(plan: FastPlan, level_split: np.ndarray, blur=None) -> np.ndarray | None:
+    """The wide part at level ``split``: :func:`convolve_fast`'s accumulator there
+    (rows ``plan.rows(split)``), from the source part on that level (the same
+    rows, built band by band with :func:`down_rows`). None when no level >= split
+    has anything."""
     blur = blur or (lambda img, taps: blur_reference(img, taps, EDGE_ZERO))
-    levels = {plan.split: np.asarray(level_split, np.float64)}
-    for lev in range(plan.split + 1, plan.top + 1):
-        levels[lev] = _down2(levels[lev - 1])
-    acc = None
-    for lev in range(plan.top, plan.split - 1, -1):
-        if acc is not None:
-            acc = _up2(acc, levels[lev].shape[:2])
-        part = _level_part(plan, lev, levels[lev], blur)
-        if part is not None:
-            acc = part if acc is None else acc + part
-        del levels[lev]
-    return acc
+    return _wide_part(plan, plan.split, level_split, blur)
 
 
-def down_rows(S: np.ndarray, levels: int) -> np.ndarray:
-    """``levels`` 2x box steps of rows that start on a multiple of ``2^levels`` and
-    end on one or at the frame's last row: the same rows as the whole frame's."""
-    for _ in range(levels):
-        S = _down2(S)
-    return S
-
-
-def _up2_rows(c: np.ndarray, c0: int, hc: int, f0: int, f1: int, wf: int) -> np.ndarray:
-    """Rows [f0, f1) of ``_up2`` of a level whose rows [c0, c0 + len(c)) are ``c``
-    (of ``hc`` rows in all; the fine level is ``wf`` wide): the same values, with
-    fewer temporaries."""
-    i = np.arange(f0, f1)
-    j = i // 2
-    nb = np.where(i % 2 == 0, np.maximum(j - 1, 0), np.minimum(j + 1, hc - 1))
-    x = 0.75 * c[j - c0]
-    x += 0.25 * c[nb - c0]
-    out = np.empty((x.shape[0], 2 * x.shape[1]) + x.shape[2:], np.float64)
-    ev, od = out[:, 0::2], out[:, 1::2]
-    np.multiply(x, 0.75, out=ev)                 # .75 x + .25 x[k - 1], held at the edge
-    ev[:, 1:] += 0.25 * x[:, :-1]
-    ev[:, :1] += 0.25 * x[:, :1]
-    np.multiply(x, 0.75, out=od)                 # .75 x + .25 x[k + 1]
-    od[:, :-1] += 0.25 * x[:, 1:]
-    od[:, -1:] += 0.25 * x[:, -1:]
-    return out[:, :wf]
-
-
-def banded_rows(plan: BandedFast, y0: int, y1: int, source_rows, coarse, blur=None):
+def banded_rows(plan: FastPlan, y0: int, y1: int, source_rows, coarse, blur=None):
     """Rows [y0, y1) of PSF * S (:func:`convolve_fast`'s values): ``source_rows(a,
     b)`` gives rows [a, b) of the source part S (float64, H x W x 3 sliced);
     ``coarse`` is :func:`banded_coarse`'s result. Returns (F rows, S rows)."""
     blur = blur or (lambda img, taps: blur_reference(img, taps, EDGE_ZERO))
     L, sizes = plan.split, plan.sizes
-    need, a0, a1 = plan.span(y0, y1)
+    need, made = plan.span(y0, y1)
+    a0, a1 = made[0]
     S = np.asarray(source_rows(a0, a1), np.float64)
     parts = {}
     lv, off = S, a0
     for lev in range(L):
+        if made[lev] is None:
+            break
         if lev:
-            lv, off = _down2(lv), off // 2
+            lv, off = _down2(lv, sizes, lev - 1, off, made[lev]), made[lev][0]
         if plan.by_level.get(lev):
             n0, n1 = need[lev]
             R = plan.radius(lev)              # blur only the rows that reach the band
             b0, b1 = max(off, n0 - R), min(off + len(lv), n1 + R)
-            parts[lev] = _level_part(plan, lev, lv[b0 - off:b1 - off], blur)[n0 - b0:n1 - b0]
+            part = _level_part(plan, lev, lv[b0 - off:b1 - off], blur)
+            if part is not None:
+                parts[lev] = part[n0 - b0:n1 - b0]
     acc = None
     if coarse is not None:
         n0, n1 = need[L]
-        acc = coarse[n0:n1]
+        r0 = plan.rows(L)[0]
+        acc = coarse[n0 - r0:n1 - r0]
     for lev in range(L - 1, -1, -1):
         if acc is not None:
-            acc = _up2_rows(acc, need[lev + 1][0], sizes[lev + 1][0], need[lev][0],
-                            need[lev][1], sizes[lev][1])
+            acc = _up2(acc, sizes, lev, need[lev + 1][0], need[lev])
         part = parts.pop(lev, None)
         if part is not None:
             if acc is None:
