@@ -131,6 +131,7 @@ class Effects:
         self.user_illuminant = parse_illuminant(settings.illuminant) if settings.illuminant else None
         self._blur = backend.device_blur() if hasattr(backend, "device_blur") else None
         self._purkinje_dev = None
+        self._flare_dev = None
         found = plugin_effects() if plugins else {}
         missing = [p for p in plugins if p not in found]
         if missing:
@@ -143,7 +144,10 @@ class Effects:
 
     def flare(self, rgb: np.ndarray, G_rod: float, G_cone: float):
         """(new rgb or None, info) for one frame in cd/m^2."""
-        return _flare.run(self.s, rgb, G_rod, G_cone, self._blur)
+        if self.s.flare != "off" and self.s.flare_method == "fast" and \
+                self._flare_dev is None and hasattr(self.backend, "flare_device"):
+            self._flare_dev = self.backend.flare_device()
+        return _flare.run(self.s, rgb, G_rod, G_cone, self._blur, self._flare_dev)
 
     def purkinje(self, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
                  dt: float = 0.0, fresh: bool = True, preadapt=None):

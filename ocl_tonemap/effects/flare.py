@@ -19,10 +19,15 @@ NEEDS = ("adaptation levels", "blur")
 HELP = "glare of light sources (Spencer et al. 1995)"
 
 
-def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, blur=None):
-    """(new rgb or None, info) for one frame in cd/m^2; ``blur(img, taps, edge)``."""
+def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, blur=None, device=None):
+    """(new rgb or None, info) for one frame in cd/m^2; ``blur(img, taps, edge)``: the
+    device's blur for the host-driven pyramid; ``device``: the fast method made whole
+    on the device (``backends/opencl/flare.py``), used where the frame fits it."""
     if settings.flare == "off":
         return None, {"ran": False}
+    h, w = rgb.shape[:2]
+    if device is not None and settings.flare_method == "fast" and device.fits(h, w):
+        return _run_on_device(settings, rgb, G_rod, G_cone, device)
     if settings.flare == "auto":
         Ymax = float(np.max(rgb.reshape(-1, 3) @ Y_WEIGHTS, initial=0.0))
         if not Ymax > settings.flare_threshold * G_cone:
@@ -32,6 +37,23 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, blur=None):
                                settings.flare_threshold, settings.flare_per_octave, dev)
     info["ran"] = info["sources"] > 0
     return out.astype(np.float32), info
+
+
+def _run_on_device(settings, rgb, G_rod: float, G_cone: float, device):
+    """:func:`run` with the pyramid on the device: the same plan and info."""
+    h, w = rgb.shape[:2]
+    D = float(fl.pupil_diameter(0.5 * (G_cone + G_rod)))
+    lim = settings.flare_threshold * max(float(G_cone), 0.0)
+    plan = fl.fast_plan((h, w), settings.fov_deg / w, D, settings.flare_per_octave)
+    out, sources, S_sum, F_sum = device.apply(rgb, plan, lim)
+    if sources == 0 and settings.flare == "auto":
+        return None, {"ran": False, "reason": "no light sources"}
+    info = {"sources": sources, "pupil_mm": D, "weights": list(fl.flare_weights(D)),
+            "method": "fast", "threshold": settings.flare_threshold, "ran": sources > 0}
+    if sources == 0:
+        return None, info
+    info["energy_in_frame"] = float(F_sum.sum() / max(S_sum.sum(), 1e-300))
+    return out, info
 
 
 #: Pixels of working rows made into the source part at a time (memory).

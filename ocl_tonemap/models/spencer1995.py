@@ -293,7 +293,7 @@ def fit_gaussians(shape: tuple[int, int], deg_per_px: float, per_octave: int = 1
 #: A Gaussian goes to the coarsest level where it is still this wide (coarse px):
 #: 1 px is faster, 2 px keeps the bilinear steps' own error next to a source small
 #: (benchmarks/results/durand00.md).
-PYRAMID_MIN_SIGMA = 2.0
+PYRAMID_MIN_SIGMA = 1.5
 #: Variance (px^2 of the finer level) one level's round trip adds: the
 #: [1 3 3 1]/8 decimation (0.75) and the bilinear 2x upsampling (0.75).
 PYRAMID_STEP_VARIANCE = 1.5
@@ -476,7 +476,7 @@ class FastPlan:
         return need, made
 
 
-def _pyramid_plan(shape: tuple[int, int], deg_per_px: float, D: float,
+def fast_plan(shape: tuple[int, int], deg_per_px: float, D: float,
                   per_octave: int) -> FastPlan:
     """The fast method's plan for a frame of ``shape``."""
     h, w = shape
@@ -547,7 +547,7 @@ def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int 
     """
     blur = blur or (lambda img, taps: blur_reference(img, taps, EDGE_ZERO))
     h, w, _ = src.shape
-    plan = _pyramid_plan((h, w), deg_per_px, D, per_octave)
+    plan = fast_plan((h, w), deg_per_px, D, per_octave)
     src = np.asarray(src, np.float64)
     out = plan.a0 * src
     acc = _wide_part(plan, 0, src, blur)
@@ -604,7 +604,7 @@ def banded_fast(shape: tuple[int, int], deg_per_px: float, D: float, per_octave:
     blurs: bit for bit; device blurs: bit for bit as well), not a further
     approximation. Memory: a few float64 copies of level ``split`` plus the
     band and its halo."""
-    plan = _pyramid_plan(tuple(shape), deg_per_px, D, per_octave)
+    plan = fast_plan(tuple(shape), deg_per_px, D, per_octave)
     split = 0
     cap = max(1, int(max_pixels)) if max_pixels else 1
     hh, ww = shape

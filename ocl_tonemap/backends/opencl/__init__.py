@@ -62,6 +62,11 @@ class OpenCLBackend:
         from .convolution import DeviceBlur
         return DeviceBlur(self.rt, self.max_band_pixels).blur
 
+    def flare_device(self):
+        """The fast flare on the device (``effects/flare.py``)."""
+        from .flare import DeviceFlare
+        return DeviceFlare(self.rt)
+
     def purkinje_device(self):
         """kirk11's shift kernels for the Purkinje effect on other operators."""
         from .kirk11 import KirkDevice

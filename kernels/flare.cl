@@ -1,0 +1,160 @@
+/* The fast flare (Spencer et al. 1995 as Durand & Dorsey 2000, Sec. 6 use it)
+ * on the device: the source part, the pyramid's [1 3 3 1]/8 decimation and
+ * bilinear upsampling, the level Gaussians (zero outside each level's
+ * samples), and the flared frame. Pixels are float4 (r, g, b, 0); a level's
+ * samples include its margins. Reference: ocl_tonemap/models/spencer1995.py
+ * (source_part, _down_axis, _up_axis, convolve_fast). */
+
+/* Work-group sums of float4 records into partial[group] (local size: a power of two). */
+inline void group_sum4(__local float4 *scratch, const float4 v, __global float4 *partial)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    scratch[lid] = v;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int off = lsz >> 1; off > 0; off >>= 1) {
+        if (lid < off) scratch[lid] += scratch[lid + off];
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0) partial[get_group_id(0)] = scratch[0];
+}
+
+/* S = rgb max(0, 1 - lim / Y): the part of each pixel above ``lim`` cd/m^2.
+ * partial: per group (sum of S r, g, b, number of source pixels). */
+__kernel void flare_source(__global const float *rgb, const int n, const float lim,
+                           __global float4 *S, __global float4 *partial,
+                           __local float4 *scratch)
+{
+    const int i = get_global_id(0);
+    float4 s = (float4)(0.0f);
+    if (i < n) {
+        const float r = rgb[3 * (size_t)i], g = rgb[3 * (size_t)i + 1],
+                    b = rgb[3 * (size_t)i + 2];
+        const float Y = M_YR * r + M_YG * g + M_YB * b;
+        if (Y > lim) {
+            const float f = 1.0f - lim / Y;
+            s = (float4)(r * f, g * f, b * f, 0.0f);
+        }
+        S[i] = s;
+    }
+    const int src = (s.x != 0.0f || s.y != 0.0f || s.z != 0.0f);
+    group_sum4(scratch, (float4)(s.x, s.y, s.z, (float)src), partial);
+}
+
+/* One level up: coarse (j, k) = sum over the 4 x 4 fine samples 2j-1..2j+2,
+ * 2k-1..2k+2 with weights [1 3 3 1]/8 per axis; fine samples outside the
+ * stored ones are 0. Sizes are the stored ones; fm, cm: the margins. */
+__kernel void flare_down(__global const float4 *fine, const int fw, const int fh, const int fm,
+                         __global float4 *coarse, const int cw, const int ch, const int cm)
+{
+    const int K = get_global_id(0), J = get_global_id(1);
+    if (K >= cw || J >= ch) return;
+    const int y0 = 2 * (J - cm) - 1 + fm, x0 = 2 * (K - cm) - 1 + fm;
+    const float wt[4] = {1.0f, 3.0f, 3.0f, 1.0f};
+    float4 acc = (float4)(0.0f);
+    for (int t = 0; t < 4; ++t) {
+        const int y = y0 + t;
+        if (y < 0 || y >= fh) continue;
+        __global const float4 *row = fine + (size_t)y * fw;
+        float4 rs = (float4)(0.0f);
+        for (int u = 0; u < 4; ++u) {
+            const int x = x0 + u;
+            if (x >= 0 && x < fw) rs += wt[u] * row[x];
+        }
+        acc += wt[t] * rs;
+    }
+    coarse[(size_t)J * cw + K] = acc * (1.0f / 64.0f);
+}
+
+/* floor(i / 2) for any sign. */
+inline int half_floor(const int i) { return i >= 0 ? i / 2 : -((1 - i) / 2); }
+
+/* One level down: fine[2j] = .75 c[j] + .25 c[j - 1], fine[2j + 1] = .75 c[j] +
+ * .25 c[j + 1] on both axes (held at the ends of the stored coarse samples). */
+__kernel void flare_up(__global const float4 *coarse, const int cw, const int ch, const int cm,
+                       __global float4 *fine, const int fw, const int fh, const int fm)
+{
+    const int X = get_global_id(0), Y = get_global_id(1);
+    if (X >= fw || Y >= fh) return;
+    const int i = Y - fm, k = X - fm;
+    const int ji = half_floor(i), jk = half_floor(k);
+    const int ni = (i - 2 * ji) == 0 ? ji - 1 : ji + 1;
+    const int nk = (k - 2 * jk) == 0 ? jk - 1 : jk + 1;
+    const int r0 = clamp(ji + cm, 0, ch - 1), r1 = clamp(ni + cm, 0, ch - 1);
+    const int c0 = clamp(jk + cm, 0, cw - 1), c1 = clamp(nk + cm, 0, cw - 1);
+    const float4 a = 0.75f * coarse[(size_t)r0 * cw + c0] + 0.25f * coarse[(size_t)r1 * cw + c0];
+    const float4 b = 0.75f * coarse[(size_t)r0 * cw + c1] + 0.25f * coarse[(size_t)r1 * cw + c1];
+    fine[(size_t)Y * fw + X] = 0.75f * a + 0.25f * b;
+}
+
+/* The Gaussian along x (taps[0] the centre, taps[r] at distance r; zero outside). */
+__kernel void flare_blur_x(__global const float4 *src, __global float4 *dst, const int w,
+                           const int h, __constant float *taps, const int radius)
+{
+    const int x = get_global_id(0), y = get_global_id(1);
+    if (x >= w || y >= h) return;
+    __global const float4 *row = src + (size_t)y * w;
+    float4 acc = taps[0] * row[x];
+    if (x >= radius && x + radius < w) {
+        for (int r = 1; r <= radius; ++r) acc += taps[r] * (row[x - r] + row[x + r]);
+    } else {
+        for (int r = 1; r <= radius; ++r) {
+            const float4 a = x - r >= 0 ? row[x - r] : (float4)(0.0f);
+            const float4 b = x + r < w ? row[x + r] : (float4)(0.0f);
+            acc += taps[r] * (a + b);
+        }
+    }
+    dst[(size_t)y * w + x] = acc;
+}
+
+/* The Gaussian along y, weighted and added to acc (first: acc is overwritten). */
+__kernel void flare_blur_y_add(__global const float4 *src, __global float4 *acc, const int w,
+                               const int h, __constant float *taps, const int radius,
+                               const float weight, const int first)
+{
+    const int x = get_global_id(0), y = get_global_id(1);
+    if (x >= w || y >= h) return;
+    __global const float4 *col = src + x;
+    float4 s = taps[0] * col[(size_t)y * w];
+    if (y >= radius && y + radius < h) {
+        for (int r = 1; r <= radius; ++r)
+            s += taps[r] * (col[(size_t)(y - r) * w] + col[(size_t)(y + r) * w]);
+    } else {
+        for (int r = 1; r <= radius; ++r) {
+            const float4 a = y - r >= 0 ? col[(size_t)(y - r) * w] : (float4)(0.0f);
+            const float4 b = y + r < h ? col[(size_t)(y + r) * w] : (float4)(0.0f);
+            s += taps[r] * (a + b);
+        }
+    }
+    const size_t o = (size_t)y * w + x;
+    acc[o] = first ? weight * s : acc[o] + weight * s;
+}
+
+/* acc += part (the halo ring, made on the host). */
+__kernel void flare_add(__global float4 *acc, __global const float4 *part, const int n)
+{
+    const int i = get_global_id(0);
+    if (i < n) acc[i] += part[i];
+}
+
+/* The flared frame: rgb - S + max(a0 S + acc, 0) (acc may be absent: has_acc 0).
+ * partial: per group (sum of the flare r, g, b, 0). */
+__kernel void flare_finish(__global const float *rgb, __global const float4 *S,
+                           __global const float4 *acc, const int has_acc, const float a0,
+                           const int n, __global float *out, __global float4 *partial,
+                           __local float4 *scratch)
+{
+    const int i = get_global_id(0);
+    float4 F = (float4)(0.0f);
+    if (i < n) {
+        const float4 s = S[i];
+        F = a0 * s;
+        if (has_acc) F += acc[i];
+        F = fmax(F, (float4)(0.0f));
+        F.w = 0.0f;
+        const size_t o = 3 * (size_t)i;
+        out[o] = rgb[o] - s.x + F.x;
+        out[o + 1] = rgb[o + 1] - s.y + F.y;
+        out[o + 2] = rgb[o + 2] - s.z + F.z;
+    }
+    group_sum4(scratch, F, partial);
+}

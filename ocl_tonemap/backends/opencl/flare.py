@@ -1,0 +1,145 @@
+"""The fast flare on an OpenCL runtime (kernels/flare.cl): the frame goes up once,
+the source part, the pyramid, its Gaussians and the flared frame are made on the
+device, and the flared frame comes down once. The halo ring (f3) is an FFT on a
+small level, made on the host. What is computed is
+:func:`~ocl_tonemap.models.spencer1995.fast_plan`'s plan; the reference is
+:func:`~ocl_tonemap.models.spencer1995.convolve_fast` (float64)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...models import spencer1995 as fl
+from ...models.convolution import gaussian_taps
+from .runtime import round_up
+
+#: Bytes of device memory per pixel of the frame: source part, accumulator and
+#: blur scratch as float4 on the pyramid (4/3 of the frame each, the scratch 1),
+#: the frame in and out as float3.
+BYTES_PER_PIXEL = 16 * (4 / 3 + 4 / 3 + 1) + 24
+
+
+class DeviceFlare:
+    """``apply(rgb, plan, lim)``: the fast flare of one frame on the device."""
+
+    def __init__(self, rt):
+        import pyopencl as cl
+        self.rt = rt
+        names = ("flare_source", "flare_down", "flare_up", "flare_blur_x", "flare_blur_y_add",
+                 "flare_add", "flare_finish")
+        self._k = {n: rt.kernel("flare.cl", n) for n in names}
+        wg = int(rt.device.max_work_group_size)
+        self.local = 1 << (min(256, max(1, wg)).bit_length() - 1)
+        self._scratch = cl.LocalMemory(16 * self.local)
+        self._bufs: dict = {}
+        self._taps: dict = {}
+
+    def fits(self, h: int, w: int) -> bool:
+        """Whether a frame of h x w fits the device (else the host-driven path, in bands)."""
+        n = h * w
+        return (16 * n <= self.rt.max_alloc_bytes()
+                and BYTES_PER_PIXEL * n <= 0.6 * self.rt.global_mem_bytes())
+
+    def _buf(self, name: str, nbytes: int):
+        import pyopencl as cl
+        b = self._bufs.get(name)
+        if b is None or b.size < nbytes:
+            b = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, max(int(nbytes), 16))
+            self._bufs[name] = b
+        return b
+
+    def _tap_buf(self, sigma: float):
+        import pyopencl as cl
+        key = float(sigma)
+        if key not in self._taps:
+            t = np.asarray(gaussian_taps(sigma), np.float32)
+            self._taps[key] = (cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY
+                                         | cl.mem_flags.COPY_HOST_PTR, hostbuf=t), len(t) - 1)
+        return self._taps[key]
+
+    def release(self) -> None:
+        """Give the frame-sized buffers back (the next frame allocates again)."""
+        self._bufs.clear()
+
+    def _partials(self, buf, groups: int) -> np.ndarray:
+        import pyopencl as cl
+        p = np.empty((groups, 4), np.float32)
+        cl.enqueue_copy(self.rt.queue, p, buf)
+        return p.astype(np.float64).sum(axis=0)
+
+    def apply(self, rgb: np.ndarray, plan: fl.FastPlan, lim: float):
+        """(flared frame or None when no pixel is a source, sources, S sum (3), F sum (3)).
+        ``rgb``: (H, W, 3) working rgb, cd/m^2; ``lim``: the source threshold,
+        cd/m^2 (threshold x L_wa)."""
+        import pyopencl as cl
+        q, k, L = self.rt.queue, self._k, self.local
+        rgb = np.ascontiguousarray(rgb[..., :3], np.float32)
+        h, w = rgb.shape[:2]
+        n = h * w
+        groups = round_up(n, L) // L
+        d_rgb = self._buf("rgb", 12 * n)
+        cl.enqueue_copy(q, d_rgb, rgb)
+        sizes = plan.sizes
+        stored = [(sizes[l][0] + 2 * fl.level_margin(l), sizes[l][1] + 2 * fl.level_margin(l))
+                  for l in range(plan.top + 1)]
+        S = [self._buf(f"S{l}", 16 * hh * ww) for l, (hh, ww) in enumerate(stored)]
+        part = self._buf("partial", 16 * groups)
+        k["flare_source"](q, (groups * L,), (L,), d_rgb, np.int32(n), np.float32(lim), S[0],
+                          part, self._scratch)
+        ssum = self._partials(part, groups)
+        sources = int(round(ssum[3]))
+        if sources == 0:
+            return None, 0, ssum[:3], np.zeros(3)
+        for l in range(1, plan.top + 1):
+            (fh, fw), (ch, cw) = stored[l - 1], stored[l]
+            k["flare_down"](q, (round_up(cw, 16), round_up(ch, 4)), (16, 4), S[l - 1],
+                            np.int32(fw), np.int32(fh), np.int32(fl.level_margin(l - 1)),
+                            S[l], np.int32(cw), np.int32(ch), np.int32(fl.level_margin(l)))
+        tmp = self._buf("tmp", 16 * stored[0][0] * stored[0][1])
+        acc, have = None, False
+        for l in range(plan.top, -1, -1):
+            hh, ww = stored[l]
+            gs = (round_up(ww, 16), round_up(hh, 4))
+            a = self._buf(f"acc{l}", 16 * hh * ww)
+            if have:
+                (ch, cw) = stored[l + 1]
+                k["flare_up"](q, gs, (16, 4), acc, np.int32(cw), np.int32(ch),
+                              np.int32(fl.level_margin(l + 1)), a, np.int32(ww), np.int32(hh),
+                              np.int32(fl.level_margin(l)))
+            for sc, wk in plan.by_level.get(l, []):
+                taps, R = self._tap_buf(sc)
+                k["flare_blur_x"](q, gs, (16, 4), S[l], tmp, np.int32(ww), np.int32(hh), taps,
+                                  np.int32(R))
+                k["flare_blur_y_add"](q, gs, (16, 4), tmp, a, np.int32(ww), np.int32(hh), taps,
+                                      np.int32(R), np.float32(wk), np.int32(0 if have else 1))
+                have = True
+            if l == plan.lring:
+                ring = self._ring(S[l], hh, ww, plan.deg_per_px * 2.0 ** l, plan.w3)
+                if have:
+                    k["flare_add"](q, (round_up(hh * ww, L),), (L,), a, ring,
+                                   np.int32(hh * ww))
+                else:
+                    cl.enqueue_copy(q, a, ring)
+                have = True
+            acc = a if have else None
+        out = np.empty_like(rgb)
+        d_out = self._buf("out", 12 * n)
+        k["flare_finish"](q, (groups * L,), (L,), d_rgb, S[0], acc if have else S[0],
+                          np.int32(1 if have else 0), np.float32(plan.a0), np.int32(n), d_out,
+                          part, self._scratch)
+        cl.enqueue_copy(q, out, d_out)
+        fsum = self._partials(part, groups)
+        return out, sources, ssum[:3], fsum[:3]
+
+    def _ring(self, S_buf, hh: int, ww: int, deg_per_px: float, w3: float):
+        """w3 f3 * S on a level (host FFT of its few thousand samples), on the device."""
+        import pyopencl as cl
+        lv = np.empty((hh, ww, 4), np.float32)
+        cl.enqueue_copy(self.rt.queue, lv, S_buf)
+        ring = np.zeros((hh, ww, 4), np.float32)
+        for c in range(3):
+            ring[..., c] = w3 * fl._fftconvolve_same(lv[..., c].astype(np.float64), None,
+                                                     fl._ring_kernel_fft((hh, ww), deg_per_px, c))
+        buf = self._buf("ring", ring.nbytes)
+        cl.enqueue_copy(self.rt.queue, buf, ring)
+        return buf
