@@ -748,17 +748,17 @@ def roofline_md(rf: dict, w: int, h: int) -> list[str]:
 RW_CODE = r"""
 import sys, OpenImageIO as oiio
 oiio.attribute("threads", 1)
-level, outp, ins = int(sys.argv[1]), sys.argv[2], sys.argv[3:]
+level, filt, outp, ins = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], sys.argv[4:]
 for i, p in enumerate(ins):
     src = oiio.ImageBuf(p)
     px = src.get_pixels(oiio.FLOAT)
     h, w, c = px.shape
     spec = oiio.ImageSpec(w, h, c, oiio.UINT8)
     spec.attribute("png:compressionLevel", level)
-    buf = oiio.ImageBuf(spec)
-    buf.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, c), px)
-    if not buf.write(outp % (i + 1), oiio.UINT8):
-        sys.exit(buf.geterror())
+    spec.attribute("png:filter", filt)
+    out = oiio.ImageOutput.create(outp % (i + 1))
+    if not (out.open(outp % (i + 1), spec) and out.write_image(px) and out.close()):
+        sys.exit(out.geterror())
 """
 
 CMD_RUNS = (("pattanaik00", "draft"), ("pattanaik00", "balanced"), ("durand00", "draft"),
@@ -811,7 +811,7 @@ def timed(cmd, repeat: int, cwd: str, shell: bool = False) -> tuple[float | None
 
 
 def whole_command(sizes, repeat: int) -> list[str]:
-    from ocl_tonemap.imageio import PNG_LEVEL
+    from ocl_tonemap.imageio import PNG_FILTER, PNG_FILTERS, PNG_LEVEL
     cli = os.path.join(os.path.dirname(sys.executable), "ocl-tonemap")
     cli = [cli] if os.path.exists(cli) else [sys.executable, "-m", "ocl_tonemap"]
     pfs_missing = ensure_pfstools()
@@ -819,9 +819,10 @@ def whole_command(sizes, repeat: int) -> list[str]:
              f"Wall time of the whole command (median of {repeat}), process start-up included. "
              f"Ours: `{' '.join(os.path.basename(c) for c in cli)} run IN.####.exr "
              f"OUT.####.png --operator X --quality Q -q` (its default OCIO display encoding and "
-             f"PNG zlib level {PNG_LEVEL}). Read + write only: a Python loop in one process, "
-             f"OIIO with one thread: read each EXR, write an 8-bit PNG at zlib level "
-             f"{PNG_LEVEL} (what the CLI's writer sets, `imageio.PNG_LEVEL`). pfstools: "
+             f"PNG zlib level {PNG_LEVEL}, row filter {PNG_FILTER}). Read + write only: a Python "
+             f"loop in one process, OIIO with one thread: read each EXR, write an 8-bit PNG "
+             f"through OIIO's ImageOutput at zlib level {PNG_LEVEL}, filter {PNG_FILTER} (what "
+             f"the CLI's writer sets, `imageio.PNG_LEVEL`, `PNG_FILTER`). pfstools: "
              "`pfsin IN.%04d.exr --frames 1:60 | pfstmo_pattanaik00 -t --fps 30 | pfsclamp | "
              "pfsgamma -g 2.2 | pfsout OUT.%04d.png`, the same with `pfstmo_durand02` "
              "(a bilateral operator: ledda04's peer), and `pfsin | pfsout` alone (pfsout writes "
@@ -844,7 +845,8 @@ def whole_command(sizes, repeat: int) -> list[str]:
                 log(f"  {w}x{h} ours {op} {q}: {res[(op, q)][0]}")
             ins = [os.path.join(src, f"tunnel.{f:04d}.exr") for f in frames]
             res["rw"] = timed([sys.executable, "-c", RW_CODE, str(PNG_LEVEL),
-                               os.path.join(out, "rw.%04d.png")] + ins, repeat, out)
+                               str(PNG_FILTERS[PNG_FILTER]), os.path.join(out, "rw.%04d.png")]
+                              + ins, repeat, out)
             log(f"  {w}x{h} OIIO read+write: {res['rw'][0]}")
             pin = f"pfsin {shlex.quote(os.path.join(src, 'tunnel.%04d.exr'))} --frames 1:{n}"
             chains = {"pfs_pattanaik00": f"{pin} | pfstmo_pattanaik00 -t --fps 30 | pfsclamp | "

@@ -103,6 +103,9 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--png-level", type=int, default=1, metavar="0-9",
                    help="zlib level of PNG outputs (default 1: 3.5x faster to write than 6, "
                    "files ~13%% larger)")
+    p.add_argument("--png-filter", choices=("sub", "none", "adaptive"), default="sub",
+                   help="PNG row filter (default sub: 1.6-3x faster to write than libpng's "
+                   "adaptive choice, files within -2%%..+15%%)")
     p.add_argument("--serial-io", action="store_true",
                    help="read, map and write each frame in turn on one thread (default: the "
                    "next frame is read and the last one written while the device works)")
@@ -154,7 +157,8 @@ def _options(a, input_, output):
         effects=_effects(a, tier), missing=a.missing, resume=a.resume, checkpoint=a.checkpoint,
         checkpoint_every=a.checkpoint_every,
         channels=[c.strip() for c in a.channels.split(",")] if a.channels else None,
-        png_level=a.png_level, max_memory=a.max_memory, overlap_io=not a.serial_io,
+        png_level=a.png_level, png_filter=a.png_filter, max_memory=a.max_memory,
+        overlap_io=not a.serial_io,
         cuts=parse_cuts(a.cuts),
         display_encode=a.display_encode or tier.display_encode,
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))

@@ -455,12 +455,16 @@ class ColourPipeline:
         self.display_encode_note = "display encoding: " + table.describe()
         return self.display_encode_note
 
-    def encode_fast(self, display_linear: np.ndarray) -> np.ndarray:
+    def encode_fast(self, display_linear: np.ndarray, u8: bool = False) -> np.ndarray:
         """:meth:`encode` through the device table chosen by :meth:`set_display_encode` (new
-        array; RGB encoded, a 4th channel kept), or through OCIO when none was chosen."""
+        array; RGB encoded, a 4th channel kept), or through OCIO when none was chosen.
+        ``u8``: 8-bit code values quantised on the device as OIIO quantises them when
+        it writes, where a device table encodes (else float code values)."""
         table = self.device_table
         if table is None:
             return self.encode(display_linear)
+        if u8 and display_linear.shape[-1] in (3, 4):
+            return table.encode(display_linear, u8=True)
         return table.encode(display_linear)
 
 

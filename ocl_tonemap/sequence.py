@@ -26,7 +26,7 @@ from .colour import (ColourPipeline, InputColour, is_builtin_source, load_config
 from .models.display import display_for
 from .imageio import illuminant_from_metadata
 from .imageio import (LINEAR_FORMATS, FrameError, find_frames, frame_path, is_sequence,
-                      read_frame, same_file, write_frame)
+                      output_bits, read_frame, same_file, write_frame)
 from .models.photometry import Y_WEIGHTS
 from .backends.plan import quality_tier
 from .pipeline import NeedsWholeFrame, Tonemapper, restore_alpha
@@ -89,6 +89,7 @@ class JobOptions:
     missing: str = "error"          # a gap in a sequence: error | hold | skip
     channels: list[str] | None = None   # --channels: names used as R,G,B (or one: luminance)
     png_level: int = 1                  # zlib level of PNG outputs (imageio.PNG_LEVEL)
+    png_filter: str = "sub"             # PNG row filter (imageio.PNG_FILTERS)
     max_memory: float | None = None     # MiB: frames that would take more stream in bands
     resume: bool = False            # continue from the checkpoint of an earlier run
     checkpoint: bool = True         # write the state after every frame ...
@@ -116,6 +117,9 @@ class JobOptions:
             raise ValueError(f"--checkpoint-every must be >= 1 (got {self.checkpoint_every})")
         if not (isinstance(self.png_level, int) and 0 <= self.png_level <= 9):
             raise ValueError(f"--png-level must be 0..9 (got {self.png_level})")
+        if self.png_filter not in ("sub", "none", "adaptive"):   # imageio.PNG_FILTERS
+            raise ValueError(f"--png-filter must be sub, none or adaptive "
+                             f"(got {self.png_filter!r})")
         if self.display_encode not in ("auto", "table", "ocio"):  # colour.DISPLAY_ENCODE_MODES
             raise ValueError(f"--display-encode must be auto, table or ocio "
                              f"(got {self.display_encode!r})")
@@ -512,11 +516,12 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
 
     def write():
         try:
-            pixels = encode_pixels(run.colour, disp_lin, alpha_info, linear)
+            u8 = output_bits(outp, run.opts.out_bits) == "8"
+            pixels = encode_pixels(run.colour, disp_lin, alpha_info, linear, u8)
             _, out_cs, chroma, white, straight = meta
             write_frame(outp, pixels, fr.spec, out_cs, meta[0], run.opts.out_bits, f,
                         chromaticities=chroma, white_luminance=white, straight_alpha=straight,
-                        png_level=run.opts.png_level)
+                        png_level=run.opts.png_level, png_filter=run.opts.png_filter)
         except FrameError:
             raise
         except Exception as exc:
@@ -719,7 +724,7 @@ def stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t
                     run, tm, fr, t, ic.describe(), scale, why, extra, linear, has_alpha)
                 writer = BandWriter(outp, fr.spec, 4 if has_alpha else 3, out_cs, meta,
                                     run.opts.out_bits, f, chroma, white, straight,
-                                    run.opts.png_level)
+                                    run.opts.png_level, run.opts.png_filter)
             px = run.colour.linear(band) if linear else run.colour.encode_fast(band)
             a = source.alpha(y0)
             if a is not None:
@@ -930,13 +935,18 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, t, cs_text, scale, scale_
             disp.unit_cd if linear else None, alpha and not premult)
 
 
-def encode_pixels(colour, disp_lin: np.ndarray, alpha_info, linear: bool) -> np.ndarray:
+def encode_pixels(colour, disp_lin: np.ndarray, alpha_info, linear: bool,
+                  u8: bool = False) -> np.ndarray:
     """Display-linear light (with alpha) to the output's values: the display's linear
     colourspace, or the display encoding (``colour.encode_fast``: the baked device table
-    chosen by ``--display-encode``, else OCIO's CPU processor)."""
+    chosen by ``--display-encode``, else OCIO's CPU processor). ``u8``: the output is
+    an 8-bit file; with the device table the code values come back as the bytes OIIO
+    would write (quantised on the device: a quarter of the download, no conversion)."""
     rgb = disp_lin[..., :3]
     alpha = disp_lin.shape[2] == 4
     pm = alpha and alpha_info is not None and alpha_info[2]
+    if u8 and not linear and not pm and getattr(colour, "device_table", None) is not None:
+        return colour.encode_fast(disp_lin, u8=True)
     encode = getattr(colour, "encode_fast", colour.encode)
     if pm and not linear:
         # a display encoding is not linear: encode the straight colour, then
@@ -968,7 +978,8 @@ def _write_output(run: RunSetup, tm: Tonemapper, fr, outp, f, t, cs_text, scale,
                       output_is_linear(run.opts, outp))
     write_frame(outp, r.pixels, fr.spec, r.colorspace, r.metadata, run.opts.out_bits, f,
                 chromaticities=r.chromaticities, white_luminance=r.white_luminance,
-                straight_alpha=r.straight_alpha, png_level=run.opts.png_level)
+                straight_alpha=r.straight_alpha, png_level=run.opts.png_level,
+                png_filter=run.opts.png_filter)
     return tm.last
 
 

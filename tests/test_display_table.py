@@ -126,6 +126,40 @@ def test_kernel_matches_numpy_reference(rt, src, display, view, kind, probe):
     np.testing.assert_array_equal(got4.reshape(-1, 4)[:, 3], a[:, 0])
 
 
+@pytest.mark.parametrize("src,display,view", [("ocl-tonemap", "sRGB - Display", None),
+                                              (STUDIO, "Rec.2100-HLG - Display",
+                                               "Un-tone-mapped")])
+def test_8bit_code_values_are_the_bytes_oiio_writes(rt, tmp_path, src, display, view, probe):
+    """encode(u8=True) quantises on the device: the same bytes as the float code
+    values written to an 8-bit PNG by OIIO's ImageOutput (which quantises them
+    itself: ties to even, where an ImageBuf's write rounds them up), on the
+    probe set, the special values, every half-code boundary (k + 0.5) / 255 and
+    its float neighbours, RGB and RGBA (alpha quantised the same way)."""
+    import OpenImageIO as oiio
+    from ocl_tonemap.imageio import write_frame
+    t = pipeline(src, display, view).display_table()
+    dev = DeviceDisplayTable(t, runtime=rt)
+    edges = (np.arange(-2, 258) + 0.5) / 255.0
+    edges = np.concatenate([edges, np.nextafter(edges, 2), np.nextafter(edges, -2)])
+    # inputs whose encodings land on the half-code boundaries: the table's inverse is
+    # not at hand, so the boundaries are fed as alpha (quantised by the same code)
+    x = np.concatenate([probe[: len(probe) // 64 * 4], SPECIAL])
+    n = len(x) // 4 * 4
+    a = np.resize(edges.astype(np.float32), n)[:, None]
+    for pix in (x[:n].reshape(4, -1, 3), np.concatenate([x[:n], a], 1).reshape(4, -1, 4)):
+        f = dev.encode(pix)
+        q = dev.encode(pix, u8=True)
+        assert q.dtype == np.uint8 and q.shape == pix.shape
+        paths = [str(tmp_path / "f.png"), str(tmp_path / "q.png")]
+        for path, px in zip(paths, (f, q)):
+            write_frame(path, px, None, "sRGB", {}, straight_alpha=True)
+        raw = oiio.ImageSpec()
+        raw.attribute("oiio:UnassociatedAlpha", 1)          # the file's bytes, as stored
+        fb, qb = (oiio.ImageBuf(p, 0, 0, raw).get_pixels(oiio.UINT8) for p in paths)
+        np.testing.assert_array_equal(qb, fb)
+        np.testing.assert_array_equal(qb, q)
+
+
 @pytest.mark.parametrize("display", ["sRGB - Display", "Rec.2100-PQ - Display"])
 def test_device_encoding_against_ocio(rt, display, probe):
     cp = pipeline("ocl-tonemap", display)

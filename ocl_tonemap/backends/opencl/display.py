@@ -29,9 +29,17 @@ class DeviceDisplayTable:
         ctx = self.rt.context
         self.queue = cl.CommandQueue(ctx, self.rt.device)
         name = "display_lut1d" if table.kind == "1d" else "display_lut3d"
-        # the program is built once per process (runtime's cache); the kernel object is
-        # this table's own, so that its arguments are not shared with another thread
-        self._kernel = cl.Kernel(self.rt.kernel("display.cl", name).program, name)
+        # the programs are built once per process (runtime's cache); the kernel objects are
+        # this table's own, so that their arguments are not shared with another thread
+        self._kernels = {u8: cl.Kernel(self.rt.kernel("display.cl", name,
+                                                      (("OUT_U8", int(u8)),)).program, name)
+                         for u8 in (False, True)}
+        # RGB through a 1D table: four pixels per work-item (PoCL: ~4x faster)
+        self._kernels4 = {u8: cl.Kernel(self.rt.kernel("display.cl", "display_lut1d_rgb4",
+                                                       (("OUT_U8", int(u8)),)).program,
+                                        "display_lut1d_rgb4")
+                          for u8 in (False, True)} \
+            if table.kind == "1d" and self.rt.device.endian_little else None
         par = np.zeros(16, np.float32)
         par[0:9] = np.asarray(table.matrix, np.float64).reshape(9)
         par[9:12] = np.asarray(table.offset, np.float64)
@@ -57,30 +65,42 @@ class DeviceDisplayTable:
                                                max(int(nbytes), 4))
         return buf
 
-    def encode(self, pixels: np.ndarray) -> np.ndarray:
+    def encode(self, pixels: np.ndarray, u8: bool = False) -> np.ndarray:
         """Display-linear working-space RGB (..., C >= 3) -> display code values (new
-        float32 array of the same shape; channels after RGB copied as they are)."""
+        float32 array of the same shape; channels after RGB copied as they are).
+        ``u8``: 8-bit code values (uint8), quantised as OIIO quantises float when it
+        writes an 8-bit file (C = 3 or 4: a 4th channel quantised too)."""
         import pyopencl as cl
         x = np.asarray(pixels)
         if x.ndim < 1 or x.shape[-1] < 3:
             raise ValueError(f"display encoding needs RGB pixels (got shape {x.shape})")
         c = x.shape[-1]
         if c not in (3, 4):
+            if u8:
+                raise ValueError("8-bit display encoding needs 3 or 4 channels")
             out = np.array(x, dtype=np.float32, copy=True, order="C")
             out[..., :3] = self.encode(x[..., :3])
             return out
         x = np.ascontiguousarray(x, np.float32)
         n = x.size // c
-        out = np.empty(x.shape, np.float32)
+        out = np.empty(x.shape, np.uint8 if u8 else np.float32)
         if n == 0:
             return out
         with self._lock:
             src = self._buffer("src", x.nbytes)
             dst = self._buffer("dst", out.nbytes)
             cl.enqueue_copy(self.queue, src, x, is_blocking=False)
-            self._kernel(self.queue, (round_up(n, _WG),), None, src, dst, np.int32(n),
-                         np.int32(c), np.int32(c), self._par, self._e_eps,
-                         np.int32(self.table.size), self._lut)
+            size = np.int32(self.table.size)
+            start = 0
+            if c == 3 and self._kernels4 is not None and n >= 4:
+                n4 = n // 4
+                self._kernels4[bool(u8)](self.queue, (round_up(n4, _WG),), (_WG,), src, dst,
+                                         np.int32(n), self._par, self._e_eps, size, self._lut)
+                start = 4 * n4
+            if start < n:
+                self._kernels[bool(u8)](self.queue, (n - start,), None, src, dst, np.int32(n),
+                                        np.int32(c), np.int32(c), self._par, self._e_eps, size,
+                                        self._lut, global_offset=(start,))
             cl.enqueue_copy(self.queue, out, dst, is_blocking=True)
         return out
 
