@@ -237,3 +237,28 @@ def test_run_through_the_table_matches_ocio_within_one_8bit_code(sample_dir, tmp
         outs[mode] = [read(tmp_path / f"{mode}.{f:04d}.png") for f in range(1, 5)]
     for a, b in zip(outs["table"], outs["ocio"]):
         assert np.abs(a - b).max() <= 1
+
+
+def test_png_filter_and_device_quantisation_keep_the_pixels(sample_dir, tmp_path):
+    """The whole command's 8-bit PNG: the bytes quantised on the device (the default)
+    equal those OIIO quantises from the float code values of the same table (a
+    float TIFF of the frame read back as 8 bits), and each --png-filter
+    writes the same pixels (only the file's size changes)."""
+    import os
+    from ocl_tonemap.sequence import JobOptions
+    pattern, frames = sample_dir
+    got = {}
+    for filt in ("sub", "none", "adaptive"):
+        assert main(["run", pattern, str(tmp_path / f"{filt}.#.png"), "--frames", "3-3",
+                     "--luminance-scale", "1", "--png-filter", filt]) == 0
+        got[filt] = read(tmp_path / f"{filt}.0003.png")
+    np.testing.assert_array_equal(got["sub"], got["none"])
+    np.testing.assert_array_equal(got["sub"], got["adaptive"])
+    sizes = {f: os.path.getsize(tmp_path / f"{f}.0003.png") for f in got}
+    assert len(set(sizes.values())) == 3, sizes
+    # the float code values of the same frame (a float TIFF), quantised by OIIO
+    assert main(["run", pattern, str(tmp_path / "f.#.tif"), "--frames", "3-3",
+                 "--luminance-scale", "1", "--out-bits", "float"]) == 0
+    np.testing.assert_array_equal(got["sub"], read(tmp_path / "f.0003.tif"))
+    with pytest.raises(ValueError, match="png-filter"):
+        JobOptions(input=pattern, output=str(tmp_path / "x.#.png"), png_filter="best")
