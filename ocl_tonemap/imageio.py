@@ -517,7 +517,7 @@ class BandWriter:
                  png_filter: str = PNG_FILTER):
         self.path, self.frame = path, frame
         self.ext = Path(path).suffix.lower()
-        bits = bits or DEFAULT_BITS.get(self.ext, "float")
+        bits = output_bits(path, bits)
         if bits not in BITS_TYPES:
             raise FrameError(path, frame, f"unknown output bit depth {bits!r} (8, 16, half, float)")
         if self.ext in (".jpg", ".jpeg"):

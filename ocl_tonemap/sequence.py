@@ -25,7 +25,7 @@ from .colour import (ColourPipeline, InputColour, is_builtin_source, load_config
                      resolve_config_source, resolve_input)
 from .models.display import display_for
 from .imageio import illuminant_from_metadata
-from .imageio import (LINEAR_FORMATS, FrameError, find_frames, frame_path, is_sequence,
+from .imageio import (LINEAR_FORMATS, PNG_FILTERS, FrameError, find_frames, frame_path, is_sequence,
                       output_bits, read_frame, same_file, write_frame)
 from .models.photometry import Y_WEIGHTS
 from .backends.plan import quality_tier
@@ -117,8 +117,8 @@ class JobOptions:
             raise ValueError(f"--checkpoint-every must be >= 1 (got {self.checkpoint_every})")
         if not (isinstance(self.png_level, int) and 0 <= self.png_level <= 9):
             raise ValueError(f"--png-level must be 0..9 (got {self.png_level})")
-        if self.png_filter not in ("sub", "none", "adaptive"):   # imageio.PNG_FILTERS
-            raise ValueError(f"--png-filter must be sub, none or adaptive "
+        if self.png_filter not in PNG_FILTERS:
+            raise ValueError(f"--png-filter must be {', '.join(PNG_FILTERS)} "
                              f"(got {self.png_filter!r})")
         if self.display_encode not in ("auto", "table", "ocio"):  # colour.DISPLAY_ENCODE_MODES
             raise ValueError(f"--display-encode must be auto, table or ocio "

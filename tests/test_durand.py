@@ -362,9 +362,9 @@ def test_fast_flare_made_whole_on_the_device_is_the_reference(rt, shape, fov, L)
     device; the ring's FFT on the host) against the float64 fast method: 2e-6 of
     each pixel (measured <= 3.7e-7; float32), the same sources and the same share of
     light kept; 1 x 1 and frames of odd and tiny sizes too. No source: no change."""
-    from ocl_tonemap.backends.opencl.flare import DeviceFlare
+    from ocl_tonemap.backends.opencl import OpenCLBackend
     from ocl_tonemap.effects import flare as F
-    dev = DeviceFlare(rt)
+    dev = OpenCLBackend().flare_device()
     h, w = shape
     rgb = hdr_image(h, w, seed=5, lo=0, hi=0.5).astype(np.float32) * np.float32(L)
     rgb[h // 2, w // 3] = 3e4 * L

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -612,8 +612,7 @@ def banded_fast(shape: tuple[int, int], deg_per_px: float, D: float, per_octave:
     while split < plan.top and hh * ww > cap and (plan.lring < 0 or split < plan.lring):
         split += 1
         hh, ww = (hh + 1) // 2, (ww + 1) // 2
-    return FastPlan(plan.shape, plan.deg_per_px, plan.a0, plan.by_level, plan.lring, plan.w3,
-                    plan.top, split)
+    return replace(plan, split=split)
 
 
 def down_rows(plan: FastPlan, S: np.ndarray, a0: int, c0: int, c1: int) -> np.ndarray:

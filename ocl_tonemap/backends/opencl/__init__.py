@@ -65,7 +65,7 @@ class OpenCLBackend:
     def flare_device(self):
         """The fast flare on the device (``effects/flare.py``)."""
         from .flare import DeviceFlare
-        return DeviceFlare(self.rt)
+        return DeviceFlare(self.rt, self.buffer)
 
     def purkinje_device(self):
         """kirk11's shift kernels for the Purkinje effect on other operators."""

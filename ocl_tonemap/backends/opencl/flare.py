@@ -20,18 +20,19 @@ BYTES_PER_PIXEL = 16 * (4 / 3 + 4 / 3 + 1) + 24
 
 
 class DeviceFlare:
-    """``apply(rgb, plan, lim)``: the fast flare of one frame on the device."""
+    """``apply(rgb, plan, lim)``: the fast flare of one frame on the device; its
+    buffers come from the backend's pool (``buffer(name, nbytes)``, grown as needed)."""
 
-    def __init__(self, rt):
+    def __init__(self, rt, buffer):
         import pyopencl as cl
         self.rt = rt
+        self._pool = buffer
         names = ("flare_source", "flare_down", "flare_up", "flare_blur_x", "flare_blur_y_add",
                  "flare_add", "flare_finish")
         self._k = {n: rt.kernel("flare.cl", n) for n in names}
         wg = int(rt.device.max_work_group_size)
         self.local = 1 << (min(256, max(1, wg)).bit_length() - 1)
         self._scratch = cl.LocalMemory(16 * self.local)
-        self._bufs: dict = {}
         self._taps: dict = {}
 
     def fits(self, h: int, w: int) -> bool:
@@ -41,12 +42,7 @@ class DeviceFlare:
                 and BYTES_PER_PIXEL * n <= 0.6 * self.rt.global_mem_bytes())
 
     def _buf(self, name: str, nbytes: int):
-        import pyopencl as cl
-        b = self._bufs.get(name)
-        if b is None or b.size < nbytes:
-            b = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, max(int(nbytes), 16))
-            self._bufs[name] = b
-        return b
+        return self._pool(f"flare:{name}", max(int(nbytes), 16))
 
     def _tap_buf(self, sigma: float):
         import pyopencl as cl
@@ -56,10 +52,6 @@ class DeviceFlare:
             self._taps[key] = (cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY
                                          | cl.mem_flags.COPY_HOST_PTR, hostbuf=t), len(t) - 1)
         return self._taps[key]
-
-    def release(self) -> None:
-        """Give the frame-sized buffers back (the next frame allocates again)."""
-        self._bufs.clear()
 
     def _partials(self, buf, groups: int) -> np.ndarray:
         import pyopencl as cl
