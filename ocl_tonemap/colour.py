@@ -455,6 +455,22 @@ class ColourPipeline:
         self.display_encode_note = "display encoding: " + table.describe()
         return self.display_encode_note
 
+    def device_output_encoding(self, u8: bool, runtime):
+        """:meth:`encode_fast` (``u8`` as there) as a ``DeviceOutputEncoding`` for an
+        operator whose output is on ``runtime``'s device (an OpenCL runtime), so that the
+        table runs there and only code values come back; None where :meth:`encode_fast`
+        uses OCIO, or the table is in another context."""
+        table = self.device_table
+        if table is None or runtime is None or \
+                getattr(runtime, "context", None) != table.rt.context:
+            return None
+        cache = self.__dict__.setdefault("_device_encodings", {})
+        enc = cache.get(bool(u8))
+        if enc is None or enc.table is not table:
+            from .backends.opencl.display import DeviceOutputEncoding
+            cache[bool(u8)] = enc = DeviceOutputEncoding(table, u8)
+        return enc
+
     def encode_fast(self, display_linear: np.ndarray, u8: bool = False) -> np.ndarray:
         """:meth:`encode` through the device table chosen by :meth:`set_display_encode` (new
         array; RGB encoded, a 4th channel kept), or through OCIO when none was chosen.

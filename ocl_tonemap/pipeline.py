@@ -131,7 +131,15 @@ class Tonemapper:
         self.display_primaries = None
         self.last: FrameInfo | None = None
         self.last_output: np.ndarray | None = None
+        #: A display encoding on the device (``ColourPipeline.device_output_encoding``)
+        #: for frames the caller writes encoded, or None. When set, a frame that allows
+        #: it (RGB in, no alpha, no display-slot effect at work, a schedule that brings
+        #: its output back through the backend) comes back as display code values
+        #: straight from the device, and ``last_output_encoded`` is True.
+        self.output_encoding = None
+        self.last_output_encoded = False
         self._alpha = None
+        self._encodable = False
 
     # -- state -----------------------------------------------------------------
     def schedule_set_pixels(self, pixels) -> None:
@@ -260,6 +268,7 @@ class Tonemapper:
                              f"(got shape {np.shape(frame)})")
         if pix.shape[2] == 1:
             pix, grey = np.repeat(pix, 3, axis=2), grey or "1"
+        self._encodable = grey is None and pix.shape[2] == 3
         out = self._process_rgb(pix, dt, time_s, frame_number, luminance_scale, illuminant,
                                 premultiplied, measure_only)
         if measure_only:
@@ -296,14 +305,35 @@ class Tonemapper:
         stats = self.measure(frame)
         params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh, illuminant,
                                        eff)
-        out = self.apply(frame, stats, params, gains)
-        out, eff["acuity"] = self.effects.acuity(out, stats.G_rod)
-        for plugin in self.effects.slot_plugins("display"):
-            new, eff[plugin.NAME] = plugin.run(out, {"G_rod": stats.G_rod, "G_cone": stats.G_cone})
-            out = out if new is None else np.asarray(new, np.float32)
+        out = self._apply_encoded(frame, stats, params, gains)
+        if self.last_output_encoded:          # no display-slot effect was at work
+            eff["acuity"] = self.effects.acuity_report(stats.G_rod, stats.width)
+        else:
+            out, eff["acuity"] = self.effects.acuity(out, stats.G_rod)
+            for plugin in self.effects.slot_plugins("display"):
+                new, eff[plugin.NAME] = plugin.run(out, {"G_rod": stats.G_rod,
+                                                         "G_cone": stats.G_cone})
+                out = out if new is None else np.asarray(new, np.float32)
         self.last = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
                               pre_repairs or stats.repairs, self._state.copy(),
                               self._summary(params, stats), eff)
+        return out
+
+    def _apply_encoded(self, frame: Frame, stats: FrameStats, params, gains):
+        """:meth:`apply`, through :attr:`output_encoding` on the device when the frame
+        allows it (sets ``last_output_encoded``)."""
+        enc, be = self.output_encoding, self.backend
+        self.last_output_encoded = False
+        if enc is None or not self._encodable or not hasattr(be, "output_encoding") \
+                or self.effects.slot_plugins("display") \
+                or self.effects.acuity_needed(stats.G_rod, stats.width):
+            return self.apply(frame, stats, params, gains)
+        be.output_encoding, be.output_encoded = enc, False
+        try:
+            out = self.apply(frame, stats, params, gains)
+        finally:
+            be.output_encoding = None
+        self.last_output_encoded = be.output_encoded
         return out
 
     def _summary(self, params, stats) -> dict:
@@ -492,6 +522,7 @@ class Tonemapper:
             raise ValueError(f"time goes backwards: last frame at {st.time_s} s, this one at "
                              f"{time_s} s")
         self._alpha = None
+        self._encodable = False
         out = self._run_frame(Frame(pix, scale, lam, self.display_primaries), time_s,
                               frame_number, step_dt, fresh, None, {})
         self.last_output = out

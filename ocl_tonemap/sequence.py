@@ -501,12 +501,18 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
     try:
         t, fps = frame_time(fr, f, held, fps, t_prev)
         pix, lam, cs_text, scale, scale_why = frame_input(run, tm, fr, inp)
+        linear = output_is_linear(run.opts, outp)
+        u8 = output_bits(outp, run.opts.out_bits) == "8"
+        # encoded outputs: the display table runs where the operator's output is, and
+        # only code values come back (encode_pixels, below, for frames that cannot)
+        tm.output_encoding = None if linear else run.colour.device_output_encoding(
+            u8, getattr(tm.backend, "rt", None))
         tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
                    illuminant=illuminant_from_metadata(fr.spec), wavelengths=lam,
                    premultiplied=run.premultiplied(fr))
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
-        linear = output_is_linear(run.opts, outp)
         disp_lin, alpha_info, info = tm.last_output, tm.last_alpha, tm.last
+        encoded = tm.last_output_encoded
         meta = output_metadata(run, tm, fr, t, cs_text, scale, scale_why, extra, linear,
                                disp_lin.shape[2] == 4)
     except FrameError:
@@ -516,8 +522,8 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
 
     def write():
         try:
-            u8 = output_bits(outp, run.opts.out_bits) == "8"
-            pixels = encode_pixels(run.colour, disp_lin, alpha_info, linear, u8)
+            pixels = disp_lin if encoded else \
+                encode_pixels(run.colour, disp_lin, alpha_info, linear, u8)
             _, out_cs, chroma, white, straight = meta
             write_frame(outp, pixels, fr.spec, out_cs, meta[0], run.opts.out_bits, f,
                         chromaticities=chroma, white_luminance=white, straight_alpha=straight,

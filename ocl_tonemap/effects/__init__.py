@@ -172,6 +172,10 @@ class Effects:
     def acuity_needed(self, G_rod: float, width: int) -> bool:
         return _acuity.needed(self.s, G_rod, width)
 
+    def acuity_report(self, G_rod: float, width: int) -> dict:
+        """The acuity record of a frame left unblurred (``acuity_needed`` False)."""
+        return _acuity.report(self.s, G_rod, width)
+
     # -- frames in row bands (Tonemapper.process_stream) -------------------------------
     def flare_stream(self, shape, G_rod: float, G_cone: float, rgb_rows, max_pixels: int,
                      max_Y: float | None = None, block_pixels: int | None = None):

@@ -20,7 +20,17 @@ HELP = "loss of acuity in the dark (Shaler 1937)"
 
 def needed(settings, G_rod: float, width: int) -> bool:
     """Whether a frame of ``width`` pixels at ``G_rod`` gets any blur."""
-    return float(acuity_blend(acuity_a_px(G_rod, settings.fov_deg, width))) > 0
+    return settings.acuity != "off" and \
+        float(acuity_blend(acuity_a_px(G_rod, settings.fov_deg, width))) > 0
+
+
+def report(settings, G_rod: float, width: int) -> dict:
+    """What :func:`run` reports for a frame it does not blur (``needed`` False)."""
+    if settings.acuity == "off":
+        return {"ran": False}
+    info = acuity_info(G_rod, settings.fov_deg, width)
+    info["ran"] = info["blend"] > 0
+    return info
 
 
 def run(settings, img: np.ndarray, G_rod: float, blur=None):

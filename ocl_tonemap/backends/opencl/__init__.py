@@ -42,6 +42,12 @@ class OpenCLBackend:
         self.bufs = None
         self._cap = 0
         self._pool: dict = {}
+        #: The display encoding of the frame being applied (``display.DeviceOutputEncoding``)
+        #: or None: set by ``Tonemapper`` for frames the run writes encoded; the
+        #: schedules bring their output back through :meth:`fetch_output`, which then
+        #: encodes on the device and sets ``output_encoded``.
+        self.output_encoding = None
+        self.output_encoded = False
 
     def describe(self) -> str:
         from .runtime import describe_device
@@ -95,6 +101,25 @@ class OpenCLBackend:
             self.bufs["counts"] = self.buffer("counts", 8 * 4)
             self._cap = cap
         return self.bufs
+
+    # -- the output -------------------------------------------------------------------------
+    def output_array(self, h: int, w: int) -> np.ndarray:
+        """The host array a frame's output comes back into: display-linear float32, or
+        code values of :attr:`output_encoding`."""
+        enc = self.output_encoding
+        return np.empty((h, w, 3), np.float32 if enc is None else enc.dtype)
+
+    def fetch_output(self, dst: np.ndarray, buf, n: int) -> None:
+        """Bring ``n`` pixels of a per-pixel kernel's RGB output (``buf``) back into
+        ``dst`` (C-contiguous rows of :meth:`output_array`), through the device display
+        encoding when one is set (then only code values cross to the host)."""
+        import pyopencl as cl
+        enc = self.output_encoding
+        if enc is None:
+            cl.enqueue_copy(self.rt.queue, dst, buf)
+        else:
+            enc.fetch(self.rt.queue, buf, n, dst)
+            self.output_encoded = True
 
     # -- the colour stage ------------------------------------------------------------------
     def to_working(self, band: np.ndarray, scale: float, count: bool,
@@ -209,7 +234,7 @@ class PointwiseSchedule:
         resident = stats.handle is not None and stats.handle[0] is frame.pixels
         bands = stats.handle[1] if resident else be.bands(h, w)
         call = self.op.kernel_call(params)
-        out = np.empty((h, w, 3), np.float32) if sink is None else None
+        out = be.output_array(h, w) if sink is None else None
         for y0, nr in bands:
             if len(bands) > 1 or not resident:
                 be.to_working(frame.pixels[y0:y0 + nr], frame.scale, count=False)
@@ -221,7 +246,7 @@ class PointwiseSchedule:
                           np.int32(n), g[0], g[1], g[2])
             be.run_pointwise(call, b["rgb"], b["Y"], b["Ys"], b["out"], n)
             if sink is None:
-                cl.enqueue_copy(be.rt.queue, out[y0:y0 + nr], b["out"])
+                be.fetch_output(out[y0:y0 + nr], b["out"], n)
             else:
                 band = np.empty((nr, w, 3), np.float32)
                 cl.enqueue_copy(be.rt.queue, band, b["out"])

@@ -49,7 +49,11 @@ class DeviceDisplayTable:
         self._e_eps = np.int32(round(np.log2(table.eps)) + 127)
         mf = cl.mem_flags
         self._par = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=par)
-        lut = np.ascontiguousarray(table.table, np.float32).reshape(-1)
+        lut = np.asarray(table.table, np.float32)
+        if table.kind == "1d":      # kernels/display.cl: per channel, (value, step) pairs
+            step = np.vstack([lut[1:], lut[-1:]]) - lut          # float32, as the kernel did
+            lut = np.stack([lut, step], axis=-1).transpose(1, 0, 2)
+        lut = np.ascontiguousarray(lut, np.float32).reshape(-1)
         self._lut = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=lut)
         self._lock = threading.Lock()
         self._bufs: dict = {}
@@ -88,23 +92,58 @@ class DeviceDisplayTable:
             return out
         with self._lock:
             src = self._buffer("src", x.nbytes)
-            dst = self._buffer("dst", out.nbytes)
             cl.enqueue_copy(self.queue, src, x, is_blocking=False)
-            size = np.int32(self.table.size)
-            start = 0
-            if c == 3 and self._kernels4 is not None and n >= 4:
-                n4 = n // 4
-                self._kernels4[bool(u8)](self.queue, (round_up(n4, _WG),), (_WG,), src, dst,
-                                         np.int32(n), self._par, self._e_eps, size, self._lut)
-                start = 4 * n4
-            if start < n:
-                self._kernels[bool(u8)](self.queue, (n - start,), None, src, dst, np.int32(n),
-                                        np.int32(c), np.int32(c), self._par, self._e_eps, size,
-                                        self._lut, global_offset=(start,))
-            cl.enqueue_copy(self.queue, out, dst, is_blocking=True)
+            self._encode_enqueued(self.queue, src, n, c, out, u8)
         return out
+
+    def encode_buffer(self, queue, src, n: int, out: np.ndarray, u8: bool) -> None:
+        """:meth:`encode` of ``n`` RGB pixels already on the device: ``src`` holds them
+        as interleaved float32 (an operator's output buffer, in this table's context),
+        ``queue`` is the queue that wrote them (so the kernel runs after), ``out`` (n x 3
+        values, C-contiguous, uint8 when ``u8`` else float32) receives the code values.
+        Nothing display-linear comes back to the host."""
+        if out.dtype != (np.uint8 if u8 else np.float32) or not out.flags.c_contiguous \
+                or out.size != 3 * n:
+            raise ValueError("encode_buffer: out must be n x 3 C-contiguous code values")
+        if n == 0:
+            return
+        with self._lock:
+            self._encode_enqueued(queue, src, n, 3, out, u8)
+
+    def _encode_enqueued(self, queue, src, n: int, c: int, out: np.ndarray, u8: bool) -> None:
+        """The kernels on ``queue`` from ``src`` (n pixels of c floats) into ``out``
+        (blocking download). Call with the lock held."""
+        import pyopencl as cl
+        dst = self._buffer("dst", out.nbytes)
+        size = np.int32(self.table.size)
+        start = 0
+        if c == 3 and self._kernels4 is not None and n >= 4:
+            n4 = n // 4
+            self._kernels4[bool(u8)](queue, (round_up(n4, _WG),), (_WG,), src, dst,
+                                     np.int32(n), self._par, self._e_eps, size, self._lut)
+            start = 4 * n4
+        if start < n:
+            self._kernels[bool(u8)](queue, (n - start,), None, src, dst, np.int32(n),
+                                    np.int32(c), np.int32(c), self._par, self._e_eps, size,
+                                    self._lut, global_offset=(start,))
+        cl.enqueue_copy(queue, out, dst, is_blocking=True)
 
     def release(self) -> None:
         """Drop the frame buffers (they are made again on the next :meth:`encode`)."""
         with self._lock:
             self._bufs.clear()
+
+
+class DeviceOutputEncoding:
+    """The display encoding a run writes, applied where the operator's output already is
+    (``OpenCLBackend.output_encoding``): the operator's last kernel leaves display-linear
+    RGB in a device buffer and only code values come back (a quarter of the bytes for
+    8-bit files) -- no download of the display-linear frame, no upload for encoding."""
+
+    def __init__(self, table: DeviceDisplayTable, u8: bool):
+        self.table, self.u8 = table, bool(u8)
+        self.dtype = np.dtype(np.uint8 if u8 else np.float32)
+
+    def fetch(self, queue, src, n: int, out: np.ndarray) -> None:
+        """Encode ``n`` pixels of ``src`` (display-linear RGB on the device) into ``out``."""
+        self.table.encode_buffer(queue, src, n, out.reshape(-1), self.u8)

@@ -332,7 +332,7 @@ class LeddaSchedule(PixelStateMixin):
         stats.values["sigma_disp"] = sd
         strength, lgc, _ = self._frame_scalars(stats)
         f32, i32 = np.float32, np.int32
-        out = np.empty((h, w, 3), np.float32) if sink is None else None
+        out = be.output_array(h, w) if sink is None else None
         nstate = len(self.planes)
         for y0, nr in bands:
             n = nr * w
@@ -348,7 +348,7 @@ class LeddaSchedule(PixelStateMixin):
                         i32(n), f32(sd), f32(1.0 / op.display.unit_cd), be.bufs["out"], strength,
                         lgc, f32(1.0 / white), f32(knee), i32(op.ward))
             if sink is None:
-                cl.enqueue_copy(q, out[y0:y0 + nr], be.bufs["out"])
+                be.fetch_output(out[y0:y0 + nr], be.bufs["out"], n)
             else:
                 band = np.empty((nr, w, 3), np.float32)
                 cl.enqueue_copy(q, band, be.bufs["out"])

@@ -1,0 +1,96 @@
+"""The display encoding applied where the operator's output is (Tonemapper.output_encoding):
+the code values that come back from the device are the ones the host path makes from the
+display-linear frame, to the byte; frames that cannot take it fall back and say so."""
+
+import numpy as np
+import pytest
+
+from ocl_tonemap.colour import ColourPipeline, load_config
+from ocl_tonemap.effects import EffectSettings
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.sequence import encode_pixels
+
+from conftest import hdr_image
+
+
+@pytest.fixture(scope="module")
+def colour_table(rt):
+    cp = ColourPipeline(load_config("ocl-tonemap"), "sRGB - Display")
+    cp.set_display_encode("table", "opencl")
+    assert cp.device_table is not None and cp.device_table.rt.context == rt.context
+    return cp
+
+
+def frames(h, w):
+    """Three frames of a drive into the dark: daylight, dusk, night (cd/m^2)."""
+    base = hdr_image(h, w, seed=5, lo=-2.0, hi=4.0).astype(np.float32)
+    return [base, base * 1e-2, base * 1e-4]
+
+
+def run(op, cp, u8, pix, encode_on_device, **kw):
+    tm = Tonemapper(op, "opencl", **kw)
+    outs, flags = [], []
+    for i, f in enumerate(pix):
+        tm.output_encoding = cp.device_output_encoding(u8, tm.backend.rt) \
+            if encode_on_device else None
+        out = tm.process(f, time_s=0.5 * i)
+        flags.append(tm.last_output_encoded)
+        outs.append(out if tm.last_output_encoded else
+                    encode_pixels(cp, out, tm.last_alpha, False, u8))
+    return outs, flags, tm
+
+
+@pytest.mark.parametrize("op", ["pattanaik00", "durand00", "ledda04"])
+@pytest.mark.parametrize("u8", [True, False])
+def test_device_encoding_equals_the_host_path(colour_table, op, u8):
+    """Same bytes (8-bit) or the same float code values, frame after frame; 37 x 29
+    pixels: the 4-pixel kernel and its scalar tail both run."""
+    pix = frames(29, 37)
+    want, f0, _ = run(op, colour_table, u8, pix, False)
+    got, f1, tm = run(op, colour_table, u8, pix, True)
+    assert f0 == [False] * 3 and f1 == [True] * 3
+    for g, w_ in zip(got, want):
+        assert g.dtype == (np.uint8 if u8 else np.float32) and g.shape == (29, 37, 3)
+        np.testing.assert_array_equal(g, w_)
+    assert not tm.backend.output_encoding         # left unset after the frame
+
+
+def test_banded_frames_are_encoded_band_by_band(colour_table):
+    """A frame in row bands (max_band_pixels): every band comes back encoded, in place."""
+    pix = frames(40, 33)
+    want, _, _ = run("pattanaik00", colour_table, True, pix, False)
+    got, flags, tm = run("pattanaik00", colour_table, True, pix, True, max_band_pixels=33 * 7)
+    assert len(tm.backend.bands(40, 33)) > 1 and flags == [True] * 3
+    for g, w_ in zip(got, want):
+        np.testing.assert_array_equal(g, w_)
+
+
+def test_frames_that_cannot_fall_back_to_the_host_path(colour_table):
+    """Alpha, luminance-only frames, acuity at night and kirk11 (its composition ends on
+    the host): display-linear comes back (last_output_encoded False), unchanged."""
+    enc = colour_table.device_output_encoding(True, None)
+    assert enc is None                                   # no runtime: no device encoding
+    pix = frames(16, 20)
+    cases = [("pattanaik00", [np.concatenate([p, np.full_like(p[..., :1], 0.5)], 2)
+                              for p in pix], {}),
+             ("pattanaik00", [p[..., 1] for p in pix], {}),
+             ("kirk11", pix, {}),
+             # daylight, then an hour of night, a narrow field (2 deg over 20 px): no blur by
+             # day (encoded), blur at night
+             ("pattanaik00", [pix[0], pix[2]], {"effects": EffectSettings(acuity="on", fov_deg=2.0)})]
+    for op, px, kw in cases:
+        tm = Tonemapper(op, "opencl", **kw)
+        tm.output_encoding = colour_table.device_output_encoding(True, tm.backend.rt)
+        for i, f in enumerate(px):
+            out = tm.process(f, time_s=3600.0 * i)
+            if "effects" in kw and i == 0:
+                assert tm.last_output_encoded and tm.last.effects["acuity"]["ran"] is False
+                assert tm.last.effects["acuity"]["blend"] == 0
+                continue
+            assert not tm.last_output_encoded and out.dtype == np.float32, (op, i)
+            if "effects" in kw:
+                assert tm.last.effects["acuity"]["ran"] is True
+            ref = Tonemapper(op, "opencl", **kw)
+            for j in range(i + 1):
+                r = ref.process(px[j], time_s=3600.0 * j)
+            np.testing.assert_array_equal(out, r)
