@@ -151,3 +151,46 @@ __kernel void apply_gains(__global float *rgb, __global float *Y, const int n,
     vstore3(c, i, rgb);
     Y[i] = M_YR * c.x + M_YG * c.y + M_YB * c.z;
 }
+
+/* Spectral radiance to LMSR in one pass (kirk11, Eq. 8; host side
+ * backends/opencl/kirk11.py lmsr_band): each value through the bad-value policy and
+ * the scale (repair_and_scale, counted), then q = W v, channel by channel in the order
+ * of kirk11.cl to_lmsr. Wt: nc float4, the weights of channel c for L, M, S, R. Four
+ * channels at a time where their raw bits are clean (clean4) and stay under L_MAX
+ * once scaled; any other value takes the scalar policy. The cube is read once and
+ * not written (repair_scale + to_lmsr read it twice and wrote it once). */
+__kernel void spectrum_to_lmsr(__global const float *in, const int nc, const int n,
+                               const float scale, __constant float4 *Wt,
+                               __global float *q, __global int *counts)
+{
+    __local int lc[NREPAIR];
+    const int lid = get_local_id(0);
+    if (lid < NREPAIR) lc[lid] = 0;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const int i = get_global_id(0);
+    if (i < n) {
+        __global const float *v = in + (size_t)i * nc;
+        float4 acc = (float4)(0.0f);
+        int c = 0;
+        for (; c + 4 <= nc; c += 4) {
+            float4 x = vload4(0, v + c);
+            if (all(clean4(x) & (x * scale <= L_MAX))) {
+                x *= scale;
+            } else {
+                x = (float4)(repair_and_scale(x.x, scale, true, lc),
+                             repair_and_scale(x.y, scale, true, lc),
+                             repair_and_scale(x.z, scale, true, lc),
+                             repair_and_scale(x.w, scale, true, lc));
+            }
+            acc += x.x * Wt[c];
+            acc += x.y * Wt[c + 1];
+            acc += x.z * Wt[c + 2];
+            acc += x.w * Wt[c + 3];
+        }
+        for (; c < nc; ++c)
+            acc += repair_and_scale(v[c], scale, true, lc) * Wt[c];
+        vstore4(acc, i, q);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid < NREPAIR && lc[lid]) atomic_add(&counts[lid], lc[lid]);
+}

@@ -130,3 +130,103 @@ __kernel void kirk11_compose(__global const float *src, __global const float *sh
      * (kirk11.KirkObserver.finish) and the clamp follow on the host */
     vstore3(fmax(o * ((dim_all ? dim : 1.0f) * out_scale), (float3)(0.0f)), i, out);
 }
+
+/* The frame's reductions, per work-group (Kahan in float32; the host adds the groups
+ * in float64), two values per group in `partial`:
+ *   mode 0, x = LMSR (4 per pixel): ln max(R, 1e-6), ln max(L + M, 1e-6)  (logmean)
+ *   mode 1, x = a plane:            x, 0                                  (w_mean, Eq. 16)
+ *   mode 2, x = display-linear RGB: ln max(Y / u, 1e-6), 0                (anchor_gain)
+ * Four pixels per step in float4 (PoCL vectorises log on float4, not across items). */
+#define LOG_FLOOR_K 1.0e-6f
+inline float4 kirk_terms4(__global const float *x, const int q, const int mode,
+                          const float inv_u, float4 *second)
+{
+    if (mode == 0) {
+        const float4 a = vload4(4 * q, x), b = vload4(4 * q + 1, x),
+                     c = vload4(4 * q + 2, x), d = vload4(4 * q + 3, x);
+        *second = log(fmax((float4)(a.x + a.y, b.x + b.y, c.x + c.y, d.x + d.y),
+                           LOG_FLOOR_K));
+        return log(fmax((float4)(a.w, b.w, c.w, d.w), LOG_FLOOR_K));
+    }
+    *second = (float4)(0.0f);
+    if (mode == 1) return vload4(q, x);
+    float4 r, g, b;
+    load_rgb4(q, x, &r, &g, &b);
+    return log(fmax((M_YR * r + M_YG * g + M_YB * b) * inv_u, LOG_FLOOR_K));
+}
+
+inline float2 kirk_terms1(__global const float *x, const int i, const int mode,
+                          const float inv_u)
+{
+    if (mode == 0) {
+        const float4 v = vload4(i, x);
+        return (float2)(log(fmax(v.w, LOG_FLOOR_K)), log(fmax(v.x + v.y, LOG_FLOOR_K)));
+    }
+    if (mode == 1) return (float2)(x[i], 0.0f);
+    const float3 c = vload3(i, x);
+    return (float2)(log(fmax((M_YR * c.x + M_YG * c.y + M_YB * c.z) * inv_u, LOG_FLOOR_K)),
+                    0.0f);
+}
+
+__kernel void kirk11_sums(__global const float *x, const int n, const int mode,
+                          const float inv_u, __global float *partial,
+                          __local float *scratch)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    const int gid = get_global_id(0), gsz = get_global_size(0);
+    float4 s1 = 0.0f, s2 = 0.0f, c1 = 0.0f, c2 = 0.0f, v, y, t, sec;
+    const int nq = n / 4;
+    for (int q = gid; q < nq; q += gsz) {
+#define KAHAN4(S, C, V) v = (V); y = v - C; t = S + y; C = (t - S) - y; S = t;
+        KAHAN4(s1, c1, kirk_terms4(x, q, mode, inv_u, &sec))
+        KAHAN4(s2, c2, sec)
+#undef KAHAN4
+    }
+    float a = (s1.x + s1.y) + (s1.z + s1.w), b = (s2.x + s2.y) + (s2.z + s2.w);
+    for (int i = 4 * nq + gid; i < n; i += gsz) {
+        const float2 e = kirk_terms1(x, i, mode, inv_u);
+        a += e.x;
+        b += e.y;
+    }
+    scratch[2 * lid] = a;
+    scratch[2 * lid + 1] = b;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int off = lsz / 2; off > 0; off >>= 1) {
+        if (lid < off) {
+            scratch[2 * lid] += scratch[2 * (lid + off)];
+            scratch[2 * lid + 1] += scratch[2 * (lid + off) + 1];
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0) {
+        partial[2 * get_group_id(0)] = scratch[0];
+        partial[2 * get_group_id(0) + 1] = scratch[1];
+    }
+}
+
+/* Kirk11.finish (operators/kirk11.py) in place on display-linear RGB: the
+ * absolute-level gain (anchor_gain) under the signal ceiling, the highlight shoulder
+ * (knee 0: none, the paper mode, gain 1) and the clamp. Four pixels per work-item,
+ * launched over ceil(n / 4) items. */
+__kernel void kirk11_finish(__global float *rgb, const int n, const float gain,
+                            const float inv_white, const float knee)
+{
+    const int q = get_global_id(0);
+    if (4 * q >= n) return;
+    if (4 * q + 4 > n) {
+        for (int i = 4 * q; i < n; ++i) {
+            const float3 c = shoulder3(fmin(vload3(i, rgb) * gain, SIGNAL_CEILING),
+                                       inv_white, knee);
+            vstore3(clamp(c, 0.0f, DISPLAY_LINEAR_MAX), i, rgb);
+        }
+        return;
+    }
+    float4 r, g, b;
+    load_rgb4(q, rgb, &r, &g, &b);
+    r = fmin(r * gain, SIGNAL_CEILING);
+    g = fmin(g * gain, SIGNAL_CEILING);
+    b = fmin(b * gain, SIGNAL_CEILING);
+    shoulder4(&r, &g, &b, inv_white, knee);
+    store_rgb4(q, rgb, clamp(r, 0.0f, DISPLAY_LINEAR_MAX), clamp(g, 0.0f, DISPLAY_LINEAR_MAX),
+               clamp(b, 0.0f, DISPLAY_LINEAR_MAX));
+}

@@ -522,7 +522,7 @@ class Tonemapper:
             raise ValueError(f"time goes backwards: last frame at {st.time_s} s, this one at "
                              f"{time_s} s")
         self._alpha = None
-        self._encodable = False
+        self._encodable = True
         out = self._run_frame(Frame(pix, scale, lam, self.display_primaries), time_s,
                               frame_number, step_dt, fresh, None, {})
         self.last_output = out

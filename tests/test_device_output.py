@@ -27,20 +27,20 @@ def frames(h, w):
     return [base, base * 1e-2, base * 1e-4]
 
 
-def run(op, cp, u8, pix, encode_on_device, **kw):
+def run(op, cp, u8, pix, encode_on_device, wavelengths=None, **kw):
     tm = Tonemapper(op, "opencl", **kw)
     outs, flags = [], []
     for i, f in enumerate(pix):
         tm.output_encoding = cp.device_output_encoding(u8, tm.backend.rt) \
             if encode_on_device else None
-        out = tm.process(f, time_s=0.5 * i)
+        out = tm.process(f, time_s=0.5 * i, wavelengths=wavelengths)
         flags.append(tm.last_output_encoded)
         outs.append(out if tm.last_output_encoded else
                     encode_pixels(cp, out, tm.last_alpha, False, u8))
     return outs, flags, tm
 
 
-@pytest.mark.parametrize("op", ["pattanaik00", "durand00", "ledda04"])
+@pytest.mark.parametrize("op", ["pattanaik00", "durand00", "ledda04", "kirk11"])
 @pytest.mark.parametrize("u8", [True, False])
 def test_device_encoding_equals_the_host_path(colour_table, op, u8):
     """Same bytes (8-bit) or the same float code values, frame after frame; 37 x 29
@@ -55,26 +55,39 @@ def test_device_encoding_equals_the_host_path(colour_table, op, u8):
     assert not tm.backend.output_encoding         # left unset after the frame
 
 
-def test_banded_frames_are_encoded_band_by_band(colour_table):
+@pytest.mark.parametrize("op", ["pattanaik00", "kirk11"])
+def test_banded_frames_are_encoded_band_by_band(colour_table, op):
     """A frame in row bands (max_band_pixels): every band comes back encoded, in place."""
     pix = frames(40, 33)
-    want, _, _ = run("pattanaik00", colour_table, True, pix, False)
-    got, flags, tm = run("pattanaik00", colour_table, True, pix, True, max_band_pixels=33 * 7)
+    want, _, _ = run(op, colour_table, True, pix, False, max_band_pixels=33 * 7)
+    got, flags, tm = run(op, colour_table, True, pix, True, max_band_pixels=33 * 7)
     assert len(tm.backend.bands(40, 33)) > 1 and flags == [True] * 3
     for g, w_ in zip(got, want):
         np.testing.assert_array_equal(g, w_)
 
 
+def test_spectral_frames_are_encoded(colour_table):
+    """kirk11 on spectral radiance: the same bytes either way."""
+    from ocl_tonemap.sample import spectral_patches
+    lam, spectra, _ = spectral_patches("A", 1.0)
+    cube = (spectra[np.arange(24 * 9) % 24].reshape(12, 18, -1) * 50.0).astype(np.float32)
+    pix = [cube, cube * 1e-2, cube * 1e-4]
+    want, _, _ = run("kirk11", colour_table, True, pix, False, wavelengths=lam)
+    got, flags, _ = run("kirk11", colour_table, True, pix, True, wavelengths=lam)
+    assert flags == [True] * 3
+    for g, w_ in zip(got, want):
+        np.testing.assert_array_equal(g, w_)
+
+
 def test_frames_that_cannot_fall_back_to_the_host_path(colour_table):
-    """Alpha, luminance-only frames, acuity at night and kirk11 (its composition ends on
-    the host): display-linear comes back (last_output_encoded False), unchanged."""
+    """Alpha, luminance-only frames and acuity at night: display-linear comes back
+    (last_output_encoded False), unchanged."""
     enc = colour_table.device_output_encoding(True, None)
     assert enc is None                                   # no runtime: no device encoding
     pix = frames(16, 20)
     cases = [("pattanaik00", [np.concatenate([p, np.full_like(p[..., :1], 0.5)], 2)
                               for p in pix], {}),
              ("pattanaik00", [p[..., 1] for p in pix], {}),
-             ("kirk11", pix, {}),
              # daylight, then an hour of night, a narrow field (2 deg over 20 px): no blur by
              # day (encoded), blur at night
              ("pattanaik00", [pix[0], pix[2]], {"effects": EffectSettings(acuity="on", fov_deg=2.0)})]

@@ -202,6 +202,31 @@ def test_opencl_matches_reference_spectral(rt):
     np.testing.assert_allclose(b, a, rtol=1e-4, atol=1e-5)
 
 
+def test_spectral_bad_values_repaired_and_counted_on_the_device(rt):
+    """The one-pass device kernel (spectrum_to_lmsr): bad values in the first
+    four-channel chunks and in the scalar tail (channels 28-30 of 31) are repaired by
+    the policy, counted as the float64 reference counts them, and the frame maps as
+    the reference maps it."""
+    lam, spectra, _ = spectral_patches("A", 0.05)
+    img = np.repeat(np.repeat(spectra.reshape(4, 6, -1), 3, 0), 3, 1).astype(np.float32)
+    assert img.shape[2] == 31
+    bad = [np.nan, np.inf, -np.inf, -2.0, 1e-42, 3e38]
+    for k, v in enumerate(bad):
+        img[k, 2 * k, 1 + k] = v                 # a vector chunk
+        img[k + 3, 2 * k + 1, 28 + k % 3] = v    # the tail
+    outs = {}
+    for be in ("reference", "opencl"):
+        tm = Tonemapper("kirk11", be)
+        outs[be] = tm.process(img, wavelengths=lam)
+        counts = tm.last.repairs
+        assert np.isfinite(outs[be]).all() and outs[be].min() >= 0
+        outs[be + ":counts"] = counts.summary()
+        assert counts.summary() == ("nan=2, pos_inf=2, neg_inf=2, negative=2, denormal=2, "
+                                    "over_max=2"), counts.summary()   # 3e38: over L_max
+    assert outs["reference:counts"] == outs["opencl:counts"]
+    np.testing.assert_allclose(outs["opencl"], outs["reference"], rtol=1e-4, atol=1e-5)
+
+
 def test_dark_scenes_look_dim_and_single_exposure_control(rt):
     img = _rgb_scene()
     means = [Tonemapper("kirk11", "opencl").process(img * np.float32(e)).mean()

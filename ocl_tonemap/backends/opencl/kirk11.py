@@ -11,15 +11,17 @@ apply      Eqs. 10-16, the base layer, the composition, ``finish``; frames beyon
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...models import lmsr
 from ...models.bilateral import RangeKernel, spatial_radius
 from ...models.durand2002 import BaseRange, compression
-from ...models.display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, apply_shoulder
-from ...models.kirk2011 import (RHO, SIGMA_RANGE_LOG10, anchor_gain, display_matrix, logmean,
+from ...models.display import SHOULDER_KNEE
+from ...models.kirk2011 import (RHO, SIGMA_RANGE_LOG10, anchor_gain, display_matrix,
                                 model_scale, subset_solvers, white_norm)
-from ...models.photometry import Y_WEIGHTS, RepairCounts
+from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
 from ..reference import NoPixelState
 from .bilateral import DeviceBilateral
@@ -34,6 +36,8 @@ class KirkDevice:
         self._k_lmsr = rt.kernel("kirk11.cl", "to_lmsr")
         self._k_shift = rt.kernel("kirk11.cl", "kirk11_shift")
         self._k_compose = rt.kernel("kirk11.cl", "kirk11_compose")
+        self._k_sums = rt.kernel("kirk11.cl", "kirk11_sums")
+        self._k_finish = rt.kernel("kirk11.cl", "kirk11_finish")
 
     def _buf(self, nbytes: int, host: np.ndarray | None = None):
         cl = self.cl
@@ -57,6 +61,41 @@ class KirkDevice:
                       self._buf(0, M), self._buf(0, D), out, wbuf, logY, fb)
         return out, wbuf, logY, fb
 
+    SUM_GROUPS, SUM_WG = 128, 64
+    #: kirk11_sums modes
+    LOG_LEVELS, PLANE, LOG_OUTPUT = 0, 1, 2
+
+    def sums(self, x, n: int, mode: int, inv_u: float = 1.0) -> tuple[float, float]:
+        """kirk11_sums over ``n`` pixels of ``x``, added in float64: LOG_LEVELS (LMSR):
+        (sum ln max(R, 1e-6), sum ln max(L+M, 1e-6)), as ``kirk2011.logmean``; PLANE:
+        (sum x, 0); LOG_OUTPUT (display-linear RGB): (sum ln max(Y inv_u, 1e-6), 0), as
+        ``anchor_gain``. Only the groups' records come back."""
+        cl = self.cl
+        if n <= 0:
+            return 0.0, 0.0
+        wg = self.SUM_WG
+        groups = max(1, min(self.SUM_GROUPS, -(-n // (4 * wg))))
+        part = self._sum_buf()
+        self._k_sums(self.rt.queue, (groups * wg,), (wg,), x, np.int32(n), np.int32(mode),
+                     np.float32(inv_u), part, cl.LocalMemory(wg * 2 * 4))
+        host = np.empty((groups, 2), np.float32)
+        cl.enqueue_copy(self.rt.queue, host, part)
+        t = host.astype(np.float64).sum(axis=0)
+        return float(t[0]), float(t[1])
+
+    def _sum_buf(self):
+        if getattr(self, "_partial", None) is None:
+            self._partial = self._buf(self.SUM_GROUPS * 2 * 4)
+        return self._partial
+
+    def finish(self, rgb, n: int, gain: float, inv_white: float, knee: float) -> None:
+        """``Kirk11.finish`` in place on ``n`` display-linear pixels (kernels/kirk11.cl
+        kirk11_finish): the gain under the signal ceiling, the shoulder (knee 0: none),
+        the clamp."""
+        if n > 0:
+            self._k_finish(self.rt.queue, (round_up(-(-n // 4), 64),), (64,), rgb, np.int32(n),
+                           np.float32(gain), np.float32(inv_white), np.float32(knee))
+
     def shift_rgb(self, rgb: np.ndarray, area: float, k1: float, k2: float, gain: float,
                   M: np.ndarray, D: np.ndarray, xyz) -> tuple[np.ndarray, float]:
         """Eqs. 10-13 and 15 on working RGB (cd/m^2, host array): the shifted RGB and
@@ -75,42 +114,44 @@ class KirkDevice:
         cl.enqueue_copy(q_, nfb, fb)
         return res, float(nfb[0]) / max(n, 1)
 
-    def _repair(self, buf, n: int, scale: float, count: bool) -> RepairCounts:
-        """photometry.sanitize on the device, in place (kernels/colour.cl repair_scale)."""
-        cl, q_ = self.cl, self.rt.queue
-        if getattr(self, "_k_repair", None) is None:
-            self._k_repair = self.rt.kernel("colour.cl", "repair_scale")
-            self._counts = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, 8 * 4)
-        cl.enqueue_fill_buffer(q_, self._counts, np.int32(0), 0, 8 * 4)
-        self._k_repair(q_, (round_up(max(n, 1), 64),), (64,), buf, np.int32(n),
-                       np.float32(scale), self._counts)
-        rc = RepairCounts()
-        if count:
-            c = np.empty(8, np.int32)
-            cl.enqueue_copy(q_, c, self._counts)
-            for k, v in zip(RepairCounts.KEYS, c):
-                setattr(rc, k, int(v))
-        return rc
+    def _counts_buf(self):
+        if getattr(self, "_counts", None) is None:
+            self._counts = self._buf(8 * 4)
+        return self._counts
 
     def lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
         """One band (or a whole frame) to LMSR on the device: (q buffer, source
-        buffer, repairs). RGB goes through the device colour stage; spectra are
-        uploaded as they are and repaired on the device (``_repair``)."""
+        buffer, repairs). RGB goes through the device colour stage; a spectral cube is
+        copied into a pooled buffer and repaired, scaled and weighted in one pass
+        (kernels/colour.cl spectrum_to_lmsr); its source buffer holds the raw values."""
+        cl = self.cl
+        q_ = self.rt.queue
         nr, w = band.shape[:2]
         n = nr * w
+        q = self._buf(n * 16)
         if wavelengths is None:
             rc = backend.to_working(band, scale, count=count)
-            src, W, nc = backend.bufs["rgb"], lmsr.fitted()["H"], 3
-        else:                                     # repaired and scaled on the device
-            nc = band.shape[2]
-            mf = self.cl.mem_flags
-            src = self.cl.Buffer(self.rt.context, mf.READ_WRITE | mf.COPY_HOST_PTR,
-                                 hostbuf=np.ascontiguousarray(band, np.float32).reshape(n, nc))
-            W = lmsr.spectrum_weights(wavelengths)
-            rc = self._repair(src, n * nc, scale, count)
-        q = self._buf(n * 16)
-        self._k_lmsr(self.rt.queue, (round_up(n, 64),), (64,), src, np.int32(nc), np.int32(n),
-                     self._buf(0, W), q)
+            src = backend.bufs["rgb"]
+            self._k_lmsr(q_, (round_up(n, 64),), (64,), src, np.int32(3), np.int32(n),
+                         self._buf(0, lmsr.fitted()["H"]), q)
+            return q, src, rc
+        nc = band.shape[2]
+        cube = np.ascontiguousarray(band, np.float32)
+        src = backend.buffer("kirk:cube", cube.nbytes)
+        cl.enqueue_copy(q_, src, cube)
+        if getattr(self, "_k_spectrum", None) is None:
+            self._k_spectrum = self.rt.kernel("colour.cl", "spectrum_to_lmsr")
+        counts = self._counts_buf()
+        cl.enqueue_fill_buffer(q_, counts, np.int32(0), 0, 8 * 4)
+        Wt = np.ascontiguousarray(lmsr.spectrum_weights(wavelengths).T, np.float32)
+        self._k_spectrum(q_, (round_up(n, 64),), (64,), src, np.int32(nc), np.int32(n),
+                         np.float32(scale), self._buf(0, Wt), q, counts)
+        rc = RepairCounts()
+        if count:
+            c = np.empty(8, np.int32)
+            cl.enqueue_copy(q_, c, counts)
+            for k, v in zip(RepairCounts.KEYS, c):
+                setattr(rc, k, int(v))
         return q, src, rc
 
 
@@ -123,17 +164,6 @@ class _Banded:
         self.found = None            # ((k1, k2, rod gain), (z_min, z_max))
 
 
-def finish_band(op, out: np.ndarray, gain: float) -> np.ndarray:
-    """``Kirk11.finish`` on one band of a frame whose anchor gain (``anchor_gain`` of
-    the whole frame's log-average) is ``gain``: the shoulder (default mode) and the
-    clamp, float32 out."""
-    out = np.asarray(out, np.float64)
-    if not op.s.paper:
-        u = op.display.white_cd / op.display.unit_cd
-        out = apply_shoulder(np.minimum(out * gain, SIGNAL_CEILING), u, SHOULDER_KNEE)
-    return np.clip(out, 0.0, DISPLAY_LINEAR_MAX).astype(np.float32)
-
-
 class KirkSchedule(NoPixelState):
     receptor_gains = False
     streams = True
@@ -143,7 +173,6 @@ class KirkSchedule(NoPixelState):
         self.dev = KirkDevice(backend.rt)
 
     def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
-        import pyopencl as cl
         be = self.backend
         h, w = frame.pixels.shape[:2]
         n = h * w
@@ -153,9 +182,8 @@ class KirkSchedule(NoPixelState):
             q, src, repairs = self.dev.lmsr_band(be, frame.pixels, frame.scale, frame.wavelengths,
                                                  True)
             self._note_max_Y(frame, n)
-            qh = np.empty((n, 4), np.float32)
-            cl.enqueue_copy(be.rt.queue, qh, q)
-            return FrameStats(w, h, logmean(qh[:, 3]), logmean(qh[:, 0] + qh[:, 1]),
+            sum_r, sum_lm = self.dev.sums(q, n, self.dev.LOG_LEVELS)     # kirk2011.logmean
+            return FrameStats(w, h, math.exp(sum_r / n), math.exp(sum_lm / n),
                               repairs if isinstance(repairs, RepairCounts) else RepairCounts(),
                               handle=(frame.pixels, q, src))
         repairs = RepairCounts()
@@ -165,10 +193,8 @@ class KirkSchedule(NoPixelState):
                                            frame.wavelengths, True)
             repairs += rc
             self._note_max_Y(frame, nr * w)
-            qh = np.empty((nr * w, 4), np.float32)
-            cl.enqueue_copy(be.rt.queue, qh, qb)
-            sum_lm += float(np.log(np.maximum(qh[:, 0].astype(np.float64) + qh[:, 1], 1e-6)).sum())
-            sum_r += float(np.log(np.maximum(qh[:, 3].astype(np.float64), 1e-6)).sum())
+            r, lm = self.dev.sums(qb, nr * w, self.dev.LOG_LEVELS)
+            sum_r, sum_lm = sum_r + r, sum_lm + lm
         return FrameStats(w, h, float(np.exp(sum_r / n)), float(np.exp(sum_lm / n)), repairs,
                           handle=_Banded(frame))
 
@@ -220,19 +246,40 @@ class KirkSchedule(NoPixelState):
                        np.float32(s.gamma),
                        np.float32(op.display.white_cd / op.display.unit_cd),
                        np.int32(1 if blend else 0), out, np.int32(0 if s.paper else 1))
-        res = np.empty((h, w, 3), np.float32)
-        cl.enqueue_copy(q_, res, out)
-        res = op.finish(res, stats).astype(np.float32)
+        self._finish(out, n, self._gain(out, n, stats))
         nfb = np.empty(1, np.int32)
         cl.enqueue_copy(q_, nfb, fb)
-        wh = np.empty(n, np.float32)
-        cl.enqueue_copy(q_, wh, wbuf)
-        v.update(model_scale=area, w_mean=float(wh.mean()), fallback_fraction=float(nfb[0]) / n,
+        v.update(model_scale=area, w_mean=dev.sums(wbuf, n, dev.PLANE)[0] / n,
+                 fallback_fraction=float(nfb[0]) / n,
                  input="spectral" if frame.wavelengths is not None else "rgb")
         if sink is not None:
+            res = np.empty((h, w, 3), np.float32)
+            cl.enqueue_copy(q_, res, out)
             sink(0, res)
             return None
+        res = be.output_array(h, w)
+        be.fetch_output(res, out, n)
         return res
+
+    # -- Kirk11.finish on the device ---------------------------------------------------------
+    def _gain(self, out, n: int, stats, log_sum: float | None = None) -> float:
+        """``anchor_gain`` of the composed frame (``out``, n pixels; or the whole frame's
+        ``log_sum`` of a banded one); 1 in the paper mode."""
+        op = self.op
+        if op.s.paper:
+            return 1.0
+        if log_sum is None:
+            u = op.display.white_cd / op.display.unit_cd
+            log_sum = self.dev.sums(out, n, self.dev.LOG_OUTPUT, 1.0 / u)[0]
+        return anchor_gain(np.array([math.exp(log_sum / n)]), stats.G_cone,
+                           stats.values["levels"]["A_cone"])
+
+    def _finish(self, out, n: int, gain: float) -> None:
+        """``Kirk11.finish`` in place on the device (the shoulder and clamp per pixel;
+        the gain is the whole frame's)."""
+        op = self.op
+        u = op.display.white_cd / op.display.unit_cd
+        self.dev.finish(out, n, gain, 1.0 / u, 0.0 if op.s.paper else SHOULDER_KNEE)
 
     # -- frames beyond one band: passes over row bands, each re-reading its rows --------
     def _shift_rows(self, frame, v, a: int, b: int):
@@ -263,11 +310,10 @@ class KirkSchedule(NoPixelState):
         w_sum, nfb, lo, hi = 0.0, 0, np.inf, -np.inf
         for y0, nr in self.backend.bands(h, w):
             _, _, wb, lb, fb = self._shift_rows(frame, v, y0, y0 + nr)
-            wh = np.empty(nr * w, np.float32)
-            cl.enqueue_copy(q_, wh, wb)
             c = np.empty(1, np.int32)
             cl.enqueue_copy(q_, c, fb)
-            w_sum, nfb = w_sum + float(wh.sum(dtype=np.float64)), nfb + int(c[0])
+            w_sum += self.dev.sums(wb, nr * w, self.dev.PLANE)[0]
+            nfb += int(c[0])
             zl, zh = self.dev.bil.z_range(lb, nr * w, rk)
             lo, hi = min(lo, zl), max(hi, zh)
         v.update(model_scale=model_scale(), w_mean=w_sum / (h * w),
@@ -284,7 +330,7 @@ class KirkSchedule(NoPixelState):
         layer (grid slice, or the exact filter on rows read with a ceil(3 sigma) halo)
         -> its min and max (Durand & Dorsey 2002's compression); (4, default mode) the
         composition -> the log-average for ``anchor_gain``; (5) the composition and
-        ``finish_band`` -> ``sink`` or the output."""
+        ``Kirk11.finish`` on the device (:meth:`_finish`) -> ``sink`` or the output."""
         import pyopencl as cl
         be, dev, op = self.backend, self.dev, self.op
         s, v = op.settings, stats.values
@@ -338,24 +384,22 @@ class KirkSchedule(NoPixelState):
                            np.int32(m), np.float32(c), np.float32(bmax), np.float32(s.beta),
                            np.float32(s.gamma), np.float32(u), np.int32(1 if blend else 0),
                            out, np.int32(0 if s.paper else 1))
-            res = np.empty((nr, w, 3), np.float32)
-            cl.enqueue_copy(q_, res, out)
-            return res
+            return out
 
         gain = 1.0
         if not s.paper:                         # the frame's log-average for the anchor
-            log_sum = 0.0
-            for y0, nr in bands:
-                Y = compose(y0, nr).reshape(-1, 3).astype(np.float64) @ Y_WEIGHTS / u
-                log_sum += float(np.log(np.maximum(Y, 1e-6)).sum())
-            gain = anchor_gain(np.array([np.exp(log_sum / n)]), stats.G_cone,
-                               v["levels"]["A_cone"])
-        res = np.empty((h, w, 3), np.float32) if sink is None else None
+            log_sum = sum(dev.sums(compose(y0, nr), nr * w, dev.LOG_OUTPUT, 1.0 / u)[0]
+                          for y0, nr in bands)
+            gain = self._gain(None, n, stats, log_sum)
+        res = be.output_array(h, w) if sink is None else None
         for y0, nr in bands:
-            band = finish_band(op, compose(y0, nr), gain)
+            out = compose(y0, nr)
+            self._finish(out, nr * w, gain)
             if sink is None:
-                res[y0:y0 + nr] = band
+                be.fetch_output(res[y0:y0 + nr], out, nr * w)
             else:
+                band = np.empty((nr, w, 3), np.float32)
+                cl.enqueue_copy(q_, band, out)
                 sink(y0, band)
         return res
 
