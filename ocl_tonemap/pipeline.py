@@ -538,7 +538,8 @@ class Tonemapper:
         if fx.s.flare == "off" and fx.s.purkinje == "off" and not own_chroma \
                 and not scene_plugins:
             return pix, scale, None
-        rgb, repairs, (G_rod, G_cone), estimate = self.backend.working(pix, scale, self.metering)
+        rgb, repairs, (G_rod, G_cone), estimate = self.backend.working(pix, scale, self.metering,
+                                                                       own_chroma)
         changed = False
         new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)
         if new is not None:

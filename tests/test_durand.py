@@ -194,7 +194,7 @@ def test_chromatic_adaptation_tungsten_to_daylight_tau_5s(backend, rt):
 
 def test_illuminant_priority_and_device_estimate(rt):
     rng = np.random.default_rng(2)
-    img = (rng.uniform(0.1, 1, (20, 30, 3)) * 20).astype(np.float32)
+    img = (rng.uniform(0.1, 1, (21, 31, 3)) * 20).astype(np.float32)
     img[5:8, 5:8] = np.array([800, 500, 200], np.float32)      # a warm lamp
     est_ref = fx.illuminant_estimate_reference(img.astype(np.float64))
     for be in ("reference", "opencl"):

@@ -33,8 +33,10 @@ class ReferenceBackend:
             return load_schedule(spec)(self, op)
         return PointwiseSchedule(self, op)
 
-    def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec):
-        """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn)."""
+    def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec,
+                illuminant: bool = True):
+        """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn)
+        (the estimate is made when called: ``illuminant`` changes nothing here)."""
         rgb, repairs = sanitize(pixels[..., :3], scale)
         h, w = rgb.shape[:2]
         G = met.reference_goal(photopic_luminance(rgb), scotopic_luminance(rgb), spec,

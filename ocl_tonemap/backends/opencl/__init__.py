@@ -184,12 +184,14 @@ class OpenCLBackend:
         self.last_max_Y = float(sums.sums[5])
         return bands, repairs, sums.goal(spec), illum
 
-    def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec):
-        """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn)."""
+    def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec,
+                illuminant: bool = True):
+        """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn);
+        ``illuminant`` False: no illuminant sums (estimate_fn None)."""
         h, w, _ = pixels.shape
         rgb = np.empty((h, w, 3), np.float32)
-        _, repairs, G, illum = self.meter_pass(pixels, scale, spec, True, rgb)
-        return rgb, repairs, G, lambda: illum[:3]
+        _, repairs, G, illum = self.meter_pass(pixels, scale, spec, illuminant, rgb)
+        return rgb, repairs, G, ((lambda: illum[:3]) if illuminant else None)
 
     # -- per-pixel kernels ---------------------------------------------------------------------
     def run_pointwise(self, call, rgb, Y, Ys, out, n: int) -> None:
