@@ -28,18 +28,10 @@ class DeviceDisplayTable:
         self.rt = runtime if runtime is not None else get_runtime(device)
         ctx = self.rt.context
         self.queue = cl.CommandQueue(ctx, self.rt.device)
-        name = "display_lut1d" if table.kind == "1d" else "display_lut3d"
-        # the programs are built once per process (runtime's cache); the kernel objects are
-        # this table's own, so that their arguments are not shared with another thread
-        self._kernels = {u8: cl.Kernel(self.rt.kernel("display.cl", name,
-                                                      (("OUT_U8", int(u8)),)).program, name)
-                         for u8 in (False, True)}
+        self._name = "display_lut1d" if table.kind == "1d" else "display_lut3d"
         # RGB through a 1D table: four pixels per work-item (PoCL: ~4x faster)
-        self._kernels4 = {u8: cl.Kernel(self.rt.kernel("display.cl", "display_lut1d_rgb4",
-                                                       (("OUT_U8", int(u8)),)).program,
-                                        "display_lut1d_rgb4")
-                          for u8 in (False, True)} \
-            if table.kind == "1d" and self.rt.device.endian_little else None
+        self._vector = table.kind == "1d" and bool(self.rt.device.endian_little)
+        self._knl: dict = {}
         par = np.zeros(16, np.float32)
         par[0:9] = np.asarray(table.matrix, np.float64).reshape(9)
         par[9:12] = np.asarray(table.offset, np.float64)
@@ -57,6 +49,20 @@ class DeviceDisplayTable:
         self._lut = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=lut)
         self._lock = threading.Lock()
         self._bufs: dict = {}
+
+    def _kernel(self, u8: bool, vector: bool):
+        """This table's kernel object for 8-bit or float output, 4-pixel or scalar: the
+        program is built on first use (once per process: the runtime's cache; a run
+        needs one output kind), the kernel object is this table's own, so that its
+        arguments are not shared with another thread."""
+        import pyopencl as cl
+        key = (bool(u8), bool(vector))
+        k = self._knl.get(key)
+        if k is None:
+            name = "display_lut1d_rgb4" if vector else self._name
+            prg = self.rt.kernel("display.cl", name, (("OUT_U8", int(u8)),)).program
+            self._knl[key] = k = cl.Kernel(prg, name)
+        return k
 
     def describe(self) -> str:
         return f"{self.table.describe()} on {self.rt.name}"
@@ -117,13 +123,13 @@ class DeviceDisplayTable:
         dst = self._buffer("dst", out.nbytes)
         size = np.int32(self.table.size)
         start = 0
-        if c == 3 and self._kernels4 is not None and n >= 4:
+        if c == 3 and self._vector and n >= 4:
             n4 = n // 4
-            self._kernels4[bool(u8)](queue, (round_up(n4, _WG),), (_WG,), src, dst,
+            self._kernel(u8, True)(queue, (round_up(n4, _WG),), (_WG,), src, dst,
                                      np.int32(n), self._par, self._e_eps, size, self._lut)
             start = 4 * n4
         if start < n:
-            self._kernels[bool(u8)](queue, (n - start,), None, src, dst, np.int32(n),
+            self._kernel(u8, False)(queue, (n - start,), None, src, dst, np.int32(n),
                                     np.int32(c), np.int32(c), self._par, self._e_eps, size,
                                     self._lut, global_offset=(start,))
         cl.enqueue_copy(queue, out, dst, is_blocking=True)
