@@ -117,14 +117,16 @@ __kernel void z_minmax(__global const float *v, const int n, const int ratio,
      * is that of the z the splat reads */
     float4 lo4 = (float4)(INFINITY), hi4 = (float4)(-INFINITY);
     const int nq = n / 4, gsz = get_global_size(0);
+    int qa, qb, qs;
+    share_range(nq, &qa, &qb, &qs);
     if (ratio) {
-        for (int q = get_global_id(0); q < nq; q += gsz) {
+        for (int q = qa; q < qb; q += qs) {
             const float4 z = log2(vload4(q, v)) * M_LN2_F;
             lo4 = fmin(lo4, z);
             hi4 = fmax(hi4, z);
         }
     } else {
-        for (int q = get_global_id(0); q < nq; q += gsz) {
+        for (int q = qa; q < qb; q += qs) {
             const float4 z = vload4(q, v);
             lo4 = fmin(lo4, z);
             hi4 = fmax(hi4, z);

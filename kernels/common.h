@@ -3,6 +3,30 @@
 #define NREPAIR 6                /* nan, pos_inf, neg_inf, negative, denormal, over_max */
 #define LN10 2.302585092994046f
 
+/* How the work-items of a reduction share `count` items (quads, pixels): loop
+ *     for (int q = lo; q < hi; q += step)
+ * A contiguous stretch per work-item on CPU devices (DEVICE_CPU: -D by the runtime;
+ * PoCL runs a group's items one after another, so each streams its own memory: 1080p
+ * metering 9.7 -> 5.4 ms), interleaved elsewhere (neighbouring items read neighbouring
+ * addresses: coalesced on GPUs). */
+#ifndef DEVICE_CPU
+#define DEVICE_CPU 0
+#endif
+inline void share_range(const int count, int *lo, int *hi, int *step)
+{
+#if DEVICE_CPU
+    const int g = (int)get_global_size(0);
+    const int per = (count + g - 1) / g;
+    *lo = min(count, (int)get_global_id(0) * per);
+    *hi = min(count, *lo + per);
+    *step = 1;
+#else
+    *lo = (int)get_global_id(0);
+    *hi = count;
+    *step = (int)get_global_size(0);
+#endif
+}
+
 /* BT.709 linear RGB -> XYZ (D65) */
 #define M_XR 0.4123907992659595f
 #define M_XG 0.3575843393838780f

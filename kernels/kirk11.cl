@@ -176,7 +176,9 @@ __kernel void kirk11_sums(__global const float *x, const int n, const int mode,
     const int gid = get_global_id(0), gsz = get_global_size(0);
     float4 s1 = 0.0f, s2 = 0.0f, c1 = 0.0f, c2 = 0.0f, v, y, t, sec;
     const int nq = n / 4;
-    for (int q = gid; q < nq; q += gsz) {
+    int qa, qb, qs;
+    share_range(nq, &qa, &qb, &qs);
+    for (int q = qa; q < qb; q += qs) {
 #define KAHAN4(S, C, V) v = (V); y = v - C; t = S + y; C = (t - S) - y; S = t;
         KAHAN4(s1, c1, kirk_terms4(x, q, mode, inv_u, &sec))
         KAHAN4(s2, c2, sec)

@@ -65,7 +65,9 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
         float4 m1 = 0.0f, m2 = 0.0f;
         const int nq = n / 4;
         const float4 lf = (float4)(log_floor);
-        for (int q = get_global_id(0); q < nq; q += get_global_size(0)) {
+        int qa, qb, qs;
+        share_range(nq, &qa, &qb, &qs);
+        for (int q = qa; q < qb; q += qs) {
             const float4 l = vload4(q, Y), ls = vload4(q, Ys);
             float4 v, y, t;
 #define KAHAN4(S, C, V) v = (V); y = v - C; t = S + y; C = (t - S) - y; S = t;
@@ -77,9 +79,7 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
             m1 = fmax(m1, l);
             m2 = fmax(m2, ls);
         }
-        const int nq_mine = get_global_id(0) < nq
-            ? (nq - 1 - (int)get_global_id(0)) / (int)get_global_size(0) + 1 : 0;
-        s[0] = 4.0f * (float)nq_mine;
+        s[0] = qb > qa ? 4.0f * (float)((qb - qa + qs - 1) / qs) : 0.0f;   /* pixels */
         s[1] = (s1.x + s1.y) + (s1.z + s1.w);
         s[2] = (s2.x + s2.y) + (s2.z + s2.w);
         s[3] = (s3.x + s3.y) + (s3.z + s3.w);
@@ -161,7 +161,9 @@ __kernel void illuminant_partial(__global const float *rgb, __global const float
     float4 s0 = 0.0f, s1 = 0.0f, s2 = 0.0f, s3 = 0.0f;
     float4 c0 = 0.0f, c1 = 0.0f, c2 = 0.0f, c3 = 0.0f, v, y4, t;
     const int nq = n / 4;
-    for (int q = gid; q < nq; q += gsz) {
+    int qa, qb, qs;
+    share_range(nq, &qa, &qb, &qs);
+    for (int q = qa; q < qb; q += qs) {
         float4 r, g, b;
         load_rgb4(q, rgb, &r, &g, &b);
         const float4 yq = vload4(q, Y);

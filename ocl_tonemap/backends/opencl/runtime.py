@@ -207,7 +207,9 @@ def _build(context, device, files: tuple[str, ...], defines: tuple = ()):
     src = "\n".join((kdir / f).read_text() for f in ("common.h", *files))
     # No -cl-fast-relaxed-math: the kernels rely on IEEE inf/0 behaviour at the
     # extremes (documented in docs/models.md).
-    opts = ["-cl-std=CL1.2"] + [f"-D{k}={define_value(v)}" for k, v in defines]
+    cpu = int(bool(device.type & cl.device_type.CPU))      # common.h share_range
+    opts = ["-cl-std=CL1.2", f"-DDEVICE_CPU={cpu}"] + \
+        [f"-D{k}={define_value(v)}" for k, v in defines]
     return cl.Program(context, src).build(options=opts, devices=[device])
 
 
