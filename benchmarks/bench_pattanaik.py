@@ -110,7 +110,7 @@ def main():
              f"- command: `python benchmarks/bench_pattanaik.py{' --quick' if args.quick else ''}`",
              f"- median of {reps} runs after a warm-up; ratios are what to compare across machines.", ""]
     lines += ["## Whole frame and per-pixel pass", "",
-              "| size | OpenCL ms/frame | MPix/s | kernel ms (float4) | kernel ms (scalar) "
+              "| size | OpenCL ms/frame | MPix/s | kernel ms (vector: 8 px/item) | kernel ms (scalar) "
               "| roofline ms | kernel/roofline | reference ms | reference/OpenCL | max err | mean err |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     for w, h in SIZES:

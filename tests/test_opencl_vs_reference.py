@@ -158,8 +158,10 @@ def test_adaptation_dims_after_entering_dark():
     assert first < 0.2 * later
 
 
-@pytest.mark.parametrize("n", [1, 3, 4, 5, 1023])
-def test_float4_kernel_equals_scalar_kernel(rt, n):
+@pytest.mark.parametrize("n", [1, 3, 4, 5, 8, 9, 15, 1023])
+def test_vector_kernel_equals_scalar_kernel(rt, n):
+    """pattanaik00_map8 (eight pixels per work-item, the scalar tail) against the scalar
+    kernel."""
     import pyopencl as cl
     from ocl_tonemap.models import pattanaik2000 as P
     tm = Tonemapper()
@@ -218,7 +220,7 @@ def test_durand00_float4_kernel_equals_scalar_kernel(rt, n):
     call = tm.op.kernel_call(tm.op.params(tm._state, None))
     assert call.kernel == "durand00_map4" and dict(call.params)["knee"] > 0
     outs = []
-    for c in (call, dataclasses.replace(call, kernel="durand00_map", vector=False)):
+    for c in (call, dataclasses.replace(call, kernel="durand00_map", pixels_per_item=1)):
         tm.backend.run_pointwise(c, b["rgb"], b["Y"], b["Ys"], b["out"], n)
         o = np.empty((n, 3), np.float32)
         cl.enqueue_copy(rt.queue, o, b["out"])

@@ -272,14 +272,14 @@ class ModelOperator(Operator):
 @dataclass(frozen=True)
 class KernelCall:
     """A per-pixel kernel of signature ``(rgb, Y, Ys, out, n, __constant float *p)``
-    (``params``: the frame's scalars in the kernel's order, packed as float32), or
-    with ``vector`` four pixels per work-item. ``buffers``: extra read-only float32
-    arrays passed after ``p`` (tables)."""
+    (``params``: the frame's scalars in the kernel's order, packed as float32) that maps
+    ``pixels_per_item`` pixels per work-item (launched over ceil(n / that) items).
+    ``buffers``: extra read-only float32 arrays passed after ``p`` (tables)."""
 
     file: str
     kernel: str
     params: tuple
-    vector: bool = False
+    pixels_per_item: int = 1
     buffers: tuple = ()
 
 

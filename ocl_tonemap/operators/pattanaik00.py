@@ -35,7 +35,7 @@ class Pattanaik00(ModelOperator):
         Stage("adapt", "state", "A: exponential t0 = 150/80 ms; B: Eq. 7 solved exactly",
               "models.pattanaik2000.receptor_levels_advance"),
         Stage("map", "pointwise", "Eqs. 2-3 responses, Sec. 4.3 inverse appearance and display",
-              "models.pattanaik2000.map_reference", "pattanaik00.cl:pattanaik00_map4"),
+              "models.pattanaik2000.map_reference", "pattanaik00.cl:pattanaik00_map8"),
     )
 
     def kernel_call(self, p, vector: bool = True):
@@ -46,6 +46,6 @@ class Pattanaik00(ModelOperator):
                 model.LN10 * N * p.B_cone / d.S_d if p.chroma is None else 0.0,
                 d.signal_offset, d.gain, 1.0 / p.white_signal, p.shoulder_knee,
                 p.chroma if p.chroma is not None else 0.0)
-        return KernelCall("pattanaik00.cl", "pattanaik00_map4" if vector else "pattanaik00_map",
-                          tuple(zip(KERNEL_PARAMS, vals)), vector)
+        return KernelCall("pattanaik00.cl", "pattanaik00_map8" if vector else "pattanaik00_map",
+                          tuple(zip(KERNEL_PARAMS, vals)), 8 if vector else 1)
 

@@ -200,7 +200,7 @@ class OpenCLBackend:
         knl = self.rt.kernel(call.file, call.kernel, index_defines(names))
         p = self.constant(np.array([v for _, v in call.params] or [0.0], np.float32))
         extra = tuple(self.constant(b) for b in call.buffers)
-        items = -(-max(n, 1) // 4) if call.vector else max(n, 1)
+        items = -(-max(n, 1) // max(1, int(call.pixels_per_item)))
         knl(self.rt.queue, (round_up(items, 64),), (64,), rgb, Y, Ys, out, np.int32(n), p,
             *extra)
 
