@@ -538,12 +538,19 @@ class Tonemapper:
         if fx.s.flare == "off" and fx.s.purkinje == "off" and not own_chroma \
                 and not scene_plugins:
             return pix, scale, None
+        # the flare whole on the device: the working frame and the flared one stay there
+        # (one upload, no round trip; the operator's colour stage copies it on the device)
+        on_dev = pix.shape[2] == 3 and fx.flare_on_device(*pix.shape[:2])
+        kw = {"on_device": True} if on_dev else {}
         rgb, repairs, (G_rod, G_cone), estimate = self.backend.working(pix, scale, self.metering,
-                                                                       own_chroma)
+                                                                       own_chroma, **kw)
         changed = False
         new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)
         if new is not None:
             rgb, changed = new, True
+        if not isinstance(rgb, np.ndarray) and (fx.s.purkinje != "off" or scene_plugins
+                                                or own_chroma):
+            rgb = np.asarray(rgb)             # the stages below work on host pixels
         new, eff["purkinje"] = fx.purkinje(rgb, G_rod, G_cone, self._state.extra, dt, fresh,
                                            self.preadapt)
         if new is not None:
@@ -560,6 +567,8 @@ class Tonemapper:
                 rgb, changed = (rgb * gains).astype(np.float32), True
         if not changed:
             return pix, scale, None
+        if not isinstance(rgb, np.ndarray):   # a device image (RGB frames only)
+            return rgb, 1.0, repairs
         if pix.shape[2] == 4:
             rgb = np.concatenate([rgb, pix[..., 3:4]], axis=2)
         return np.ascontiguousarray(rgb, np.float32), 1.0, repairs

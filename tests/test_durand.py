@@ -404,6 +404,44 @@ def test_effects_work_with_other_operators(rt):
         assert {"flare", "acuity"} <= ran, (op, tm.last.effects)
 
 
+@pytest.mark.parametrize("op", ["durand00", "pattanaik00", "ledda04", "kirk11"])
+def test_flared_frame_kept_on_the_device_equals_the_host_path(rt, op, monkeypatch):
+    """The working frame and the flared one stay on the device (DeviceImage) between
+    the flare and the operator's colour stage: the same output, bit for bit, as when
+    they cross to the host; with an alpha channel and with the Purkinje effect after
+    the flare they do cross (the stages that follow work on host pixels)."""
+    from ocl_tonemap.effects import Effects
+    from ocl_tonemap.backends.opencl.image import DeviceImage
+    img = _lamp_scene().astype(np.float32) * 1e-2
+    seen = []
+    real = Effects.flare
+
+    def spy(self, rgb, *a):
+        seen.append(isinstance(rgb, DeviceImage))
+        return real(self, rgb, *a)
+    monkeypatch.setattr(Effects, "flare", spy)
+    fx_on = EffectSettings(flare="on")
+    outs = []
+    for on_device in (True, False):
+        monkeypatch.setattr(Effects, "flare_on_device",
+                            (lambda self, h, w: True) if on_device else
+                            (lambda self, h, w: False))
+        tm = Tonemapper(op, "opencl", effects=fx_on)
+        outs.append([tm.process(img * np.float32(k), time_s=k) for k in (1, 2)])
+        assert tm.last.effects["flare"]["ran"]
+    assert seen == [True, True, False, False]
+    for a, b in zip(*outs):
+        np.testing.assert_array_equal(a, b)
+    monkeypatch.undo()
+    rgba = np.concatenate([img, np.full_like(img[..., :1], 0.5)], axis=2)
+    a = Tonemapper(op, "opencl", effects=fx_on).process(rgba)
+    assert a.shape == rgba.shape and np.isfinite(a).all()
+    if op != "kirk11":
+        fx_p = EffectSettings(flare="on", purkinje="on")
+        b = Tonemapper(op, "opencl", effects=fx_p).process(img)
+        assert np.isfinite(b).all()
+
+
 def test_effect_settings_validation():
     with pytest.raises(ValueError):
         EffectSettings(flare="sometimes")

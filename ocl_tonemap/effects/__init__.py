@@ -143,11 +143,21 @@ class Effects:
         return [p for p in self.plugins if p.SLOT == slot]
 
     def flare(self, rgb: np.ndarray, G_rod: float, G_cone: float):
-        """(new rgb or None, info) for one frame in cd/m^2."""
+        """(new rgb or None, info) for one frame in cd/m^2 (``rgb`` may be a device image
+        where :meth:`flare_on_device`: the new one is then one too)."""
+        self._make_flare_device()
+        return _flare.run(self.s, rgb, G_rod, G_cone, self._blur, self._flare_dev)
+
+    def _make_flare_device(self) -> None:
         if self.s.flare != "off" and self.s.flare_method == "fast" and \
                 self._flare_dev is None and hasattr(self.backend, "flare_device"):
             self._flare_dev = self.backend.flare_device()
-        return _flare.run(self.s, rgb, G_rod, G_cone, self._blur, self._flare_dev)
+
+    def flare_on_device(self, h: int, w: int) -> bool:
+        """Whether this frame's flare runs whole on the device (the fast method, a device
+        that holds the frame): its working frame can stay there."""
+        self._make_flare_device()
+        return self._flare_dev is not None and self._flare_dev.fits(h, w)
 
     def purkinje(self, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
                  dt: float = 0.0, fresh: bool = True, preadapt=None):

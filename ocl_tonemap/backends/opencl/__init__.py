@@ -14,6 +14,7 @@ from ...models import metering as met
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats, Operator
 from ..plan import row_bands
+from .image import DeviceImage
 from .metering import DeviceMeter
 from .runtime import get_runtime, index_defines, round_up
 
@@ -132,7 +133,10 @@ class OpenCLBackend:
         n = rows * width
         b = self._buffers(n, channels)
         lo, hi = count_rows if count_rows is not None else (0, rows)
-        cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
+        if isinstance(band, DeviceImage):          # a frame made on the device this frame
+            band.copy_to(q, b["src"])
+        else:
+            cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
         cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)
         self._colour(q, (round_up(-(-n // 4), 64),), (64,), b["src"], np.int32(channels), np.int32(n),
                      np.float32(scale), b["rgb"], b["Y"], b["Ys"], b["counts"],
@@ -185,12 +189,20 @@ class OpenCLBackend:
         return bands, repairs, sums.goal(spec), illum
 
     def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec,
-                illuminant: bool = True):
+                illuminant: bool = True, on_device: bool = False):
         """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn);
-        ``illuminant`` False: no illuminant sums (estimate_fn None)."""
+        ``illuminant`` False: no illuminant sums (estimate_fn None). ``on_device``: rgb is a
+        :class:`~.image.DeviceImage` (for scene effects that run on the device) where the
+        frame is one band, else a host array."""
+        import pyopencl as cl
         h, w, _ = pixels.shape
-        rgb = np.empty((h, w, 3), np.float32)
+        one_band = len(self.bands(h, w)) == 1
+        rgb = None if (on_device and one_band) else np.empty((h, w, 3), np.float32)
         _, repairs, G, illum = self.meter_pass(pixels, scale, spec, illuminant, rgb)
+        if rgb is None:
+            buf = self.buffer("scene:rgb", 12 * h * w)
+            cl.enqueue_copy(self.rt.queue, buf, self.bufs["rgb"], byte_count=12 * h * w)
+            rgb = DeviceImage(self.rt, buf, (h, w, 3))
         return rgb, repairs, G, ((lambda: illum[:3]) if illuminant else None)
 
     # -- per-pixel kernels ---------------------------------------------------------------------

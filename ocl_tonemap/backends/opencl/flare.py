@@ -11,6 +11,7 @@ import numpy as np
 
 from ...models import spencer1995 as fl
 from ...models.convolution import gaussian_taps
+from .image import DeviceImage
 from .runtime import round_up
 
 #: Bytes of device memory per pixel of the frame: source part, accumulator and
@@ -61,16 +62,22 @@ class DeviceFlare:
 
     def apply(self, rgb: np.ndarray, plan: fl.FastPlan, lim: float):
         """(flared frame or None when no pixel is a source, sources, S sum (3), F sum (3)).
-        ``rgb``: (H, W, 3) working rgb, cd/m^2; ``lim``: the source threshold,
-        cd/m^2 (threshold x L_wa)."""
+        ``rgb``: (H, W, 3) working rgb, cd/m^2, a host array or a :class:`DeviceImage`
+        (then read where it is, and the flared frame is a DeviceImage too: it does not
+        come to the host); ``lim``: the source threshold, cd/m^2 (threshold x L_wa)."""
         import pyopencl as cl
         q, k, L = self.rt.queue, self._k, self.local
-        rgb = np.ascontiguousarray(rgb[..., :3], np.float32)
+        resident = isinstance(rgb, DeviceImage)
+        if not resident:
+            rgb = np.ascontiguousarray(rgb[..., :3], np.float32)
         h, w = rgb.shape[:2]
         n = h * w
         groups = round_up(n, L) // L
-        d_rgb = self._buf("rgb", 12 * n)
-        cl.enqueue_copy(q, d_rgb, rgb)
+        if resident:                            # already on the device: read it there
+            d_rgb = rgb.buffer
+        else:
+            d_rgb = self._buf("rgb", 12 * n)
+            cl.enqueue_copy(q, d_rgb, rgb)
         sizes = plan.sizes
         stored = [(sizes[l][0] + 2 * fl.level_margin(l), sizes[l][1] + 2 * fl.level_margin(l))
                   for l in range(plan.top + 1)]
@@ -114,13 +121,16 @@ class DeviceFlare:
                     cl.enqueue_copy(q, a, ring)
                 have = True
             acc = a if have else None
-        out = np.empty_like(rgb)
         d_out = self._buf("out", 12 * n)
         k["flare_finish"](q, (groups * L,), (L,), d_rgb, S[0], acc if have else S[0],
                           np.int32(1 if have else 0), np.float32(plan.a0), np.int32(n), d_out,
                           part, self._scratch)
-        cl.enqueue_copy(q, out, d_out)
         fsum = self._partials(part, groups)
+        if resident:                            # stays on the device for the operator
+            out = DeviceImage(self.rt, d_out, (h, w, 3))
+        else:
+            out = np.empty((h, w, 3), np.float32)
+            cl.enqueue_copy(q, out, d_out)
         return out, sources, ssum[:3], fsum[:3]
 
     def _ring(self, S_buf, hh: int, ww: int, deg_per_px: float, w3: float):

@@ -25,6 +25,7 @@ from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
 from ..reference import NoPixelState
 from .bilateral import DeviceBilateral
+from .image import DeviceImage
 from .runtime import round_up
 
 class KirkDevice:
@@ -178,7 +179,7 @@ class KirkSchedule(NoPixelState):
         n = h * w
         bands = be.bands(h, w)
         be.last_max_Y = 0.0                 # for flare on auto (Tonemapper.process_stream)
-        if len(bands) == 1 and isinstance(frame.pixels, np.ndarray):
+        if len(bands) == 1 and isinstance(frame.pixels, (np.ndarray, DeviceImage)):
             q, src, repairs = self.dev.lmsr_band(be, frame.pixels, frame.scale, frame.wavelengths,
                                                  True)
             self._note_max_Y(frame, n)
