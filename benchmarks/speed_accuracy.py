@@ -660,6 +660,19 @@ def roofline_child(w: int, h: int, ops: list[str], frames: int) -> dict:
     def kernel(self, file, name, defines=()):
         return Rec(orig_kernel(self, file, name, defines), name)
     R.Runtime.kernel = kernel
+    copies: list = []                     # (direction, bytes) of every enqueue_copy
+    orig_copy = cl.enqueue_copy
+
+    def enqueue_copy(queue, dest, src, **kw):
+        up, down = isinstance(dest, cl.MemoryObject), isinstance(src, cl.MemoryObject)
+        host = src if up and not down else dest
+        nbytes = kw.get("byte_count") or getattr(host, "nbytes", 0)
+        copies.append(("device" if up and down else "up" if up else "down", int(nbytes)))
+        return orig_copy(queue, dest, src, **kw)
+    cl.enqueue_copy = enqueue_copy
+    from ocl_tonemap.colour import ColourPipeline, load_config
+    cp = ColourPipeline(load_config("ocl-tonemap"), "sRGB - Display")
+    cp.set_display_encode("auto", "opencl")
     bw = copy_bandwidth(rt, w * h * 16)
     img = render_frame(TUNNEL_T, w, h, TUNNEL_SECONDS)
     out = {"bandwidth": bw, "hook": hook, "device": R.describe_device(rt.device), "ops": {}}
@@ -670,14 +683,21 @@ def roofline_child(w: int, h: int, ops: list[str], frames: int) -> dict:
                 if k:
                     stages[k] = (s.name, s.kind)
         tm = Tonemapper(op)
+        # as the run does for an 8-bit PNG: the display table on the operator's output
+        tm.output_encoding = cp.device_output_encoding(True, rt)
         tm.process(img)
         rt.queue.finish()
         records.clear()
+        copies.clear()
         t0 = time.perf_counter()
         for _ in range(frames):
             tm.process(img, dt=DT)
         rt.queue.finish()
         wall = (time.perf_counter() - t0) / frames
+        plane = w * h * 4                  # one float plane of the frame
+        full = {d: sum(1 for dd, b in copies if dd == d and b >= plane // 2) / frames
+                for d in ("up", "down", "device")}
+        passes = sum(1 for _, _, b in records if b >= plane) / frames
         per = {}
         for name, ev, nbytes in records:
             ev.wait()
@@ -693,8 +713,10 @@ def roofline_child(w: int, h: int, ops: list[str], frames: int) -> dict:
                        name.rstrip("4") == k.rstrip("4")), ("", ""))
             rows.append({"kernel": name, "stage": st[0], "kind": st[1], "ms": ms / frames,
                          "launches": c / frames, "bytes": b / frames})
-        out["ops"][op] = {"wall_ms": wall * 1e3, "kernels": rows}
+        out["ops"][op] = {"wall_ms": wall * 1e3, "kernels": rows, "copies": full,
+                          "passes": passes, "encoded": bool(tm.last_output_encoded)}
     R.Runtime.kernel = orig_kernel
+    cl.enqueue_copy = orig_copy
     return out
 
 
@@ -737,9 +759,25 @@ def roofline_md(rf: dict, w: int, h: int) -> list[str]:
     lines.append(table(("operator", "kernel", "stage", "launches", "kernel ms", "bytes",
                         "roofline ms", "fraction"), rows))
     lines += ["", "Kernels under 2% of an operator's device time are left out (per-pixel "
-              "ones always shown). `all kernels` is the device time; the rest of the wall "
-              "time is transfers, host work (OCIO encode excluded: not part of `process`) "
-              "and launch overhead.", ""]
+              "ones always shown). `all kernels` is the device time of the operator and its "
+              "effects; the rest of the wall time is transfers, host work and launch overhead. "
+              "Each frame is mapped as the run maps it for an 8-bit PNG: the display table "
+              "runs on the operator's output (`Tonemapper.output_encoding`), timed in the wall "
+              "time and the transfers, not in the kernel rows.", "",
+              "Full-resolution passes and crossings per frame: `kernel passes` counts the "
+              "launches given at least one float plane of the frame (w x h x 4 bytes) in "
+              "buffers (an upper bound: the flare gives its full-size scratch to the blurs "
+              "of every pyramid level); `up` / `down` / `on device` count the copies of at least half a "
+              "plane (an 8-bit RGB frame is three quarters of one; the flare's halo ring "
+              "level, a quarter or less, is not counted) to the device, back to the host, "
+              "and within the device.", ""]
+    rows = [(op, f"{d.get('passes', 0):.0f}", f"{d['copies']['up']:.0f}",
+             f"{d['copies']['down']:.0f}", f"{d['copies']['device']:.0f}",
+             "yes" if d.get("encoded") else "no")
+            for op, d in rf["ops"].items() if "copies" in d]
+    if rows:
+        lines += [table(("operator", "kernel passes", "up", "down", "on device",
+                         "encoded on the device"), rows), ""]
     return lines
 
 
