@@ -234,6 +234,10 @@ def basis_energy_within(name: str, theta: float) -> float:
 FIT_SIGMA_MIN = 0.5
 #: Weight of the energy-conservation row in the fit.
 FIT_ENERGY_WEIGHT = 1.0e3
+#: Weight of the rows for the energy beyond radii 2 px .. R/2 (relative to the basis's
+#: own energy there, floored at FIT_TAIL_FLOOR of its energy).
+FIT_TAIL_WEIGHT = 1.0
+FIT_TAIL_FLOOR = 1.0e-3
 
 
 @functools.lru_cache(maxsize=8)
@@ -265,6 +269,13 @@ def fit_gaussians(shape: tuple[int, int], deg_per_px: float, per_octave: int = 1
     # each column's energy within the diagonal (a wide Gaussian leaves the frame:
     # counting all of it starved the core of f2, 27% short on the source's pixel)
     inside = np.array([1.0] + [-math.expm1(-R * R / (2.0 * sg * sg)) for sg in sig])
+    # each column's energy between rho and the diagonal, at radii rho: the per-pixel
+    # rows cannot see energy spread thin over the frame (a wide Gaussian's pixels sit
+    # below the residuals' floor), so without these a core the Gaussians cannot
+    # shape (f0 at 0.04 deg/px) put 2% of its energy into a 1000 px veil
+    rho = np.geomspace(2.0, max(R / 2.0, 4.0), 10)
+    beyond = np.array([[0.0] + [math.exp(-p * p / (2.0 * sg * sg)) - (1.0 - inside[k + 1])
+                                for k, sg in enumerate(sig)] for p in rho])
     weights, errs = {}, {}
     for name in channel_bases(0)[:3]:
             fn = _basis(name)
@@ -280,8 +291,11 @@ def fit_gaussians(shape: tuple[int, int], deg_per_px: float, per_octave: int = 1
                 continue
             scale = 1.0 / np.maximum(prof, prof.max() * 1e-6)
             E = basis_energy_within(name, R * deg_per_px)
-            M = np.vstack([A * scale[:, None], FIT_ENERGY_WEIGHT * inside[None, :]])
-            b = np.concatenate([prof * scale, [FIT_ENERGY_WEIGHT * E]])
+            E_beyond = np.array([E - basis_energy_within(name, p * deg_per_px) for p in rho])
+            wb = FIT_TAIL_WEIGHT / np.maximum(E_beyond, FIT_TAIL_FLOOR * E)
+            M = np.vstack([A * scale[:, None], FIT_ENERGY_WEIGHT * inside[None, :],
+                           beyond * wb[:, None]])
+            b = np.concatenate([prof * scale, [FIT_ENERGY_WEIGHT * E], E_beyond * wb])
             a, _ = nnls(M, b)
             fit = A @ a
             area = r + 0.5
