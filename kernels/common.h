@@ -12,6 +12,20 @@
 #ifndef DEVICE_CPU
 #define DEVICE_CPU 0
 #endif
+/* Work-group sums of float4 records into partial[group] (local size: a power of two;
+ * scratch: one float4 per work-item). The host adds the groups (in float64). */
+inline void group_sum4(__local float4 *scratch, const float4 v, __global float4 *partial)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    scratch[lid] = v;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int off = lsz >> 1; off > 0; off >>= 1) {
+        if (lid < off) scratch[lid] += scratch[lid + off];
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0) partial[get_group_id(0)] = scratch[0];
+}
+
 inline void share_range(const int count, int *lo, int *hi, int *step)
 {
 #if DEVICE_CPU

@@ -5,19 +5,6 @@
  * samples include its margins. Reference: ocl_tonemap/models/spencer1995.py
  * (source_part, _down_axis, _up_axis, convolve_fast). */
 
-/* Work-group sums of float4 records into partial[group] (local size: a power of two). */
-inline void group_sum4(__local float4 *scratch, const float4 v, __global float4 *partial)
-{
-    const int lid = get_local_id(0), lsz = get_local_size(0);
-    scratch[lid] = v;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (int off = lsz >> 1; off > 0; off >>= 1) {
-        if (lid < off) scratch[lid] += scratch[lid + off];
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
-    if (lid == 0) partial[get_group_id(0)] = scratch[0];
-}
-
 /* S = rgb max(0, 1 - lim / Y): the part of each pixel above ``lim`` cd/m^2.
  * partial: per group (sum of S r, g, b, number of source pixels). */
 __kernel void flare_source(__global const float *rgb, const int n, const float lim,

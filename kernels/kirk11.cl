@@ -169,10 +169,9 @@ inline float2 kirk_terms1(__global const float *x, const int i, const int mode,
 }
 
 __kernel void kirk11_sums(__global const float *x, const int n, const int mode,
-                          const float inv_u, __global float *partial,
-                          __local float *scratch)
+                          const float inv_u, __global float4 *partial,
+                          __local float4 *scratch)
 {
-    const int lid = get_local_id(0), lsz = get_local_size(0);
     const int gid = get_global_id(0), gsz = get_global_size(0);
     float4 s1 = 0.0f, s2 = 0.0f, c1 = 0.0f, c2 = 0.0f, v, y, t, sec;
     const int nq = n / 4;
@@ -190,20 +189,7 @@ __kernel void kirk11_sums(__global const float *x, const int n, const int mode,
         a += e.x;
         b += e.y;
     }
-    scratch[2 * lid] = a;
-    scratch[2 * lid + 1] = b;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (int off = lsz / 2; off > 0; off >>= 1) {
-        if (lid < off) {
-            scratch[2 * lid] += scratch[2 * (lid + off)];
-            scratch[2 * lid + 1] += scratch[2 * (lid + off) + 1];
-        }
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
-    if (lid == 0) {
-        partial[2 * get_group_id(0)] = scratch[0];
-        partial[2 * get_group_id(0) + 1] = scratch[1];
-    }
+    group_sum4(scratch, (float4)(a, b, 0.0f, 0.0f), partial);
 }
 
 /* Kirk11.finish (operators/kirk11.py) in place on display-linear RGB: the

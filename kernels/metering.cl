@@ -151,10 +151,9 @@ __kernel void log_histogram(__global const float *L, const int n, const float lo
  * -- a luminance-weighted grey world, dominated by the bright regions and the
  * light sources. The host adds the group records in float64. */
 __kernel void illuminant_partial(__global const float *rgb, __global const float *Y,
-                                 const int n, __global float *partial,
-                                 __local float *scratch)
+                                 const int n, __global float4 *partial,
+                                 __local float4 *scratch)
 {
-    const int lid = get_local_id(0), lsz = get_local_size(0);
     const int gid = get_global_id(0), gsz = get_global_size(0);
     /* four pixels per step in float4 (PoCL vectorises float4 within a work-item, not
        scalar code across them: 1080p 11 -> 3 ms), then the scalar tail */
@@ -185,14 +184,5 @@ __kernel void illuminant_partial(__global const float *rgb, __global const float
         kahan(&s[2], &c[2], y * p.z);
         kahan(&s[3], &c[3], y * y);
     }
-    __local float *me = scratch + lid * 4;
-    for (int k = 0; k < 4; ++k) me[k] = s[k];
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (int off = lsz / 2; off > 0; off >>= 1) {
-        if (lid < off)
-            for (int k = 0; k < 4; ++k) me[k] += scratch[(lid + off) * 4 + k];
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
-    if (lid == 0)
-        for (int k = 0; k < 4; ++k) partial[get_group_id(0) * 4 + k] = scratch[k];
+    group_sum4(scratch, (float4)(s[0], s[1], s[2], s[3]), partial);
 }

@@ -141,12 +141,17 @@ class OpenCLBackend:
         self._colour(q, (round_up(-(-n // 4), 64),), (64,), b["src"], np.int32(channels), np.int32(n),
                      np.float32(scale), b["rgb"], b["Y"], b["Ys"], b["counts"],
                      np.int32(lo * width), np.int32(hi * width))
+        return self.read_repairs(b["counts"]) if count else RepairCounts()
+
+    def read_repairs(self, counts) -> RepairCounts:
+        """The repair counts a colour kernel left in ``counts`` (8 int32, RepairCounts.KEYS
+        first)."""
+        import pyopencl as cl
+        c = np.empty(8, np.int32)
+        cl.enqueue_copy(self.rt.queue, c, counts)
         rc = RepairCounts()
-        if count:
-            c = np.empty(8, np.int32)
-            cl.enqueue_copy(q, c, b["counts"])
-            for k, v in zip(RepairCounts.KEYS, c):
-                setattr(rc, k, int(v))
+        for k, v in zip(RepairCounts.KEYS, c):
+            setattr(rc, k, int(v))
         return rc
 
     def _illuminant_sums(self, n: int) -> np.ndarray:
@@ -193,16 +198,14 @@ class OpenCLBackend:
         """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn);
         ``illuminant`` False: no illuminant sums (estimate_fn None). ``on_device``: rgb is a
         :class:`~.image.DeviceImage` (for scene effects that run on the device) where the
-        frame is one band, else a host array."""
-        import pyopencl as cl
+        frame is one band, else a host array; it is the colour stage's buffer, valid until
+        the backend's next colour stage (:meth:`to_working`)."""
         h, w, _ = pixels.shape
         one_band = len(self.bands(h, w)) == 1
         rgb = None if (on_device and one_band) else np.empty((h, w, 3), np.float32)
         _, repairs, G, illum = self.meter_pass(pixels, scale, spec, illuminant, rgb)
-        if rgb is None:
-            buf = self.buffer("scene:rgb", 12 * h * w)
-            cl.enqueue_copy(self.rt.queue, buf, self.bufs["rgb"], byte_count=12 * h * w)
-            rgb = DeviceImage(self.rt, buf, (h, w, 3))
+        if rgb is None:           # the colour stage's own buffer, until its next frame
+            rgb = DeviceImage(self.rt, self.bufs["rgb"], (h, w, 3))
         return rgb, repairs, G, ((lambda: illum[:3]) if illuminant else None)
 
     # -- per-pixel kernels ---------------------------------------------------------------------

@@ -4,8 +4,9 @@
 buffer. The scene effects that run on the device (the fast flare) take it and give it
 back, and the operator's colour stage copies it on the device
 (``OpenCLBackend.to_working``), so a flared frame never crosses to the host. A stage
-that needs host pixels gets them with ``np.asarray``. It is valid until the next frame
-(its buffer belongs to the backend's pool).
+that needs host pixels gets them with ``np.asarray``. It is valid while its buffer is
+not written again: the working frame until the backend's next colour stage, the
+flared frame until the next flare.
 """
 
 from __future__ import annotations

@@ -39,6 +39,8 @@ class KirkDevice:
         self._k_compose = rt.kernel("kirk11.cl", "kirk11_compose")
         self._k_sums = rt.kernel("kirk11.cl", "kirk11_sums")
         self._k_finish = rt.kernel("kirk11.cl", "kirk11_finish")
+        self._k_spectrum = rt.kernel("colour.cl", "spectrum_to_lmsr")
+        self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
 
     def _buf(self, nbytes: int, host: np.ndarray | None = None):
         cl = self.cl
@@ -76,18 +78,12 @@ class KirkDevice:
             return 0.0, 0.0
         wg = self.SUM_WG
         groups = max(1, min(self.SUM_GROUPS, -(-n // (4 * wg))))
-        part = self._sum_buf()
         self._k_sums(self.rt.queue, (groups * wg,), (wg,), x, np.int32(n), np.int32(mode),
-                     np.float32(inv_u), part, cl.LocalMemory(wg * 2 * 4))
-        host = np.empty((groups, 2), np.float32)
-        cl.enqueue_copy(self.rt.queue, host, part)
+                     np.float32(inv_u), self._partial, cl.LocalMemory(wg * 16))
+        host = np.empty((groups, 4), np.float32)
+        cl.enqueue_copy(self.rt.queue, host, self._partial)
         t = host.astype(np.float64).sum(axis=0)
         return float(t[0]), float(t[1])
-
-    def _sum_buf(self):
-        if getattr(self, "_partial", None) is None:
-            self._partial = self._buf(self.SUM_GROUPS * 2 * 4)
-        return self._partial
 
     def finish(self, rgb, n: int, gain: float, inv_white: float, knee: float) -> None:
         """``Kirk11.finish`` in place on ``n`` display-linear pixels (kernels/kirk11.cl
@@ -115,11 +111,6 @@ class KirkDevice:
         cl.enqueue_copy(q_, nfb, fb)
         return res, float(nfb[0]) / max(n, 1)
 
-    def _counts_buf(self):
-        if getattr(self, "_counts", None) is None:
-            self._counts = self._buf(8 * 4)
-        return self._counts
-
     def lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
         """One band (or a whole frame) to LMSR on the device: (q buffer, source
         buffer, repairs). RGB goes through the device colour stage; a spectral cube is
@@ -140,20 +131,12 @@ class KirkDevice:
         cube = np.ascontiguousarray(band, np.float32)
         src = backend.buffer("kirk:cube", cube.nbytes)
         cl.enqueue_copy(q_, src, cube)
-        if getattr(self, "_k_spectrum", None) is None:
-            self._k_spectrum = self.rt.kernel("colour.cl", "spectrum_to_lmsr")
-        counts = self._counts_buf()
+        counts = backend.buffer("counts", 8 * 4)
         cl.enqueue_fill_buffer(q_, counts, np.int32(0), 0, 8 * 4)
         Wt = np.ascontiguousarray(lmsr.spectrum_weights(wavelengths).T, np.float32)
         self._k_spectrum(q_, (round_up(n, 64),), (64,), src, np.int32(nc), np.int32(n),
                          np.float32(scale), self._buf(0, Wt), q, counts)
-        rc = RepairCounts()
-        if count:
-            c = np.empty(8, np.int32)
-            cl.enqueue_copy(q_, c, counts)
-            for k, v in zip(RepairCounts.KEYS, c):
-                setattr(rc, k, int(v))
-        return q, src, rc
+        return q, src, (backend.read_repairs(counts) if count else RepairCounts())
 
 
 class _Banded:
