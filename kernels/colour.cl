@@ -88,7 +88,7 @@ __kernel void scene_to_working4(__global const float *src, const int channels, c
     barrier(CLK_LOCAL_MEM_FENCE);
     const int q = get_global_id(0), i0 = 4 * q;
     bool done = false;
-    if (i0 + 3 < n && (channels == 3 || channels == 4)) {
+    if (VECTOR_PIXELS && i0 + 3 < n && (channels == 3 || channels == 4)) {   /* common.h */
         float4 r, g, b;
         if (channels == 3) {
             const float4 a0 = vload4(3 * q, src), a1 = vload4(3 * q + 1, src),

@@ -1,4 +1,10 @@
 /* Shared by every program: constants that must match ocl_tonemap/models/photometry.py. */
+
+/* No a*b+c contracted into fma: OpenCL C allows it by default and GPU compilers do it
+ * where the expression's shape lets them, so a vector body and its scalar tail (or a
+ * band's pixel at another offset in its quad) could round the same formula apart:
+ * banded frames would no longer equal whole ones bit for bit (seen on NVIDIA). */
+#pragma OPENCL FP_CONTRACT OFF
 #define L_MAX 1.0e10f            /* scene ceiling, cd/m^2 (+Inf maps here) */
 #define NREPAIR 6                /* nan, pos_inf, neg_inf, negative, denormal, over_max */
 #define LN10 2.302585092994046f
@@ -12,6 +18,15 @@
 #ifndef DEVICE_CPU
 #define DEVICE_CPU 0
 #endif
+
+/* Per-pixel kernels written several pixels to a work-item (float4/float8 across pixels)
+ * take that vector body on CPU devices only, where it pays (PoCL: SIMD lanes, scalar
+ * code is not vectorised across work-items). A GPU runs a work-item's lanes as scalar
+ * code anyway, and its compiler may round a vector body's formula apart from the
+ * scalar one by an ulp (seen on NVIDIA: ledda04's banded frames then differed from whole
+ * ones where a band's pixel sat at another place in its quad); there every pixel takes
+ * the scalar path, so a pixel's value does not depend on where it lies. */
+#define VECTOR_PIXELS DEVICE_CPU
 /* Work-group sums of float4 records into partial[group] (local size: a power of two;
  * scratch: one float4 per work-item). The host adds the groups (in float64). */
 inline void group_sum4(__local float4 *scratch, const float4 v, __global float4 *partial)

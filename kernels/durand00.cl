@@ -21,7 +21,8 @@ __kernel void durand00_map(__global const float *rgb, __global const float *Y,
     vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);
 }
 
-/* durand00_map four pixels per work-item (float4 across pixels; the tail scalar). */
+/* durand00_map four pixels per work-item (float4 across pixels where VECTOR_PIXELS;
+ * the tail, and every pixel elsewhere, scalar). */
 __kernel void durand00_map4(__global const float *rgb, __global const float *Y,
                             __global const float *Ys, __global float *out, const int n,
                             __constant const float *p)
@@ -31,8 +32,8 @@ __kernel void durand00_map4(__global const float *rgb, __global const float *Y,
     const float m_cone = p[P_m_cone];
     const float rod_r = p[P_rod_r], rod_g = p[P_rod_g], rod_b = p[P_rod_b];
     const float inv_white = p[P_inv_white], knee = p[P_knee];
-    if (i0 + 4 > n) {
-        for (int i = i0; i < n; ++i) {
+    if (!VECTOR_PIXELS || i0 + 4 > n) {
+        for (int i = i0; i < min(i0 + 4, n); ++i) {
             const float3 o = fmin(m_cone * vload3(i, rgb) + Ys[i] * (float3)(rod_r, rod_g, rod_b),
                                   SIGNAL_CEILING);
             vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);

@@ -201,8 +201,8 @@ __kernel void kirk11_finish(__global float *rgb, const int n, const float gain,
 {
     const int q = get_global_id(0);
     if (4 * q >= n) return;
-    if (4 * q + 4 > n) {
-        for (int i = 4 * q; i < n; ++i) {
+    if (!VECTOR_PIXELS || 4 * q + 4 > n) {        /* common.h */
+        for (int i = 4 * q; i < min(4 * q + 4, n); ++i) {
             const float3 c = shoulder3(fmin(vload3(i, rgb) * gain, SIGNAL_CEILING),
                                        inv_white, knee);
             vstore3(clamp(c, 0.0f, DISPLAY_LINEAR_MAX), i, rgb);

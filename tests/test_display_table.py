@@ -134,18 +134,24 @@ def test_8bit_code_values_are_the_bytes_oiio_writes(rt, tmp_path, src, display, 
     values written to an 8-bit PNG by OIIO's ImageOutput (which quantises them
     itself: ties to even, where an ImageBuf's write rounds them up), on the
     probe set, the special values, every half-code boundary (k + 0.5) / 255 and
-    its float neighbours, RGB and RGBA (alpha quantised the same way)."""
+    its float neighbours, RGB and RGBA (alpha quantised the same way).
+
+    Where v * 255 is exactly k + 0.5 in float32 OIIO's own rounding depends on the
+    machine (the same wheel: ties to even on this CI machine kind, half up on the
+    H100 machine's Xeon): there the device's byte is the even one, as documented,
+    and OIIO's either neighbour."""
     import OpenImageIO as oiio
     from ocl_tonemap.imageio import write_frame
     t = pipeline(src, display, view).display_table()
     dev = DeviceDisplayTable(t, runtime=rt)
-    edges = (np.arange(-2, 258) + 0.5) / 255.0
-    edges = np.concatenate([edges, np.nextafter(edges, 2), np.nextafter(edges, -2)])
+    edges = ((np.arange(-2, 258) + 0.5) / 255.0).astype(np.float32)
+    edges = np.concatenate([edges, np.nextafter(edges, np.float32(2)),
+                            np.nextafter(edges, np.float32(-2))])
     # inputs whose encodings land on the half-code boundaries: the table's inverse is
     # not at hand, so the boundaries are fed as alpha (quantised by the same code)
     x = np.concatenate([probe[: len(probe) // 64 * 4], SPECIAL])
     n = len(x) // 4 * 4
-    a = np.resize(edges.astype(np.float32), n)[:, None]
+    a = np.resize(edges, n)[:, None]
     for pix in (x[:n].reshape(4, -1, 3), np.concatenate([x[:n], a], 1).reshape(4, -1, 4)):
         f = dev.encode(pix)
         q = dev.encode(pix, u8=True)
@@ -156,8 +162,13 @@ def test_8bit_code_values_are_the_bytes_oiio_writes(rt, tmp_path, src, display, 
         raw = oiio.ImageSpec()
         raw.attribute("oiio:UnassociatedAlpha", 1)          # the file's bytes, as stored
         fb, qb = (oiio.ImageBuf(p, 0, 0, raw).get_pixels(oiio.UINT8) for p in paths)
-        np.testing.assert_array_equal(qb, fb)
         np.testing.assert_array_equal(qb, q)
+        v = np.clip(f * np.float32(255), 0, 255)
+        tie = v % 1 == 0.5
+        assert tie.any() or pix.shape[-1] == 3
+        np.testing.assert_array_equal(qb[~tie], fb[~tie])
+        np.testing.assert_array_equal(q[tie], np.rint(v[tie]))          # ties to even
+        assert np.all(np.abs(fb[tie].astype(int) - qb[tie]) <= 1)
 
 
 @pytest.mark.parametrize("display", ["sRGB - Display", "Rec.2100-PQ - Display"])
