@@ -218,3 +218,38 @@ __kernel void kirk11_finish(__global float *rgb, const int n, const float gain,
     store_rgb4(q, rgb, clamp(r, 0.0f, DISPLAY_LINEAR_MAX), clamp(g, 0.0f, DISPLAY_LINEAR_MAX),
                clamp(b, 0.0f, DISPLAY_LINEAR_MAX));
 }
+
+/* Durand & Dorsey 2002's base range (models/durand2002.py, BaseRange): the counts of n
+ * base values (log10) in nbins bins; bin k = [e_k, e_k+1), e_k = (k num + off) / den
+ * exactly in float (base_hist_edges: den a power of two), clamped to the bins, NaN in
+ * bin 0: the host's bins (base_hist_bins) bit for bit. A stretch of values per
+ * work-item, a run of one bin added with one atomic (the base layer is smooth). */
+inline float base_edge(const int k, const int num, const int off, const float inv_den)
+{
+    return (float)(k * num + off) * inv_den;
+}
+
+__kernel void base_histogram(__global const float *v, const int n, const int nbins,
+                             const float lo, const float scale, const int num,
+                             const int off, const float inv_den,
+                             __global int *hist)
+{
+    const int g = get_global_id(0), gs = get_global_size(0);
+    const int per = (n + gs - 1) / gs, a = g * per, b = min(n, a + per);
+    int cur = -1, run = 0;
+    for (int i = a; i < b; ++i) {
+        const float x = v[i];
+        int k = (int)clamp(floor((x - lo) * scale), 0.0f, (float)(nbins - 1));
+        if (k > 0 && x < base_edge(k, num, off, inv_den))
+            --k;
+        else if (k < nbins - 1 && x >= base_edge(k + 1, num, off, inv_den))
+            ++k;
+        if (k != cur) {
+            if (run) atomic_add(&hist[cur], run);
+            cur = k;
+            run = 0;
+        }
+        ++run;
+    }
+    if (run) atomic_add(&hist[cur], run);
+}

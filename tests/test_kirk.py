@@ -325,3 +325,36 @@ def test_banded_frames_match_one_band(method, rt):
     banded = Tonemapper("kirk11", "opencl", options=opts,
                         max_band_pixels=18 * 5).process(cube, wavelengths=lam)
     np.testing.assert_allclose(banded, one, rtol=2e-5, atol=2e-6)
+
+
+@pytest.mark.parametrize("percentiles", [(1.0, 99.0), (0.0, 100.0), (5.0, 60.0)])
+def test_base_range_counted_on_the_device_is_the_hosts(rt, percentiles):
+    """Durand & Dorsey 2002's base range from the device (extremes and bin counts of
+    kirk11.cl base_histogram, over two bands) is BaseRange's on the same float32 values
+    exactly: every bin edge, its float neighbours, values beyond [-12, 12], signed zeros
+    and denormals near the edge at 0, and a smooth base (long runs of one bin)."""
+    import pyopencl as cl
+    from ocl_tonemap.backends.opencl.kirk11 import KirkDevice
+    from ocl_tonemap.models.durand2002 import (BASE_HIST_BINS, BaseRange, base_hist_bins,
+                                               base_hist_edges)
+    num, off, den = base_hist_edges()
+    e = ((np.arange(BASE_HIST_BINS + 1) * num + off) / den).astype(np.float32)
+    rng = np.random.default_rng(3)
+    v = np.concatenate([
+        e, np.nextafter(e, np.float32(-np.inf)), np.nextafter(e, np.float32(np.inf)),
+        np.float32([-0.0, 0.0, 1e-45, -1e-45, 1e-38, -1e-38, -13, 13, -1e30, 1e30]),
+        np.sin(np.linspace(0, 20, 200_000)).astype(np.float32) * 3 + 1,   # smooth
+        rng.normal(0, 2, 100_001).astype(np.float32)]).astype(np.float32)
+    assert np.array_equal(base_hist_bins(e[:-1]), np.arange(BASE_HIST_BINS))
+    dev = KirkDevice(rt)
+    half = len(v) // 2
+    acc = dev.base_range(percentiles)
+    for part in (v[:half], v[half:]):
+        buf = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                        hostbuf=part)
+        acc.add(buf, part.size)
+    got = acc.result()
+    assert got == BaseRange(percentiles).add(v).result()
+    if percentiles != (0.0, 100.0):          # the counts themselves
+        assert np.array_equal(acc.acc.hist, np.bincount(base_hist_bins(v),
+                                                        minlength=BASE_HIST_BINS))

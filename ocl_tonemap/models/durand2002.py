@@ -9,6 +9,7 @@ the base/detail range reduction on log luminance (kirk11's range reduction).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -19,6 +20,36 @@ import numpy as np
 #: path bin the same values alike): log10 values in [-12, 12] in 2^16 bins,
 #: 3.7e-4 decade (0.085% in luminance) each, interpolated within the bin.
 BASE_HIST_LO, BASE_HIST_HI, BASE_HIST_BINS = -12.0, 12.0, 1 << 16
+
+
+@functools.lru_cache(maxsize=None)
+def base_hist_edges() -> tuple[int, int, int]:
+    """(num, off, den): bin k starts at e_k = (k num + off) / den, exactly (den a power
+    of two, |k num + off| < 2^24: every edge is a float32). The device bins a float32
+    value by comparing it with these edges (kirk11.cl ``base_histogram``), the host by
+    :func:`base_hist_bins`; both give floor((b - LO) BINS / (HI - LO)) exactly."""
+    from fractions import Fraction
+    step = Fraction(BASE_HIST_HI - BASE_HIST_LO) / BASE_HIST_BINS
+    off = Fraction(BASE_HIST_LO) * step.denominator
+    den = step.denominator
+    if off.denominator != 1 or den & (den - 1) or \
+            max(abs(off), abs(BASE_HIST_BINS * step.numerator + off)) >= 1 << 24:
+        raise ValueError("BASE_HIST_* give edges that are not all float32")
+    return step.numerator, int(off), den
+
+
+def base_hist_bins(b) -> np.ndarray:
+    """The bin k of each value, e_k <= b < e_k+1 (:func:`base_hist_edges`), clamped to
+    the bins (NaN: bin 0, as the device's clamp): floor((b - LO) BINS / (HI - LO)),
+    then moved by one where the value lies across the exact edge (b - LO rounds for
+    b within ~1e-15 of an edge at 0), as the device does."""
+    num, off, den = base_hist_edges()
+    b = np.asarray(b, np.float64)
+    x = ((b - BASE_HIST_LO) * BASE_HIST_BINS) / (BASE_HIST_HI - BASE_HIST_LO)
+    k = np.fmin(np.fmax(np.floor(x), 0.0), BASE_HIST_BINS - 1).astype(np.int64)
+    k -= (b < (k * num + off) / den) & (k > 0)
+    k += (b >= ((k + 1) * num + off) / den) & (k < BASE_HIST_BINS - 1)
+    return k
 
 
 class BaseRange:
@@ -46,10 +77,18 @@ class BaseRange:
         self.lo, self.hi = min(self.lo, float(b.min())), max(self.hi, float(b.max()))
         self.n += b.size
         if self.hist is not None:
-            scale = BASE_HIST_BINS / (BASE_HIST_HI - BASE_HIST_LO)
-            idx = np.clip(((b.astype(np.float64) - BASE_HIST_LO) * scale).astype(np.int64),
-                          0, BASE_HIST_BINS - 1)
-            self.hist += np.bincount(idx, minlength=BASE_HIST_BINS)
+            self.hist += np.bincount(base_hist_bins(b), minlength=BASE_HIST_BINS)
+        return self
+
+    def add_counts(self, hist, lo: float, hi: float, n: int) -> "BaseRange":
+        """Adds n values given by their extremes and their counts in the bins
+        (``hist``: BASE_HIST_BINS counts, None for the exact range): a device's."""
+        if n <= 0:
+            return self
+        self.lo, self.hi = min(self.lo, float(lo)), max(self.hi, float(hi))
+        self.n += int(n)
+        if self.hist is not None:
+            self.hist += np.asarray(hist, np.int64)
         return self
 
     def _percentile(self, p: float) -> float:

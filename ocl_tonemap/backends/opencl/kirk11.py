@@ -17,7 +17,8 @@ import numpy as np
 
 from ...models import lmsr
 from ...models.bilateral import RangeKernel, spatial_radius
-from ...models.durand2002 import BaseRange, compression
+from ...models.durand2002 import (BASE_HIST_BINS, BASE_HIST_HI, BASE_HIST_LO, BaseRange,
+                                   base_hist_edges, compression)
 from ...models.display import SHOULDER_KNEE
 from ...models.kirk2011 import (RHO, SIGMA_RANGE_LOG10, anchor_gain, display_matrix,
                                 model_scale, subset_solvers, white_norm)
@@ -40,7 +41,9 @@ class KirkDevice:
         self._k_sums = rt.kernel("kirk11.cl", "kirk11_sums")
         self._k_finish = rt.kernel("kirk11.cl", "kirk11_finish")
         self._k_spectrum = rt.kernel("colour.cl", "spectrum_to_lmsr")
+        self._k_hist = rt.kernel("kirk11.cl", "base_histogram")
         self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
+        self._hist = None                                      # base_histogram's counts
 
     def _buf(self, nbytes: int, host: np.ndarray | None = None):
         cl = self.cl
@@ -84,6 +87,13 @@ class KirkDevice:
         cl.enqueue_copy(self.rt.queue, host, self._partial)
         t = host.astype(np.float64).sum(axis=0)
         return float(t[0]), float(t[1])
+
+    #: base_histogram: at most this many work-items, each a stretch of >= HIST_MIN_RUN
+    HIST_ITEMS, HIST_MIN_RUN = 16384, 64
+
+    def base_range(self, percentiles) -> "DeviceBaseRange":
+        """A :class:`~ocl_tonemap.models.durand2002.BaseRange` fed with device buffers."""
+        return DeviceBaseRange(self, percentiles)
 
     def finish(self, rgb, n: int, gain: float, inv_white: float, knee: float) -> None:
         """``Kirk11.finish`` in place on ``n`` display-linear pixels (kernels/kirk11.cl
@@ -137,6 +147,47 @@ class KirkDevice:
         self._k_spectrum(q_, (round_up(n, 64),), (64,), src, np.int32(nc), np.int32(n),
                          np.float32(scale), self._buf(0, Wt), q, counts)
         return q, src, (backend.read_repairs(counts) if count else RepairCounts())
+
+
+class DeviceBaseRange:
+    """Durand & Dorsey 2002's base range over base layers on the device, band by band:
+    the exact extremes (``DeviceBilateral.z_range``) and, for percentiles, the counts
+    in BaseRange's bins (kirk11.cl ``base_histogram``, the host's bins exactly), so the
+    base layer no longer comes to the host (it did, for ``BaseRange.add``)."""
+
+    def __init__(self, dev: KirkDevice, percentiles):
+        self.dev, self.acc = dev, BaseRange(percentiles)
+        self.lo, self.hi, self.n = math.inf, -math.inf, 0
+        if not self.acc.exact:
+            cl = dev.cl
+            if dev._hist is None:
+                dev._hist = cl.Buffer(dev.rt.context, cl.mem_flags.READ_WRITE,
+                                      BASE_HIST_BINS * 4)
+            cl.enqueue_fill_buffer(dev.rt.queue, dev._hist, np.int32(0), 0,
+                                   BASE_HIST_BINS * 4)
+
+    def add(self, base, n: int) -> "DeviceBaseRange":
+        """Adds the n base values (log10, float32) of the device buffer ``base``."""
+        if n <= 0:
+            return self
+        dev = self.dev
+        lo, hi = dev.bil.z_range(base, n, RangeKernel("difference", SIGMA_RANGE_LOG10))
+        self.lo, self.hi, self.n = min(self.lo, lo), max(self.hi, hi), self.n + n
+        if not self.acc.exact:
+            num, off, den = base_hist_edges()
+            items = max(1, min(dev.HIST_ITEMS, n // dev.HIST_MIN_RUN))
+            dev._k_hist(dev.rt.queue, (round_up(items, 64),), (64,), base, np.int32(n),
+                        np.int32(BASE_HIST_BINS), np.float32(BASE_HIST_LO),
+                        np.float32(BASE_HIST_BINS / (BASE_HIST_HI - BASE_HIST_LO)),
+                        np.int32(num), np.int32(off), np.float32(1.0 / den), dev._hist)
+        return self
+
+    def result(self) -> tuple[float, float]:
+        hist = None
+        if not self.acc.exact and self.n:
+            hist = np.empty(BASE_HIST_BINS, np.int32)
+            self.dev.cl.enqueue_copy(self.dev.rt.queue, hist, self.dev._hist)
+        return self.acc.add_counts(hist, self.lo, self.hi, self.n).result()
 
 
 class _Banded:
@@ -219,9 +270,7 @@ class KirkSchedule(NoPixelState):
             dev.bil.exact(logY, base, w, h, 0, 0, h, sig, rk)
         else:
             dev.bil.fast(logY, base, w, h, sig, rk, op.bilateral.q_s, op.bilateral.q_r)
-        bh = np.empty(n, np.float32)
-        cl.enqueue_copy(q_, bh, base)
-        _, bmax = brange = BaseRange(s.base_percentiles).add(bh).result()
+        _, bmax = brange = dev.base_range(s.base_percentiles).add(base, n).result()
         c = compression(brange, s.target_contrast)
         out = dev._buf(n * 12)
         blend = frame.wavelengths is None
@@ -350,11 +399,9 @@ class KirkSchedule(NoPixelState):
                 dev.bil.slice(rows[3], out, w, nr, y0, y0, nr, geom, rk)
             return out, rows
 
-        acc = BaseRange(s.base_percentiles)
+        acc = dev.base_range(s.base_percentiles)
         for y0, nr in bands:
-            bh = np.empty(nr * w, np.float32)
-            cl.enqueue_copy(q_, bh, base(y0, nr, False)[0])
-            acc.add(bh)
+            acc.add(base(y0, nr, False)[0], nr * w)
         _, bmax = brange = acc.result()
         c = compression(brange, s.target_contrast)
         u = op.display.white_cd / op.display.unit_cd
