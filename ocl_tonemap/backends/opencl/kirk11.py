@@ -43,7 +43,7 @@ class KirkDevice:
         self._k_spectrum = rt.kernel("colour.cl", "spectrum_to_lmsr")
         self._k_hist = rt.kernel("kirk11.cl", "base_histogram")
         self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
-        self._hist = None                                      # base_histogram's counts
+        self._hist = self._buf(BASE_HIST_BINS * 4)             # base_histogram's counts
 
     def _buf(self, nbytes: int, host: np.ndarray | None = None):
         cl = self.cl
@@ -159,12 +159,8 @@ class DeviceBaseRange:
         self.dev, self.acc = dev, BaseRange(percentiles)
         self.lo, self.hi, self.n = math.inf, -math.inf, 0
         if not self.acc.exact:
-            cl = dev.cl
-            if dev._hist is None:
-                dev._hist = cl.Buffer(dev.rt.context, cl.mem_flags.READ_WRITE,
-                                      BASE_HIST_BINS * 4)
-            cl.enqueue_fill_buffer(dev.rt.queue, dev._hist, np.int32(0), 0,
-                                   BASE_HIST_BINS * 4)
+            dev.cl.enqueue_fill_buffer(dev.rt.queue, dev._hist, np.int32(0), 0,
+                                       BASE_HIST_BINS * 4)
 
     def add(self, base, n: int) -> "DeviceBaseRange":
         """Adds the n base values (log10, float32) of the device buffer ``base``."""
