@@ -86,7 +86,7 @@ __kernel void scene_to_working4(__global const float *src, const int channels, c
     const int lid = get_local_id(0);
     if (lid < NREPAIR) lc[lid] = 0;
     barrier(CLK_LOCAL_MEM_FENCE);
-    const int q = get_global_id(0), i0 = 4 * q;
+    const int q = get_global_id(0), i0 = ITEM_PIXELS(4) * q;
     bool done = false;
     if (VECTOR_PIXELS && i0 + 3 < n && (channels == 3 || channels == 4)) {   /* common.h */
         float4 r, g, b;
@@ -117,7 +117,7 @@ __kernel void scene_to_working4(__global const float *src, const int channels, c
         }
     }
     if (!done) {
-        for (int i = i0; i < min(i0 + 4, n); ++i)
+        for (int i = i0; i < min(i0 + ITEM_PIXELS(4), n); ++i)
             working_pixel(src, channels, i, scale, rgb, Y, Ys, lc, count_lo, count_hi);
     }
     barrier(CLK_LOCAL_MEM_FENCE);

@@ -25,8 +25,17 @@
  * code anyway, and its compiler may round a vector body's formula apart from the
  * scalar one by an ulp (seen on NVIDIA: ledda04's banded frames then differed from whole
  * ones where a band's pixel sat at another place in its quad); there every pixel takes
- * the scalar path, so a pixel's value does not depend on where it lies. */
+ * the scalar path, so a pixel's value does not depend on where it lies.
+ * -D by the runtime (Runtime.vector_pixels: DEVICE_CPU unless OCLTM_VECTOR_PIXELS says). */
+#ifndef VECTOR_PIXELS
 #define VECTOR_PIXELS DEVICE_CPU
+#endif
+/* The pixels a work-item of such a kernel (written for K a work-item) takes: K with the
+ * vector body, else one, so that neighbouring work-items read neighbouring pixels
+ * (coalesced loads on GPUs: on the H100, K consecutive pixels an item had left
+ * ledda04_step4 at 0.40 of the copy roofline, one an item runs it at 1.09). The host
+ * launches Runtime.pixel_items(n, K) items. */
+#define ITEM_PIXELS(K) (VECTOR_PIXELS ? (K) : 1)
 /* Work-group sums of float4 records into partial[group] (local size: a power of two;
  * scratch: one float4 per work-item). The host adds the groups (in float64). */
 inline void group_sum4(__local float4 *scratch, const float4 v, __global float4 *partial)

@@ -27,13 +27,13 @@ __kernel void durand00_map4(__global const float *rgb, __global const float *Y,
                             __global const float *Ys, __global float *out, const int n,
                             __constant const float *p)
 {
-    const int q = get_global_id(0), i0 = 4 * q;
+    const int q = get_global_id(0), i0 = ITEM_PIXELS(4) * q;
     if (i0 >= n) return;
     const float m_cone = p[P_m_cone];
     const float rod_r = p[P_rod_r], rod_g = p[P_rod_g], rod_b = p[P_rod_b];
     const float inv_white = p[P_inv_white], knee = p[P_knee];
     if (!VECTOR_PIXELS || i0 + 4 > n) {
-        for (int i = i0; i < min(i0 + 4, n); ++i) {
+        for (int i = i0; i < min(i0 + ITEM_PIXELS(4), n); ++i) {
             const float3 o = fmin(m_cone * vload3(i, rgb) + Ys[i] * (float3)(rod_r, rod_g, rod_b),
                                   SIGNAL_CEILING);
             vstore3(clamp(shoulder3(o, inv_white, knee), 0.0f, DISPLAY_LINEAR_MAX), i, out);

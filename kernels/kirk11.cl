@@ -200,9 +200,10 @@ __kernel void kirk11_finish(__global float *rgb, const int n, const float gain,
                             const float inv_white, const float knee)
 {
     const int q = get_global_id(0);
-    if (4 * q >= n) return;
-    if (!VECTOR_PIXELS || 4 * q + 4 > n) {        /* common.h */
-        for (int i = 4 * q; i < min(4 * q + 4, n); ++i) {
+    const int i0 = ITEM_PIXELS(4) * q;            /* common.h */
+    if (i0 >= n) return;
+    if (!VECTOR_PIXELS || i0 + 4 > n) {
+        for (int i = i0; i < min(i0 + ITEM_PIXELS(4), n); ++i) {
             const float3 c = shoulder3(fmin(vload3(i, rgb) * gain, SIGNAL_CEILING),
                                        inv_white, knee);
             vstore3(clamp(c, 0.0f, DISPLAY_LINEAR_MAX), i, rgb);

@@ -218,10 +218,10 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
                            const float ln_global_c, const float inv_white, const float knee,
                            const int ward)
 {
-    const int q = get_global_id(0), i0 = 4 * q;
+    const int q = get_global_id(0), i0 = ITEM_PIXELS(4) * q;
     if (i0 >= n) return;
     if (!VECTOR_PIXELS || i0 + 4 > n) {            /* common.h */
-        for (int i = i0; i < min(i0 + 4, n); ++i) {
+        for (int i = i0; i < min(i0 + ITEM_PIXELS(4), n); ++i) {
             __global const float *s = state + i;
             float ic = Ic[i];
             if (strength < 1.0f)
@@ -282,9 +282,9 @@ __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
     __local int lrestart;
     if (get_local_id(0) == 0) lrestart = 0;
     barrier(CLK_LOCAL_MEM_FENCE);
-    const int q = get_global_id(0), i0 = 4 * q;
+    const int q = get_global_id(0), i0 = ITEM_PIXELS(4) * q;
     if (!VECTOR_PIXELS || i0 + 4 > n) {            /* common.h */
-        for (int i = i0; i < min(i0 + 4, n); ++i)
+        for (int i = i0; i < min(i0 + ITEM_PIXELS(4), n); ++i)
             if (ledda04_step_one(Ic, Ir, rod_from_cone, rod_scale, state, stride, i, dt, init,
                                  E_init, change_log2, strength, ln_global_c, ln_global_r))
                 atomic_inc(&lrestart);

@@ -116,11 +116,11 @@ __kernel void pattanaik00_map8(__global const float *rgb, __global const float *
                                __global const float *Ys, __global float *out, const int n,
                                MAP_PARAMS)
 {
-    const int o = get_global_id(0), i0 = 8 * o;
+    const int o = get_global_id(0), i0 = ITEM_PIXELS(8) * o;
     if (i0 >= n) return;
     MAP_LOAD;
     if (!VECTOR_PIXELS || i0 + 8 > n) {          /* common.h */
-        for (int i = i0; i < min(i0 + 8, n); ++i) map_one(i, rgb, Y, Ys, out, MAP_ARGS);
+        for (int i = i0; i < min(i0 + ITEM_PIXELS(8), n); ++i) map_one(i, rgb, Y, Ys, out, MAP_ARGS);
         return;
     }
     const float8 Lc = vload8(o, Y);

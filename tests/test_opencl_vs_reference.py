@@ -193,7 +193,7 @@ def test_colour_stage_quads_equal_scalar(rt, channels, n):
     mf = cl.mem_flags
     sbuf = cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=src)
     got = []
-    for name, items in (("scene_to_working", n), ("scene_to_working4", -(-n // 4))):
+    for name, items in (("scene_to_working", n), ("scene_to_working4", rt.pixel_items(n, 4))):
         bufs = [cl.Buffer(rt.context, mf.READ_WRITE, n * k * 4) for k in (3, 1, 1)]
         counts = cl.Buffer(rt.context, mf.READ_WRITE | mf.COPY_HOST_PTR,
                            hostbuf=np.zeros(8, np.int32))
@@ -260,3 +260,46 @@ def test_profiling_hook_times_every_kernel_launched(tmp_path):
         if on:
             assert any(k.startswith("ledda04") for k in times["ledda04"])
             assert "bilateral_exact" in times["ledda04"] and "kirk11_shift" in times["kirk11"]
+
+
+_LANES_SCRIPT = r"""
+import sys, numpy as np
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.backends.opencl.runtime import get_runtime
+img = np.load(sys.argv[1])
+out = {"vector": np.array(get_runtime().vector_pixels)}
+for op in ("pattanaik00", "durand00", "ledda04", "kirk11"):
+    tm = Tonemapper(op, "opencl")
+    for k, dt in enumerate((None, 0.5)):           # fresh, then a time step
+        out[f"{op}{k}"] = tm.process(img * (1.0 + 9.0 * k), dt=dt)
+np.savez(sys.argv[2], **out)
+"""
+
+
+def test_one_pixel_a_work_item_equals_the_vector_path(tmp_path):
+    """The per-pixel kernels as GPUs run them (one pixel a work-item, scalar code:
+    OCLTM_VECTOR_PIXELS=0, in a process of its own) on this CPU device give every
+    operator's output of the vector path (several pixels a work-item), fresh and after
+    a time step, on a frame whose width leaves tails and holds bad values. The two
+    round each formula in their own order (float4 bodies), so within 2e-6."""
+    import os
+    import subprocess
+    import sys
+    img = hdr_image(29, 37, seed=5, lo=-6.0, hi=7.0)
+    img[3, 4] = (np.nan, np.inf, -1.0)
+    img[7, 36] = (1e-40, 0.0, 1e9)
+    np.save(tmp_path / "in.npy", img)
+    got = {}
+    for flag in ("0", "1"):
+        env = dict(os.environ, OCLTM_VECTOR_PIXELS=flag)
+        r = subprocess.run([sys.executable, "-c", _LANES_SCRIPT, str(tmp_path / "in.npy"),
+                            str(tmp_path / f"out{flag}.npz")], env=env, capture_output=True,
+                           text=True, timeout=600)
+        assert r.returncode == 0, r.stderr[-2000:]
+        got[flag] = dict(np.load(tmp_path / f"out{flag}.npz"))
+    assert not got["0"].pop("vector") and got["1"].pop("vector")
+    assert got["0"].keys() == got["1"].keys() and len(got["0"]) == 8
+    for key, a in got["0"].items():
+        b = got["1"][key]
+        assert np.isfinite(a).all(), key
+        np.testing.assert_allclose(a, b, rtol=2e-6, atol=1e-7, err_msg=key)

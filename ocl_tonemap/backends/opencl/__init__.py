@@ -138,7 +138,7 @@ class OpenCLBackend:
         else:
             cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
         cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)
-        self._colour(q, (round_up(-(-n // 4), 64),), (64,), b["src"], np.int32(channels), np.int32(n),
+        self._colour(q, (round_up(self.rt.pixel_items(n, 4), 64),), (64,), b["src"], np.int32(channels), np.int32(n),
                      np.float32(scale), b["rgb"], b["Y"], b["Ys"], b["counts"],
                      np.int32(lo * width), np.int32(hi * width))
         return self.read_repairs(b["counts"]) if count else RepairCounts()
@@ -215,7 +215,7 @@ class OpenCLBackend:
         knl = self.rt.kernel(call.file, call.kernel, index_defines(names))
         p = self.constant(np.array([v for _, v in call.params] or [0.0], np.float32))
         extra = tuple(self.constant(b) for b in call.buffers)
-        items = -(-max(n, 1) // max(1, int(call.pixels_per_item)))
+        items = self.rt.pixel_items(max(n, 1), call.pixels_per_item)
         knl(self.rt.queue, (round_up(items, 64),), (64,), rgb, Y, Ys, out, np.int32(n), p,
             *extra)
 

@@ -296,7 +296,7 @@ class LeddaSchedule(PixelStateMixin):
                 if not init:
                     cl.enqueue_copy(q, st, read_rows(self._host, self.planes, 0, h))
             rods = stats.values["rods"]
-            items = -(-n // 4) if self._step_vector else n
+            items = be.rt.pixel_items(n, 4) if self._step_vector else n
             self._k_step(q, (round_up(items, 64),), (64,), ic, ir, i32(0 if rods else 1),
                          f32(op.rod_ratio), st, i32(n), i32(n), f32(dt), i32(1 if init else 0),
                          f32(L.E_MAX), f32(op.settings.change_log10 * math.log2(10.0)), counts,
@@ -343,7 +343,7 @@ class LeddaSchedule(PixelStateMixin):
                 cl.enqueue_copy(q, st, read_rows(self._host, self.planes, y0, y0 + nr))
             else:
                 ic, st = stats.planes["I_c"], self._dev[0]
-            items = -(-n // 4) if self._map_vector else n
+            items = be.rt.pixel_items(n, 4) if self._map_vector else n
             self._k_map(q, (round_up(items, 64),), (64,), be.bufs["rgb"], i32(0), ic, st, i32(n),
                         i32(n), f32(sd), f32(1.0 / op.display.unit_cd), be.bufs["out"], strength,
                         lgc, f32(1.0 / white), f32(knee), i32(op.ward))

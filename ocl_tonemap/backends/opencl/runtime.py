@@ -131,6 +131,19 @@ class Runtime:
         k = _kernel(self.context, self.device, file, name, tuple(defines))
         return _TimedKernel(k, name) if PROFILING else k
 
+    @property
+    def vector_pixels(self) -> bool:
+        """Whether per-pixel kernels take several pixels a work-item in vector types
+        (``common.h`` ``VECTOR_PIXELS``; :func:`vector_pixels`)."""
+        return vector_pixels(self.device)
+
+    def pixel_items(self, n: int, k: int) -> int:
+        """Work-items for ``n`` pixels of a per-pixel kernel written for ``k`` pixels a
+        work-item: ceil(n / k) on CPU devices, ``n`` elsewhere (``common.h``
+        ``ITEM_PIXELS``: one pixel an item, neighbouring items on neighbouring pixels)."""
+        n, k = max(int(n), 0), max(int(k), 1)
+        return -(-n // k) if self.vector_pixels else n
+
     def max_alloc_bytes(self) -> int:
         return int(self.device.max_mem_alloc_size)
 
@@ -200,15 +213,29 @@ def index_defines(names, prefix: str = "P_") -> tuple:
     return tuple((f"{prefix}{n}", i) for i, n in enumerate(names))
 
 
+def vector_pixels(device) -> bool:
+    """Whether the per-pixel kernels on ``device`` take several pixels a work-item in
+    vector types (CPU devices: PoCL vectorises within a work-item only) or one pixel
+    a work-item in scalar code (other devices: coalesced loads, and a pixel's value
+    cannot depend on its lane). ``OCLTM_VECTOR_PIXELS=0|1`` in the environment forces
+    one or the other: the GPU path tested on a CPU device. Set it before the process
+    starts: built programs are kept for the life of the process."""
+    forced = os.environ.get("OCLTM_VECTOR_PIXELS", "").strip()
+    if forced in ("0", "1"):
+        return forced == "1"
+    return bool(device.type & _cl().device_type.CPU)
+
+
 @functools.lru_cache(maxsize=None)
 def _build(context, device, files: tuple[str, ...], defines: tuple = ()):
     cl = _cl()
     kdir = kernel_dir()
     src = "\n".join((kdir / f).read_text() for f in ("common.h", *files))
     # No -cl-fast-relaxed-math: the kernels rely on IEEE inf/0 behaviour at the
-    # extremes (documented in docs/models.md).
+    # extremes (docs/models.md); measured, it bought no time (docs/architecture.md).
     cpu = int(bool(device.type & cl.device_type.CPU))      # common.h share_range
-    opts = ["-cl-std=CL1.2", f"-DDEVICE_CPU={cpu}"] + \
+    opts = ["-cl-std=CL1.2", f"-DDEVICE_CPU={cpu}",
+            f"-DVECTOR_PIXELS={int(vector_pixels(device))}"] + \
         [f"-D{k}={define_value(v)}" for k, v in defines]
     return cl.Program(context, src).build(options=opts, devices=[device])
 
