@@ -1287,11 +1287,16 @@ def main(argv=None) -> int:
     if rf:
         lines += roofline_md(rf, *rsize)
     else:
-        lines += ["## 3. Roofline", "", "The profiling run failed (see the log).", ""]
+        why = ("The profiling run failed (see the log)." if "roofline" in sections
+               else "Not run (--sections).")
+        lines += ["## 3. Roofline", "", why, ""]
     if cmd_lines:
         lines += cmd_lines
     else:
-        lines += ["## 4. Whole command", "", "Skipped (--quick or --no-commands).", ""]
+        why = ("Not run (--sections)." if "commands" not in sections
+               else "Skipped (--quick or --no-commands)." if a.quick or a.no_commands
+               else "No results (see the log).")
+        lines += ["## 4. Whole command", "", why, ""]
     text = "\n".join(lines) + "\n"
     tmp = a.out + ".tmp"
     with open(tmp, "w") as fh:
