@@ -138,9 +138,9 @@ class OpenCLBackend:
         else:
             cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
         cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)
-        self._colour(q, (round_up(self.rt.pixel_items(n, 4), 64),), (64,), b["src"], np.int32(channels), np.int32(n),
-                     np.float32(scale), b["rgb"], b["Y"], b["Ys"], b["counts"],
-                     np.int32(lo * width), np.int32(hi * width))
+        self._colour(q, (round_up(self.rt.pixel_items(n, 4), 64),), (64,), b["src"],
+                     np.int32(channels), np.int32(n), np.float32(scale), b["rgb"], b["Y"],
+                     b["Ys"], b["counts"], np.int32(lo * width), np.int32(hi * width))
         return self.read_repairs(b["counts"]) if count else RepairCounts()
 
     def read_repairs(self, counts) -> RepairCounts:

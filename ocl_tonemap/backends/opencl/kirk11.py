@@ -100,8 +100,9 @@ class KirkDevice:
         kirk11_finish): the gain under the signal ceiling, the shoulder (knee 0: none),
         the clamp."""
         if n > 0:
-            self._k_finish(self.rt.queue, (round_up(self.rt.pixel_items(n, 4), 64),), (64,), rgb, np.int32(n),
-                           np.float32(gain), np.float32(inv_white), np.float32(knee))
+            self._k_finish(self.rt.queue, (round_up(self.rt.pixel_items(n, 4), 64),), (64,),
+                           rgb, np.int32(n), np.float32(gain), np.float32(inv_white),
+                           np.float32(knee))
 
     def shift_rgb(self, rgb: np.ndarray, area: float, k1: float, k2: float, gain: float,
                   M: np.ndarray, D: np.ndarray, xyz) -> tuple[np.ndarray, float]:
