@@ -470,6 +470,44 @@ def test_effect_settings_validation():
     assert EffectSettings.for_operator("pattanaik00").flare == "off"
 
 
+def test_planckian_locus_table_is_colour_sciences():
+    """The vendored locus (data/planckian_locus.json) is colour-science's blackbody
+    (u, v) at its temperatures, and CCT/Duv found on it agree with colour-science's
+    Ohno 2013 over 1500-25000 K and |Duv| <= 0.02 (both ways)."""
+    import warnings
+    from ocl_tonemap.models import planckian as P
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import colour
+        mired, L, _ = P._locus()
+        assert len(mired) == len(P.table_mireds()) and mired[0] == 10.0 and mired[-1] == 1000.0
+        pick = np.r_[0:len(mired):97, len(mired) - 1]
+        np.testing.assert_allclose(L[pick],
+                                   colour.temperature.CCT_to_uv_Planck1900(1e6 / mired[pick]),
+                                   rtol=1e-12)
+        for T in np.geomspace(1500.0, 25000.0, 23):
+            for duv in (-0.02, -0.006, -1e-4, 0.0, 0.003, 0.02):
+                uv = colour.temperature.CCT_to_uv_Ohno2013(np.array([T, duv]))
+                np.testing.assert_allclose(P.CCT_Duv_to_uv(T, duv), uv, atol=2e-7)
+                cct, d = P.uv_to_CCT_Duv(uv)
+                assert abs(cct - T) <= 2e-5 * T and abs(d - duv) <= 2e-7, (T, duv, cct, d)
+                ref = colour.temperature.uv_to_CCT_Ohno2013(uv)
+                assert abs(cct - ref[0]) <= 2e-5 * T and abs(d - ref[1]) <= 2e-6
+
+
+def test_estimated_illuminant_needs_no_colour_science_import():
+    """plausible_illuminant runs in every frame that estimates the illuminant: it must
+    not import colour-science (0.5 s), checked in a fresh interpreter."""
+    import subprocess
+    import sys
+    code = ("import sys; from ocl_tonemap.models.durand2000 import plausible_illuminant; "
+            "v = plausible_illuminant([1.2, 0.8, 1.3]); "
+            "assert 'colour' not in sys.modules, 'colour imported'; print(v)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr[-1500:]
+
+
 def test_estimated_illuminant_stays_on_the_planckian_band():
     """Real light sources lie near the Planckian locus: an estimate is held there
     (|Duv| <= 0.006), so coloured lamps or a lawn cannot make a magenta or green

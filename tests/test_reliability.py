@@ -313,8 +313,14 @@ def test_streamed_frames_equal_whole_ones(tmp_path, op, extra, ext, alpha):
     assert main(["run", src, whole, *common]) == 0
     assert main(["run", src, streamed, *common, "--max-memory", "8"]) == 0
     a, b = oiio.ImageBuf(whole), oiio.ImageBuf(streamed)
-    tol = 1e-5 if ext == ".exr" else 1.0 / 255
-    np.testing.assert_allclose(b.get_pixels(oiio.FLOAT), a.get_pixels(oiio.FLOAT), atol=tol)
+    pa, pb = a.get_pixels(oiio.FLOAT), b.get_pixels(oiio.FLOAT)
+    if ext == ".exr":
+        # half floats: the sums' order moves a value by ~1e-7, which can carry one in a
+        # few hundred thousand across a half rounding boundary (one half ulp, 2^-10)
+        np.testing.assert_allclose(pb, pa, rtol=2.0 ** -10, atol=1e-5)
+        assert np.mean(pb != pa) < 1e-4
+    else:
+        np.testing.assert_allclose(pb, pa, atol=1.0 / 255)
     assert "row bands" in b.spec().getattribute("ocltm:streamed")
     for k in ("ocltm:luminance_scale", "ocltm:input_colorspace", "ocltm:output_colorspace"):
         assert a.spec().getattribute(k) == b.spec().getattribute(k), k

@@ -255,20 +255,19 @@ ESTIMATE_CCT_RANGE = (1500.0, 25000.0)
 
 def plausible_illuminant(rgb) -> np.ndarray:
     """An illuminant estimate (working RGB) moved onto the band of real light
-    sources around the Planckian locus (:data:`ESTIMATE_DUV_MAX`), normalised."""
-    import warnings
+    sources around the Planckian locus (:data:`ESTIMATE_DUV_MAX`), normalised.
+    CCT and Duv as Ohno 2013 defines them (:mod:`.planckian`)."""
+    from .planckian import CCT_Duv_to_uv, uv_to_CCT_Duv
     v = normalise_illuminant(rgb)
     XYZ = RGB709_TO_XYZ @ v
     if not (XYZ.sum() > 0):
         return v
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        import colour
-        uv = colour.xy_to_UCS_uv(XYZ[:2] / XYZ.sum())
-        cct, duv = colour.temperature.uv_to_CCT_Ohno2013(uv)
-        cct = float(np.clip(cct, *ESTIMATE_CCT_RANGE))
-        duv = float(np.clip(duv, -ESTIMATE_DUV_MAX, ESTIMATE_DUV_MAX))
-        u, w = colour.temperature.CCT_to_uv_Ohno2013(np.array([cct, duv]))
+    x, y = XYZ[:2] / XYZ.sum()
+    d = -2.0 * x + 12.0 * y + 3.0                      # xy -> CIE 1960 (u, v)
+    cct, duv = uv_to_CCT_Duv((4.0 * x / d, 6.0 * y / d))
+    cct = float(np.clip(cct, *ESTIMATE_CCT_RANGE))
+    duv = float(np.clip(duv, -ESTIMATE_DUV_MAX, ESTIMATE_DUV_MAX))
+    u, w = CCT_Duv_to_uv(cct, duv)
     x, y = 3.0 * u / (2.0 * u - 8.0 * w + 4.0), 2.0 * w / (2.0 * u - 8.0 * w + 4.0)
     return xy_to_rgb(x, y)
 
