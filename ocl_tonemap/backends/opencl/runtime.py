@@ -131,10 +131,11 @@ class Runtime:
         k = _kernel(self.context, self.device, file, name, tuple(defines))
         return _TimedKernel(k, name) if PROFILING else k
 
-    @property
+    @functools.cached_property
     def vector_pixels(self) -> bool:
         """Whether per-pixel kernels take several pixels a work-item in vector types
-        (``common.h`` ``VECTOR_PIXELS``; :func:`vector_pixels`)."""
+        (``common.h`` ``VECTOR_PIXELS``; :func:`vector_pixels`). Asked once: the
+        device query costs ~0.1 ms, and this is read at every launch."""
         return vector_pixels(self.device)
 
     def pixel_items(self, n: int, k: int) -> int:
