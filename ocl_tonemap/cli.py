@@ -149,7 +149,7 @@ def _options(a, input_, output):
         display_peak=a.display_peak, display_black=a.display_black, unpremult=a.unpremult,
         encode=a.encode,
         preadapt=parse_preadapt(a.preadapt) if a.preadapt else None,
-        state_in=a.state_in, state_out=a.state_out, backend=a.backend or tier.backend,
+        state_in=a.state_in, state_out=a.state_out, backend=_backend(a, tier),
         device=a.device, quality=tier.name,
         out_bits=a.out_bits, plot=a.plot,
         plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
@@ -162,6 +162,17 @@ def _options(a, input_, output):
         cuts=parse_cuts(a.cuts),
         display_encode=a.display_encode or tier.display_encode,
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
+
+
+def _backend(a, tier) -> str:
+    """The backend a run uses. ``--backend`` given: that one (a broken or missing
+    OpenCL device is then an error, as is a ``--device`` naming a broken one).
+    Otherwise OpenCL on the first working device, else the float64 reference with one
+    warning line (``backends.resolve_backend``)."""
+    from .backends import resolve_backend
+    if a.backend:
+        return a.backend
+    return resolve_backend("auto" if tier.backend == "opencl" else tier.backend, a.device)
 
 
 def parse_cuts(text: str | None):
@@ -388,7 +399,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--at", required=True, help="elapsed times since the switch: T1,T2,... "
                    "seconds, or with an m suffix minutes (e.g. 1m,2m,4m,16m)")
     _add_run_args(p)
-    sub.add_parser("devices", help="list OpenCL devices")
+    p = sub.add_parser("devices", help="list OpenCL devices, each probed: ok or broken")
+    p.add_argument("--check", action="store_true",
+                   help="exit 1 when no device works (scripts, CI)")
     p = sub.add_parser("displays", help="list the OCIO config's displays and views")
     p.add_argument("--colorconfig")
     p = sub.add_parser("sample", help="write the built-in tunnel-drive sample (EXR, cd/m^2)")
@@ -445,6 +458,33 @@ def _shot_command(a, argv: list[str]) -> int:
     return 0
 
 
+def _devices(check: bool = False) -> int:
+    """``devices``: every OpenCL device with its probe verdict, and which one a run
+    takes by default."""
+    from .backends.opencl import probe
+    from .backends.opencl.runtime import (INSTALL_HINT, OpenCLUnavailable, describe_device,
+                                          device_status, list_devices)
+    devs = list_devices()
+    if not devs:
+        if check:
+            print(f"no OpenCL device: {INSTALL_HINT}")
+            return 1
+        raise OpenCLUnavailable(INSTALL_HINT)
+    for k, d in devs:
+        v = probe.verdict(d)
+        print(f"{k}  {describe_device(d)}, driver {d.driver_version.strip()}: "
+              + ("ok" if v.ok else f"broken: {v.reason}"))
+    logging.getLogger("ocl_tonemap").setLevel(logging.ERROR)   # verdicts said above
+    dev, _ = device_status(os.environ.get("PYOPENCL_CTX"))
+    if dev is None:
+        print(f"no working device: runs fall back to --backend reference; {probe.fix_hint()}")
+        return 1 if check else 0
+    else:
+        key = next(k for k, d in devs if d == dev)
+        print(f"default: {key} {dev.name.strip()}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     a = build_parser().parse_args(argv)
     level = logging.WARNING if a.quiet else (logging.INFO if a.verbose else logging.WARNING)
@@ -456,14 +496,7 @@ def main(argv: list[str] | None = None) -> int:
     from .imageio import FrameError
     try:
         if a.cmd == "devices":
-            from .backends.opencl.runtime import OpenCLUnavailable, describe_device, list_devices
-            devs = list_devices()
-            if not devs:
-                raise OpenCLUnavailable("no OpenCL platform found; install with "
-                                        '`pip install "pyopencl[pocl]"`')
-            for k, d in devs:
-                print(f"{k}  {describe_device(d)}")
-            return 0
+            return _devices(a.check)
         if a.cmd == "displays":
             from .colour import list_displays, load_config, resolve_config_source
             cfg = load_config(a.colorconfig)

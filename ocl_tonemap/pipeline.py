@@ -74,7 +74,9 @@ class Tonemapper:
     Parameters
     ----------
     operator : registry name (``pattanaik00``; ``operators.registry()`` lists them).
-    backend : ``"opencl"`` (default) or ``"reference"`` (float64 NumPy).
+    backend : ``"opencl"``, ``"reference"`` (float64 NumPy) or ``"auto"``; default
+        (None): the quality tier's, with OpenCL falling back to the reference backend
+        with a warning where no OpenCL device works (``backends.resolve_backend``).
     metering : metering spec string or :class:`MeteringSpec` (``logmean``).
     display : the display observer (:class:`DisplaySpec`); SDR 100 cd/m^2 by default.
     preadapt : ``(L_cd, seconds_or_None)`` initial adaptation; default: fully
@@ -104,7 +106,8 @@ class Tonemapper:
         op_cls = get_operator(operator)
         tier = quality_tier(quality)
         self.quality = tier.name
-        backend = backend or tier.backend
+        backend = backend or ("auto" if tier.backend == "opencl" and device is None
+                              else tier.backend)
         options = {**tier.options_for(o.name for o in op_cls.options), **(options or {})}
         if effects is None:
             effects = EffectSettings.for_operator(operator, **dict(tier.effects))

@@ -1,10 +1,74 @@
+import os
+
 import numpy as np
 import pytest
+
+#: Tests that need a working OpenCL device carry ``@pytest.mark.requires_opencl``
+#: (module-wide ``pytestmark`` where every test does; any test using the ``rt``
+#: fixture is marked automatically). Where no device works they fail in CI
+#: (``CI=true``) with one message saying why, and skip with it elsewhere.
+_STATUS: list = []
+
+
+def opencl_status():
+    """(device, None) for the device the tests run on, or (None, why)."""
+    if not _STATUS:
+        from ocl_tonemap.backends.opencl.runtime import device_status
+        try:
+            dev, why = device_status()
+        except Exception as exc:            # noqa: BLE001 -- reported, not hidden
+            dev, why = None, exc
+        _STATUS.append((dev, None if dev is not None else str(why)))
+    return _STATUS[0]
+
+
+def _in_ci() -> bool:
+    return os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "requires_opencl: needs a working OpenCL device "
+                            "(fails in CI, skips elsewhere, where none works)")
+
+
+def _device_line() -> str:
+    from ocl_tonemap.backends.opencl.runtime import describe_device
+    dev, why = opencl_status()
+    if dev is None:
+        return f"OpenCL: no working device ({why})"
+    return f"OpenCL device: {describe_device(dev)}, driver {dev.driver_version.strip()}"
+
+
+def pytest_report_header(config):
+    return _device_line()
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """The device the OpenCL tests ran on, in the log even under -q (CI)."""
+    if _STATUS:
+        terminalreporter.write_line(_device_line())
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if "rt" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.requires_opencl)
+
+
+def pytest_runtest_setup(item):
+    if item.get_closest_marker("requires_opencl") is None:
+        return
+    dev, why = opencl_status()
+    if dev is None:
+        msg = f"requires_opencl: {why}"
+        if _in_ci():
+            pytest.fail(msg, pytrace=False)
+        pytest.skip(msg)
 
 
 @pytest.fixture(scope="session")
 def rt():
-    """The OpenCL runtime (PoCL in CI). Tests need a real OpenCL device."""
+    """The OpenCL runtime (the first working device). Tests need a real one."""
     from ocl_tonemap.backends.opencl.runtime import get_runtime
     return get_runtime()
 

@@ -1,8 +1,11 @@
 """OpenCL runtime: device choice, program build and cache.
 
 Device choice, in order: an explicit ``--device`` spec, ``$PYOPENCL_CTX``
-(pyopencl's own convention, ``"platform:device"`` indices), the first GPU of
-any platform, else the first CPU device (PoCL's ``pthread`` device in CI).
+(pyopencl's own convention, ``"platform:device"`` indices), else the first working
+GPU of any platform, else the first working CPU device (:data:`CPU_PREFERENCE`).
+Every device is probed before use (``probe.py``): one that cannot build and run the
+probe kernel is skipped with one warning line naming the driver and the fix; a device
+named explicitly that is broken is an error (:class:`DeviceBroken`).
 
 Programs are built once per (context, kernel file set) per process and kept in
 a module cache; pyopencl additionally keeps compiled binaries on disk, so a
@@ -12,9 +15,12 @@ second process skips the compiler.
 from __future__ import annotations
 
 import functools
+import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
+
+log = logging.getLogger("ocl_tonemap")
 
 
 INSTALL_HINT = (
@@ -25,12 +31,32 @@ INSTALL_HINT = (
 
 
 class OpenCLUnavailable(RuntimeError):
-    """Raised when no usable OpenCL platform or device exists."""
+    """Raised when no usable OpenCL platform or device exists. ``detail``: what is
+    wrong, ``fix``: how to mend it (``str()`` is both)."""
+
+    def __init__(self, detail: str, fix: str = ""):
+        super().__init__(f"{detail}; {fix}" if fix else detail)
+        self.detail, self.fix = detail, fix
 
 
-def _cl():
+class DeviceBroken(OpenCLUnavailable):
+    """A device named explicitly (``--device``, ``PYOPENCL_CTX``) failed its probe."""
+
+
+class KernelBuildError(OpenCLUnavailable):
+    """A kernel program failed to build on a device that had passed its probe."""
+
+
+@functools.lru_cache(maxsize=None)
+def cl_api():
+    from . import icd
+    icd.register()                      # before the ICD loader's first look
     try:
+        import warnings
         import pyopencl as cl
+        # A driver's build log on success (Intel's says "Compilation started ... done")
+        # is not a warning to a user; a failing build raises and is reported.
+        warnings.filterwarnings("ignore", category=cl.CompilerWarning)
     except ImportError as exc:  # pragma: no cover - dependency is required
         raise OpenCLUnavailable(f"pyopencl is not importable ({exc}); {INSTALL_HINT}") from exc
     return cl
@@ -44,7 +70,7 @@ def kernel_dir() -> Path:
 
 def list_devices() -> list[tuple[str, object]]:
     """All OpenCL devices as ``("P:D", device)`` pairs; empty when none."""
-    cl = _cl()
+    cl = cl_api()
     try:
         platforms = cl.get_platforms()
     except cl.Error:
@@ -61,7 +87,7 @@ def list_devices() -> list[tuple[str, object]]:
 
 
 def describe_device(dev) -> str:
-    cl = _cl()
+    cl = cl_api()
     kind = cl.device_type.to_string(dev.type)
     return (f"{dev.name.strip()} [{kind}] on {dev.platform.name.strip()} "
             f"({dev.version.strip()}), {dev.max_compute_units} CU, "
@@ -69,45 +95,109 @@ def describe_device(dev) -> str:
             f"max alloc {dev.max_mem_alloc_size / 2**30:.2f} GiB")
 
 
+#: Among working CPU devices, the automatic choice takes the first platform whose name
+#: holds one of these, in this order (measured: README "OpenCL drivers").
+CPU_PREFERENCE = ("portable computing language", "intel(r) opencl")
+
+_warned: set = set()
+
+
+def _match(spec: str, devices):
+    """The listed device a ``--device`` spec names (see :func:`choose_device`)."""
+    cl = cl_api()
+    s = spec.strip()
+    listing = "; ".join(f"{k} {d.name.strip()}" for k, d in devices)
+    if s in ("gpu", "cpu"):
+        want = cl.device_type.GPU if s == "gpu" else cl.device_type.CPU
+        found = [(k, d) for k, d in devices if d.type & want]
+        if not found:
+            raise OpenCLUnavailable(f"no OpenCL {s.upper()} device; available: {listing}")
+        return found
+    if ":" in s or s.isdigit():
+        parts = s.split(":")
+        key = f"{parts[0]}:{parts[1] if len(parts) > 1 and parts[1] else 0}"
+        for k, d in devices:
+            if k == key:
+                return [(k, d)]
+        raise OpenCLUnavailable(f"no OpenCL device {key!r}; available: {listing}")
+    low = s.lower()
+    found = [(k, d) for k, d in devices
+             if any(low in t.lower() for t in (d.name, d.platform.name, d.platform.version))]
+    if not found:
+        raise OpenCLUnavailable(f"no OpenCL device matches {spec!r}; available: {listing}")
+    return found
+
+
+def _automatic_order(devices):
+    """GPUs first (in listed order), then CPU devices by :data:`CPU_PREFERENCE`, then
+    the rest."""
+    cl = cl_api()
+
+    def rank(item):
+        i, (_, d) = item
+        if d.type & cl.device_type.GPU:
+            return (0, 0, i)
+        pname = d.platform.name.lower()
+        pref = next((j for j, n in enumerate(CPU_PREFERENCE) if n in pname),
+                    len(CPU_PREFERENCE))
+        return (1, pref, i)
+    return [kd for _, kd in sorted(enumerate(devices), key=rank)]
+
+
 def choose_device(spec: str | None = None):
-    """Pick an OpenCL device.
+    """Pick a working OpenCL device.
 
     ``spec`` may be ``"P:D"`` (platform and device index as listed by
     ``ocl-tonemap devices``), ``"P"``, ``"gpu"``, ``"cpu"`` or a
-    case-insensitive substring of the platform or device name (``"pocl"``).
+    case-insensitive substring of the device or platform name or the platform's
+    version (``"pocl"``, ``"intel"``). A spec
+    (or ``$PYOPENCL_CTX``) whose devices all fail the probe raises
+    :class:`DeviceBroken`; without one, broken devices are skipped with a warning
+    and :class:`OpenCLUnavailable` says when none works.
     """
+    from . import probe
     devices = list_devices()
     if not devices:
         raise OpenCLUnavailable(INSTALL_HINT)
-    cl = _cl()
     spec = spec if spec else os.environ.get("PYOPENCL_CTX") or None
     if spec:
-        s = spec.strip()
-        if s in ("gpu", "cpu"):
-            want = cl.device_type.GPU if s == "gpu" else cl.device_type.CPU
-            for _, d in devices:
-                if d.type & want:
-                    return d
-            raise OpenCLUnavailable(f"no OpenCL {s.upper()} device; available: "
-                                    + "; ".join(f"{k} {d.name}" for k, d in devices))
-        if ":" in s or s.isdigit():
-            parts = s.split(":")
-            key = f"{parts[0]}:{parts[1] if len(parts) > 1 and parts[1] else 0}"
-            for k, d in devices:
-                if k == key:
-                    return d
-            raise OpenCLUnavailable(f"no OpenCL device {key!r}; available: "
-                                    + "; ".join(f"{k} {d.name}" for k, d in devices))
-        low = s.lower()
-        for _, d in devices:
-            if low in d.name.lower() or low in d.platform.name.lower():
+        found = _match(spec, devices)
+        for _, d in found:
+            if probe.verdict(d).ok:
                 return d
-        raise OpenCLUnavailable(f"no OpenCL device matches {spec!r}; available: "
-                                + "; ".join(f"{k} {d.name}" for k, d in devices))
-    for _, d in devices:
-        if d.type & cl.device_type.GPU:
-            return d
-    return devices[0][1]
+        k, d = found[0]
+        raise DeviceBroken(f"OpenCL device {k} {probe.describe_driver(d)} is broken: "
+                           f"{probe.verdict(d).reason}", probe.fix_hint(d))
+    broken = []
+    for k, d in _automatic_order(devices):
+        v = probe.verdict(d)
+        if not v.ok:
+            broken.append((k, d, v))
+            continue
+        for bk, bd, bv in broken:       # skipped for a working one: a line each, once
+            if probe.cache_key(bd) not in _warned:
+                _warned.add(probe.cache_key(bd))
+                log.warning("OpenCL device %s %s is broken, skipped: %s; %s", bk,
+                            probe.describe_driver(bd), bv.reason, probe.fix_hint(bd))
+        return d
+    raise OpenCLUnavailable("no working OpenCL device: " + "; ".join(
+        f"{k} {probe.describe_driver(d)} is broken: {v.reason}" for k, d, v in broken),
+        probe.fix_hint())
+
+
+def device_status(spec: str | None = None):
+    """``(device, None)`` for the device a run would use, or ``(None, exc)`` with the
+    :class:`OpenCLUnavailable` that says why there is none (no driver, or every device
+    broken). A spec naming a broken or absent device raises, as :func:`choose_device`
+    does."""
+    try:
+        return choose_device(spec), None
+    except DeviceBroken:
+        raise
+    except OpenCLUnavailable as exc:
+        if spec or os.environ.get("PYOPENCL_CTX"):
+            raise
+        return None, exc
 
 
 @dataclass
@@ -189,7 +279,7 @@ def kernel_times(reset: bool = True) -> dict:
 
 @functools.lru_cache(maxsize=None)
 def _runtime_for(device) -> Runtime:
-    cl = _cl()
+    cl = cl_api()
     ctx = cl.Context([device])
     props = cl.command_queue_properties.PROFILING_ENABLE if PROFILING else 0
     q = cl.CommandQueue(ctx, properties=props)
@@ -224,26 +314,38 @@ def vector_pixels(device) -> bool:
     forced = os.environ.get("OCLTM_VECTOR_PIXELS", "").strip()
     if forced in ("0", "1"):
         return forced == "1"
-    return bool(device.type & _cl().device_type.CPU)
+    return bool(device.type & cl_api().device_type.CPU)
+
+
+def build_options(device) -> list:
+    """Compiler options of every program (and of the probe kernel)."""
+    cl = cl_api()
+    # No -cl-fast-relaxed-math: the kernels rely on IEEE inf/0 behaviour at the
+    # extremes (docs/models.md); measured, it bought no time (docs/architecture.md).
+    cpu = int(bool(device.type & cl.device_type.CPU))      # common.h share_range
+    return ["-cl-std=CL1.2", f"-DDEVICE_CPU={cpu}",
+            f"-DVECTOR_PIXELS={int(vector_pixels(device))}"]
 
 
 @functools.lru_cache(maxsize=None)
 def _build(context, device, files: tuple[str, ...], defines: tuple = ()):
-    cl = _cl()
+    cl = cl_api()
     kdir = kernel_dir()
     src = "\n".join((kdir / f).read_text() for f in ("common.h", *files))
-    # No -cl-fast-relaxed-math: the kernels rely on IEEE inf/0 behaviour at the
-    # extremes (docs/models.md); measured, it bought no time (docs/architecture.md).
-    cpu = int(bool(device.type & cl.device_type.CPU))      # common.h share_range
-    opts = ["-cl-std=CL1.2", f"-DDEVICE_CPU={cpu}",
-            f"-DVECTOR_PIXELS={int(vector_pixels(device))}"] + \
-        [f"-D{k}={define_value(v)}" for k, v in defines]
-    return cl.Program(context, src).build(options=opts, devices=[device])
+    opts = build_options(device) + [f"-D{k}={define_value(v)}" for k, v in defines]
+    try:
+        return cl.Program(context, src).build(options=opts, devices=[device])
+    except cl.Error as exc:
+        from . import probe
+        probe.forget(device)            # the next start probes the driver again
+        raise KernelBuildError(
+            f"OpenCL kernel build failed: kernels/{', kernels/'.join(files)} on "
+            f"{probe.describe_driver(device)}: {probe.first_error_line(str(exc))}") from None
 
 
 @functools.lru_cache(maxsize=None)
 def _kernel(context, device, file: str, name: str, defines: tuple = ()):
-    cl = _cl()
+    cl = cl_api()
     return cl.Kernel(_build(context, device, (file,), defines), name)
 
 
