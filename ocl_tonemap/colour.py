@@ -417,8 +417,8 @@ class ColourPipeline:
         if key not in cache:
             proc = self.cfg.getProcessor(self.working, self.display, self.view,
                                          ocio.TRANSFORM_DIR_FORWARD)
-            cache[key] = bake_display_table(proc, form, size_3d,
-                                            description=f"{self.display} / {self.view}")
+            cache[key] = cached_display_table(proc, form, size_3d,
+                                              description=f"{self.display} / {self.view}")
         return cache[key]
 
     def set_display_encode(self, mode: str = "auto", backend: str = "opencl",
@@ -777,6 +777,42 @@ def bake_display_table(proc, form: str = "auto", size_3d: int = 65,
         if best.max_error > 16 * CODE_10BIT or best.max_error < CODE_10BIT / 2:
             break
     return best
+
+
+def cached_display_table(proc, form: str = "auto", size_3d: int = 65,
+                         description: str = "") -> DisplayTable:
+    """:func:`bake_display_table` kept in the user's cache (``display-tables/*.npz``):
+    a bake and its self-check cost ~0.1 s of every start. Keyed by OCIO's cache ID of
+    the processor (its transforms and LUT files' contents), the OCIO and project
+    versions and the bake's constants; a file that cannot be read is baked again."""
+    import dataclasses
+    import hashlib
+    import json
+    from . import __version__
+    from .models.display import DISPLAY_LINEAR_MAX
+    from .resources import user_cache_dir
+    ident = json.dumps([proc.getCacheID(), form, size_3d, ocio.GetVersion(), __version__,
+                        DISPLAY_LINEAR_MAX, SHAPER_EPS_1D, SHAPER_EPS_3D, NODES_PER_OCTAVE_1D,
+                        CODE_10BIT])
+    path = user_cache_dir() / "display-tables" / \
+        f"{hashlib.sha256(ident.encode()).hexdigest()[:32]}.npz"
+    fields = [f.name for f in dataclasses.fields(DisplayTable)]
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            kw = {k: (z[k] if z[k].ndim else z[k].item()) for k in fields}
+        kw["kind"], kw["shaper"] = str(kw["kind"]), str(kw["shaper"])
+        return DisplayTable(**{**kw, "description": description})
+    except (OSError, KeyError, ValueError, TypeError):
+        pass
+    table = bake_display_table(proc, form, size_3d, description=description)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.stem}.tmp{os.getpid()}.npz")
+        np.savez(tmp, **{k: getattr(table, k) for k in fields})
+        os.replace(tmp, path)
+    except OSError:
+        pass                                # no cache: baked again next time
+    return table
 
 
 def _checked(table: DisplayTable, cpu, probe: np.ndarray) -> DisplayTable:

@@ -3,6 +3,7 @@ source tree."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 
@@ -16,3 +17,14 @@ def package_data_dir(name: str, probe: str) -> Path:
     raise FileNotFoundError(f"{name}/{probe} not found in the installed package or the source tree")
 
 
+
+
+def user_cache_dir() -> Path:
+    """The user's cache folder for ocl-tonemap (device verdicts, ICD folders, baked
+    display tables): ``$OCLTM_CACHE_DIR``, else ``$XDG_CACHE_HOME/ocl-tonemap``, else
+    ``~/.cache/ocl-tonemap``. Everything there can be deleted at any time."""
+    own = os.environ.get("OCLTM_CACHE_DIR")
+    if own:
+        return Path(own)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "ocl-tonemap"

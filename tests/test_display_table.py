@@ -273,3 +273,27 @@ def test_png_filter_and_device_quantisation_keep_the_pixels(sample_dir, tmp_path
     np.testing.assert_array_equal(got["sub"], read(tmp_path / "f.0003.tif"))
     with pytest.raises(ValueError, match="png-filter"):
         JobOptions(input=pattern, output=str(tmp_path / "x.#.png"), png_filter="best")
+
+
+def test_cached_table_equals_a_fresh_bake_and_follows_the_transform(tmp_path, monkeypatch):
+    """The user-cache copy of a baked table is the bake, field for field; another
+    display (another processor cache ID) bakes its own; a damaged file is baked again."""
+    import dataclasses
+    monkeypatch.setenv("OCLTM_CACHE_DIR", str(tmp_path))
+    cfg = load_config("ocl-tonemap")
+    cp = ColourPipeline(cfg, "sRGB - Display")
+    proc = cfg.getProcessor(cp.working, cp.display, cp.view, colour.ocio.TRANSFORM_DIR_FORWARD)
+    first = colour.cached_display_table(proc, description="x")
+    files = list((tmp_path / "display-tables").glob("*.npz"))
+    assert len(files) == 1
+    again = colour.cached_display_table(proc, description="y")
+    fresh = colour.bake_display_table(proc, description="y")
+    for f in dataclasses.fields(colour.DisplayTable):
+        a, b = getattr(again, f.name), getattr(fresh, f.name)
+        assert np.array_equal(a, b) if isinstance(b, np.ndarray) else a == b, f.name
+    assert first.description == "x" and again.description == "y"
+    other = ColourPipeline(cfg, BUNDLED[-1][0], BUNDLED[-1][1])
+    other.display_table()
+    assert len(list((tmp_path / "display-tables").glob("*.npz"))) == 2
+    files[0].write_bytes(b"not a table")
+    assert colour.cached_display_table(proc).max_error == fresh.max_error

@@ -128,7 +128,9 @@ def test_devices_marks_the_broken_device(tmp_path):
     out = lines(r.stdout)
     assert any("Portable Computing Language" in ln and
                ln.endswith("broken: Invalid build option: -bogus-flag") for ln in out), out
-    assert "no working device" in out[-1] and "pip install intel-opencl-rt" in out[-1]
+    assert "no working device" in out[-1] and "fix: " in out[-1]
+    if icd.intel_library() is None:         # the fix names Intel's runtime where absent
+        assert "pip install intel-opencl-rt intel-cmplr-lib-rt" in out[-1]
     assert cli(["devices", "--check"], env, tmp_path).returncode == 1
     assert "Traceback" not in r.stderr
     # the verdict is cached, keyed with the PoCL setting that broke it
@@ -144,7 +146,7 @@ def test_run_falls_back_to_the_reference_with_one_warning(tmp_path, one_frame):
     assert r.returncode == 0, r.stderr
     err = lines(r.stderr)
     assert len(err) == 1 and err[0].startswith("ocl-tonemap WARNING: no working OpenCL device"), err
-    assert "reference backend" in err[0] and "slower" in err[0] and "fix: pip install" in err[0]
+    assert "reference backend" in err[0] and "slower" in err[0] and "fix: " in err[0]
     # the frames are the reference backend's, as --backend reference makes them
     ref = tmp_path / "ref.exr"
     r2 = cli(["run", one_frame, str(ref), "--out-bits", "float", "--backend", "reference"],

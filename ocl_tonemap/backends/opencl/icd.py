@@ -34,13 +34,8 @@ _done = False
 
 
 def cache_dir() -> Path:
-    """The user's cache folder for ocl-tonemap: ``$OCLTM_CACHE_DIR``, else
-    ``$XDG_CACHE_HOME/ocl-tonemap``, else ``~/.cache/ocl-tonemap``."""
-    own = os.environ.get("OCLTM_CACHE_DIR")
-    if own:
-        return Path(own)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "ocl-tonemap"
+    from ...resources import user_cache_dir
+    return user_cache_dir()
 
 
 def intel_library() -> Path | None:
