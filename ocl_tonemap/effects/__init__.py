@@ -35,6 +35,8 @@ info)``), run when enabled through ``Tonemapper(plugin_effects=[NAME, ...])``.
 
 from __future__ import annotations
 
+import functools
+
 import math
 from dataclasses import asdict, dataclass, replace
 
@@ -125,11 +127,17 @@ class Effects:
 
     STATE_KEY = _chromatic.STATE_KEY
 
+    @functools.cached_property
+    def _blur(self):
+        """The backend's device blur (flare, acuity), made on first use: its program
+        build is ~40 ms of a start on PoCL, for runs that may never blur."""
+        be = self.backend
+        return be.device_blur() if hasattr(be, "device_blur") else None
+
     def __init__(self, settings: EffectSettings, backend, plugins=()):
         self.s = settings
         self.backend = backend
         self.user_illuminant = parse_illuminant(settings.illuminant) if settings.illuminant else None
-        self._blur = backend.device_blur() if hasattr(backend, "device_blur") else None
         self._purkinje_dev = None
         self._flare_dev = None
         found = plugin_effects() if plugins else {}

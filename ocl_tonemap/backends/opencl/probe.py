@@ -20,8 +20,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import platform
-import shutil
 import time
 from dataclasses import dataclass
 
@@ -211,6 +209,8 @@ def is_pocl(device) -> bool:
 
 def fix_hint(device=None) -> str:
     """How to get a working CPU device on this machine: one command per route."""
+    import platform
+    import shutil
     routes = []
     x86 = platform.machine().lower() in ("x86_64", "amd64")
     if x86 and platform.system() == "Linux" and icd.intel_library() is None:
