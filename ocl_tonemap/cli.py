@@ -335,7 +335,16 @@ def run_option_tokens(argv: list[str], a) -> list[str]:
     return out
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _command_of(argv) -> str | None:
+    """The sub-command an argument list names: its first token that is not a flag (the
+    top-level flags -v, -q, --version and -h take no value)."""
+    return next((t for t in argv if not t.startswith("-")), None)
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The whole parser; with ``command``, that sub-command's options only (the others
+    keep their name and help): the run options of seven sub-commands take ~15 ms to
+    build, a tenth of a warm start."""
     ap = argparse.ArgumentParser(prog="ocl-tonemap", description=(
         "Show an HDR scene or shot as a human observer would see it (time-dependent "
         "visual adaptation on OpenCL, OIIO/OCIO pipelines)."))
@@ -352,10 +361,14 @@ def build_parser() -> argparse.ArgumentParser:
     def add_parser(name, **kw):
         return _sub(name, parents=[common], **kw)
     sub.add_parser = add_parser
+
+    def run_args(p, name):
+        if command is None or command == name:
+            _add_run_args(p)
     p = sub.add_parser("run", help="tone map an image or a sequence")
     p.add_argument("input", help="image or sequence pattern (shot.#.exr, shot.@@@@.exr, shot.%%04d.exr)")
     p.add_argument("output", help="output image or pattern (format by extension)")
-    _add_run_args(p)
+    run_args(p, "run")
     g = p.add_argument_group("a shot on many machines (measure -> integrate -> apply)")
     g.add_argument("--scheduler", metavar="dask|tcp://HOST:PORT",
                    help="run the three passes on Dask: dask starts a local cluster of "
@@ -371,7 +384,7 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=what)
         p.add_argument("input", help="the shot's sequence pattern")
         p.add_argument("output", help="the output pattern (the store defaults to beside it)")
-        _add_run_args(p)
+        run_args(p, name)
         g = p.add_argument_group(f"{name} pass")
         _add_shot_args(g, chunk=name != "integrate", keyframes=name == "integrate")
         if name == "measure":
@@ -381,7 +394,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "that runs the shot as measure -> integrate -> apply")
     p.add_argument("input", help="the shot's sequence pattern")
     p.add_argument("output", help="the output pattern")
-    _add_run_args(p)
+    run_args(p, "farm-template")
     g = p.add_argument_group("job")
     g.add_argument("--format", required=True, choices=["openjd", "opencue"],
                    help="openjd: an Open Job Description template (Deadline Cloud ...); "
@@ -398,7 +411,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(frames 1..n in --at order)")
     p.add_argument("--at", required=True, help="elapsed times since the switch: T1,T2,... "
                    "seconds, or with an m suffix minutes (e.g. 1m,2m,4m,16m)")
-    _add_run_args(p)
+    run_args(p, "simulate")
     p = sub.add_parser("devices", help="list OpenCL devices, each probed: ok or broken")
     p.add_argument("--check", action="store_true",
                    help="exit 1 when no device works (scripts, CI)")
@@ -416,7 +429,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("outdir")
     p.add_argument("--size", default="320x180")
     p.add_argument("--seconds", type=float, default=8.0)
-    _add_run_args(p)
+    run_args(p, "demo")
     return ap
 
 
@@ -486,7 +499,7 @@ def _devices(check: bool = False) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    a = build_parser().parse_args(argv)
+    a = build_parser(_command_of(sys.argv[1:] if argv is None else argv)).parse_args(argv)
     level = logging.WARNING if a.quiet else (logging.INFO if a.verbose else logging.WARNING)
     if a.verbose > 1:
         level = logging.DEBUG

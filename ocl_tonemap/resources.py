@@ -28,3 +28,32 @@ def user_cache_dir() -> Path:
         return Path(own)
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "ocl-tonemap"
+
+
+def cached_json(kind: str, key, compute):
+    """``compute()`` (a JSON-able value) kept in the user cache under ``kind/`` by
+    ``key`` (JSON-able; the project version is added), so a warm start reads it.
+    JSON keeps float64 exactly. A file that cannot be read is computed again; a cache
+    that cannot be written is not an error."""
+    import hashlib
+    import json
+    from . import __version__
+    ident = json.dumps([kind, __version__, key], sort_keys=True, default=str)
+    path = user_cache_dir() / kind / f"{hashlib.sha256(ident.encode()).hexdigest()[:32]}.json"
+    try:
+        with open(path) as fh:
+            doc = json.load(fh)
+        if isinstance(doc, dict) and doc.get("key") == json.loads(ident):
+            return doc["value"]
+    except (OSError, ValueError, KeyError):
+        pass
+    value = compute()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
+        with open(tmp, "w") as fh:
+            json.dump({"key": json.loads(ident), "value": value}, fh)
+        os.replace(tmp, path)
+    except OSError:
+        pass
+    return value

@@ -44,7 +44,8 @@ def _run_on_device(settings, rgb, G_rod: float, G_cone: float, device):
     h, w = rgb.shape[:2]
     D = float(fl.pupil_diameter(0.5 * (G_cone + G_rod)))
     lim = settings.flare_threshold * max(float(G_cone), 0.0)
-    plan = fl.fast_plan((h, w), settings.fov_deg / w, D, settings.flare_per_octave)
+    plan = fl.fast_plan((h, w), settings.fov_deg / w, D, settings.flare_per_octave,
+                        fit=stored_fit((h, w), settings.fov_deg / w, settings.flare_per_octave))
     out, sources, S_sum, F_sum = device.apply(rgb, plan, lim)
     if sources == 0 and settings.flare == "auto":
         return None, {"ran": False, "reason": "no light sources"}
@@ -54,6 +55,23 @@ def _run_on_device(settings, rgb, G_rod: float, G_cone: float, device):
         return None, info
     info["energy_in_frame"] = float(F_sum.sum() / max(S_sum.sum(), 1e-300))
     return out, info
+
+
+def stored_fit(shape, deg_per_px: float, per_octave: int) -> fl.GaussianFit:
+    """:func:`~ocl_tonemap.models.spencer1995.fit_gaussians` for a frame size, kept in
+    the user's cache (``resources.cached_json``): the fit is ~50 ms of every start of a
+    run with flare, the same for every frame of that size and field of view."""
+    from ..resources import cached_json
+    h, w = (int(v) for v in shape)
+
+    def compute():
+        f = fl.fit_gaussians((h, w), float(deg_per_px), int(per_octave))
+        return {"sigmas": list(f.sigmas), "l2_error": {k: float(v) for k, v in f.l2_error.items()},
+                "weights": {k: np.asarray(v, np.float64).tolist() for k, v in f.weights.items()}}
+    doc = cached_json("flare-fits", [h, w, float(deg_per_px).hex(), int(per_octave)], compute)
+    return fl.GaussianFit(tuple(doc["sigmas"]),
+                          {k: np.asarray(v, np.float64) for k, v in doc["weights"].items()},
+                          dict(doc["l2_error"]))
 
 
 #: Pixels of working rows made into the source part at a time (memory).

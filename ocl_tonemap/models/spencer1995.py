@@ -492,10 +492,12 @@ class FastPlan:
 
 
 def fast_plan(shape: tuple[int, int], deg_per_px: float, D: float,
-                  per_octave: int) -> FastPlan:
-    """The fast method's plan for a frame of ``shape``."""
+                  per_octave: int, fit: GaussianFit | None = None) -> FastPlan:
+    """The fast method's plan for a frame of ``shape`` (``fit``: the frame's
+    :func:`fit_gaussians`, when the caller has it)."""
     h, w = shape
-    fit = fit_gaussians((h, w), float(deg_per_px), int(per_octave))
+    if fit is None:
+        fit = fit_gaussians((h, w), float(deg_per_px), int(per_octave))
     wts = flare_weights(D)
     a = sum(wi * fit.weights[b] for wi, b in zip(wts[:3], channel_bases(0)))
     max_level = max(0, int(math.log2(max(1, min(h, w)) / PYRAMID_MIN_SIZE)))
