@@ -8,11 +8,23 @@ pipelines. See README.md; the Python API is :class:`Tonemapper`.
 
 __version__ = "0.1.0"
 
-from .state import AdaptationState  # noqa: E402
-from .models.display import DisplaySpec  # noqa: E402
-from .effects import EffectSettings  # noqa: E402
-from .models.metering import MeteringSpec  # noqa: E402
-from .pipeline import Tonemapper  # noqa: E402
+#: The public names, imported on first use (``import ocl_tonemap`` stays cheap for the
+#: command line's quick paths: ``--version``, ``devices``).
+_LAZY = {"Tonemapper": ".pipeline", "AdaptationState": ".state", "DisplaySpec": ".models.display",
+         "EffectSettings": ".effects", "MeteringSpec": ".models.metering"}
 
 __all__ = ["Tonemapper", "AdaptationState", "DisplaySpec", "EffectSettings", "MeteringSpec",
            "__version__"]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'ocl_tonemap' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(list(globals()) + list(_LAZY))

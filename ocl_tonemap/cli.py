@@ -8,13 +8,19 @@ import os
 import sys
 
 from . import __version__
-from .backends.plan import QUALITY_NAMES
-from .operators import registry
 
 log = logging.getLogger("ocl_tonemap")
 
 
+def registry() -> dict:
+    """The operators (imported here, not at module level: ``--version`` and ``devices``
+    need none of them, nor NumPy)."""
+    from .operators import registry as operators
+    return operators()
+
+
 def _add_run_args(p: argparse.ArgumentParser) -> None:
+    from .backends.plan import QUALITY_NAMES
     p.add_argument("--frames", help="frame range for sequence patterns: A-B, A-BxSTEP, or a list")
     p.add_argument("--fps", type=float, help="frames per second (default: FramesPerSecond "
                    "metadata, else 24)")
@@ -341,10 +347,15 @@ def _command_of(argv) -> str | None:
     return next((t for t in argv if not t.startswith("-")), None)
 
 
-def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+#: build_parser's default: every sub-command with all its options.
+ALL_COMMANDS = "*"
+
+
+def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
     """The whole parser; with ``command``, that sub-command's options only (the others
-    keep their name and help): the run options of seven sub-commands take ~15 ms to
-    build, a tenth of a warm start."""
+    keep their name and help; None: no sub-command's, as for ``--version`` or the
+    top-level ``--help``): the run options of seven sub-commands take ~15 ms to build,
+    and the operators they list import NumPy."""
     ap = argparse.ArgumentParser(prog="ocl-tonemap", description=(
         "Show an HDR scene or shot as a human observer would see it (time-dependent "
         "visual adaptation on OpenCL, OIIO/OCIO pipelines)."))
@@ -363,7 +374,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     sub.add_parser = add_parser
 
     def run_args(p, name):
-        if command is None or command == name:
+        if command in (ALL_COMMANDS, name):
             _add_run_args(p)
     p = sub.add_parser("run", help="tone map an image or a sequence")
     p.add_argument("input", help="image or sequence pattern (shot.#.exr, shot.@@@@.exr, shot.%%04d.exr)")
