@@ -130,13 +130,16 @@ class Effects:
     @functools.cached_property
     def _blur(self):
         """The backend's device blur (flare, acuity), made on first use: its program
-        build is ~40 ms of a start on PoCL, for runs that may never blur."""
+        build is ~40 ms of a start on PoCL, for runs that may never blur. Its band size
+        is the backend's when the effects were made (a streamed frame narrows the
+        backend's own bands later: the blur keeps its whole-frame passes)."""
         be = self.backend
-        return be.device_blur() if hasattr(be, "device_blur") else None
+        return be.device_blur(self._blur_pixels) if hasattr(be, "device_blur") else None
 
     def __init__(self, settings: EffectSettings, backend, plugins=()):
         self.s = settings
         self.backend = backend
+        self._blur_pixels = getattr(backend, "max_band_pixels", None)
         self.user_illuminant = parse_illuminant(settings.illuminant) if settings.illuminant else None
         self._purkinje_dev = None
         self._flare_dev = None

@@ -64,10 +64,11 @@ class OpenCLBackend:
             return HostSchedule(self, op)
         return PointwiseSchedule(self, op)
 
-    def device_blur(self):
-        """``blur(img, taps, edge)`` on the device (effects: flare, acuity)."""
+    def device_blur(self, max_pixels: int | None = None):
+        """``blur(img, taps, edge)`` on the device (effects: flare, acuity), in bands of
+        at most ``max_pixels`` (default: the backend's band size now)."""
         from .convolution import DeviceBlur
-        return DeviceBlur(self.rt, self.max_band_pixels).blur
+        return DeviceBlur(self.rt, max_pixels or self.max_band_pixels).blur
 
     def flare_device(self):
         """The fast flare on the device (``effects/flare.py``)."""
