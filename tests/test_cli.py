@@ -52,6 +52,7 @@ def test_chunked_state_equals_single_run(sample_dir, tmp_path):
         np.testing.assert_array_equal(pixels(frame_path(one, f)), pixels(frame_path(two, f)))
 
 
+@pytest.mark.requires_opencl
 def test_reference_backend_cli_matches_opencl(sample_dir, tmp_path):
     pattern, frames = sample_dir
     o1, o2 = str(tmp_path / "a.####.exr"), str(tmp_path / "b.####.exr")
@@ -146,6 +147,7 @@ def test_imagebuf_api_round_trip():
     assert tm.state.time_s == pytest.approx(1 / 24) and s.time_s == 0.0
 
 
+@pytest.mark.requires_opencl
 def test_ledda_sequence_chunked_with_pixel_state(sample_dir, tmp_path):
     pattern, frames = sample_dir
     whole = str(tmp_path / "w.####.exr")

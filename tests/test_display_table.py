@@ -86,6 +86,7 @@ def test_hlg_is_not_separable_and_its_3d_table_is_within_bound(probe):
     assert mx < CODE_10BIT, f"max {mx * 1023:.3f} 10-bit codes"
 
 
+@pytest.mark.requires_opencl
 def test_aces_output_transform_falls_back_to_ocio_in_auto():
     cp = pipeline(STUDIO, "sRGB - Display", "ACES 2.0 - SDR 100 nits (Rec.709)")
     t = cp.display_table()
@@ -201,6 +202,7 @@ def test_device_table_is_safe_from_several_threads(rt):
         np.testing.assert_array_equal(g, want[i])
 
 
+@pytest.mark.requires_opencl
 def test_display_encode_modes():
     cp = pipeline("ocl-tonemap", "sRGB - Display")
     x = np.random.default_rng(0).uniform(0, 2, (8, 9, 3)).astype(np.float32)
@@ -235,6 +237,7 @@ def read(path):
     return px
 
 
+@pytest.mark.requires_opencl
 def test_run_through_the_table_matches_ocio_within_one_8bit_code(sample_dir, tmp_path, caplog):
     pattern, frames = sample_dir
     outs = {}

@@ -111,6 +111,7 @@ def test_photopic_cone_only_scotopic_rod_only():
     assert 1.0 < r[0] < 1.5 and 0.6 < r[2] < 1.0                    # both: desaturated
 
 
+@pytest.mark.requires_opencl
 def test_no_halo_across_a_step():
     lum = piecewise_scene()
     img = np.repeat(lum[..., None], 3, axis=2)
@@ -121,6 +122,7 @@ def test_no_halo_across_a_step():
         assert np.all(np.diff(row) >= -1e-7), method          # monotonic, no reversal
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("method", ["exact", "fast"])
 def test_opencl_matches_reference_over_time(method):
     img = hdr_image(24, 36, seed=7, lo=-4, hi=4)
@@ -157,6 +159,7 @@ def test_light_curve_and_rod_lag():
     assert c[0] == 100.0 and 1.0 < c[1] < 100.0 and c[2] == 1.0
 
 
+@pytest.mark.requires_opencl
 def test_long_dark_reaches_static_result():
     img = hdr_image(16, 20, seed=8, lo=-3, hi=1)
     tm = Tonemapper("ledda04", "opencl", preadapt=(500.0, 60.0))
@@ -168,6 +171,7 @@ def test_long_dark_reaches_static_result():
     assert first.mean() < 0.2 * static.mean()      # temporarily blind at the switch
 
 
+@pytest.mark.requires_opencl
 def test_small_changes_continue_the_course():
     img = hdr_image(10, 10, seed=9, lo=0, hi=1)
     tm = Tonemapper("ledda04", "opencl")
@@ -178,6 +182,7 @@ def test_small_changes_continue_the_course():
     assert tm.last.params["restarted_fraction"] == 1.0
 
 
+@pytest.mark.requires_opencl
 def test_figure_11_trend():
     from ocl_tonemap.validation import dark_adaptation_thresholds
     times = np.geomspace(0.5, 2700, 40)
@@ -191,6 +196,7 @@ def test_figure_11_trend():
 
 # --- extremes, state, bands ----------------------------------------------------------
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("backend", ["opencl", "reference"])
 def test_extremes_never_nan(backend):
     img = hdr_image(9, 11, seed=10)
@@ -210,6 +216,7 @@ def test_extremes_never_nan(backend):
     assert np.all(zero == 0)
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("method", ["exact", "fast"])
 def test_bands_equal_one_pass(method):
     img = hdr_image(45, 50, seed=11, lo=-3, hi=3)
@@ -229,6 +236,7 @@ def test_bands_equal_one_pass(method):
         assert np.array_equal(a.process(img * k, time_s=t), b.process(img * k, time_s=t))
 
 
+@pytest.mark.requires_opencl
 def test_state_side_file_roundtrip(tmp_path):
     img = hdr_image(20, 30, seed=12)
     one = Tonemapper("ledda04", "opencl")
@@ -256,6 +264,7 @@ def test_grid_fits_device_memory_and_tiny_images(filt):
         assert np.allclose(filt.filter(v, 3.0, LEDDA_RANGE, "fast"), 3.0, rtol=1e-5)
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("mode", ["default", "paper"])
 @pytest.mark.parametrize("shape", [(9, 11), (16, 24)])
 def test_map_float4_kernel_equals_scalar_kernel(mode, shape):
@@ -276,6 +285,7 @@ def test_map_float4_kernel_equals_scalar_kernel(mode, shape):
         assert a.max() > 0
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("mode", ["default", "paper"])
 @pytest.mark.parametrize("shape", [(9, 11), (16, 24)])
 def test_step_float4_kernel_equals_scalar_kernel(mode, shape):

@@ -32,6 +32,7 @@ def run_both(frames, dt, **kw):
     return a, b
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("metering", ["logmean", "mean", "max", "centre", "spot:0.5,0.7,0.05"])
 def test_tunnel_sequence_agrees(tunnel_frames, metering):
     a, b = run_both(tunnel_frames, 0.1, metering=metering)
@@ -39,6 +40,7 @@ def test_tunnel_sequence_agrees(tunnel_frames, metering):
         assert b.state.values[k] == pytest.approx(a.state.values[k], rel=1e-4)
 
 
+@pytest.mark.requires_opencl
 def test_percentile_metering_within_one_bin(tunnel_frames):
     from ocl_tonemap.models.metering import HIST_BINS, HIST_HI, HIST_LO
     bin_decades = (HIST_HI - HIST_LO) / HIST_BINS
@@ -52,6 +54,7 @@ def test_percentile_metering_within_one_bin(tunnel_frames):
             assert abs(np.log10(gb) - np.log10(ga)) <= bin_decades
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("display", ["sdr", "pq", "crt"])
 def test_displays_agree(display):
     from ocl_tonemap.models.display import DisplaySpec
@@ -63,6 +66,7 @@ def test_displays_agree(display):
     run_both(frames, 0.25, display=spec)
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("shape", [(1, 1), (3, 7), (4099, 3), (3, 4099)])
 def test_odd_sizes(shape):
     img = hdr_image(*shape, seed=3)
@@ -84,6 +88,7 @@ def test_bands_equal_single_pass():
 BAD = np.array([np.nan, np.inf, -np.inf, -3.0, 1e-41, 5.0, 1e12, 0.0, -0.0], np.float32)
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("backend", ["reference", "opencl"])
 def test_bad_values_repaired_and_counted(backend):
     rng = np.random.default_rng(7)
@@ -104,6 +109,7 @@ def test_bad_values_repaired_and_counted(backend):
     assert rep.over_max == int((vals == np.float32(1e12)).sum())
 
 
+@pytest.mark.requires_opencl
 def test_bad_values_same_output_both_backends():
     img = hdr_image(6, 6, seed=9)
     flat = img.reshape(-1)
@@ -113,6 +119,7 @@ def test_bad_values_same_output_both_backends():
     assert_close(b, a)
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("level", [0.0, 1e-6, 1e-3, 1.0, 1e4, 1e8])
 def test_uniform_extreme_scenes(level):
     img = np.full((4, 5, 3), level, np.float32)
@@ -228,6 +235,7 @@ def test_durand00_float4_kernel_equals_scalar_kernel(rt, n):
     np.testing.assert_allclose(outs[0], outs[1], rtol=1e-6, atol=1e-7)
 
 
+@pytest.mark.requires_opencl
 def test_profiling_hook_times_every_kernel_launched(tmp_path):
     """OCLTM_PROFILE=1 (the benchmarks' per-kernel tables): each operator's frame
     records its kernels with positive device times; without it nothing is kept."""
@@ -276,6 +284,7 @@ np.savez(sys.argv[2], **out)
 """
 
 
+@pytest.mark.requires_opencl
 def test_one_pixel_a_work_item_equals_the_vector_path(tmp_path):
     """The per-pixel kernels as GPUs run them (one pixel a work-item, scalar code:
     OCLTM_VECTOR_PIXELS=0, in a process of its own) on this CPU device give every

@@ -37,6 +37,7 @@ def _py(env, code: str):
     return r.stdout
 
 
+@pytest.mark.requires_opencl
 def test_plugin_operator_through_the_api(plugin_env):
     out = _py(plugin_env, """
 import json, numpy as np

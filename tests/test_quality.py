@@ -23,6 +23,7 @@ def test_tier_names_and_default():
         quality_tier("best")
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("op", ["pattanaik00", "durand00", "ledda04", "kirk11"])
 def test_tier_options_apply_only_where_declared(op, caplog):
     """Every operator takes every tier without a misplaced-option warning, and gets the
@@ -41,6 +42,7 @@ def test_tier_options_apply_only_where_declared(op, caplog):
     assert declared
 
 
+@pytest.mark.requires_opencl
 def test_tier_backend_and_effects():
     assert Tonemapper("pattanaik00", quality="reference").backend.name == "reference"
     assert Tonemapper("pattanaik00", quality="draft").backend.name == "opencl"
@@ -76,6 +78,7 @@ def test_tiers_order_by_error_against_reference():
     assert err["balanced"] < 0.02 and err["draft"] < 0.1
 
 
+@pytest.mark.requires_opencl
 def test_cli_quality_end_to_end(sample_dir, tmp_path):
     pattern, frames = sample_dir
     outs = {}

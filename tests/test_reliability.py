@@ -89,6 +89,7 @@ def _interrupt_after(args, out_glob, n_done, sig):
     return p.returncode, err
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("op", OPERATORS)
 def test_interrupted_and_resumed_equals_one_run(op, shot, tmp_path):
     """SIGTERM stops after the frame in flight (exit 143, a resume command printed);
@@ -119,6 +120,7 @@ def test_interrupted_and_resumed_equals_one_run(op, shot, tmp_path):
                                           err_msg=f"{op} {sig!r} frame {f}")
 
 
+@pytest.mark.requires_opencl
 def test_sparse_checkpoints_resume_to_the_same_frames(shot, tmp_path):
     """--checkpoint-every 7: a killed run re-renders the frames after the last
     checkpoint, identically."""
@@ -302,6 +304,7 @@ def _big(path, w, h, alpha=False):
 @pytest.mark.parametrize("op, extra", [("pattanaik00", []),
                                        ("durand00", ["--chromatic-adaptation", "on", "--flare",
                                                      "off", "--acuity", "off"])])
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("ext, alpha", [(".exr", True), (".png", False)])
 def test_streamed_frames_equal_whole_ones(tmp_path, op, extra, ext, alpha):
     """--max-memory below what the whole frame needs: read, mapped and written in
@@ -360,6 +363,7 @@ def _peak_rss_mb(args, small=None) -> float:
                                 *args[3:]])
 
 
+@pytest.mark.requires_opencl
 def test_streaming_bounds_memory(tmp_path):
     """A 2400x1600 frame (44 MiB as float32 RGB): whole, the run peaks at many times
     that; streamed it grows by under 3x the frame plus STREAM_SLACK_MB."""
@@ -382,6 +386,7 @@ def test_operators_that_cannot_stream_say_so(tmp_path, caplog):
     assert any("cannot be streamed" in r.getMessage() for r in caplog.records)
 
 
+@pytest.mark.requires_opencl
 def test_durand00_defaults_stream_unless_a_frame_needs_flare(tmp_path, caplog):
     """flare and acuity on auto: every frame streams now, one with a light source too
     (the flare in row bands: tests/test_stream_effects.py), and both equal the

@@ -69,6 +69,7 @@ def _same_frames(a, b, frames, tol=0.0):
     assert worst <= tol, f"largest difference {worst:g} (tolerance {tol:g})"
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("op", OPERATORS)
 def test_passes_give_the_serial_frames_bit_for_bit(shot, op):
     d, pattern, frames = shot
@@ -78,6 +79,7 @@ def test_passes_give_the_serial_frames_bit_for_bit(shot, op):
         _same_frames(ser, out, frames)
 
 
+@pytest.mark.requires_opencl
 def test_local_state_from_an_earlier_keyframe(shot):
     """Apply chunks that do not start at a keyframe (keyframes every 7, chunks of
     5): the nearest keyframe is advanced over the stored statistics."""
@@ -103,6 +105,7 @@ def _goals(path, frames):
     return [json.loads(_read(frame_path(str(path), f))[1])["values"] for f in frames]
 
 
+@pytest.mark.requires_opencl
 def test_cuts_reset_adaptation_serial_and_split_alike(shot, tmp_path):
     """At a cut the observer is fully adapted to the frame, as a fresh observer
     starting there; the serial run (--cuts FILE) and the passes agree."""
@@ -119,6 +122,7 @@ def test_cuts_reset_adaptation_serial_and_split_alike(shot, tmp_path):
     _same_frames(cut_run, out, frames)
 
 
+@pytest.mark.requires_opencl
 def test_detected_cuts(tmp_path):
     """A shot that jumps from daylight to a dim interior between two frames: one cut,
     there, and nowhere in the tunnel drive's smooth changes."""
@@ -148,6 +152,7 @@ def test_detected_cuts(tmp_path):
                            checkpoint=False))
 
 
+@pytest.mark.requires_opencl
 def test_tunnel_drive_has_no_detected_cut(shot):
     d, pattern, frames = shot
     docs = []
@@ -159,6 +164,7 @@ def test_tunnel_drive_has_no_detected_cut(shot):
     assert passes.detect_cuts(docs, frames) == []
 
 
+@pytest.mark.requires_opencl
 def test_store_refuses_other_settings_and_missing_statistics(shot, tmp_path):
     d, pattern, frames = shot
     out = str(tmp_path / "o.####.exr")
@@ -178,6 +184,7 @@ def test_store_refuses_other_settings_and_missing_statistics(shot, tmp_path):
     assert passes.measure(o, store, (frames[0], frames[5])) == [frames[3]]
 
 
+@pytest.mark.requires_opencl
 def test_a_changed_input_is_measured_again_and_integrate_must_follow(shot, tmp_path):
     d, pattern, frames = shot
     scene = tmp_path / "scene"
@@ -195,6 +202,7 @@ def test_a_changed_input_is_measured_again_and_integrate_must_follow(shot, tmp_p
         passes.apply(o, store)
 
 
+@pytest.mark.requires_opencl
 def test_state_dependent_scene_effects_are_refused(shot, tmp_path):
     from ocl_tonemap.effects import EffectSettings
     d, pattern, frames = shot
@@ -204,6 +212,7 @@ def test_state_dependent_scene_effects_are_refused(shot, tmp_path):
         passes.measure(o, passes.default_store(o))
 
 
+@pytest.mark.requires_opencl
 def test_dask_local_cluster_matches_serial(shot, tmp_path):
     """Two worker processes on PoCL; then a corrupt frame fails with its file and
     frame named, after the retries, and nothing half-written is left."""
@@ -255,6 +264,7 @@ def _farm_job(fmt, shot, tmp_path, chunk, *run_options):
     return frames, out, job_file
 
 
+@pytest.mark.requires_opencl
 def test_openjd_template_validates_and_runs_as_a_farm_would(shot, tmp_path):
     pytest.importorskip("openjd.model")
     from openjd.model import (StepParameterSpaceIterator, SymbolTable, create_job,
@@ -305,6 +315,7 @@ def _check_order(el):
         _check_order(c)
 
 
+@pytest.mark.requires_opencl
 def test_opencue_spec_follows_the_dtd_and_runs(shot, tmp_path):
     import shlex
     d, pattern, _ = shot

@@ -54,6 +54,7 @@ def _effects(buf) -> dict:
     return json.loads(buf.spec().getattribute("ocltm:effects"))
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("fov", ["30", "1"])        # blur radius 2 px / ~47 px (> a band)
 @pytest.mark.parametrize("ext, alpha", [(".exr", True), (".png", False)])
 def test_durand00_flare_and_acuity_stream(tmp_path, fov, ext, alpha):
@@ -75,6 +76,7 @@ def test_durand00_flare_and_acuity_stream(tmp_path, fov, ext, alpha):
     assert b.spec().getattribute("ocltm:effects_ran") == a.spec().getattribute("ocltm:effects_ran")
 
 
+@pytest.mark.requires_opencl
 def test_durand00_defaults_stream_frames_with_lamps(tmp_path):
     """flare and acuity on auto (durand00's defaults): a night frame with lamps needs
     both, and streams (it was read whole before)."""
@@ -88,6 +90,7 @@ def test_durand00_defaults_stream_frames_with_lamps(tmp_path):
 @pytest.mark.parametrize("extra", [["--purkinje", "on"], ["--purkinje", "auto"],
                                    ["--purkinje", "on", "--flare", "on", "--acuity", "on",
                                     "--fov", "10"]])
+@pytest.mark.requires_opencl
 def test_pattanaik00_purkinje_streams(tmp_path, extra):
     """--purkinje on (with flare and acuity too): the shift is pointwise once the
     frame's levels are known; a sequence of frames carries its levels on alike."""
@@ -110,6 +113,7 @@ def test_pattanaik00_purkinje_streams(tmp_path, extra):
             assert pb[key] == pytest.approx(pa[key], rel=1e-5, abs=1e-9), key
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("op", ["ledda04", "kirk11"])
 def test_own_chromatic_adaptation_streams(tmp_path, op):
     """Operators that take the gains on working RGB before their map (ledda04,
@@ -204,6 +208,7 @@ def test_banded_flare_on_the_device_is_the_whole_frames(rt, shape, fov):
             np.testing.assert_array_equal(got, whole)
 
 
+@pytest.mark.requires_opencl
 def test_streamed_flare_through_the_api_is_the_fast_method():
     """Tonemapper.process_stream with bands of 20 rows: the whole frame's output with
     the fast flare (to the metering sums' float32 order); --flare-method exact
@@ -230,6 +235,7 @@ def test_streamed_flare_through_the_api_is_the_fast_method():
     assert np.median(rel) < 0.03 and np.percentile(rel, 99) < 0.15
 
 
+@pytest.mark.requires_opencl
 def test_acuity_wider_than_a_band_through_the_api():
     """The blur's radius (21 px) over the bands (8 rows): rows wait for the rows
     below them, and come out in order, each once, equal to the whole frame."""
@@ -251,6 +257,7 @@ def test_acuity_wider_than_a_band_through_the_api():
     np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-7)
 
 
+@pytest.mark.requires_opencl
 def test_streamed_effects_bound_memory(tmp_path):
     """2400x1600 (44 MiB as float32 RGB), durand00 with flare and acuity on: the
     streamed run grows by under 3x the frame plus STREAM_SLACK_MB (above a 16x16 frame's)."""

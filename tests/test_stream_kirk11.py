@@ -28,6 +28,7 @@ def _params(buf) -> dict:
     return json.loads(buf.spec().getattribute("ocltm:params"))
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("extra", MODES, ids=lambda e: "-".join(x.strip("-") for x in e))
 def test_streamed_kirk11_equals_whole(tmp_path, extra):
     """301x203 RGBA EXR at --max-memory 8: bands of 43 rows (5 rows plus a 19-row halo
@@ -49,6 +50,7 @@ def test_streamed_kirk11_equals_whole(tmp_path, extra):
             assert pb[k] == v, k
 
 
+@pytest.mark.requires_opencl
 def test_streamed_kirk11_bounds_memory(tmp_path):
     """A 2400x1600 frame (44 MiB as float32 RGB; ~1.3 GiB peak whole): streamed, no
     whole-frame plane is kept: it grows by under 3x the frame plus STREAM_SLACK_MB."""
@@ -63,6 +65,7 @@ def test_streamed_kirk11_bounds_memory(tmp_path):
     assert streamed < whole
 
 
+@pytest.mark.requires_opencl
 def test_kirk11_flare_auto_streams_every_frame(tmp_path, caplog):
     """--flare auto: the measure pass leaves the frame's largest luminance for the
     flare check; a frame without light sources and one with a lamp (its flare in row
@@ -96,6 +99,7 @@ def _scene(h=90, w=130):
     return (lum * rng.uniform(0.2, 1.0, (h, w, 3))).astype(np.float32)
 
 
+@pytest.mark.requires_opencl
 @pytest.mark.parametrize("mode", ["default", "paper"])
 @pytest.mark.parametrize("method", ["exact", "fast"])
 def test_kirk11_beyond_one_band_equals_one_band(mode, method):

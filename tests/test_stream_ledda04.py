@@ -26,6 +26,7 @@ def _pix(path):
 
 @pytest.mark.parametrize("extra", [["--bilateral", "fast"], ["--bilateral", "exact"],
                                    ["--mode", "paper", "--bilateral", "fast"]])
+@pytest.mark.requires_opencl
 def test_streamed_ledda04_equals_whole(tmp_path, extra):
     src = _big(tmp_path / "big.exr", 301, 203)
     common = ["--operator", "ledda04", *extra, "-q", "--no-checkpoint", "--out-bits", "float"]
@@ -50,6 +51,7 @@ def _shot(tmp_path, n=3):
     return str(d / "s.####.exr")
 
 
+@pytest.mark.requires_opencl
 def test_streamed_ledda04_sequence_carries_state_and_resumes(tmp_path):
     """Three frames streamed equal three frames whole (the per-pixel state lives
     in a spilled file between frames); the checkpoint's planes are the whole run's;
@@ -107,6 +109,7 @@ def test_plane_store_spilled_equals_memory(tmp_path):
     disk.close()
 
 
+@pytest.mark.requires_opencl
 def test_streamed_ledda04_bounds_memory(tmp_path):
     """2400x1600 (44 MiB as float32 RGB): streamed, ledda04 stays under 3x the frame
     plus STREAM_SLACK_MB (above a 16x16 frame's run) although its per-pixel state alone

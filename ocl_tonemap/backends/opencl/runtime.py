@@ -8,8 +8,8 @@ probe kernel is skipped with one warning line naming the driver and the fix; a d
 named explicitly that is broken is an error (:class:`DeviceBroken`).
 
 Programs are built once per (context, kernel file set) per process and kept in
-a module cache; pyopencl additionally keeps compiled binaries on disk, so a
-second process skips the compiler.
+a module cache; their device binaries are kept in the user's cache
+(:func:`program_cache_path`), so a second process loads rather than compiles.
 """
 
 from __future__ import annotations
