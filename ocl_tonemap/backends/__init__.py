@@ -31,9 +31,9 @@ def resolve_backend(name: str | None, device: str | None = None) -> str:
     dev, why = device_status(device)
     if dev is not None:
         return "opencl"
-    log.warning("%s: running on the float64 reference backend instead, correct but "
-                "10-100x slower (--backend reference silences this); %s", why.detail,
-                why.fix or "install an OpenCL driver")
+    log.warning("%s. Running on the float64 reference backend instead (correct, "
+                "10-100x slower; --backend reference silences this); %s", why.detail,
+                why.fix or "fix: install an OpenCL driver")
     return "reference"
 
 
