@@ -104,20 +104,38 @@ def section_devices(devs) -> list[str]:
     return out + [""]
 
 
-def timed(cmd, env, repeat=5, cwd=None) -> float | None:
-    subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, shell=isinstance(cmd, str),
-                   executable="/bin/bash" if isinstance(cmd, str) else None)      # warm
+def timed(cmd, env, repeat=5, cwd=None) -> tuple[float, float] | None:
+    """(median wall seconds, peak RSS MiB of the largest run) of ``repeat`` runs of
+    ``cmd`` after a warm-up run; None when it fails."""
+    shell = isinstance(cmd, str)
+    run = dict(env=env, cwd=cwd, capture_output=True, shell=shell,
+               executable="/bin/bash" if shell else None)
+    subprocess.run(cmd, **run)                                  # warm
     ts = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        r = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True,
-                           shell=isinstance(cmd, str),
-                           executable="/bin/bash" if isinstance(cmd, str) else None)
+        r = subprocess.run(cmd, **run)
         ts.append(time.perf_counter() - t0)
         if r.returncode != 0:
             print(f"  failed: {cmd}: {(r.stderr or r.stdout)[-300:]!r}", file=sys.stderr)
             return None
-    return statistics.median(ts)
+    return statistics.median(ts), peak_of(cmd, env, cwd)
+
+
+def peak_of(cmd, env, cwd=None) -> float | None:
+    """Peak RSS (MiB) of one run of ``cmd`` (a shell pipeline: its largest process)."""
+    code = ("import resource, subprocess, sys; "
+            "r = subprocess.run(sys.argv[1], shell=True, executable='/bin/bash', "
+            "capture_output=True); "
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)")
+    import shlex
+    line = cmd if isinstance(cmd, str) else " ".join(shlex.quote(str(c)) for c in cmd)
+    r = subprocess.run([sys.executable, "-c", code, line], env=env, cwd=cwd,
+                       capture_output=True, text=True)
+    try:
+        return float(r.stdout.strip().splitlines()[-1])
+    except (ValueError, IndexError):
+        return None
 
 
 def section_first_frame(devs, before: str | None) -> list[str]:
@@ -162,8 +180,10 @@ def section_first_frame(devs, before: str | None) -> list[str]:
     out = ["## 2. Time to the first frame", "",
            "The whole command on one 320x180 EXR frame of the tunnel sample to an 8-bit PNG, "
            "warm (kernel, probe and table caches filled by a first run), median of 5 wall "
-           "times.", "", "| code | operator | device | seconds |", "|---|---|---|---|"]
-    out += [f"| {a} | {b} | {c} | {'—' if t is None else f'{t:.3f}'} |" for a, b, c, t in rows]
+           "times; peak memory: the largest process of one run (RSS).", "",
+           "| code | operator | device | seconds | peak MiB |", "|---|---|---|---|---|"]
+    out += [f"| {a} | {b} | {c} | {'—' if t is None else f'{t[0]:.3f}'} | "
+            f"{'—' if t is None or t[1] is None else f'{t[1]:.0f}'} |" for a, b, c, t in rows]
     return out + [""]
 
 

@@ -103,9 +103,9 @@ def describe_device(dev) -> str:
 
 #: Among working CPU devices, the automatic choice takes the first platform whose name
 #: holds one of these, in this order. Intel's CPU runtime first: on the same 2-core AMD
-#: EPYC it ran every operator 1.6-2.1x faster per 1080p frame than the bundled PoCL,
-#: with the same agreement with the float64 reference, and started faster
-#: (benchmarks/results/cpu_devices.md; README "OpenCL drivers").
+#: EPYC it ran pattanaik00, ledda04 and kirk11 1.45-2.1x faster per 1080p frame than
+#: the bundled PoCL in three runs (durand00 0.7-1.9x: noisy), with the same agreement
+#: with the float64 reference (benchmarks/results/cpu_devices.md; README "OpenCL drivers").
 CPU_PREFERENCE = ("intel(r) opencl", "portable computing language")
 
 _warned: set = set()
