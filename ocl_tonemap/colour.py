@@ -790,7 +790,7 @@ def cached_display_table(proc, form: str = "auto", size_3d: int = 65,
     import json
     from . import __version__
     from .models.display import DISPLAY_LINEAR_MAX
-    from .resources import user_cache_dir
+    from .resources import cache_write, user_cache_dir
     ident = json.dumps([proc.getCacheID(), form, size_3d, ocio.GetVersion(), __version__,
                         DISPLAY_LINEAR_MAX, SHAPER_EPS_1D, SHAPER_EPS_3D, NODES_PER_OCTAVE_1D,
                         CODE_10BIT])
@@ -805,13 +805,10 @@ def cached_display_table(proc, form: str = "auto", size_3d: int = 65,
     except (OSError, KeyError, ValueError, TypeError):
         pass
     table = bake_display_table(proc, form, size_3d, description=description)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.stem}.tmp{os.getpid()}.npz")
-        np.savez(tmp, **{k: getattr(table, k) for k in fields})
-        os.replace(tmp, path)
-    except OSError:
-        pass                                # no cache: baked again next time
+    import io
+    buf = io.BytesIO()
+    np.savez(buf, **{k: getattr(table, k) for k in fields})
+    cache_write(path, buf.getvalue())       # no cache: baked again next time
     return table
 
 

@@ -30,6 +30,24 @@ def user_cache_dir() -> Path:
     return Path(base) / "ocl-tonemap"
 
 
+def cache_write(path: Path, data: bytes) -> bool:
+    """Write ``data`` to a file of the user cache atomically (a temporary beside it,
+    renamed over it; removed when the write fails). False where the cache cannot be
+    written: a cache is never a run's error."""
+    tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+        return True
+    except OSError:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        return False
+
+
 def cached_json(kind: str, key, compute):
     """``compute()`` (a JSON-able value) kept in the user cache under ``kind/`` by
     ``key`` (JSON-able; the project version is added), so a warm start reads it.
@@ -48,12 +66,5 @@ def cached_json(kind: str, key, compute):
     except (OSError, ValueError, KeyError):
         pass
     value = compute()
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
-        with open(tmp, "w") as fh:
-            json.dump({"key": json.loads(ident), "value": value}, fh)
-        os.replace(tmp, path)
-    except OSError:
-        pass
+    cache_write(path, json.dumps({"key": json.loads(ident), "value": value}).encode())
     return value

@@ -112,14 +112,8 @@ def _store(key: str, rec: dict | None) -> None:
             return
     else:
         doc[key] = rec
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
-        with open(tmp, "w") as fh:
-            json.dump(doc, fh, indent=1, sort_keys=True)
-        os.replace(tmp, path)
-    except OSError:
-        pass
+    from ...resources import cache_write
+    cache_write(path, json.dumps(doc, indent=1, sort_keys=True).encode())
 
 
 def first_error_line(text: str) -> str:

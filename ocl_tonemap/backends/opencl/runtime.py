@@ -388,19 +388,17 @@ def _device_key(device) -> str:
 
 
 def _keep_binary(prog, path: Path) -> None:
+    from ...resources import cache_write
     try:
         binary = prog.get_info(cl_api().program_info.BINARIES)[0]
         if not binary:
             return
-        path.parent.mkdir(parents=True, exist_ok=True)
         old = sorted(path.parent.glob("*.bin"), key=lambda p: p.stat().st_mtime)
         for p in old[:max(0, len(old) - PROGRAM_CACHE_FILES + 1)]:
             p.unlink(missing_ok=True)
-        tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
-        tmp.write_bytes(bytes(binary))
-        os.replace(tmp, path)
     except Exception:                   # noqa: BLE001 -- a cache: never fails a run
-        pass
+        return
+    cache_write(path, bytes(binary))
 
 
 @functools.lru_cache(maxsize=None)
