@@ -118,18 +118,42 @@ def camera_scale(spec) -> tuple[float, str] | None:
                           f"mid-grey {L:.4g} cd/m^2 (K = {METER_K}, mid-grey {MID_GREY})")
 
 
-def log_average(rgb: np.ndarray, max_samples: int = 1 << 20) -> float | None:
-    """exp(mean(ln Y)) of the positive, finite photopic luminances of working RGB
-    (a strided subsample of large frames); None when no pixel has light."""
-    from .models.photometry import Y_WEIGHTS
-    a = np.asarray(rgb)[..., :3]
-    flat = a.reshape(-1, 3)
-    step = max(1, flat.shape[0] // max_samples)
-    Y = flat[::step].astype(np.float64) @ Y_WEIGHTS
-    Y = Y[np.isfinite(Y) & (Y > 0)]
-    if Y.size == 0:
-        return None
-    return float(np.exp(np.mean(np.log(Y))))
+#: ``auto:LEVEL`` meters at most this many pixels of a frame (a strided subsample).
+LOG_AVERAGE_SAMPLES = 1 << 20
+
+
+class LogAverage:
+    """exp(mean(ln Y)) of the positive, finite photopic luminances of working RGB,
+    over a strided subsample of at most ``max_samples`` of the frame's ``n_pixels``
+    (every ``step``-th pixel in row order), given whole or in row bands in order:
+    a streamed frame is metered on the same pixels as a whole one."""
+
+    def __init__(self, n_pixels: int, max_samples: int = LOG_AVERAGE_SAMPLES):
+        self.step = max(1, int(n_pixels) // max_samples)
+        self.pos = 0
+        self.total, self.count = 0.0, 0
+
+    def add(self, rgb: np.ndarray) -> "LogAverage":
+        from .models.photometry import Y_WEIGHTS
+        flat = np.asarray(rgb)[..., :3].reshape(-1, 3)
+        first = (-self.pos) % self.step
+        Y = flat[first::self.step].astype(np.float64) @ Y_WEIGHTS
+        Y = Y[np.isfinite(Y) & (Y > 0)]
+        self.pos += flat.shape[0]
+        if Y.size:
+            self.total += float(np.log(Y).sum())
+            self.count += Y.size
+        return self
+
+    def result(self) -> float | None:
+        """None when no metered pixel has light."""
+        return float(np.exp(self.total / self.count)) if self.count else None
+
+
+def log_average(rgb: np.ndarray, max_samples: int = LOG_AVERAGE_SAMPLES) -> float | None:
+    """:class:`LogAverage` of one whole frame."""
+    a = np.asarray(rgb)
+    return LogAverage(a.size // max(a.shape[-1], 1), max_samples).add(a).result()
 
 
 @dataclass

@@ -144,7 +144,7 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
 def _options(a, input_, output):
     from .backends.plan import quality_tier
     from .imageio import parse_frames
-    from .sequence import JobOptions, parse_preadapt
+    from .job.options import JobOptions, parse_preadapt
     tier = quality_tier(a.quality)
     return JobOptions(
         input=input_, output=output,
@@ -541,7 +541,7 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if a.cmd == "demo":
             from .sample import write_tunnel_sequence
-            from .sequence import run_job
+            from .job.run import run_job
             w, h = _size(a.size)
             src = os.path.join(a.outdir, "scene")
             pattern, frames = write_tunnel_sequence(src, w, h, 30.0, a.seconds)
@@ -555,7 +555,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"state {opts.state_out}; {res.seconds:.1f} s")
             return 0
         if a.cmd == "simulate":
-            from .sequence import parse_times, run_simulate
+            from .job.options import parse_times
+            from .job.simulate import run_simulate
             res = run_simulate(_options(a, a.input, a.output), parse_times(a.at))
             if not a.quiet:
                 for t, o in zip(parse_times(a.at), res.outputs):
@@ -573,7 +574,8 @@ def main(argv: list[str] | None = None) -> int:
                 times = ", ".join(f"{k} {v:.2f} s" for k, v in res.passes.items())
                 print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s ({times})")
             return 0
-        from .sequence import Interrupted, run_job
+        from .job.options import Interrupted
+        from .job.run import run_job
         try:
             res = run_job(_options(a, a.input, a.output))
         except Interrupted as e:

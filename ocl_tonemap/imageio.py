@@ -59,6 +59,12 @@ def is_sequence(pattern: str) -> bool:
     return bool(_PAT.search(os.path.basename(pattern)))
 
 
+def without_frame_token(name: str) -> str:
+    """A file name with its frame-number tokens and the separator before each
+    removed (``shot.####.png`` -> ``shot.png``): names derived from a pattern."""
+    return re.sub(r"[._-]?" + _PAT.pattern, "", name)
+
+
 def _digits(tok: str) -> int:
     if tok[0] == "#":
         return 4 if len(tok) == 1 else len(tok)

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .alpha import restore_alpha, straight_colour
 from .backends import make_backend
 from .backends.plan import quality_tier
 from .effects import EffectSettings, Effects
@@ -30,7 +31,8 @@ from .models.metering import MeteringSpec
 from .models.photometry import RepairCounts, Y_WEIGHTS
 from .operators import get_operator
 from .operators.base import Frame, FrameStats
-from .state import AdaptationState
+from .state import AUTO_SCALE_KEY, AdaptationState
+from .streaming import STREAM_EFFECT_BANDS, SceneBands, WorkingRows, alpha_sink
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -50,10 +52,14 @@ class FrameInfo:
     effects: dict = field(default_factory=dict)
 
 
-class NeedsWholeFrame(RuntimeError):
-    """A streamed frame turned out to need the whole frame; nothing was mapped or
-    written, the state is as before. (The built-in effects all stream now and
-    raise it no more; a schedule may.)"""
+@dataclass
+class FrameResult:
+    """One mapped frame, as a value (:meth:`Tonemapper.process_frame`)."""
+
+    output: np.ndarray         # display-linear float32 (H x W x 3 or 4), or code values
+    alpha: tuple | None        # (alpha, empty mask, premultiplied?) of an RGBA frame
+    info: FrameInfo
+    encoded: bool = False      # ``output`` holds code values of the frame's ``encoding``
 
 
 def as_float_pixels(frame) -> np.ndarray:
@@ -132,34 +138,25 @@ class Tonemapper:
         if "spectral" in self.op.inputs and self.effects.s.purkinje != "off":
             raise ValueError(f"{operator} models the Purkinje shift itself; leave --purkinje off")
         self.display_primaries = None
+        #: The record of the last frame, and its output (for the API's callers; the
+        #: job takes :class:`FrameResult` values from :meth:`process_frame`).
         self.last: FrameInfo | None = None
         self.last_output: np.ndarray | None = None
-        #: A display encoding on the device (``ColourPipeline.device_output_encoding``)
-        #: for frames the caller writes encoded, or None. When set, a frame that allows
-        #: it (RGB in, no alpha, no display-slot effect at work, a schedule that brings
-        #: its output back through the backend) comes back as display code values
-        #: straight from the device, and ``last_output_encoded`` is True.
-        self.output_encoding = None
-        self.last_output_encoded = False
-        self._alpha = None
-        self._encodable = False
+        self.last_alpha = None
+        self._said_fast = False
+        self.front_door = None           # the ImageBuf API's run setup, by its settings (job/imagebuf.py)
 
     # -- state -----------------------------------------------------------------
     def schedule_set_pixels(self, pixels) -> None:
-        setter = getattr(self.schedule, "set_pixel_state", None)
-        if setter is not None:
-            setter(pixels)
-        elif pixels:
-            raise ValueError(f"{self.operator_name} keeps no per-pixel state")
+        self.schedule.set_pixel_state(pixels)
 
     @property
     def state(self) -> AdaptationState:
         """A copy of the current adaptation state (serialisable; with the per-pixel
         planes of operators that keep them)."""
         st = self._state.copy()
-        getter = getattr(self.schedule, "pixel_state", None)
-        if getter is not None and self.op.state.planes:
-            st.pixels = getter()
+        if self.op.state.planes:
+            st.pixels = self.schedule.pixel_state()
         return st
 
     @state.setter
@@ -175,7 +172,6 @@ class Tonemapper:
         next frame, as at the start of a shot (no pre-adaptation), with no memory
         of the last shot (operator and effect state); the time and the run's
         calibration constant are kept."""
-        from .state import AUTO_SCALE_KEY
         keep = {k: v for k, v in self._state.extra.items() if k == AUTO_SCALE_KEY}
         self.preadapt = None
         self.op.preadapt = None
@@ -192,11 +188,6 @@ class Tonemapper:
         st = self._state.copy()
         st.pixels = None
         return st
-
-    @property
-    def last_alpha(self):
-        """(alpha, empty-pixel mask, premultiplied?) of the last RGBA frame, or None."""
-        return self._alpha
 
     def remember(self, key: str, value) -> None:
         """Keep a JSON-able run value in the state's ``extra`` (saved and resumed)."""
@@ -229,9 +220,11 @@ class Tonemapper:
                 st.extra, goal, src, dt, fresh, self.preadapt is not None)
         return params, gains
 
-    def apply(self, frame: Frame, stats: FrameStats, params=None, gains=None, sink=None):
-        """The per-pixel mapping of ``frame`` under the current state."""
-        return self.schedule.apply(frame, self._state, stats, params, gains, sink)
+    def apply(self, frame: Frame, stats: FrameStats, params=None, gains=None, sink=None,
+              encoding=None):
+        """The per-pixel mapping of ``frame`` under the current state (``encoding``: see
+        :meth:`process_frame`)."""
+        return self.schedule.apply(frame, self._state, stats, params, gains, sink, encoding)
 
     # -- frames ----------------------------------------------------------------
     def process(self, frame: np.ndarray, dt: float | None = None, time_s: float | None = None,
@@ -257,11 +250,25 @@ class Tonemapper:
         (after the scene effects), the state untouched: the measure pass of a shot
         split over machines (``shot/``); see :meth:`check_measure_only`.
         """
+        res = self.process_frame(frame, dt, time_s, frame_number, luminance_scale, illuminant,
+                                 wavelengths, premultiplied, measure_only=measure_only)
+        return res if measure_only else res.output
+
+    def process_frame(self, frame: np.ndarray, dt: float | None = None,
+                      time_s: float | None = None, frame_number: int | None = None,
+                      luminance_scale: float = 1.0, illuminant=None, wavelengths=None,
+                      premultiplied: bool = True, encoding=None, measure_only: bool = False):
+        """:meth:`process`, returning the frame as a :class:`FrameResult` (with
+        ``measure_only``: its :class:`FrameStats`). ``encoding``: a display encoding on
+        the device (``ColourPipeline.device_output_encoding``) for a frame the caller
+        writes encoded; a frame that allows it (RGB in, no alpha, no display-slot
+        effect at work, a schedule that brings its output back through the backend)
+        comes back as display code values straight from the device (``encoded``)."""
         if measure_only:
             self.check_measure_only()
         if wavelengths is not None:
             return self._process_spectral(frame, dt, time_s, frame_number, luminance_scale,
-                                          wavelengths, measure_only)
+                                          wavelengths, measure_only, encoding)
         pix = as_float_pixels(frame)
         grey = None                                   # the input's own grey layout
         if pix.ndim == 2:
@@ -271,24 +278,29 @@ class Tonemapper:
                              f"(got shape {np.shape(frame)})")
         if pix.shape[2] == 1:
             pix, grey = np.repeat(pix, 3, axis=2), grey or "1"
-        self._encodable = grey is None and pix.shape[2] == 3
-        out = self._process_rgb(pix, dt, time_s, frame_number, luminance_scale, illuminant,
-                                premultiplied, measure_only)
+        if grey is not None or pix.shape[2] != 3:
+            encoding = None                           # code values only for RGB in and out
+        res = self._process_rgb(pix, dt, time_s, frame_number, luminance_scale, illuminant,
+                                premultiplied, measure_only, encoding)
         if measure_only:
-            return out
+            return res
         if grey is not None:                          # luminance in, luminance out
-            y = (np.asarray(out[..., :3], np.float64) @ Y_WEIGHTS).astype(np.float32)
-            return y if grey == "2d" else y[..., None]
-        return out
+            y = (np.asarray(res.output[..., :3], np.float64) @ Y_WEIGHTS).astype(np.float32)
+            res.output = y if grey == "2d" else y[..., None]
+        return self._remember(res)
+
+    def _remember(self, res: FrameResult) -> FrameResult:
+        self.last, self.last_output, self.last_alpha = res.info, res.output, res.alpha
+        return res
 
     def _process_rgb(self, pix, dt, time_s, frame_number, luminance_scale, illuminant,
-                     premultiplied, measure_only=False):
+                     premultiplied, measure_only=False, encoding=None):
         if not (math.isfinite(luminance_scale) and luminance_scale > 0):
             raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
         pix = np.ascontiguousarray(pix, np.float32)
-        self._alpha = None
+        alpha = None
         if pix.shape[2] == 4:
-            pix, self._alpha = straight_colour(pix, premultiplied)
+            pix, alpha = straight_colour(pix, premultiplied)
         if measure_only:             # (no stateful scene effect: check_measure_only)
             step_dt, fresh = 0.0, True
         else:
@@ -298,18 +310,28 @@ class Tonemapper:
                                                        illuminant)
         if measure_only:
             return self.measure(Frame(work, scale, None, self.display_primaries))
-        out = self._run_frame(Frame(work, scale, None, self.display_primaries), time_s,
-                              frame_number, step_dt, fresh, illuminant, eff, pre_repairs)
-        return self._finish(out, pix)
+        res = self._run_frame(Frame(work, scale, None, self.display_primaries), time_s,
+                              frame_number, step_dt, fresh, illuminant, eff, pre_repairs,
+                              encoding)
+        if pix.shape[2] == 4 and alpha is not None:   # premultiplied again where it was
+            res.output = restore_alpha(res.output, alpha)
+        elif pix.shape[2] == 4:
+            res.output = np.concatenate([res.output, pix[..., 3:4]], axis=2)
+        res.alpha = alpha
+        return res
 
     def _run_frame(self, frame: Frame, time_s, frame_number, step_dt, fresh, illuminant, eff,
-                   pre_repairs=None):
+                   pre_repairs=None, encoding=None) -> FrameResult:
         """measure -> integrate -> apply -> display effects, and the frame's record."""
         stats = self.measure(frame)
         params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh, illuminant,
                                        eff)
-        out = self._apply_encoded(frame, stats, params, gains)
-        if self.last_output_encoded:          # no display-slot effect was at work
+        if encoding is not None and (not self.schedule.encodes_output
+                                     or self.effects.slot_plugins("display")
+                                     or self.effects.acuity_needed(stats.G_rod, stats.width)):
+            encoding = None              # display-linear first: something works on it
+        out = self.apply(frame, stats, params, gains, encoding=encoding)
+        if encoding is not None:         # code values: no display-slot effect was at work
             eff["acuity"] = self.effects.acuity_report(stats.G_rod, stats.width)
         else:
             out, eff["acuity"] = self.effects.acuity(out, stats.G_rod)
@@ -317,31 +339,10 @@ class Tonemapper:
                 new, eff[plugin.NAME] = plugin.run(out, {"G_rod": stats.G_rod,
                                                          "G_cone": stats.G_cone})
                 out = out if new is None else np.asarray(new, np.float32)
-        self.last = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
-                              pre_repairs or stats.repairs, self._state.copy(),
-                              self._summary(params, stats), eff)
-        return out
-
-    def _apply_encoded(self, frame: Frame, stats: FrameStats, params, gains):
-        """:meth:`apply`, through :attr:`output_encoding` on the device when the frame
-        allows it (sets ``last_output_encoded``)."""
-        enc, be = self.output_encoding, self.backend
-        self.last_output_encoded = False
-        if enc is None or not self._encodable or not hasattr(be, "output_encoding") \
-                or self.effects.slot_plugins("display") \
-                or self.effects.acuity_needed(stats.G_rod, stats.width):
-            return self.apply(frame, stats, params, gains)
-        be.output_encoding, be.output_encoded = enc, False
-        try:
-            out = self.apply(frame, stats, params, gains)
-        finally:
-            be.output_encoding = None
-        self.last_output_encoded = be.output_encoded
-        return out
-
-    def _summary(self, params, stats) -> dict:
-        own = getattr(self.schedule, "summary", None)
-        return own(stats) if own is not None else self.op.summary(params)
+        info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
+                         pre_repairs or stats.repairs, self._state.copy(),
+                         self.schedule.summary(stats, params), eff)
+        return FrameResult(out, None, info, encoding is not None)
 
     def frame_clock(self, dt, time_s):
         """(time of this frame, step since the last one, fresh observer?)."""
@@ -384,7 +385,7 @@ class Tonemapper:
         schedule streams; every built-in effect streams (flare, Purkinje and
         chromatic adaptation wrap the band source, acuity the sink), effect
         plugins see whole frames."""
-        if not getattr(self.schedule, "streams", False):
+        if not self.schedule.streams:
             return f"the {self.backend.name} backend works on whole frames for {self.operator_name}"
         if self.effects.plugins:
             return "effect plugins need the whole frame"
@@ -393,21 +394,23 @@ class Tonemapper:
     def process_stream(self, source, sink, dt: float | None = None,
                        time_s: float | None = None, frame_number: int | None = None,
                        luminance_scale: float = 1.0, illuminant=None,
-                       measure_only: bool = False):
+                       measure_only: bool = False, start=None) -> FrameInfo | FrameStats:
         """One frame in row bands, never whole in memory: ``source[y0:y1]`` gives
         working-space bands (straight colour), ``source.shape`` is (H, W, C);
         ``sink(y0, band)`` receives the display-linear bands (3 channels) in order
-        after the state has advanced (``self.last`` is set before the first band
-        comes). Operators that stream (:meth:`can_stream`).
+        after the state has advanced; ``start(info)``, when given, gets the frame's
+        :class:`FrameInfo` before the first band comes (a writer's metadata). Returns
+        the :class:`FrameInfo` (``measure_only``: the :class:`FrameStats`). Operators
+        that stream (:meth:`can_stream`).
 
         The effects as on whole frames: the scene effects (flare, Purkinje,
         chromatic adaptation where the schedule cannot put it on the cone
         signals) after a metering pass over the unchanged frame, as
         ``_scene_effects`` meters it, each band made from the source's rows around
-        it (``_SceneBands``; flare: ``effects/flare.py`` ``BandedFlare``); the
+        it (``streaming.SceneBands``; flare: ``effects/flare.py`` ``BandedFlare``); the
         acuity blur on the display bands on their way to ``sink``
         (``effects/acuity.py`` ``BandedAcuity``). A source with ``alpha(y0)``
-        (``sequence._WorkingBands``) is read again at a band whose alpha it no
+        (``job/stream.py``) is read again at a band whose alpha it no
         longer holds when the sink gets it."""
         why = self.can_stream()
         if why:
@@ -419,32 +422,35 @@ class Tonemapper:
         time_s, step_dt, fresh = self.frame_clock(dt, time_s)
         eff: dict = {}
         before = self._state.copy()
-        self.last_output = None
+        self.last_output = self.last_alpha = None
         h, w = source.shape[:2]
-        try:
-            src, scale, pre_repairs, sweep = self._stream_scene_effects(
-                source, luminance_scale, eff, step_dt, fresh, illuminant)
-            frame = Frame(src, scale, None, self.display_primaries)
-            stats = self.measure(frame)
-            for finish in sweep:          # sums over the frame the measure pass swept
-                finish()
-            if measure_only:
-                self._state = before
-                return stats
-            params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh,
-                                           illuminant, eff)
-            out, eff["acuity"] = self.effects.acuity_stream(
-                _alpha_sink(source, sink), stats.G_rod, (h, w),
-                STREAM_EFFECT_BANDS * _band_pixels(self.backend, h, w))
-            self.last = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod,
-                                  stats.G_cone, pre_repairs or stats.repairs,
-                                  self._state.copy(), self._summary(params, stats), eff)
-            self.apply(frame, stats, params, gains, out)
-            if not getattr(out, "done", True):
-                raise RuntimeError(f"the schedule sent rows up to {out.got} of {h}")
-        except NeedsWholeFrame:
+        src, scale, pre_repairs, sweep = self._stream_scene_effects(
+            source, luminance_scale, eff, step_dt, fresh, illuminant)
+        frame = Frame(src, scale, None, self.display_primaries)
+        stats = self.measure(frame)
+        for finish in sweep:          # sums over the frame the measure pass swept
+            finish()
+        if measure_only:
             self._state = before
-            raise
+            return stats
+        params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh,
+                                       illuminant, eff)
+        out, eff["acuity"] = self.effects.acuity_stream(
+            alpha_sink(source, sink), stats.G_rod, (h, w),
+            STREAM_EFFECT_BANDS * self._band_pixels(h, w))
+        self.last = info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod,
+                                     stats.G_cone, pre_repairs or stats.repairs,
+                                     self._state.copy(), self.schedule.summary(stats, params),
+                                     eff)
+        if start is not None:
+            start(info)
+        self.apply(frame, stats, params, gains, out)
+        if not getattr(out, "done", True):     # a BandedAcuity sink counts its rows
+            raise RuntimeError(f"the schedule sent rows up to {out.got} of {h}")
+        return info
+
+    def _band_pixels(self, h: int, w: int) -> int:
+        return int(self.backend.max_band_pixels or h * w)
 
     def _stream_scene_effects(self, source, scale, eff: dict, dt: float, fresh: bool,
                               illuminant):
@@ -457,19 +463,14 @@ class Tonemapper:
             return source, scale, None, []
         h, w, nc = source.shape
         be = self.backend
-        band_px = _band_pixels(be, h, w)
+        band_px = self._band_pixels(h, w)
         # the unchanged frame's levels, as backend.working gives them to _scene_effects
-        if hasattr(be, "meter_pass"):
-            _, repairs, (G_rod, G_cone), illum = be.meter_pass(source, scale, self.metering,
-                                                               own_chroma, None)
-            max_Y = getattr(be, "last_max_Y", None)
-        else:
-            _, repairs, (G_rod, G_cone), est = be.working(source[0:h], scale, self.metering)
-            illum, max_Y = (est() if own_chroma else None), None
-        rows = _WorkingRows(be, source, scale, max(1, band_px // max(w, 1)))
-        flare, eff["flare"] = fx.flare_stream((h, w), G_rod, G_cone, rows.get, band_px, max_Y,
-                                              STREAM_EFFECT_BANDS * band_px)
-        if "streamed" in eff["flare"] and not getattr(self, "_said_fast", False):
+        levels = be.scene_levels(source, scale, self.metering, own_chroma)
+        repairs, (G_rod, G_cone) = levels.repairs, levels.goal
+        rows = WorkingRows(be, source, scale, max(1, band_px // max(w, 1)))
+        flare, eff["flare"] = fx.flare_stream((h, w), G_rod, G_cone, rows.get, band_px,
+                                              levels.max_Y, STREAM_EFFECT_BANDS * band_px)
+        if "streamed" in eff["flare"] and not self._said_fast:
             log.warning("flare: streamed frames use --flare-method fast (the exact "
                         "method's FFT needs the whole frame)")
             self._said_fast = True
@@ -477,7 +478,7 @@ class Tonemapper:
                                                    fresh, self.preadapt, h)
         gains = None
         if own_chroma:
-            goal, src = fx.illuminant_goal(illuminant, lambda: np.asarray(illum)[:3])
+            goal, src = fx.illuminant_goal(illuminant, lambda: np.asarray(levels.illuminant())[:3])
             gains, eff["chromatic_adaptation"] = fx.chromatic(
                 self._state.extra, goal, src, dt, fresh, self.preadapt is not None)
         if flare is None and purk is None and gains is None:
@@ -495,10 +496,10 @@ class Tonemapper:
                 if fb is not None:
                     info["fallback_fraction"] = fb
             sweep.append(purkinje_done)
-        return _SceneBands(rows, flare, purk, gains, nc), 1.0, repairs, sweep
+        return SceneBands(rows, flare, purk, gains, nc), 1.0, repairs, sweep
 
     def _process_spectral(self, frame, dt, time_s, frame_number, scale, wavelengths,
-                          measure_only=False):
+                          measure_only=False, encoding=None):
         if "spectral" not in self.op.inputs:
             from .operators import registry
             which = [n for n, c in registry().items() if "spectral" in c.inputs]
@@ -524,12 +525,9 @@ class Tonemapper:
         if not math.isfinite(step_dt) or step_dt < 0:
             raise ValueError(f"time goes backwards: last frame at {st.time_s} s, this one at "
                              f"{time_s} s")
-        self._alpha = None
-        self._encodable = True
-        out = self._run_frame(Frame(pix, scale, lam, self.display_primaries), time_s,
-                              frame_number, step_dt, fresh, None, {})
-        self.last_output = out
-        return out
+        return self._remember(self._run_frame(Frame(pix, scale, lam, self.display_primaries),
+                                              time_s, frame_number, step_dt, fresh, None, {},
+                                              None, encoding))
 
     def _scene_effects(self, pix, scale, eff: dict, dt: float, fresh: bool, illuminant):
         """Effects in the scene slot (flare, Purkinje, plugins), and chromatic adaptation
@@ -544,9 +542,8 @@ class Tonemapper:
         # the flare whole on the device: the working frame and the flared one stay there
         # (one upload, no round trip; the operator's colour stage copies it on the device)
         on_dev = pix.shape[2] == 3 and fx.flare_on_device(*pix.shape[:2])
-        kw = {"on_device": True} if on_dev else {}
-        rgb, repairs, (G_rod, G_cone), estimate = self.backend.working(pix, scale, self.metering,
-                                                                       own_chroma, **kw)
+        rgb, repairs, (G_rod, G_cone), estimate, _ = self.backend.working(
+            pix, scale, self.metering, own_chroma, on_device=on_dev)
         changed = False
         new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)
         if new is not None:
@@ -576,15 +573,6 @@ class Tonemapper:
             rgb = np.concatenate([rgb, pix[..., 3:4]], axis=2)
         return np.ascontiguousarray(rgb, np.float32), 1.0, repairs
 
-    def _finish(self, out: np.ndarray, pix: np.ndarray) -> np.ndarray:
-        """Alpha back on (premultiplied again where it was), remember the output."""
-        if pix.shape[2] == 4 and self._alpha is not None:
-            out = restore_alpha(out, self._alpha)
-        elif pix.shape[2] == 4:
-            out = np.concatenate([out, pix[..., 3:4]], axis=2)
-        self.last_output = out
-        return out
-
     def process_imagebuf(self, buf, dt: float | None = None, time_s: float | None = None,
                          luminance_scale=None, colorconfig: str | None = None,
                          iscolorspace: str | None = None, encode: bool = False,
@@ -601,184 +589,6 @@ class Tonemapper:
         The result is float display-linear light in the display's linear
         colourspace (``encode``: display code values), tagged and carrying the same
         ``ocltm:*`` attributes as the CLI's outputs."""
-        import OpenImageIO as oiio
-        from .imageio import frame_from_imagebuf
-        from .sequence import JobOptions, RunSetup, frame_input, render_output
-        fr = frame_from_imagebuf(buf, "<ImageBuf>", frame_number, channels)
-        key = (colorconfig, iscolorspace, luminance_scale, unpremult)
-        if getattr(self, "_front", None) is None or self._front[0] != key:
-            opts = JobOptions("<ImageBuf>", "<ImageBuf>", operator=self.operator_name,
-                              luminance_scale=luminance_scale, colorconfig=colorconfig,
-                              iscolorspace=iscolorspace, display=self.display.name
-                              if self.display.name and not self.display.paper_crt else None,
-                              unpremult=unpremult, encode=encode, checkpoint=False)
-            try:
-                run = RunSetup(opts, self._state.extra)
-            except Exception:  # noqa: BLE001 -- a display name the config lacks
-                opts.display = None
-                run = RunSetup(opts, self._state.extra)
-            self._front = (key, run)
-        run = self._front[1]
-        pix, lam, cs_text, scale, why = frame_input(run, self, fr, "<ImageBuf>")
-        self.process(pix, dt=dt, time_s=time_s, frame_number=frame_number,
-                     luminance_scale=scale, wavelengths=lam,
-                     premultiplied=run.premultiplied(fr))
-        t = self.last.time_s
-        r = render_output(run, self, fr, t, cs_text, scale, why, None, linear=not encode)
-        spec = fr.spec
-        nch = r.pixels.shape[2]
-        ospec = oiio.ImageSpec(spec)
-        ospec.nchannels = nch
-        ospec.channelnames = ("R", "G", "B", "A")[:nch]
-        ospec.alpha_channel = 3 if nch == 4 else -1
-        ospec.set_format(oiio.FLOAT)
-        for k in ("whiteLuminance", "chromaticities", "oiio:UnassociatedAlpha", "adoptedNeutral"):
-            ospec.erase_attribute(k)
-        ospec.attribute("oiio:ColorSpace", r.colorspace)
-        ospec.attribute("chromaticities", oiio.TypeDesc("float[8]"), tuple(r.chromaticities))
-        if r.white_luminance is not None:
-            ospec.attribute("whiteLuminance", float(r.white_luminance))
-        if nch == 4 and r.straight_alpha:
-            ospec.attribute("oiio:UnassociatedAlpha", 1)
-        for k, v in r.metadata.items():
-            ospec.attribute(k, v)
-        res = oiio.ImageBuf(ospec)
-        res.set_pixels(oiio.ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height,
-                                spec.z, spec.z + max(spec.depth, 1), 0, nch),
-                       np.ascontiguousarray(r.pixels, np.float32))
-        return res
-
-
-#: Effects that reach across band edges (flare, acuity) work on this many bands' pixels
-#: at a time when frames stream: their halo rows cost less the more rows share them
-#: (~100 bytes a pixel each while they work, inside the streaming path's budget).
-STREAM_EFFECT_BANDS = 1
-
-
-def _band_pixels(be, h: int, w: int) -> int:
-    return int(getattr(be, "max_band_pixels", None) or h * w)
-
-
-class _WorkingRows:
-    """Rows of a band source through the backend's colour stage (working RGB in
-    cd/m^2, float32; the straight alpha after it when the source has one), read
-    in pieces of at most ``max_rows`` rows. The rows of the last request are kept:
-    the next band's rows around it mostly overlap them and are not read again."""
-
-    def __init__(self, backend, source, scale: float, max_rows: int):
-        self.be, self.source, self.scale = backend, source, float(scale)
-        self.h, self.w, self.nc = source.shape
-        self.max_rows = max(1, int(max_rows))
-        self._rows = np.zeros((0, self.w, 4 if self.nc == 4 else 3), np.float32)
-        self._c0 = 0
-
-    def _read(self, a: int, b: int) -> np.ndarray:
-        nc = 4 if self.nc == 4 else 3
-        out = np.empty((b - a, self.w, nc), np.float32)
-        for y in range(a, b, self.max_rows):
-            z = min(b, y + self.max_rows)
-            pix = np.asarray(self.source[y:z], np.float32)
-            out[y - a:z - a, :, :3] = _working(self.be, pix, self.scale)
-            if nc == 4:
-                out[y - a:z - a, :, 3] = pix[..., 3]
-        return out
-
-    def get(self, a: int, b: int) -> np.ndarray:
-        """Rows [a, b) (H x W x 3, or 4 with alpha)."""
-        a, b = max(0, int(a)), min(self.h, int(b))
-        c0, c1 = self._c0, self._c0 + len(self._rows)
-        if c0 <= a and b <= c1:
-            return self._rows[a - c0:b - c0]
-        lo, hi = max(a, c0), min(b, c1)
-        if lo >= hi:
-            rows = self._read(a, b)
-        else:
-            parts = [self._read(a, lo)] if a < lo else []
-            parts.append(self._rows[lo - c0:hi - c0])
-            if hi < b:
-                parts.append(self._read(hi, b))
-            rows = np.concatenate(parts)
-        self._rows, self._c0 = rows, a
-        return rows
-
-
-def _working(be, pix: np.ndarray, scale: float) -> np.ndarray:
-    """The backend's colour stage on one band: working RGB in cd/m^2 (float32)."""
-    if hasattr(be, "to_working"):
-        import pyopencl as cl
-        be.to_working(pix, scale, count=False)
-        out = np.empty(pix.shape[:2] + (3,), np.float32)
-        cl.enqueue_copy(be.rt.queue, out, be.bufs["rgb"])
-        return out
-    from .models.photometry import sanitize
-    rgb, _ = sanitize(pix[..., :3], scale)
-    return np.asarray(rgb, np.float32)
-
-
-class _SceneBands:
-    """A band source with the scene effects on (``Tonemapper.process_stream``):
-    rows [y0, y1) are the working rows flared (from the rows around them),
-    Purkinje-shifted and multiplied by the chromatic gains, as ``_scene_effects``
-    changes the whole frame; cd/m^2, so the frame's scale is 1."""
-
-    def __init__(self, rows: _WorkingRows, flare, purkinje, gains, channels: int):
-        self.rows, self.flare, self.purkinje, self.gains = rows, flare, purkinje, gains
-        self._alpha = channels == 4
-        self.shape = (rows.h, rows.w, 4 if self._alpha else 3)
-
-    def __getitem__(self, sl: slice) -> np.ndarray:
-        y0, y1, _ = sl.indices(self.rows.h)
-        if self.flare is not None:
-            rgb = self.flare.rows(y0, y1)
-        else:
-            rgb = np.array(self.rows.get(y0, y1)[..., :3])
-        if self.purkinje is not None:
-            rgb = self.purkinje(y0, rgb)
-        if self.gains is not None:
-            rgb = (rgb * self.gains).astype(np.float32)
-        if self._alpha:
-            rgb = np.concatenate([rgb, self.rows.get(y0, y1)[..., 3:4]], axis=2)
-        return np.ascontiguousarray(rgb, np.float32)
-
-
-def _alpha_sink(source, sink):
-    """``sink`` behind a check that the source still holds the alpha of the band
-    the sink gets (``sequence._WorkingBands.alpha``: that of the last band read):
-    effects that read rows around a band, or send bands on later, read it again."""
-    alpha = getattr(source, "alpha", None)
-    if alpha is None or not callable(alpha) or source.shape[2] != 4:
-        return sink
-
-    def out(y0, band):
-        a = alpha(y0)
-        if a is None or len(a[0]) != len(band):
-            source[y0:y0 + len(band)]
-        sink(y0, band)
-    return out
-
-
-def restore_alpha(rgb: np.ndarray, alpha_info) -> np.ndarray:
-    """(..., 4): colour multiplied by alpha again where it had been divided
-    (``alpha_info`` from :func:`straight_colour`), empty pixels exactly zero."""
-    alpha, empty, premultiplied = alpha_info
-    out = np.array(rgb[..., :3], np.float32)
-    if premultiplied:
-        a = alpha[..., None]
-        out = np.where(a > 0, out * a, out).astype(np.float32)
-    out[empty] = 0.0
-    return np.concatenate([out, alpha[..., None]], axis=2)
-
-
-def straight_colour(pix: np.ndarray, premultiplied: bool):
-    """(frame with straight colour, (alpha, empty mask, premultiplied)): colour
-    divided by alpha where alpha > 0 when ``premultiplied``; ``empty`` marks
-    zero-alpha pixels with zero colour (they stay zero)."""
-    alpha = np.nan_to_num(pix[..., 3], nan=0.0, posinf=1.0, neginf=0.0).astype(np.float32)
-    rgb = pix[..., :3]
-    empty = (alpha == 0) & np.all(rgb == 0, axis=2)
-    if premultiplied:
-        a = alpha[..., None]
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            rgb = np.where(a > 0, rgb / np.where(a > 0, a, 1.0), rgb)
-        pix = np.concatenate([rgb.astype(np.float32), alpha[..., None]], axis=2)
-    return np.ascontiguousarray(pix, np.float32), (alpha, empty, bool(premultiplied))
+        from .job.imagebuf import process_imagebuf
+        return process_imagebuf(self, buf, dt, time_s, luminance_scale, colorconfig,
+                                iscolorspace, encode, unpremult, frame_number, channels)

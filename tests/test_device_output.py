@@ -1,4 +1,4 @@
-"""The display encoding applied where the operator's output is (Tonemapper.output_encoding):
+"""The display encoding applied where the operator's output is (``Tonemapper.process_frame(..., encoding=)``):
 the code values that come back from the device are the ones the host path makes from the
 display-linear frame, to the byte; frames that cannot take it fall back and say so."""
 
@@ -8,7 +8,7 @@ import pytest
 from ocl_tonemap.colour import ColourPipeline, load_config
 from ocl_tonemap.effects import EffectSettings
 from ocl_tonemap.pipeline import Tonemapper
-from ocl_tonemap.sequence import encode_pixels
+from ocl_tonemap.job.frame import encode_pixels
 
 from conftest import hdr_image
 
@@ -31,12 +31,12 @@ def run(op, cp, u8, pix, encode_on_device, wavelengths=None, **kw):
     tm = Tonemapper(op, "opencl", **kw)
     outs, flags = [], []
     for i, f in enumerate(pix):
-        tm.output_encoding = cp.device_output_encoding(u8, tm.backend.rt) \
+        enc = cp.device_output_encoding(u8, tm.backend.device_runtime()) \
             if encode_on_device else None
-        out = tm.process(f, time_s=0.5 * i, wavelengths=wavelengths)
-        flags.append(tm.last_output_encoded)
-        outs.append(out if tm.last_output_encoded else
-                    encode_pixels(cp, out, tm.last_alpha, False, u8))
+        res = tm.process_frame(f, time_s=0.5 * i, wavelengths=wavelengths, encoding=enc)
+        flags.append(res.encoded)
+        outs.append(res.output if res.encoded else
+                    encode_pixels(cp, res.output, res.alpha, False, u8))
     return outs, flags, tm
 
 
@@ -52,7 +52,6 @@ def test_device_encoding_equals_the_host_path(colour_table, op, u8):
     for g, w_ in zip(got, want):
         assert g.dtype == (np.uint8 if u8 else np.float32) and g.shape == (29, 37, 3)
         np.testing.assert_array_equal(g, w_)
-    assert not tm.backend.output_encoding         # left unset after the frame
 
 
 @pytest.mark.parametrize("op", ["pattanaik00", "kirk11"])
@@ -81,7 +80,7 @@ def test_spectral_frames_are_encoded(colour_table):
 
 def test_frames_that_cannot_fall_back_to_the_host_path(colour_table):
     """Alpha, luminance-only frames and acuity at night: display-linear comes back
-    (last_output_encoded False), unchanged."""
+    (``FrameResult.encoded`` False), unchanged."""
     enc = colour_table.device_output_encoding(True, None)
     assert enc is None                                   # no runtime: no device encoding
     pix = frames(16, 20)
@@ -93,14 +92,15 @@ def test_frames_that_cannot_fall_back_to_the_host_path(colour_table):
              ("pattanaik00", [pix[0], pix[2]], {"effects": EffectSettings(acuity="on", fov_deg=2.0)})]
     for op, px, kw in cases:
         tm = Tonemapper(op, "opencl", **kw)
-        tm.output_encoding = colour_table.device_output_encoding(True, tm.backend.rt)
+        enc = colour_table.device_output_encoding(True, tm.backend.device_runtime())
         for i, f in enumerate(px):
-            out = tm.process(f, time_s=3600.0 * i)
+            res = tm.process_frame(f, time_s=3600.0 * i, encoding=enc)
+            out = res.output
             if "effects" in kw and i == 0:
-                assert tm.last_output_encoded and tm.last.effects["acuity"]["ran"] is False
-                assert tm.last.effects["acuity"]["blend"] == 0
+                assert res.encoded and res.info.effects["acuity"]["ran"] is False
+                assert res.info.effects["acuity"]["blend"] == 0
                 continue
-            assert not tm.last_output_encoded and out.dtype == np.float32, (op, i)
+            assert not res.encoded and out.dtype == np.float32, (op, i)
             if "effects" in kw:
                 assert tm.last.effects["acuity"]["ran"] is True
             ref = Tonemapper(op, "opencl", **kw)

@@ -286,7 +286,7 @@ def test_spectral_input_errors():
 def test_purkinje_effect_keeps_luminance_and_shifts_colour(rt):
     from ocl_tonemap.effects import EffectSettings
     from ocl_tonemap.effects.purkinje import apply_purkinje
-    from ocl_tonemap.backends.opencl.kirk11 import KirkDevice
+    from ocl_tonemap.backends.opencl.lmsr import KirkDevice
     from ocl_tonemap.models.photometry import Y_WEIGHTS
     rgb = _rgb_scene().astype(np.float64) * 0.01                    # mesopic-scotopic
     ref, info = apply_purkinje(rgb, 0.02, 0.01)
@@ -334,7 +334,7 @@ def test_base_range_counted_on_the_device_is_the_hosts(rt, percentiles):
     exactly: every bin edge, its float neighbours, values beyond [-12, 12], signed zeros
     and denormals near the edge at 0, and a smooth base (long runs of one bin)."""
     import pyopencl as cl
-    from ocl_tonemap.backends.opencl.kirk11 import KirkDevice
+    from ocl_tonemap.backends.opencl.lmsr import KirkDevice
     from ocl_tonemap.models.durand2002 import (BASE_HIST_BINS, BaseRange, base_hist_bins,
                                                base_hist_edges)
     num, off, den = base_hist_edges()

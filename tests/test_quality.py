@@ -11,7 +11,7 @@ from ocl_tonemap.backends.plan import QUALITY_NAMES, QUALITY_TIERS, quality_tier
 from ocl_tonemap.cli import main
 from ocl_tonemap.imageio import frame_path
 from ocl_tonemap.pipeline import Tonemapper
-from ocl_tonemap.sequence import JobOptions
+from ocl_tonemap.job.options import JobOptions
 
 from conftest import hdr_image
 

@@ -14,7 +14,8 @@ import OpenImageIO as oiio
 import pytest
 
 from ocl_tonemap.imageio import FrameError, frame_path
-from ocl_tonemap.sequence import JobOptions, run_job
+from ocl_tonemap.job.options import JobOptions
+from ocl_tonemap.job.run import run_job
 from ocl_tonemap.shot import passes
 from ocl_tonemap.shot.store import ShotStore
 

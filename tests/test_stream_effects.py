@@ -1,5 +1,5 @@
 """Effects on frames larger than the memory budget (issue 12): flare, Purkinje and
-chromatic adaptation wrap the band source (``pipeline._SceneBands``), acuity the
+chromatic adaptation wrap the band source (``streaming.SceneBands``), acuity the
 sink (``effects/acuity.py`` ``BandedAcuity``); the flare is the fast method's
 pyramid cut where its image fits the budget (``models/spencer1995.py``
 ``banded_fast``). Real files, the real CLI."""
@@ -194,7 +194,7 @@ def test_banded_flare_on_the_device_is_the_whole_frames(rt, shape, fov):
     levels 1-3): every row as the whole frame's fast flare (effects.flare.run), bit
     for bit -- the same float32 blurs on a band and its halo rows."""
     from ocl_tonemap.effects import flare as F
-    blur = OpenCLBackend().device_blur()
+    blur = OpenCLBackend().device_blur().blur
     h, w = shape
     for edges in (False, True):
         rgb = _lamps(h, w, seed=4, edges=edges).astype(np.float32)

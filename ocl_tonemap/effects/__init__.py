@@ -128,18 +128,23 @@ class Effects:
     STATE_KEY = _chromatic.STATE_KEY
 
     @functools.cached_property
+    def _device_blur(self):
+        """The backend's device blur (flare, acuity) or None, made on first use: its
+        program build is ~40 ms of a start on PoCL, for runs that may never blur. Its
+        band size is the backend's when the effects were made (a streamed frame narrows
+        the backend's own bands later: the blur keeps its whole-frame passes)."""
+        return self.backend.device_blur(self._blur_pixels)
+
+    @property
     def _blur(self):
-        """The backend's device blur (flare, acuity), made on first use: its program
-        build is ~40 ms of a start on PoCL, for runs that may never blur. Its band size
-        is the backend's when the effects were made (a streamed frame narrows the
-        backend's own bands later: the blur keeps its whole-frame passes)."""
-        be = self.backend
-        return be.device_blur(self._blur_pixels) if hasattr(be, "device_blur") else None
+        """``blur(img, taps, edge)`` on the device, or None (the effects' NumPy path)."""
+        dev = self._device_blur
+        return None if dev is None else dev.blur
 
     def __init__(self, settings: EffectSettings, backend, plugins=()):
         self.s = settings
         self.backend = backend
-        self._blur_pixels = getattr(backend, "max_band_pixels", None)
+        self._blur_pixels = backend.max_band_pixels
         self.user_illuminant = parse_illuminant(settings.illuminant) if settings.illuminant else None
         self._purkinje_dev = None
         self._flare_dev = None
@@ -161,7 +166,7 @@ class Effects:
 
     def _make_flare_device(self) -> None:
         if self.s.flare != "off" and self.s.flare_method == "fast" and \
-                self._flare_dev is None and hasattr(self.backend, "flare_device"):
+                self._flare_dev is None:
             self._flare_dev = self.backend.flare_device()
 
     def flare_on_device(self, h: int, w: int) -> bool:
@@ -172,11 +177,13 @@ class Effects:
 
     def purkinje(self, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
                  dt: float = 0.0, fresh: bool = True, preadapt=None):
-        if self.s.purkinje != "off" and self._purkinje_dev is None and \
-                hasattr(self.backend, "purkinje_device"):
-            self._purkinje_dev = self.backend.purkinje_device()
+        self._make_purkinje_device()
         return _purkinje.run(self.s, rgb, G_rod, G_cone, extra, dt, fresh, preadapt,
                              self._purkinje_dev)
+
+    def _make_purkinje_device(self) -> None:
+        if self.s.purkinje != "off" and self._purkinje_dev is None:
+            self._purkinje_dev = self.backend.purkinje_device()
 
     def illuminant_goal(self, frame_hint, estimate_fn):
         """(normalised rgb, source): user value > frame metadata > estimate."""
@@ -207,14 +214,13 @@ class Effects:
     def purkinje_stream(self, G_rod: float, G_cone: float, extra: dict | None, dt: float,
                         fresh: bool, preadapt, height: int):
         """(:class:`~.purkinje.BandedPurkinje` or None, info); levels advanced."""
-        if self.s.purkinje != "off" and self._purkinje_dev is None and \
-                hasattr(self.backend, "purkinje_device"):
-            self._purkinje_dev = self.backend.purkinje_device()
+        self._make_purkinje_device()
         return _purkinje.stream(self.s, G_rod, G_cone, extra, dt, fresh, preadapt,
                                 self._purkinje_dev, height)
 
     def acuity_stream(self, sink, G_rod: float, shape, block_pixels: int | None = None):
         """(sink, info): ``sink`` behind a :class:`~.acuity.BandedAcuity` when it blurs."""
-        dev = getattr(getattr(self._blur, "__self__", None), "blur_axis", None)
-        pas = None if dev is None else (lambda im, taps, axis: dev(im, taps, EDGE_CLAMP, axis))
+        dev = self._device_blur
+        pas = None if dev is None else \
+            (lambda im, taps, axis: dev.blur_axis(im, taps, EDGE_CLAMP, axis))
         return _acuity.stream(self.s, sink, G_rod, shape, pas, block_pixels)

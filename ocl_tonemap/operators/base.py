@@ -213,8 +213,9 @@ class Operator:
         """The frame's scalars for the per-pixel stage (an object with ``as_dict``)."""
         raise NotImplementedError
 
-    def summary(self, params) -> dict:
-        """What to record per frame (metadata, plots)."""
+    def summary(self, params, stats: FrameStats | None = None) -> dict:
+        """What to record per frame (metadata, plots): the frame's scalars ``params``;
+        operators whose schedules work them out per pixel read ``stats.values``."""
         return params.as_dict() if hasattr(params, "as_dict") else {}
 
     # -- per-pixel stage of pointwise operators --------------------------------------------

@@ -69,7 +69,7 @@ class Kirk11(Operator):
     state = StateSpec(scalars=("logmean_I_A_cone", "logmean_I_A_rod", *LEVEL_KEYS))
     inputs = ("rgb", "spectral")
     metering = "local"
-    schedules = {"reference": ".reference:KirkSchedule", "opencl": ".opencl.kirk11:KirkSchedule"}
+    schedules = {"reference": ".reference.kirk11:KirkSchedule", "opencl": ".opencl.kirk11:KirkSchedule"}
     stages = (
         Stage("lmsr", "colour", "working RGB (via H) or spectra (Eq. 8) -> LMSR, repaired",
               "models.lmsr.rgb_to_lmsr", "kirk11.cl:to_lmsr"),
@@ -129,6 +129,12 @@ class Kirk11(Operator):
         state.values = {"logmean_I_A_cone": float(L_wa), "logmean_I_A_rod": float(L_waR)}
         if levels is not None:
             state.values.update({k: float(x) for k, x in levels.items()})
+
+    def summary(self, params, stats=None) -> dict:
+        """The frame's record (metadata, plots), the same from every schedule."""
+        v = stats.values
+        return KirkSummary(v["model_scale"], v["k1"], v["k2"], v["rod_gain"], v["w_mean"],
+                           v["fallback_fraction"], v["input"]).as_dict()
 
     def finish(self, out: np.ndarray, stats) -> np.ndarray:
         """The absolute level (``anchor_gain``) and, in the default mode, the highlight

@@ -2,7 +2,7 @@
 
 The model is ``models/ledda2004.py``; this module declares the operator: options,
 per-pixel state, stages, and the per-frame mapping scalars. Its phases run on the
-schedules ``backends/reference.py:LeddaSchedule`` (float64) and
+schedules ``backends/reference/ledda04.py:LeddaSchedule`` (float64) and
 ``backends/opencl/ledda04.py:LeddaSchedule`` (bilateral filter, state step and
 mapping on the device, in row bands with halos when a frame does not fit).
 """
@@ -100,9 +100,6 @@ class FrameSummary:
         return asdict(self)
 
 
-
-
-
 class Ledda04(Operator):
     name = "ledda04"
     description = "Ledda, Santos & Chalmers 2004: local (bilateral) adaptation, dark/light time course"
@@ -122,7 +119,7 @@ class Ledda04(Operator):
     )
     state = StateSpec(scalars=("logmean_I_A_cone", "logmean_I_A_rod"), planes=STATE_CHANNELS)
     metering = "local"
-    schedules = {"reference": ".reference:LeddaSchedule",
+    schedules = {"reference": ".reference.ledda04:LeddaSchedule",
                  "opencl": ".opencl.ledda04:LeddaSchedule"}
     stages = (
         Stage("colour", "colour", "working RGB x scale -> cd/m^2; Y, Y' (Eqs. 6-7)",
@@ -154,6 +151,14 @@ class Ledda04(Operator):
             if display is not None else None
         self.ward = self.settings.mode != "paper"
         self.rod_ratio = neutral_rod_ratio(self.ward)
+
+    def summary(self, params, stats=None) -> dict:
+        """The frame's record (metadata, plots), the same from every schedule."""
+        v = stats.values
+        return FrameSummary(v["sigma_px"], v["bilateral"], v["sigma_disp"], v["rods"],
+                            self.settings.mode, self.settings.strength, v["global_cone"],
+                            v["global_rod"], v.get("restarted_fraction", 0.0), stats.G_cone,
+                            stats.G_rod).as_dict()
 
     def frame_mapping(self, G_cone: float, G_rod: float) -> tuple[float, float, float]:
         """(display sigma, white signal, shoulder knee) of one frame."""

@@ -121,10 +121,10 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
                     chunk: int | None = None, store: str | None = None,
                     retries: int = 2, progress: bool = False, pocl_threads: int | None = None):
     """The shot on Dask: measure -> integrate -> apply. Returns a
-    :class:`~ocl_tonemap.sequence.JobResult` (frames, outputs, repairs, seconds)
+    :class:`~ocl_tonemap.job.options.JobResult` (frames, outputs, repairs, seconds)
     with the seconds of each pass in ``passes``."""
     from ..models.photometry import RepairCounts
-    from ..sequence import JobResult
+    from ..job.options import JobResult
     t0 = time.perf_counter()
     if not (isinstance(workers, int) and workers >= 1):
         raise ValueError(f"--workers must be >= 1 (got {workers})")

@@ -46,10 +46,15 @@ import re
 
 import numpy as np
 
-from ..imageio import FrameError, illuminant_from_metadata, is_sequence, read_frame
+from ..imageio import BandReader, FrameError, is_sequence, read_frame, without_frame_token
 from ..models.photometry import RepairCounts
 from ..operators.base import FrameStats
-from ..sequence import load_state_in, setup_run
+from ..job.checkpoint import load_state_in
+from ..job.frame import frame_input, map_frame
+from ..job.frames import frame_jobs, frame_time
+from ..job.options import DEFAULT_FPS, run_fingerprint
+from ..job.run import run_job, setup_run
+from ..job.stream import stream_frame, stream_rows
 from ..state import AUTO_SCALE_KEY
 from .store import ShotStore
 
@@ -59,13 +64,11 @@ log = logging.getLogger("ocl_tonemap")
 CUT_LOG10_JUMP = 1.0
 #: Local operators' per-pixel state keyframes, every this many frames (the farm's chunk).
 DEFAULT_KEYFRAME_EVERY = 50
-_TOKEN = re.compile(r"[._-]?(#+|@+|%0?\d*d)")
 
 
 # -- the shot and its chunks --------------------------------------------------------------
 def shot_jobs(opts):
-    """Every frame of the shot: ``sequence.frame_jobs`` over ``--frames`` (inputs checked)."""
-    from ..sequence import frame_jobs
+    """Every frame of the shot: ``job.frames.frame_jobs`` over ``--frames`` (inputs checked)."""
     if not is_sequence(opts.input):
         raise FrameError(opts.input, None, "measure/integrate/apply split a shot: the input "
                          "must be a frame sequence pattern (shot.####.exr)")
@@ -108,13 +111,12 @@ def default_store(opts) -> str:
     """``--store`` default: beside the output, its name without the frame number
     + ``.shot`` (``out/tunnel.####.png`` -> ``out/tunnel.png.shot``)."""
     d, b = os.path.split(opts.output)
-    b = _TOKEN.sub("", b).strip("._-") or "ocl-tonemap"
+    b = without_frame_token(b).strip("._-") or "ocl-tonemap"
     return os.path.join(d, b + ".shot")
 
 
 def _settings(opts) -> dict:
     """The settings a store belongs to (the serial run's fingerprint)."""
-    from ..sequence import run_fingerprint
     return run_fingerprint(opts)
 
 
@@ -168,8 +170,6 @@ def stats_from_document(doc: dict, planes, schedule) -> tuple[FrameStats, object
 def _shot_constants(opts, jobs, run, tm, store: ShotStore):
     """(fps, auto calibration constant) of the whole shot, as the serial run fixes
     them on its first frame: from the store when a worker already did."""
-    from ..imageio import BandReader
-    from ..sequence import frame_input
     if store.manifest_path.exists():
         man = store.manifest()
         return man["fps"], man.get("luminance_scale_auto")
@@ -179,7 +179,6 @@ def _shot_constants(opts, jobs, run, tm, store: ShotStore):
         fps = opts.fps or reader.header.fps
     finally:
         reader.close()
-    from ..sequence import DEFAULT_FPS
     fps = fps or DEFAULT_FPS
     auto = run.calibrator.auto_scale
     if auto is None and run.request.auto_level is not None:
@@ -197,7 +196,6 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
     (a retried task does not measure them again) unless ``redo`` or the input file
     changed since (size, modification time); new statistics invalidate an earlier
     integrate. Returns the frames measured."""
-    from ..sequence import stream_frame, stream_rows, frame_input, frame_time
     jobs = shot_jobs(opts)
     todo = chunk_jobs(jobs, chunk)
     state = load_state_in(opts)
@@ -209,7 +207,6 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
     if auto is not None:
         run.calibrator.auto_scale = auto
     want_illum = tm.effects.s.chromatic_adaptation != "off"
-    export = getattr(tm.schedule, "stats_planes", None)
     done = []
     for f, inp, outp, held in todo:
         try:
@@ -228,15 +225,13 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
             else:
                 fr = read_frame(inp, f, opts.channels)
                 t, _ = frame_time(fr, f, held, fps, None)
-                pix, lam, _, scale, _ = frame_input(run, tm, fr, inp)
-                hint = illuminant_from_metadata(fr.spec)
-                stats = tm.process(pix, time_s=t, frame_number=f, luminance_scale=scale,
-                                   illuminant=hint, wavelengths=lam,
-                                   premultiplied=run.premultiplied(fr), measure_only=True)
+                fin = frame_input(run, tm, fr, inp)
+                hint = fin.illuminant
+                stats = map_frame(tm, fin, t, f, measure_only=True)
             illum = stats.illuminant() if (want_illum and stats.illuminant) else None
             doc = stats_document(stats, illum, hint, t, held, inp)
             doc["input_stat"] = input_stat
-            store.write_stats(f, doc, export(stats) if export is not None else None)
+            store.write_stats(f, doc, tm.schedule.stats_planes(stats))
         except FrameError:
             raise
         except Exception as exc:
@@ -342,7 +337,6 @@ def start_state(opts, store: ShotStore, jobs, k0: int, integ: dict):
 def apply(opts, store_path: str, chunk=None):
     """The apply pass over ``chunk`` (all: None): the serial run over its frames
     from the integrated state. Returns the run's JobResult."""
-    from ..sequence import run_job
     jobs = shot_jobs(opts)
     frames = [j[0] for j in jobs]
     store = ShotStore(store_path)

@@ -10,9 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from contextlib import contextmanager
+
 from ...models import metering as met
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats, Operator
+from ..base import Levels, NoPixelState
 from ..plan import row_bands
 from .image import DeviceImage
 from .metering import DeviceMeter
@@ -38,17 +41,11 @@ class OpenCLBackend:
                                   self.rt.global_mem_bytes() // (48 * 4))
         self.max_band_pixels = int(max(1, max_band_pixels))
         #: Folder for per-pixel planes of banded frames (``backends/planes.py``);
-        #: None keeps them in memory. The streaming run sets it.
+        #: None keeps them in memory. Set for a stretch of work by :meth:`banded`.
         self.spill_dir = None
         self.bufs = None
         self._cap = 0
         self._pool: dict = {}
-        #: The display encoding of the frame being applied (``display.DeviceOutputEncoding``)
-        #: or None: set by ``Tonemapper`` for frames the run writes encoded; the
-        #: schedules bring their output back through :meth:`fetch_output`, which then
-        #: encodes on the device and sets ``output_encoded``.
-        self.output_encoding = None
-        self.output_encoded = False
 
     def describe(self) -> str:
         from .runtime import describe_device
@@ -60,15 +57,33 @@ class OpenCLBackend:
             from .. import load_schedule
             return load_schedule(spec)(self, op)
         if type(op).kernel_call is Operator.kernel_call:
-            from ..reference import PointwiseSchedule as HostSchedule   # no kernel: float64
-            return HostSchedule(self, op)
+            # no kernel: the float64 map on the host (the one place a backend lends
+            # another's schedule)
+            from .. import load_schedule
+            return load_schedule(".reference:PointwiseSchedule")(self, op)
         return PointwiseSchedule(self, op)
 
+    @contextmanager
+    def banded(self, rows_pixels: int | None, spill_dir: str | None):
+        """Frames in bands of ``rows_pixels`` pixels, per-pixel planes of banded frames
+        spilled to ``spill_dir``, for the ``with`` block (the streaming path)."""
+        was = self.max_band_pixels, self.spill_dir
+        self.max_band_pixels = int(rows_pixels) if rows_pixels else was[0]
+        self.spill_dir = spill_dir
+        try:
+            yield self
+        finally:
+            self.max_band_pixels, self.spill_dir = was
+
+    def device_runtime(self):
+        return self.rt
+
     def device_blur(self, max_pixels: int | None = None):
-        """``blur(img, taps, edge)`` on the device (effects: flare, acuity), in bands of
-        at most ``max_pixels`` (default: the backend's band size now)."""
+        """The separable blur on the device (effects: flare, acuity): ``.blur(img, taps,
+        edge)`` and ``.blur_axis``, in bands of at most ``max_pixels`` (default: the
+        backend's band size now)."""
         from .convolution import DeviceBlur
-        return DeviceBlur(self.rt, max_pixels or self.max_band_pixels).blur
+        return DeviceBlur(self.rt, max_pixels or self.max_band_pixels)
 
     def flare_device(self):
         """The fast flare on the device (``effects/flare.py``)."""
@@ -77,7 +92,7 @@ class OpenCLBackend:
 
     def purkinje_device(self):
         """kirk11's shift kernels for the Purkinje effect on other operators."""
-        from .kirk11 import KirkDevice
+        from .lmsr import KirkDevice
         return KirkDevice(self.rt)
 
     # -- buffers -----------------------------------------------------------------------
@@ -105,23 +120,21 @@ class OpenCLBackend:
         return self.bufs
 
     # -- the output -------------------------------------------------------------------------
-    def output_array(self, h: int, w: int) -> np.ndarray:
+    @staticmethod
+    def output_array(h: int, w: int, encoding=None) -> np.ndarray:
         """The host array a frame's output comes back into: display-linear float32, or
-        code values of :attr:`output_encoding`."""
-        enc = self.output_encoding
-        return np.empty((h, w, 3), np.float32 if enc is None else enc.dtype)
+        code values of ``encoding`` (a ``display.DeviceOutputEncoding``)."""
+        return np.empty((h, w, 3), np.float32 if encoding is None else encoding.dtype)
 
-    def fetch_output(self, dst: np.ndarray, buf, n: int) -> None:
+    def fetch_output(self, dst: np.ndarray, buf, n: int, encoding=None) -> None:
         """Bring ``n`` pixels of a per-pixel kernel's RGB output (``buf``) back into
         ``dst`` (C-contiguous rows of :meth:`output_array`), through the device display
-        encoding when one is set (then only code values cross to the host)."""
+        encoding when one is given (then only code values cross to the host)."""
         import pyopencl as cl
-        enc = self.output_encoding
-        if enc is None:
+        if encoding is None:
             cl.enqueue_copy(self.rt.queue, dst, buf)
         else:
-            enc.fetch(self.rt.queue, buf, n, dst)
-            self.output_encoded = True
+            encoding.fetch(self.rt.queue, buf, n, dst)
 
     # -- the colour stage ------------------------------------------------------------------
     def to_working(self, band: np.ndarray, scale: float, count: bool,
@@ -172,7 +185,8 @@ class OpenCLBackend:
 
     def meter_pass(self, pixels, scale, spec, illuminant: bool, keep_rgb: np.ndarray | None):
         """Colour stage + metering over the bands (+ illuminant sums, + the working
-        rgb copied to ``keep_rgb``): (bands, repairs, (G_rod, G_cone), illuminant sums)."""
+        rgb copied to ``keep_rgb``): (bands, repairs, (G_rod, G_cone), illuminant sums,
+        the largest working luminance)."""
         import pyopencl as cl
         h, w, _ = pixels.shape
         bands = self.bands(h, w)
@@ -191,23 +205,36 @@ class OpenCLBackend:
                 illum += self._illuminant_sums(nr * w)
             if keep_rgb is not None:
                 cl.enqueue_copy(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
-        self.last_max_Y = float(sums.sums[5])
-        return bands, repairs, sums.goal(spec), illum
+        return bands, repairs, sums.goal(spec), illum, float(sums.sums[5])
+
+    def scene_levels(self, source, scale: float, spec: met.MeteringSpec,
+                     illuminant: bool) -> Levels:
+        """:meth:`meter_pass` over a band source (nothing kept)."""
+        _, repairs, G, illum, max_Y = self.meter_pass(source, scale, spec, illuminant, None)
+        return Levels(None, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y)
+
+    def working_rows(self, pixels: np.ndarray, scale: float) -> np.ndarray:
+        """The colour stage of some rows, brought back: working RGB in cd/m^2."""
+        import pyopencl as cl
+        self.to_working(pixels, scale, count=False)
+        out = np.empty(pixels.shape[:2] + (3,), np.float32)
+        cl.enqueue_copy(self.rt.queue, out, self.bufs["rgb"])
+        return out
 
     def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec,
-                illuminant: bool = True, on_device: bool = False):
-        """Colour stage and metering only: (rgb cd/m^2, repairs, (G_rod, G_cone), estimate_fn);
-        ``illuminant`` False: no illuminant sums (estimate_fn None). ``on_device``: rgb is a
+                illuminant: bool = True, on_device: bool = False) -> Levels:
+        """Colour stage and metering only: rgb cd/m^2, repairs, (G_rod, G_cone), the
+        illuminant estimate (``illuminant`` False: no illuminant sums, None). ``on_device``: rgb is a
         :class:`~.image.DeviceImage` (for scene effects that run on the device) where the
         frame is one band, else a host array; it is the colour stage's buffer, valid until
         the backend's next colour stage (:meth:`to_working`)."""
         h, w, _ = pixels.shape
         one_band = len(self.bands(h, w)) == 1
         rgb = None if (on_device and one_band) else np.empty((h, w, 3), np.float32)
-        _, repairs, G, illum = self.meter_pass(pixels, scale, spec, illuminant, rgb)
+        _, repairs, G, illum, max_Y = self.meter_pass(pixels, scale, spec, illuminant, rgb)
         if rgb is None:           # the colour stage's own buffer, until its next frame
             rgb = DeviceImage(self.rt, self.bufs["rgb"], (h, w, 3))
-        return rgb, repairs, G, ((lambda: illum[:3]) if illuminant else None)
+        return Levels(rgb, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y)
 
     # -- per-pixel kernels ---------------------------------------------------------------------
     def run_pointwise(self, call, rgb, Y, Ys, out, n: int) -> None:
@@ -221,11 +248,12 @@ class OpenCLBackend:
             *extra)
 
 
-class PointwiseSchedule:
+class PointwiseSchedule(NoPixelState):
     """Colour, metering, the host's state step, one per-pixel kernel, over bands."""
 
     receptor_gains = True
     streams = True
+    encodes_output = True
 
     def __init__(self, backend: OpenCLBackend, op):
         self.backend, self.op = backend, op
@@ -233,9 +261,8 @@ class PointwiseSchedule:
     def measure(self, frame, spec: met.MeteringSpec, want_illuminant: bool = False) -> FrameStats:
         be = self.backend
         h, w, _ = frame.pixels.shape
-        bands, repairs, (G_rod, G_cone), illum = be.meter_pass(frame.pixels, frame.scale, spec,
-                                                               want_illuminant, None)
-        be.last_repairs = repairs
+        bands, repairs, (G_rod, G_cone), illum, _ = be.meter_pass(frame.pixels, frame.scale,
+                                                                  spec, want_illuminant, None)
         # one band stays resident in the backend's buffers until the next frame
         return FrameStats(w, h, G_rod, G_cone, repairs, lambda: illum[:3],
                           handle=(frame.pixels, bands))
@@ -243,7 +270,7 @@ class PointwiseSchedule:
     def integrate(self, state, stats, dt: float, fresh: bool) -> None:
         self.op.integrate(state, stats, dt, fresh)
 
-    def apply(self, frame, state, stats, params, gains=None, sink=None):
+    def apply(self, frame, state, stats, params, gains=None, sink=None, encoding=None):
         """Map every band (re-reading it unless the frame is the resident one); with
         ``sink(y0, band)`` bands go there and None is returned."""
         import pyopencl as cl
@@ -252,7 +279,7 @@ class PointwiseSchedule:
         resident = stats.handle is not None and stats.handle[0] is frame.pixels
         bands = stats.handle[1] if resident else be.bands(h, w)
         call = self.op.kernel_call(params)
-        out = be.output_array(h, w) if sink is None else None
+        out = be.output_array(h, w, encoding) if sink is None else None
         for y0, nr in bands:
             if len(bands) > 1 or not resident:
                 be.to_working(frame.pixels[y0:y0 + nr], frame.scale, count=False)
@@ -264,7 +291,7 @@ class PointwiseSchedule:
                           np.int32(n), g[0], g[1], g[2])
             be.run_pointwise(call, b["rgb"], b["Y"], b["Ys"], b["out"], n)
             if sink is None:
-                be.fetch_output(out[y0:y0 + nr], b["out"], n)
+                be.fetch_output(out[y0:y0 + nr], b["out"], n, encoding)
             else:
                 band = np.empty((nr, w, 3), np.float32)
                 cl.enqueue_copy(be.rt.queue, band, b["out"])

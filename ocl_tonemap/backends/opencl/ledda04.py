@@ -23,7 +23,7 @@ from ...models.metering import MeteringSpec
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
 from ..planes import PlaneStore, UniformPlanes, band_readable, read_rows
-from ..reference import PixelStateMixin, ledda_summary
+from ..base import PixelStateMixin
 from .bilateral import Z_IDENTITY, DeviceBilateral
 from .runtime import round_up
 
@@ -41,6 +41,7 @@ LOGMEAN = MeteringSpec.parse("logmean")
 class LeddaSchedule(PixelStateMixin):
     receptor_gains = False
     streams = True
+    encodes_output = True
     band_state = True
 
     def __init__(self, backend, op):
@@ -320,7 +321,7 @@ class LeddaSchedule(PixelStateMixin):
                         "logmean_I_A_rod": float(stats.G_rod)}
 
     # -- apply -------------------------------------------------------------------------
-    def apply(self, frame, state, stats, params=None, gains=None, sink=None):
+    def apply(self, frame, state, stats, params=None, gains=None, sink=None, encoding=None):
         """``ledda04_map4`` per band (rows re-read for banded frames); with
         ``sink(y0, band)`` the bands go there and None is returned."""
         import pyopencl as cl
@@ -332,7 +333,7 @@ class LeddaSchedule(PixelStateMixin):
         stats.values["sigma_disp"] = sd
         strength, lgc, _ = self._frame_scalars(stats)
         f32, i32 = np.float32, np.int32
-        out = be.output_array(h, w) if sink is None else None
+        out = be.output_array(h, w, encoding) if sink is None else None
         nstate = len(self.planes)
         for y0, nr in bands:
             n = nr * w
@@ -348,12 +349,10 @@ class LeddaSchedule(PixelStateMixin):
                         i32(n), f32(sd), f32(1.0 / op.display.unit_cd), be.bufs["out"], strength,
                         lgc, f32(1.0 / white), f32(knee), i32(op.ward))
             if sink is None:
-                be.fetch_output(out[y0:y0 + nr], be.bufs["out"], n)
+                be.fetch_output(out[y0:y0 + nr], be.bufs["out"], n, encoding)
             else:
                 band = np.empty((nr, w, 3), np.float32)
                 cl.enqueue_copy(q, band, be.bufs["out"])
                 sink(y0, band)
         return out
 
-    def summary(self, stats) -> dict:
-        return ledda_summary(self.op, stats)

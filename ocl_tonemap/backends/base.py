@@ -1,0 +1,211 @@
+"""The written interface between the job and the backends.
+
+A :class:`Backend` is where a frame's stages run (``reference``: float64 NumPy;
+``opencl``: float32 kernels on one device). It hands each operator a
+:class:`Schedule`, the object that runs that operator's three phases (measure,
+integrate, apply) on it, and offers the pieces the effects and the streaming path
+share (the colour stage and metering of a frame or of a band source, device blurs).
+The job (``pipeline.Tonemapper``, ``job/``) calls only what is written here;
+results come back as values, and settings that hold for a stretch of work (row
+bands, where per-pixel planes spill) are given as a ``with`` block
+(:meth:`Backend.banded`), never set from outside.
+
+Both are :class:`typing.Protocol` classes: a plugin's schedule (``Operator.schedules``)
+needs no base class, only these members. The mixins below are the shared parts
+of the built-in schedules (per-pixel state kept on the host, or none).
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from typing import Callable, NamedTuple, Protocol
+
+import numpy as np
+
+from ..models.metering import MeteringSpec
+from ..models.photometry import RepairCounts
+from ..operators.base import Frame, FrameStats
+from .planes import band_readable, plane_shape, read_rows
+
+
+class Levels(NamedTuple):
+    """A frame's colour stage and metering (:meth:`Backend.working`,
+    :meth:`Backend.scene_levels`)."""
+
+    rgb: object                        # working RGB in cd/m^2 (host array, device image or None)
+    repairs: RepairCounts              # the bad-value policy's counts
+    goal: tuple[float, float]          # (G_rod, G_cone), cd/m^2
+    illuminant: Callable[[], np.ndarray] | None   # the grey-world estimate, made when called
+    max_Y: float | None = None         # the largest working luminance, where known
+
+
+class Schedule(Protocol):
+    """One operator's phases on one backend."""
+
+    #: Chromatic adaptation's gains go on the cone signals inside :meth:`apply`
+    #: (Durand & Dorsey 2000 Eq. 6); False: the job applies them to the scene.
+    receptor_gains: bool
+    #: Frames can be given as band sources (``source[y0:y1]``) and bands sent to a sink.
+    streams: bool
+    #: :meth:`apply` can bring its output back as display code values (``encoding``).
+    encodes_output: bool
+
+    def measure(self, frame: Frame, spec: MeteringSpec,
+                want_illuminant: bool = False) -> FrameStats: ...
+
+    def integrate(self, state, stats: FrameStats, dt: float, fresh: bool) -> None: ...
+
+    def apply(self, frame: Frame, state, stats: FrameStats, params, gains=None, sink=None,
+              encoding=None) -> np.ndarray | None:
+        """The per-pixel map: display-linear float32 (H x W x 3), or the code values of
+        ``encoding`` (a ``DeviceOutputEncoding``) where :attr:`encodes_output`; with
+        ``sink(y0, band)`` the bands go there in order and None is returned."""
+
+    def pixel_state(self) -> dict | None: ...
+
+    def set_pixel_state(self, pixels) -> None: ...
+
+    def stats_planes(self, stats: FrameStats) -> dict | None:
+        """The per-pixel inputs of :meth:`integrate` to store apart from the run (shot
+        passes); None where the statistics are scalars."""
+
+    def stats_from_planes(self, stats: FrameStats, planes) -> FrameStats: ...
+
+    def summary(self, stats: FrameStats, params) -> dict:
+        """The frame's record (metadata, plots); asked before :meth:`apply` when a
+        streamed frame's metadata is written with its first band."""
+
+
+class Backend(Protocol):
+    name: str
+    #: Pixels per row band on this backend (None: frames are done whole).
+    max_band_pixels: int | None
+
+    def describe(self) -> str: ...
+
+    def schedule(self, op) -> Schedule: ...
+
+    def working(self, pixels: np.ndarray, scale: float, spec: MeteringSpec,
+                illuminant: bool = True, on_device: bool = False) -> Levels:
+        """Colour stage and metering of a whole frame (``on_device``: ``rgb`` may stay
+        on the device, for scene effects that run there)."""
+
+    def scene_levels(self, source, scale: float, spec: MeteringSpec,
+                     illuminant: bool) -> Levels:
+        """Colour stage and metering of a band source (``source[y0:y1]``), without
+        keeping its pixels: ``rgb`` is None."""
+
+    def working_rows(self, pixels: np.ndarray, scale: float) -> np.ndarray:
+        """The colour stage of some rows: working RGB in cd/m^2, float32, on the host."""
+
+    def banded(self, rows_pixels: int | None, spill_dir: str | None):
+        """A ``with`` block in which frames go in bands of ``rows_pixels`` pixels and
+        per-pixel planes of banded frames spill to files in ``spill_dir``."""
+
+    def device_runtime(self):
+        """The OpenCL runtime where frames are (for display tables on the device), or None."""
+
+    def device_blur(self, max_pixels: int | None = None):
+        """The separable blur on the device (``.blur(img, taps, edge)``, ``.blur_axis``),
+        or None on the host."""
+
+    def flare_device(self):
+        """The fast flare on the device, or None."""
+
+    def purkinje_device(self):
+        """The Purkinje shift kernels on the device, or None."""
+
+
+class HostBackend:
+    """What a backend without a device answers: nothing on a device, frames whole."""
+
+    max_band_pixels: int | None = None
+
+    def device_runtime(self):
+        return None
+
+    def device_blur(self, max_pixels: int | None = None):
+        return None
+
+    def flare_device(self):
+        return None
+
+    def purkinje_device(self):
+        return None
+
+    @contextmanager
+    def banded(self, rows_pixels: int | None, spill_dir: str | None):
+        yield self
+
+
+class ScheduleDefaults:
+    """What a schedule answers unless it says otherwise: scalar statistics only
+    (nothing per pixel to store apart), the operator's own frame record."""
+
+    def stats_planes(self, stats) -> dict | None:
+        return None
+
+    def stats_from_planes(self, stats, planes) -> FrameStats:
+        return stats
+
+    def summary(self, stats, params) -> dict:
+        return self.op.summary(params, stats)
+
+
+class NoPixelState(ScheduleDefaults):
+    """Schedules of operators that keep no per-pixel state."""
+
+    def pixel_state(self):
+        return None
+
+    def set_pixel_state(self, pixels) -> None:
+        if pixels:
+            raise ValueError(f"{self.op.name} keeps no per-pixel state")
+
+
+class PixelStateMixin(ScheduleDefaults):
+    """Per-pixel state kept by a schedule: host planes (float64 in the reference).
+
+    ``band_state``: the schedule reads its state by row bands, so a band-readable
+    source (``backends/planes.py``) is kept as it is; else it is read whole."""
+
+    planes: tuple = ()
+    band_state = False
+
+    def pixel_state(self) -> dict | None:
+        if self._host is None:
+            return None
+        if band_readable(self._host):
+            return self._host if getattr(self._host, "spilled", True) else self._host.as_dict()
+        return {k: np.array(v, copy=True) for k, v in self._host.items()}
+
+    def set_pixel_state(self, pixels) -> None:
+        if pixels is not None:
+            names = pixels.names if band_readable(pixels) else tuple(pixels)
+            missing = [k for k in self.planes if k not in names]
+            if missing:
+                raise ValueError(f"per-pixel state lacks {', '.join(missing)}")
+            if band_readable(pixels):
+                if not self.band_state:
+                    h = plane_shape(pixels)[0]
+                    pixels = dict(zip(self.planes, read_rows(pixels, self.planes, 0, h)))
+            else:
+                shapes = {np.shape(pixels[k]) for k in self.planes}
+                if len(shapes) != 1 or len(next(iter(shapes))) != 2:
+                    raise ValueError("per-pixel state planes must be 2-D and of one size")
+                pixels = {k: np.asarray(pixels[k]) for k in self.planes}
+        self._host = pixels
+
+    def state_shape(self):
+        return None if self._host is None else plane_shape(self._host)
+
+    def check_shape(self, fresh: bool, shape) -> None:
+        if fresh:
+            return
+        have = self.state_shape()
+        if have is None:
+            raise ValueError(f"this {self.op.name} state has no per-pixel state (was it saved "
+                             "with its .pixels.exr side file?)")
+        if tuple(have) != tuple(shape):
+            raise ValueError(f"per-pixel adaptation state is {have[1]}x{have[0]} but the frame "
+                             f"is {shape[1]}x{shape[0]}; local adaptation needs one image size")

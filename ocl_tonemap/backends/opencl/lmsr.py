@@ -1,0 +1,176 @@
+"""The LMSR machinery on the device (Kirk & O'Brien 2011), shared by kirk11's
+schedule and the Purkinje effect on other operators: RGB or spectra -> LMSR, the
+rod shift and the display solve (Eqs. 8-15), the log sums, the base layer's range
+from its histogram (Durand & Dorsey 2002), and the last scale-and-shoulder."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...models import lmsr
+from ...models.bilateral import RangeKernel
+from ...models.durand2002 import BASE_HIST_BINS, BASE_HIST_HI, BASE_HIST_LO, BaseRange, base_hist_edges
+from ...models.kirk2011 import RHO, SIGMA_RANGE_LOG10, subset_solvers, white_norm
+from ...models.photometry import RepairCounts
+from .bilateral import DeviceBilateral
+from .runtime import round_up
+
+
+class KirkDevice:
+    def __init__(self, rt):
+        import pyopencl as cl
+        self.rt = rt
+        self.cl = cl
+        self.bil = DeviceBilateral(rt)
+        self._k_lmsr = rt.kernel("kirk11.cl", "to_lmsr")
+        self._k_shift = rt.kernel("kirk11.cl", "kirk11_shift")
+        self._k_compose = rt.kernel("kirk11.cl", "kirk11_compose")
+        self._k_sums = rt.kernel("kirk11.cl", "kirk11_sums")
+        self._k_finish = rt.kernel("kirk11.cl", "kirk11_finish")
+        self._k_spectrum = rt.kernel("colour.cl", "spectrum_to_lmsr")
+        self._k_hist = rt.kernel("kirk11.cl", "base_histogram")
+        self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
+        self._hist = self._buf(BASE_HIST_BINS * 4)             # base_histogram's counts
+
+    def _buf(self, nbytes: int, host: np.ndarray | None = None):
+        cl = self.cl
+        mf = cl.mem_flags
+        if host is not None:
+            return cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                             hostbuf=np.ascontiguousarray(host, np.float32))
+        return cl.Buffer(self.rt.context, mf.READ_WRITE, max(int(nbytes), 4))
+
+    def shift(self, q, n: int, area, k1, k2, gain, xyz, M, D, paper: bool = False):
+        """kirk11_shift on n LMSR pixels: (rgb, w, log10 Y, fallback count) buffers.
+        ``paper``: the printed opponent space (no white normalisation) and Eq. 15's
+        exact NNLS; else D_W and the gamut map."""
+        dw = np.ones(3) if paper else white_norm()[:3]
+        par = np.array([area, k1, k2, gain, *xyz, *RHO, *dw, 1.0 if paper else 0.0], np.float32)
+        out, wbuf, logY = self._buf(n * 12), self._buf(n * 4), self._buf(n * 4)
+        fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
+        self._k_shift(self.rt.queue, (round_up(n, 64),), (64,), q, np.int32(n),
+                      self._buf(0, par), self._buf(0, np.linalg.inv(M).reshape(-1)),
+                      self._buf(0, subset_solvers(M).reshape(-1)),
+                      self._buf(0, M), self._buf(0, D), out, wbuf, logY, fb)
+        return out, wbuf, logY, fb
+
+    SUM_GROUPS, SUM_WG = 128, 64
+    #: kirk11_sums modes
+    LOG_LEVELS, PLANE, LOG_OUTPUT = 0, 1, 2
+
+    def sums(self, x, n: int, mode: int, inv_u: float = 1.0) -> tuple[float, float]:
+        """kirk11_sums over ``n`` pixels of ``x``, added in float64: LOG_LEVELS (LMSR):
+        (sum ln max(R, 1e-6), sum ln max(L+M, 1e-6)), as ``kirk2011.logmean``; PLANE:
+        (sum x, 0); LOG_OUTPUT (display-linear RGB): (sum ln max(Y inv_u, 1e-6), 0), as
+        ``anchor_gain``. Only the groups' records come back."""
+        cl = self.cl
+        if n <= 0:
+            return 0.0, 0.0
+        wg = self.SUM_WG
+        groups = max(1, min(self.SUM_GROUPS, -(-n // (4 * wg))))
+        self._k_sums(self.rt.queue, (groups * wg,), (wg,), x, np.int32(n), np.int32(mode),
+                     np.float32(inv_u), self._partial, cl.LocalMemory(wg * 16))
+        host = np.empty((groups, 4), np.float32)
+        cl.enqueue_copy(self.rt.queue, host, self._partial)
+        t = host.astype(np.float64).sum(axis=0)
+        return float(t[0]), float(t[1])
+
+    #: base_histogram: at most this many work-items, each a stretch of >= HIST_MIN_RUN
+    HIST_ITEMS, HIST_MIN_RUN = 16384, 64
+
+    def base_range(self, percentiles) -> "DeviceBaseRange":
+        """A :class:`~ocl_tonemap.models.durand2002.BaseRange` fed with device buffers."""
+        return DeviceBaseRange(self, percentiles)
+
+    def finish(self, rgb, n: int, gain: float, inv_white: float, knee: float) -> None:
+        """``Kirk11.finish`` in place on ``n`` display-linear pixels (kernels/kirk11.cl
+        kirk11_finish): the gain under the signal ceiling, the shoulder (knee 0: none),
+        the clamp."""
+        if n > 0:
+            self._k_finish(self.rt.queue, (round_up(self.rt.pixel_items(n, 4), 64),), (64,),
+                           rgb, np.int32(n), np.float32(gain), np.float32(inv_white),
+                           np.float32(knee))
+
+    def shift_rgb(self, rgb: np.ndarray, area: float, k1: float, k2: float, gain: float,
+                  M: np.ndarray, D: np.ndarray, xyz) -> tuple[np.ndarray, float]:
+        """Eqs. 10-13 and 15 on working RGB (cd/m^2, host array): the shifted RGB and
+        the NNLS fallback share. Used by the Purkinje effect for other operators."""
+        cl, q_ = self.cl, self.rt.queue
+        h, w = rgb.shape[:2]
+        n = h * w
+        gsz, wg = (round_up(n, 64),), (64,)
+        src = self._buf(0, rgb.reshape(n, 3))
+        q = self._buf(n * 16)
+        self._k_lmsr(q_, gsz, wg, src, np.int32(3), np.int32(n), self._buf(0, lmsr.fitted()["H"]), q)
+        out, _, _, fb = self.shift(q, n, area, k1, k2, gain, xyz, M, D)
+        res = np.empty((h, w, 3), np.float32)
+        cl.enqueue_copy(q_, res, out)
+        nfb = np.empty(1, np.int32)
+        cl.enqueue_copy(q_, nfb, fb)
+        return res, float(nfb[0]) / max(n, 1)
+
+    def lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
+        """One band (or a whole frame) to LMSR on the device: (q buffer, source
+        buffer, repairs). RGB goes through the device colour stage; a spectral cube is
+        copied into a pooled buffer and repaired, scaled and weighted in one pass
+        (kernels/colour.cl spectrum_to_lmsr); its source buffer holds the raw values."""
+        cl = self.cl
+        q_ = self.rt.queue
+        nr, w = band.shape[:2]
+        n = nr * w
+        q = self._buf(n * 16)
+        if wavelengths is None:
+            rc = backend.to_working(band, scale, count=count)
+            src = backend.bufs["rgb"]
+            self._k_lmsr(q_, (round_up(n, 64),), (64,), src, np.int32(3), np.int32(n),
+                         self._buf(0, lmsr.fitted()["H"]), q)
+            return q, src, rc
+        nc = band.shape[2]
+        cube = np.ascontiguousarray(band, np.float32)
+        src = backend.buffer("kirk:cube", cube.nbytes)
+        cl.enqueue_copy(q_, src, cube)
+        counts = backend.buffer("counts", 8 * 4)
+        cl.enqueue_fill_buffer(q_, counts, np.int32(0), 0, 8 * 4)
+        Wt = np.ascontiguousarray(lmsr.spectrum_weights(wavelengths).T, np.float32)
+        self._k_spectrum(q_, (round_up(n, 64),), (64,), src, np.int32(nc), np.int32(n),
+                         np.float32(scale), self._buf(0, Wt), q, counts)
+        return q, src, (backend.read_repairs(counts) if count else RepairCounts())
+
+
+class DeviceBaseRange:
+    """Durand & Dorsey 2002's base range over base layers on the device, band by band:
+    the exact extremes (``DeviceBilateral.z_range``) and, for percentiles, the counts
+    in BaseRange's bins (kirk11.cl ``base_histogram``, the host's bins exactly), so the
+    base layer no longer comes to the host (it did, for ``BaseRange.add``)."""
+
+    def __init__(self, dev: KirkDevice, percentiles):
+        self.dev, self.acc = dev, BaseRange(percentiles)
+        self.lo, self.hi, self.n = math.inf, -math.inf, 0
+        if not self.acc.exact:
+            dev.cl.enqueue_fill_buffer(dev.rt.queue, dev._hist, np.int32(0), 0,
+                                       BASE_HIST_BINS * 4)
+
+    def add(self, base, n: int) -> "DeviceBaseRange":
+        """Adds the n base values (log10, float32) of the device buffer ``base``."""
+        if n <= 0:
+            return self
+        dev = self.dev
+        lo, hi = dev.bil.z_range(base, n, RangeKernel("difference", SIGMA_RANGE_LOG10))
+        self.lo, self.hi, self.n = min(self.lo, lo), max(self.hi, hi), self.n + n
+        if not self.acc.exact:
+            num, off, den = base_hist_edges()
+            items = max(1, min(dev.HIST_ITEMS, n // dev.HIST_MIN_RUN))
+            dev._k_hist(dev.rt.queue, (round_up(items, 64),), (64,), base, np.int32(n),
+                        np.int32(BASE_HIST_BINS), np.float32(BASE_HIST_LO),
+                        np.float32(BASE_HIST_BINS / (BASE_HIST_HI - BASE_HIST_LO)),
+                        np.int32(num), np.int32(off), np.float32(1.0 / den), dev._hist)
+        return self
+
+    def result(self) -> tuple[float, float]:
+        hist = None
+        if not self.acc.exact and self.n:
+            hist = np.empty(BASE_HIST_BINS, np.int32)
+            self.dev.cl.enqueue_copy(self.dev.rt.queue, hist, self.dev._hist)
+        return self.acc.add_counts(hist, self.lo, self.hi, self.n).result()

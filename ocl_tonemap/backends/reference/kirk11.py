@@ -1,0 +1,60 @@
+"""kirk11 in float64: Eqs. 8-16, the exact bilateral base, the composition."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...models import durand2000
+from ...models.photometry import sanitize
+from ...operators.base import FrameStats
+from ..base import NoPixelState
+
+
+class KirkSchedule(NoPixelState):
+    """kirk11 in float64: Eqs. 8-16, exact bilateral base, composition."""
+
+    receptor_gains = False
+    streams = False
+    encodes_output = False
+
+    def __init__(self, backend, op):
+        self.backend, self.op = backend, op
+
+    def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
+        from ...models import kirk2011 as K
+        from ...models import lmsr
+        if frame.wavelengths is not None:
+            sp, repairs = sanitize(frame.pixels, frame.scale)
+            src, q = None, lmsr.spectral_to_lmsr(frame.wavelengths, sp)
+        else:
+            src, repairs = sanitize(frame.pixels[..., :3], frame.scale)
+            q = lmsr.rgb_to_lmsr(src)
+        h, w = q.shape[:2]
+        return FrameStats(w, h, K.logmean(q[..., 3]), K.logmean(q[..., 0] + q[..., 1]), repairs,
+                          handle=(frame.pixels, src, q))
+
+    def integrate(self, state, stats, dt: float, fresh: bool) -> None:
+        self.op.integrate(state, stats, dt, fresh)
+
+    def apply(self, frame, state, stats, params=None, gains=None, sink=None, encoding=None):
+        from ...models import kirk2011 as K
+        from ...models.bilateral import RangeKernel, bilateral_reference
+        op, s, v = self.op, self.op.settings, stats.values
+        _, src, q = stats.handle
+        D = frame.display_primaries if frame.display_primaries is not None else np.eye(3)
+        area = K.model_scale()
+        q_hat, w = K.purkinje_shift(q, area, v["k1"], v["k2"], s.shift_xyz, v["rod_gain"],
+                                    white=not s.paper)
+        p, fb = K.solve_display(op.M(D), q_hat, s.paper)
+        shift_rgb = p @ np.asarray(D, np.float64).T
+        # range reduction of the mesopic image's own luminance (rods add to it)
+        logY = np.log10(np.maximum(shift_rgb @ durand2000.Y_WEIGHTS, K.Y_FLOOR))
+        h, wd = logY.shape
+        base = bilateral_reference(logY, s.sigma_px(wd, h),
+                                   RangeKernel("difference", K.SIGMA_RANGE_LOG10))
+        out = op.finish(K.compose_reference(src if src is not None else shift_rgb, shift_rgb,
+                                            w, logY, base, s, op.display, blend=src is not None),
+                        stats)
+        v.update(model_scale=area, w_mean=float(w.mean()), fallback_fraction=float(fb.mean()),
+                 input="spectral" if frame.wavelengths is not None else "rgb")
+        return out.astype(np.float32)

@@ -1,0 +1,82 @@
+"""ledda04 in float64: the exact bilateral filter, the state step and the map of
+``models/ledda2004.py``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...models import metering as met
+from ...models.photometry import sanitize
+from ...operators.base import FrameStats
+from ..base import PixelStateMixin
+
+
+class LeddaSchedule(PixelStateMixin):
+    """ledda04 in float64: exact bilateral filter, the state step and map of
+    ``models/ledda2004.py``."""
+
+    receptor_gains = False
+    streams = False
+    encodes_output = False
+
+    def __init__(self, backend, op):
+        from ...models.ledda2004 import STATE_CHANNELS
+        self.backend, self.op = backend, op
+        self.planes = STATE_CHANNELS
+        self._host = None
+
+    def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
+        from ...models import ledda2004 as L
+        from ...models.bilateral import LEDDA_RANGE, V_FLOOR, bilateral_reference
+        op, s = self.op, self.op.settings
+        h, w = frame.pixels.shape[:2]
+        rgb, repairs = sanitize(frame.pixels[..., :3], frame.scale)
+        Y, Ys = L.luminances(rgb, op.ward)
+        G_rod_g, G_cone_g = met.reference_goal(np.maximum(Y, V_FLOOR), np.maximum(Ys, V_FLOOR),
+                                               met.MeteringSpec.parse("logmean"))
+        sig = s.sigma_px(w, h)
+        I_c = L.blend_levels(bilateral_reference(Y, sig, LEDDA_RANGE), G_cone_g, s.strength)
+        rods = op.rods == "always" or I_c.min() < L.PHOTOPIC_FLOOR
+        I_r = L.blend_levels(bilateral_reference(Ys, sig, LEDDA_RANGE), G_rod_g, s.strength) \
+            if rods else np.maximum(I_c * op.rod_ratio, V_FLOOR)
+        return FrameStats(w, h, L.logmean(I_r), L.logmean(I_c), repairs,
+                          values={"global_cone": G_cone_g, "global_rod": G_rod_g, "sigma_px": sig,
+                                  "rods": bool(rods), "bilateral": "exact (float64)"},
+                          planes={"I_c": I_c, "I_r": I_r}, handle=(frame.pixels, rgb, Ys))
+
+    def stats_planes(self, stats):
+        """The per-pixel adaptation inputs ``integrate`` reads (float64)."""
+        return {k: np.asarray(stats.planes[k]) for k in ("I_c", "I_r")}
+
+    def stats_from_planes(self, stats, planes) -> FrameStats:
+        stats.planes = {k: np.asarray(planes[k], np.float64) for k in ("I_c", "I_r")}
+        return stats
+
+    def integrate(self, state, stats, dt: float, fresh: bool) -> None:
+        from ...models import ledda2004 as L
+        op = self.op
+        shape = (stats.height, stats.width)
+        self.check_shape(fresh, shape)
+        I_c, I_r = stats.planes["I_c"], stats.planes["I_r"]
+        if fresh and op.preadapt is None:
+            st, restarted = L.initial_state(I_c, I_r, L.E_MAX), 0.0
+        else:
+            prev = L.preadapted_state(op.preadapt[0], op.preadapt[1], shape, op.ward) \
+                if fresh else self._host
+            st = L.step_reference(prev, I_c, I_r, dt, op.settings.change_log10)
+            restarted = float(np.mean(st["t_course"] == 0.0))
+        self._host = st
+        stats.values["restarted_fraction"] = restarted
+        state.values = {"logmean_I_A_cone": float(stats.G_cone),
+                        "logmean_I_A_rod": float(stats.G_rod)}
+
+    def apply(self, frame, state, stats, params=None, gains=None, sink=None, encoding=None):
+        from ...models import ledda2004 as L
+        op = self.op
+        _, rgb, Ys = stats.handle
+        s_c, s_r = L.current_sigmas(self._host)
+        sd, white, knee = op.frame_mapping(stats.values["global_cone"], stats.values["global_rod"])
+        stats.values["sigma_disp"] = sd
+        out = L.map_reference(rgb, Ys, stats.planes["I_c"], s_c, s_r, sd, op.display.unit_cd,
+                              white, knee)
+        return out.astype(np.float32)

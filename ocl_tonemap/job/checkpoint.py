@@ -1,0 +1,126 @@
+"""The state written after every frame, and what a resumed run starts from; the
+temporary files a killed run left behind."""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+
+from ..imageio import FrameError, same_file, without_frame_token
+from ..state import AdaptationState
+from .options import RUN_KEY, JobOptions, run_fingerprint
+
+log = logging.getLogger("ocl_tonemap")
+
+def checkpoint_path(opts: JobOptions) -> str:
+    """Where the state is checkpointed after every frame: ``--state-out``, else the
+    output name without its frame number + ``.state.json``
+    (``out/shot.####.png`` -> ``out/shot.png.state.json``)."""
+    if opts.state_out:
+        return opts.state_out
+    d, b = os.path.split(opts.output)
+    b = without_frame_token(b)
+    root, dot, ext = b.rpartition(".")
+    if not dot:
+        root, ext = b, ""
+    root = root.rstrip("._-") or "ocl-tonemap"
+    return os.path.join(d, f"{root}.{ext}.state.json" if ext else f"{root}.state.json")
+
+
+def resume_point(opts: JobOptions, jobs, ckpt: str, operator: str):
+    """(state to start from, jobs still to do) for ``--resume``."""
+    if not os.path.exists(ckpt):
+        log.warning("--resume: no checkpoint %s; starting from the first frame", ckpt)
+        return None, jobs
+    st = AdaptationState.load(ckpt)
+    if st.operator != operator:
+        raise ValueError(f"--resume: the checkpoint {ckpt} belongs to operator {st.operator!r}, "
+                         f"not {operator!r}")
+    was, now = st.extra.get(RUN_KEY), run_fingerprint(opts)
+    if isinstance(was, dict):
+        # keys added since the checkpoint was written are not compared
+        diff = [k for k in sorted(was) if was.get(k) != now.get(k)]
+        if diff:
+            raise ValueError("--resume: the checkpoint " + ckpt + " was written by a run with "
+                             "other settings (" + "; ".join(
+                                 f"{k}: {was.get(k)!r} then, {now.get(k)!r} now" for k in diff)
+                             + "); resume with the same options, or start again without "
+                             "--resume")
+    if st.frame is None:
+        raise ValueError(f"--resume: the checkpoint {ckpt} has no frame number (a still); "
+                         "run it again")
+    st.extra.pop(RUN_KEY, None)
+    todo = [j for j in jobs if j[0] is not None and j[0] > st.frame]
+    log.warning("resuming after frame %d from %s: %d of %d frame(s) left", st.frame, ckpt,
+                len(todo), len(jobs))
+    return st, todo
+
+
+def load_state_in(opts: JobOptions) -> AdaptationState | None:
+    """``--state-in``, without the settings of the run that wrote it (``RUN_KEY``)."""
+    if not opts.state_in:
+        return None
+    st = AdaptationState.load(opts.state_in)
+    st.extra.pop(RUN_KEY, None)
+    return st
+
+
+def checkpoint_state(tm, fingerprint: dict) -> AdaptationState:
+    """The state after a frame, with the run's settings (checked by --resume)."""
+    st = tm.state
+    st.extra[RUN_KEY] = fingerprint
+    return st
+
+
+def check_state_paths(jobs, paths) -> None:
+    """The state files must not be an input or an output, and their folder must exist."""
+    files = {p for _, i, o, _ in jobs for p in (i, o)}
+    for p in paths:
+        d = os.path.dirname(os.path.abspath(p))
+        if not os.path.isdir(d):
+            raise FrameError(p, None, f"the state's folder {d} does not exist")
+        for q in files:
+            if same_file(p, q):
+                raise FrameError(p, None, "the state file would overwrite an input or output "
+                                 "frame; choose another --state-out")
+
+
+def remove_stale_temps(jobs, state_paths=()) -> None:
+    """Temporary files a killed earlier run may have left beside the outputs and
+    the state files (``.<name>.tmp<pid>[<ext>]``, only those of this run's files,
+    and only when that process is gone)."""
+    from pathlib import Path
+    mine: dict = {}
+    for _, _, o, _ in jobs:
+        mine.setdefault(os.path.dirname(os.path.abspath(o)), set()).add(Path(o).stem)
+    prefixes: dict = {}
+    for sp in state_paths:                  # the JSON itself and its per-pixel planes
+        d, name = os.path.split(os.path.abspath(sp))
+        mine.setdefault(d, set()).add(name)
+        prefixes.setdefault(d, []).append(name[:-5] + ".pixels." if name.endswith(".json")
+                                          else name + ".pixels.")
+    rx = re.compile(r"^\.(.+)\.tmp(\d+)(\.[A-Za-z0-9]+)?$")
+    for d, stems in mine.items():
+        try:
+            names = os.listdir(d)
+        except OSError:
+            continue
+        for name in names:
+            m = rx.match(name)
+            if not m or int(m.group(2)) == os.getpid():
+                continue
+            if m.group(1) not in stems and not any(m.group(1).startswith(pfx)
+                                                   for pfx in prefixes.get(d, ())):
+                continue                       # not a temporary of one of this run's files
+            try:
+                os.kill(int(m.group(2)), 0)
+                continue                       # that process is alive: not ours to remove
+            except PermissionError:
+                continue                       # alive, another user's
+            except (ProcessLookupError, OverflowError):
+                pass
+            try:
+                os.unlink(os.path.join(d, name))
+            except OSError:
+                pass

@@ -1,0 +1,126 @@
+"""Which frames a run renders, from which files to which, and at what time."""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+
+from ..imageio import FrameError, find_frames, frame_path, is_sequence, same_file
+from .options import DEFAULT_FPS, JobOptions
+
+log = logging.getLogger("ocl_tonemap")
+
+def _sequence_frames(opts: JobOptions) -> tuple[list[int], list[int]]:
+    """(frames to render, the missing ones among them) for a sequence input: the
+    --frames list, or every frame between the first and last on disk (step: the
+    common step of those present)."""
+    present = set(find_frames(opts.input))
+    if opts.frames is not None:
+        frames = list(opts.frames)
+    else:
+        if not present:
+            raise FrameError(opts.input, None, "no frames found for this pattern")
+        have = sorted(present)
+        step = 0
+        for a, b in zip(have, have[1:]):
+            step = math.gcd(step, b - a)
+        step = step or 1
+        frames = list(range(have[0], have[-1] + 1, step))
+    missing = [f for f in frames if f not in present and not os.path.exists(frame_path(opts.input, f))]
+    return frames, missing
+
+
+def frame_jobs(opts: JobOptions) -> list[tuple[int | None, str, str, bool]]:
+    """(frame, input path, output path, held) for every frame to render; ``held``:
+    the input is the previous frame's (``--missing hold``). Every input is
+    checked before the first frame is processed."""
+    if is_sequence(opts.input):
+        if not is_sequence(opts.output):
+            raise FrameError(opts.output, None, "input is a sequence, so the output needs a "
+                             "frame pattern too (#, @ or %04d)")
+        frames, missing = _sequence_frames(opts)
+        if missing and opts.missing == "error":
+            more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+            raise FrameError(frame_path(opts.input, missing[0]), missing[0],
+                             f"missing frame{more} between {frames[0]} and {frames[-1]}; nothing "
+                             "was processed. --missing hold repeats the previous frame, "
+                             "--missing skip leaves the gap (time still follows frame numbers)")
+        jobs, prev = [], None
+        gone = set(missing)
+        for f in frames:
+            if f in gone:
+                if opts.missing == "skip":
+                    log.warning("%s: missing, skipped (--missing skip)", frame_path(opts.input, f))
+                    continue
+                if prev is None:
+                    raise FrameError(frame_path(opts.input, f), f, "missing, and no earlier frame "
+                                     "to hold (--missing hold)")
+                log.warning("%s: missing, frame %d held (--missing hold)",
+                            frame_path(opts.input, f), prev)
+                jobs.append((f, frame_path(opts.input, prev), frame_path(opts.output, f), True))
+                continue
+            jobs.append((f, frame_path(opts.input, f), frame_path(opts.output, f), False))
+            prev = f
+        if not jobs:
+            raise FrameError(opts.input, None, "no frames to process")
+    else:
+        if opts.frames is not None and len(opts.frames) != 1:
+            raise FrameError(opts.input, None, "--frames needs a sequence pattern in INPUT")
+        if not os.path.exists(opts.input):
+            raise FrameError(opts.input, None, "no such file")
+        f = opts.frames[0] if opts.frames else None
+        if f is None and is_sequence(opts.output):
+            raise FrameError(opts.output, None, "the output has a frame pattern but the input "
+                             "is one image; give --frames N or a plain output name")
+        jobs = [(f, opts.input, frame_path(opts.output, f) if (f is not None and is_sequence(opts.output))
+                 else opts.output, False)]
+    numbered = [f for f, _, _, _ in jobs if f is not None]
+    if any(b <= a for a, b in zip(numbered, numbered[1:])):
+        raise FrameError(opts.input, None, "--frames must go forward in time (increasing "
+                         "frame numbers, each once)")
+    import OpenImageIO as oiio
+    if oiio.ImageOutput.create(jobs[0][2]) is None:
+        raise FrameError(jobs[0][2], None, "no image format for this output name (use .exr, "
+                         ".png, .tif, .jpg, .hdr ...)")
+    inputs = {i for _, i, _, _ in jobs}
+    for f, _, o, _ in jobs:
+        for j in inputs:
+            if same_file(o, j):
+                raise FrameError(o, f, "output would overwrite an input file; choose another OUTPUT")
+    return jobs
+
+
+def frame_time(fr, f, held: bool, fps, t_prev) -> tuple[float, float]:
+    """(the frame's time in seconds, the run's fps): its timestamp metadata (not for
+    a held frame), else frame number / fps; fps: ``--fps``, else the first frame's
+    FramesPerSecond, else 24."""
+    if fps is None:
+        fps = fr.fps or DEFAULT_FPS
+        if fr.fps is None:
+            log.info("no --fps and no FramesPerSecond metadata: %g fps", fps)
+    if fr.timestamp is not None and not held:
+        t = fr.timestamp
+    elif f is not None:
+        t = f / fps
+    else:
+        t = t_prev if t_prev is not None else 0.0
+    if t_prev is not None and t < t_prev:
+        raise ValueError(f"frame time {t:.6g} s is before the previous frame's "
+                         f"{t_prev:.6g} s (frames out of order, or --state-in from a "
+                         "later chunk)")
+    return t, fps
+
+
+def _time_label(seconds: float) -> str:
+    return f"{seconds:g}s".replace(".", "p")
+
+
+def simulate_outputs(output: str, times: list[float]) -> list[tuple[int | None, str]]:
+    """(frame, path) per time: a pattern gets frames 1..n, a plain name ``_t<T>s``."""
+    if is_sequence(output):
+        return [(k + 1, frame_path(output, k + 1)) for k in range(len(times))]
+    root, dot, ext = output.rpartition(".")
+    if not dot:
+        root, ext = output, ""
+    return [(None, f"{root}_t{_time_label(t)}{'.' + ext if dot else ''}") for t in times]

@@ -1,0 +1,177 @@
+"""What a run is asked to do: :class:`JobOptions` (checked when made), what it
+returns (:class:`JobResult`), and the parsers of the command line's values."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..backends.plan import quality_tier
+from ..imageio import LINEAR_FORMATS, PNG_FILTERS
+from ..models.photometry import RepairCounts
+
+DEFAULT_FPS = 24.0
+#: What a gap in a sequence does (``--missing``).
+MISSING_POLICIES = ("error", "hold", "skip")
+
+class Interrupted(RuntimeError):
+    """A run stopped by SIGINT/SIGTERM after a complete frame (checkpoint written)."""
+
+    def __init__(self, signum: int, done: int, total: int, last_frame, checkpoint: str | None):
+        self.signum, self.done, self.total = signum, done, total
+        self.last_frame, self.checkpoint = last_frame, checkpoint
+        super().__init__(f"interrupted after {done} of {total} frame(s)")
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + int(self.signum)
+
+
+@dataclass
+class JobOptions:
+    input: str
+    output: str
+    frames: list[int] | None = None
+    fps: float | None = None
+    operator: str = "pattanaik00"
+    metering: str = "logmean"
+    luminance_scale: float | str | None = None    # S, or "auto:LEVEL" (calibration.py)
+    exposure: float = 0.0
+    colorconfig: str | None = None
+    iscolorspace: str | None = None
+    display: str | None = None
+    view: str | None = None
+    display_model: str = "display"
+    display_white: float | None = None
+    display_peak: float = 1000.0
+    display_black: float | None = None
+    unpremult: bool | None = None       # None: from the file (oiio:UnassociatedAlpha)
+    encode: bool = False                # float outputs: display-encoded, not display-linear
+    preadapt: tuple[float, float | None] | None = None
+    state_in: str | None = None
+    state_out: str | None = None
+    backend: str | None = None          # None: the --quality tier's (opencl but for reference)
+    device: str | None = None
+    out_bits: str | None = None
+    plot: str | None = None
+    plot_frames: list[int] | None = None
+    max_band_pixels: int | None = None
+    progress: bool = False
+    operator_options: dict | None = None
+    effects: object | None = None   # effects.EffectSettings; None: the operator's defaults
+    missing: str = "error"          # a gap in a sequence: error | hold | skip
+    channels: list[str] | None = None   # --channels: names used as R,G,B (or one: luminance)
+    png_level: int = 1                  # zlib level of PNG outputs (imageio.PNG_LEVEL)
+    png_filter: str = "sub"             # PNG row filter (imageio.PNG_FILTERS)
+    max_memory: float | None = None     # MiB: frames that would take more stream in bands
+    resume: bool = False            # continue from the checkpoint of an earlier run
+    checkpoint: bool = True         # write the state after every frame ...
+    checkpoint_every: int = 1       # ... or every N frames (local operators: per-pixel planes)
+    overlap_io: bool = True         # read the next frame and write the last one beside the work
+    display_encode: str | None = None   # auto | table (device) | ocio (CPU); None: the tier's
+    quality: str | None = None      # --quality: draft | balanced (None) | reference
+    cuts: list[int] | str | None = None  # --cuts: frames where the eyes start afresh, or "detect"
+
+    def __post_init__(self):
+        tier = quality_tier(self.quality)          # the defaults a knob not given takes
+        self.quality = tier.name
+        self.backend = self.backend or tier.backend
+        self.display_encode = self.display_encode or tier.display_encode
+        if self.fps is not None and not (math.isfinite(self.fps) and 0 < self.fps <= 1e6):
+            raise ValueError(f"--fps must be a positive number of frames per second, at most "
+                             f"1e6 (got {self.fps:g})")
+        if not math.isfinite(self.exposure) or abs(self.exposure) > 100:
+            raise ValueError(f"--exposure must be a number of stops in [-100, 100] "
+                             f"(got {self.exposure:g})")
+        if self.max_memory is not None and not (math.isfinite(self.max_memory)
+                                                and self.max_memory >= 8):
+            raise ValueError(f"--max-memory must be at least 8 MiB (got {self.max_memory:g})")
+        if not (isinstance(self.checkpoint_every, int) and self.checkpoint_every >= 1):
+            raise ValueError(f"--checkpoint-every must be >= 1 (got {self.checkpoint_every})")
+        if not (isinstance(self.png_level, int) and 0 <= self.png_level <= 9):
+            raise ValueError(f"--png-level must be 0..9 (got {self.png_level})")
+        if self.png_filter not in PNG_FILTERS:
+            raise ValueError(f"--png-filter must be {', '.join(PNG_FILTERS)} "
+                             f"(got {self.png_filter!r})")
+        if self.display_encode not in ("auto", "table", "ocio"):  # colour.DISPLAY_ENCODE_MODES
+            raise ValueError(f"--display-encode must be auto, table or ocio "
+                             f"(got {self.display_encode!r})")
+        if isinstance(self.cuts, str) and self.cuts != "detect":
+            raise ValueError(f"cuts must be frame numbers or 'detect' (got {self.cuts!r})")
+        if self.missing not in MISSING_POLICIES:
+            raise ValueError(f"--missing must be one of {', '.join(MISSING_POLICIES)} "
+                             f"(got {self.missing!r})")
+
+
+@dataclass
+class JobResult:
+    frames: list[int | None]
+    outputs: list[str]
+    infos: list = field(default_factory=list)
+    repairs: RepairCounts = field(default_factory=RepairCounts)
+    seconds: float = 0.0
+
+
+def parse_preadapt(text: str) -> tuple[float, float | None]:
+    """``L`` or ``L:SECONDS`` (``m`` suffix: minutes)."""
+    lum, _, sec = text.partition(":")
+    try:
+        L = float(lum)
+        s = None
+        if sec:
+            s = float(sec[:-1]) * 60.0 if sec.endswith("m") else float(sec)
+    except ValueError:
+        raise ValueError(f"bad --preadapt {text!r}: use CD_M2 or CD_M2:SECONDS") from None
+    if not (L >= 0 and math.isfinite(L)) or (s is not None and not (s >= 0 and math.isfinite(s))):
+        raise ValueError(f"bad --preadapt {text!r}: luminance and seconds must be >= 0")
+    return L, s
+
+
+def parse_times(text: str) -> list[float]:
+    """``T1,T2,...`` in seconds; an ``m`` suffix means minutes."""
+    out = []
+    for item in text.split(","):
+        item = item.strip()
+        try:
+            v = float(item[:-1]) * 60.0 if item.endswith("m") else float(item.rstrip("s"))
+        except ValueError:
+            raise ValueError(f"bad --at value {item!r}: use seconds or minutes (e.g. 30,2m)") from None
+        if not (v >= 0 and math.isfinite(v)):
+            raise ValueError(f"bad --at value {item!r}: times must be >= 0")
+        out.append(v)
+    if not out:
+        raise ValueError("--at needs at least one time")
+    return out
+
+
+#: AdaptationState.extra key of the settings a run's frames depend on (--resume checks).
+RUN_KEY = "run"
+
+
+def run_fingerprint(opts: JobOptions) -> dict:
+    """The settings that decide a run's frames, kept in its checkpoint: a resumed
+    run must use the same to give the same frames."""
+    import dataclasses
+    fx = opts.effects
+    return {"input": opts.input, "output": opts.output, "operator": opts.operator,
+            "fps": opts.fps, "metering": opts.metering,
+            "luminance_scale": None if opts.luminance_scale is None else str(opts.luminance_scale),
+            "exposure": opts.exposure, "colorconfig": opts.colorconfig,
+            "iscolorspace": opts.iscolorspace, "display": opts.display, "view": opts.view,
+            "display_model": opts.display_model, "display_white": opts.display_white,
+            "display_black": opts.display_black, "backend": opts.backend,
+            "quality": opts.quality, "display_encode": opts.display_encode,
+            "options": json.loads(json.dumps(opts.operator_options or {}, default=str)),
+            "effects": json.loads(json.dumps(dataclasses.asdict(fx), default=str))
+            if dataclasses.is_dataclass(fx) else None,
+            "missing": opts.missing, "channels": opts.channels, "unpremult": opts.unpremult,
+            "encode": opts.encode, "out_bits": opts.out_bits,
+            "cuts": opts.cuts if isinstance(opts.cuts, str) else
+            (sorted(opts.cuts) if opts.cuts else None)}
+
+
+def output_is_linear(opts: JobOptions, path: str) -> bool:
+    """Float outputs (EXR, .hdr) hold display-linear light unless ``--encode``."""
+    return (not opts.encode) and Path(path).suffix.lower() in LINEAR_FORMATS

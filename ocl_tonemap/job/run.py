@@ -1,0 +1,274 @@
+"""The main job: tone map an image or a frame sequence file to file.
+
+read (OIIO) -> OCIO to working space -> x luminance scale = cd/m^2 -> meter ->
+advance state -> per-pixel operator -> display-linear -> OCIO display/view ->
+write (OIIO, atomic). Every failure names its file and frame.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time
+
+from ..colour import ColourPipeline
+from ..imageio import FrameError, output_bits, read_frame, write_frame
+from ..pipeline import Tonemapper
+from ..state import AdaptationState
+from .checkpoint import (check_state_paths, checkpoint_path, checkpoint_state, load_state_in,
+                         remove_stale_temps, resume_point)
+from .frame import encode_pixels, frame_input, map_frame, output_metadata
+from .frames import frame_jobs, frame_time
+from .options import RUN_KEY, Interrupted, JobOptions, JobResult, output_is_linear, run_fingerprint
+from .setup import RunSetup, check_output_depth
+from .stream import stream_frame, stream_rows
+
+log = logging.getLogger("ocl_tonemap")
+
+
+def make_tonemapper(opts: JobOptions, colour: ColourPipeline, state, disp) -> Tonemapper:
+    tm = Tonemapper(opts.operator, opts.backend, opts.metering, disp, opts.preadapt, state,
+                    opts.device, opts.max_band_pixels, opts.operator_options, opts.effects,
+                    quality=opts.quality)
+    tm.set_display_primaries(colour.display_primaries())
+    log.info("quality %s; backend: %s", tm.quality, tm.backend.describe())
+    log.info("OCIO: working %s, display %r view %r -> %s", colour.working, colour.display,
+             colour.view, colour.output_colorspace)
+    log.info("display: white %g cd/m^2, black %g cd/m^2%s", disp.white_cd, disp.black_cd,
+             " (Pattanaik 2000's CRT)" if disp.paper_crt else "")
+    return tm
+
+
+def setup_run(opts: JobOptions, state: AdaptationState | None):
+    """What a run sets up once: (RunSetup, Tonemapper from ``state``)."""
+    run = RunSetup(opts, state.extra if state is not None else None)
+    return run, make_tonemapper(opts, run.colour, state, run.disp)
+
+
+def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -> JobResult:
+    """The main job. Writes the state after every frame (``checkpoint_path``); SIGINT
+    and SIGTERM end it after the frame in flight (:class:`Interrupted`).
+    ``jobs`` (a slice of ``frame_jobs(opts)``) and ``state`` (to start from, over
+    ``--state-in``): one chunk of a shot (``shot/passes.py`` apply)."""
+    t_start = time.perf_counter()
+    jobs = frame_jobs(opts) if jobs is None else list(jobs)
+    ckpt = checkpoint_path(opts) if (opts.checkpoint or opts.resume) else None
+    remove_stale_temps(jobs, [p for p in {ckpt, opts.state_out} if p])
+    check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p])
+    if state is None:
+        state = load_state_in(opts)
+    else:
+        state.extra.pop(RUN_KEY, None)
+    if opts.resume:
+        st, jobs = resume_point(opts, jobs, ckpt, opts.operator)
+        state = st if st is not None else state
+    run, tm = setup_run(opts, state)
+    check_output_depth(opts, run.disp, jobs)
+    fingerprint = run_fingerprint(opts)
+    result = JobResult([], [])
+    fps = opts.fps
+    t_prev = tm.state.time_s
+    n = len(jobs)
+    rows_of: dict = {}
+    if opts.cuts == "detect":
+        raise ValueError("--cuts detect finds cuts in the shot's statistics: it needs the "
+                         "measure and integrate passes (ocl-tonemap measure / integrate / "
+                         "apply, or run --scheduler dask); give a file of frame numbers for "
+                         "a serial run")
+    cuts = set(opts.cuts or ())
+
+    def rows(k):                       # streamed in bands? (decided once per frame)
+        if k not in rows_of:
+            rows_of[k] = stream_rows(opts, tm, jobs[k][1], jobs[k][0])
+        return rows_of[k]
+
+    with _StopSignals() as stop, _FrameIO(opts.overlap_io) as io:
+        for k, (f, inp, outp, held) in enumerate(jobs):
+            if k + 1 < n and not rows(k + 1):         # read-ahead of the next frame
+                _, inp1, _, _ = jobs[k + 1]
+                io.prefetch(k + 1, lambda inp1=inp1, f1=jobs[k + 1][0]:
+                            read_frame(inp1, f1, opts.channels))
+            try:
+                if f in cuts and tm.adapted:     # a scene cut: the eyes start afresh
+                    tm.reset_adaptation()
+                    log.info("frame %s: scene cut, adaptation reset", f)
+                if rows(k):
+                    io.drain()                        # a streamed frame writes in bands
+                    t, info, fps = stream_frame(run, tm, inp, outp, f, held, rows(k), fps,
+                                                t_prev)
+                    write = None
+                else:
+                    fr = io.read(k, lambda: read_frame(inp, f, opts.channels))
+                    t, info, fps, write = _whole_frame(run, tm, fr, inp, outp, f, held, fps,
+                                                       t_prev)
+            except BaseException:
+                io.drain()                 # the frames before this one are complete
+                raise
+            snap = None
+            if ckpt and ((k + 1) % opts.checkpoint_every == 0 or k + 1 == n
+                         or stop.signum is not None):
+                snap = checkpoint_state(tm, fingerprint)
+
+            def after(snap=snap, f=f):
+                if snap is not None:
+                    try:
+                        snap.save(ckpt, checkpoint=True)
+                    except Exception as exc:                      # noqa: BLE001
+                        raise FrameError(ckpt, f, f"cannot write the checkpoint: {exc}") \
+                            from exc
+            io.write(write, after)
+            if info.repairs.total:
+                log.warning("%s%s: repaired bad values (%s)", inp,
+                            "" if f is None else f" frame {f}", info.repairs.summary())
+            result.repairs += info.repairs
+            result.frames.append(f)
+            result.outputs.append(outp)
+            result.infos.append(info)
+            t_prev = t
+            if opts.progress:
+                _progress(k + 1, n, time.perf_counter() - t_start)
+            if stop.signum is not None and k + 1 < n:
+                io.drain()
+                if opts.progress:
+                    sys.stderr.write("\n")
+                raise Interrupted(stop.signum, k + 1, n, f, ckpt)
+        io.drain()
+    if opts.progress and n:
+        sys.stderr.write("\n")
+    if opts.state_out:
+        tm.state.save(opts.state_out)
+    if opts.plot:
+        from ..plot import plot_adaptation
+        plot_adaptation(opts.plot, result.infos, tm, opts.plot_frames)
+    result.seconds = time.perf_counter() - t_start
+    return result
+
+
+def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_prev):
+    """One frame (read whole) mapped; returns (time, info, fps, write): ``write()``
+    encodes it for the display and writes it (on the writer thread when the I/O
+    overlaps), from what this frame left, whatever the next frame does."""
+    try:
+        t, fps = frame_time(fr, f, held, fps, t_prev)
+        fin = frame_input(run, tm, fr, inp)
+        linear = output_is_linear(run.opts, outp)
+        u8 = output_bits(outp, run.opts.out_bits) == "8"
+        # encoded outputs: the display table runs where the operator's output is, and
+        # only code values come back (encode_pixels, below, for frames that cannot)
+        enc = None if linear else run.colour.device_output_encoding(
+            u8, tm.backend.device_runtime())
+        res = map_frame(tm, fin, t, f, encoding=enc)
+        extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
+        meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,
+                               res.output.shape[2] == 4)
+    except FrameError:
+        raise
+    except Exception as exc:
+        raise FrameError(inp, f, exc) from exc
+
+    def write():
+        try:
+            pixels = res.output if res.encoded else \
+                encode_pixels(run.colour, res.output, res.alpha, linear, u8)
+            _, out_cs, chroma, white, straight = meta
+            write_frame(outp, pixels, fr.spec, out_cs, meta[0], run.opts.out_bits, f,
+                        chromaticities=chroma, white_luminance=white, straight_alpha=straight,
+                        png_level=run.opts.png_level, png_filter=run.opts.png_filter)
+        except FrameError:
+            raise
+        except Exception as exc:
+            raise FrameError(outp, f, exc) from exc
+    return t, res.info, fps, write
+
+
+class _FrameIO:
+    """Read-ahead and write-behind: the next frame is read and the last one encoded
+    and written on two threads (one frame each way in flight: memory stays bounded)
+    while the device works; OIIO and OCIO release Python's lock while they decode,
+    encode and write. A failure surfaces at its own frame; ``drain`` waits for the
+    write in flight and then runs what follows it (the checkpoint), so outputs and
+    checkpoints keep their order. ``enabled`` False: everything on the caller."""
+
+    def __init__(self, enabled: bool = True):
+        from concurrent.futures import ThreadPoolExecutor
+        self._r = ThreadPoolExecutor(1, "ocltm-read") if enabled else None
+        self._w = ThreadPoolExecutor(1, "ocltm-write") if enabled else None
+        self._reads: dict = {}
+        self._pending = None
+
+    def prefetch(self, key, fn) -> None:
+        if self._r is not None and key not in self._reads:
+            self._reads[key] = self._r.submit(fn)
+
+    def read(self, key, fn):
+        fut = self._reads.pop(key, None)
+        return fn() if fut is None else fut.result()
+
+    def write(self, fn, after) -> None:
+        """Run ``fn`` (None: nothing to write) and then ``after``, behind the caller."""
+        self.drain()
+        if fn is None or self._w is None:
+            if fn is not None:
+                fn()
+            after()
+            return
+        def both():
+            fn()
+            after()
+        self._pending = self._w.submit(both)
+
+    def drain(self) -> None:
+        if self._pending is not None:
+            fut, self._pending = self._pending, None
+            fut.result()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        for fut in self._reads.values():
+            fut.cancel()
+        self._reads.clear()
+        for ex in (self._r, self._w):
+            if ex is not None:
+                ex.shutdown(wait=True)      # a write in flight completes (renamed whole)
+        return False
+
+
+class _StopSignals:
+    """SIGINT / SIGTERM set ``signum``; the run stops after the frame in flight. A
+    second signal stops at once (the frame in flight is discarded: outputs are
+    written to temporary files and renamed, so nothing partial is left)."""
+
+    def __init__(self):
+        self.signum = None
+        self._old = {}
+
+    def _handler(self, signum, frame):
+        if self.signum is not None:
+            raise KeyboardInterrupt
+        self.signum = signum
+
+    def __enter__(self):
+        import signal
+        import threading
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        import signal
+        for sig, h in self._old.items():
+            signal.signal(sig, h)
+        return False
+
+
+def _progress(done: int, total: int, elapsed: float) -> None:
+    width = 30
+    filled = int(width * done / total)
+    rate = done / elapsed if elapsed > 0 else 0.0
+    sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames "
+                     f"{rate:5.1f} fps")
+    sys.stderr.flush()

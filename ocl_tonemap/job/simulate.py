@@ -1,0 +1,75 @@
+"""``simulate``: one still seen over time by a pre-adapted observer."""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from typing import TYPE_CHECKING
+
+from ..imageio import FrameError, is_sequence, read_frame, same_file, write_frame
+from ..state import AdaptationState
+from .frame import frame_input, map_frame, render_output
+from .frames import simulate_outputs
+from .options import JobOptions, JobResult, output_is_linear
+from .run import setup_run
+from .setup import RunSetup
+
+if TYPE_CHECKING:                                  # annotations only
+    from ..pipeline import Tonemapper
+
+log = logging.getLogger("ocl_tonemap")
+
+def write_output(run: RunSetup, tm: Tonemapper, fr, fin, res, outp, f, extra: dict | None):
+    """Encode a mapped frame for the display and write it with its metadata."""
+    r = render_output(run, tm, fr, fin, res, extra, output_is_linear(run.opts, outp))
+    write_frame(outp, r.pixels, fr.spec, r.colorspace, r.metadata, run.opts.out_bits, f,
+                chromaticities=r.chromaticities, white_luminance=r.white_luminance,
+                straight_alpha=r.straight_alpha, png_level=run.opts.png_level,
+                png_filter=run.opts.png_filter)
+
+
+def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
+    """A still image seen over time: the observer was pre-adapted (``opts.preadapt``),
+    starts looking at INPUT at t = 0, and one output is rendered per elapsed time."""
+    t_start = time.perf_counter()
+    if is_sequence(opts.input):
+        raise FrameError(opts.input, None, "simulate takes one still image, not a sequence")
+    if opts.preadapt is None:
+        raise ValueError("simulate needs --preadapt CD_M2[:SECONDS] (what the observer saw before)")
+    outs = simulate_outputs(opts.output, times)
+    for _, o in outs:
+        if same_file(o, opts.input):
+            raise FrameError(o, None, "output would overwrite the input file; choose another OUTPUT")
+    state = AdaptationState.load(opts.state_in) if opts.state_in else None
+    run, tm = setup_run(opts, state)
+    fr = read_frame(opts.input, None, opts.channels)
+    result = JobResult([], [])
+    try:
+        fin = frame_input(run, tm, fr, opts.input)
+        t_now = 0.0
+        res = map_frame(tm, fin, 0.0)                                      # the switch
+        order = sorted(range(len(times)), key=lambda k: times[k])
+        for k in order:
+            t = times[k]
+            if t > t_now:
+                res = map_frame(tm, fin, t)
+                t_now = t
+            f, outp = outs[k]
+            write_output(run, tm, fr, fin, res, outp, f,
+                         {"ocltm:elapsed_s": float(t),
+                          "ocltm:preadapt": json.dumps(opts.preadapt)})
+            info = res.info
+            result.frames.append(f)
+            result.outputs.append(outp)
+            result.infos.append(info)
+            result.repairs += info.repairs
+            log.info("t = %g s -> %s", t, outp)
+    except FrameError:
+        raise
+    except Exception as exc:
+        raise FrameError(opts.input, None, exc) from exc
+    if opts.state_out:
+        tm.state.save(opts.state_out)
+    result.seconds = time.perf_counter() - t_start
+    return result
