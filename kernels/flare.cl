@@ -3,7 +3,8 @@
  * bilinear upsampling, the level Gaussians (zero outside each level's
  * samples), and the flared frame. Pixels are float4 (r, g, b, 0); a level's
  * samples include its margins. Reference: ocl_tonemap/models/spencer1995.py
- * (source_part, _down_axis, _up_axis, convolve_fast). */
+ * (source_part) and ocl_tonemap/backends/flare_exec.py (_down_axis, _up_axis,
+ * convolve_fast). */
 
 /* S = rgb max(0, 1 - lim / Y): the part of each pixel above ``lim`` cd/m^2.
  * partial: per group (sum of S r, g, b, number of source pixels). */

@@ -113,7 +113,7 @@ def test_models_doctests(module):
     if module.rsplit(".", 1)[-1] not in ("__init__",):
         assert res.attempted > 0 or module.endswith(("numerics", "photometry", "lmsr",
                                                      "metering", "convolution", "bilateral",
-                                                     "display", "spencer1995")), \
+                                                     "display")), \
             f"{module} has no doctest"
 
 

@@ -1,7 +1,7 @@
 """Effects on frames larger than the memory budget (issue 12): flare, Purkinje and
 chromatic adaptation wrap the band source (``streaming.SceneBands``), acuity the
 sink (``effects/acuity.py`` ``BandedAcuity``); the flare is the fast method's
-pyramid cut where its image fits the budget (``models/spencer1995.py``
+pyramid cut where its image fits the budget (``backends/flare_exec.py``
 ``banded_fast``). Real files, the real CLI."""
 
 import json
@@ -14,6 +14,7 @@ from ocl_tonemap.cli import main
 from ocl_tonemap.backends.opencl import OpenCLBackend
 from ocl_tonemap.effects import EffectSettings
 from ocl_tonemap.models import spencer1995 as fl
+from ocl_tonemap.backends import flare_exec as flx
 from ocl_tonemap.pipeline import Tonemapper
 
 from test_reliability import STREAM_SLACK_MB, _exr, _peak_rss_mb
@@ -149,18 +150,18 @@ def _lamps(h, w, seed=0, edges=True):
 def _banded(rgb, L_wa, fov, rows, max_pixels, blur=None):
     h, w, _ = rgb.shape
     D = float(fl.pupil_diameter(L_wa))
-    plan = fl.banded_fast((h, w), fov / w, D, 1, max_pixels)
+    plan = flx.banded_fast((h, w), fov / w, D, 1, max_pixels)
     S = fl.source_part(rgb, L_wa)
     r0, r1 = plan.rows(plan.split)
     br = max(1, rows >> plan.split)
     level = []
     for c in range(r0, r1, br):
         a0, a1 = plan.source_rows(plan.split, c, min(r1, c + br))[0]
-        level.append(fl.down_rows(plan, S[a0:a1], a0, c, min(r1, c + br)))
+        level.append(flx.down_rows(plan, S[a0:a1], a0, c, min(r1, c + br)))
     level = np.concatenate(level)
-    coarse = fl.banded_coarse(plan, level, blur)
-    F = np.concatenate([fl.banded_rows(plan, y, min(h, y + rows), lambda a, b: S[a:b], coarse,
-                                       blur)[0] for y in range(0, h, rows)])
+    coarse = flx.banded_coarse(plan, level, blur)
+    F = np.concatenate([flx.banded_rows(plan, y, min(h, y + rows), lambda a, b: S[a:b], coarse,
+                                        blur)[0] for y in range(0, h, rows)])
     return rgb - S + F, plan
 
 
@@ -177,11 +178,11 @@ def test_banded_flare_is_the_fast_method(shape, fov, rows, max_pixels, split):
     0.05 deg/px), light kept 0.1-0.5% short."""
     for edges in (True, False):
         rgb = _lamps(*shape, edges=edges)
-        fast, info = fl.apply_flare(rgb, 1.5, 1.5, fov, "fast")
+        fast, info = flx.apply_flare(rgb, 1.5, 1.5, fov, "fast")
         got, plan = _banded(rgb, 1.5, fov, rows, max_pixels)
         assert plan.split == split            # (split <= the ring's level: 1, 3, 0, 3)
         assert np.max(np.abs(got - fast)) <= 1e-12 * fast.max()
-    exact, _ = fl.apply_flare(rgb, 1.5, 1.5, fov, "exact")
+    exact, _ = flx.apply_flare(rgb, 1.5, 1.5, fov, "exact")
     rel = np.abs(got - exact) / exact
     assert np.median(rel) < 0.01 and np.percentile(rel, 99) < 0.06 and rel.max() < 0.25
     assert abs(got.sum() / exact.sum() - 1) < 0.007
@@ -229,8 +230,8 @@ def test_streamed_flare_through_the_api_is_the_fast_method():
         assert eff["ran"] and eff["method"] == "fast"
         assert ("exact needs the whole frame" in eff.get("streamed", "")) == (method == "exact")
         np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-7)
-    exact, _ = fl.apply_flare(rgb, st.last.G_cone, st.last.G_rod, 50.0, "exact")
-    fast, _ = fl.apply_flare(rgb, st.last.G_cone, st.last.G_rod, 50.0, "fast")
+    exact, _ = flx.apply_flare(rgb, st.last.G_cone, st.last.G_rod, 50.0, "exact")
+    fast, _ = flx.apply_flare(rgb, st.last.G_cone, st.last.G_rod, 50.0, "fast")
     rel = np.abs(fast - exact) / exact
     assert np.median(rel) < 0.03 and np.percentile(rel, 99) < 0.15
 

@@ -2,13 +2,15 @@
 2000, Sec. 6 use it), added to the scene in cd/m^2 before tone mapping.
 
 Slot: scene. Needs: the frame's adaptation levels; on the device, a blur.
-The model is ``models/spencer1995.py``.
+The model is ``models/spencer1995.py``; it is computed on the host by
+``backends/flare_exec.py``, whole on the device by ``backends/opencl/flare.py``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..backends import flare_exec as fx
 from ..models import spencer1995 as fl
 from ..models.convolution import EDGE_ZERO
 from ..models.photometry import Y_WEIGHTS
@@ -33,7 +35,7 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, blur=None, devic
         if not Ymax > settings.flare_threshold * G_cone:
             return None, {"ran": False, "reason": "no light sources"}
     dev = None if blur is None else (lambda img, taps: blur(img, taps, EDGE_ZERO))
-    out, info = fl.apply_flare(rgb, G_cone, G_rod, settings.fov_deg, settings.flare_method,
+    out, info = fx.apply_flare(rgb, G_cone, G_rod, settings.fov_deg, settings.flare_method,
                                settings.flare_threshold, settings.flare_per_octave, dev)
     info["ran"] = info["sources"] > 0
     return out.astype(np.float32), info
@@ -80,7 +82,7 @@ SOURCE_PART_PIXELS = 1 << 18
 
 class BandedFlare:
     """The flare of a frame that is never whole in memory (``Tonemapper.process_stream``):
-    :func:`~ocl_tonemap.models.spencer1995.banded_fast` -- the fast method's pyramid
+    :func:`~ocl_tonemap.backends.flare_exec.banded_fast` -- the fast method's pyramid
     cut at a level whose image fits the band budget, that level built from the
     source part band by band (one pass over the frame), the finer levels and the
     delta per band from the rows around it. The same arithmetic on every pixel as
@@ -102,7 +104,7 @@ class BandedFlare:
         self.blur = None if blur is None else (lambda img, taps: blur(img, taps, EDGE_ZERO))
         h, w = self.shape
         self.D = float(fl.pupil_diameter(0.5 * (G_cone + G_rod)))
-        self.plan = fl.banded_fast((h, w), settings.fov_deg / w, self.D,
+        self.plan = fx.banded_fast((h, w), settings.fov_deg / w, self.D,
                                    settings.flare_per_octave, max_pixels)
         self.max_rows = max(1, int(max_pixels) // max(w, 1))
         self.coarse = None
@@ -130,7 +132,7 @@ class BandedFlare:
         plan, L = self.plan, self.plan.split
         r0, r1 = plan.rows(L)
         step = max(1, self.max_rows // 2 ** L)
-        level = np.empty((r1 - r0, plan.sizes[L][1] + 2 * fl.level_margin(L), 3), np.float64)
+        level = np.empty((r1 - r0, plan.sizes[L][1] + 2 * fx.level_margin(L), 3), np.float64)
         counted = 0
         for c0 in range(r0, r1, step):
             c1 = min(r1, c0 + step)
@@ -140,9 +142,9 @@ class BandedFlare:
             self.sources += int(np.count_nonzero(new.any(axis=-1)))
             self.S_sum += float(new.sum())
             counted = max(counted, a1)
-            level[c0 - r0:c1 - r0] = fl.down_rows(plan, S, a0, c0, c1)
+            level[c0 - r0:c1 - r0] = fx.down_rows(plan, S, a0, c0, c1)
         if self.sources:
-            self.coarse = fl.banded_coarse(plan, level, self.blur)
+            self.coarse = fx.banded_coarse(plan, level, self.blur)
 
     def rows(self, y0: int, y1: int) -> np.ndarray:
         """Rows [y0, y1) of the flared frame (float32 working rgb, cd/m^2). Made
@@ -162,7 +164,7 @@ class BandedFlare:
         def source_rows(a, b):
             got["rgb"], got["a"] = self.rgb_rows(a, b), a
             return self._S(got["rgb"])
-        F, S = fl.banded_rows(self.plan, y0, y1, source_rows, self.coarse, self.blur)
+        F, S = fx.banded_rows(self.plan, y0, y1, source_rows, self.coarse, self.blur)
         out = np.array(got["rgb"][y0 - got["a"]:y1 - got["a"], :, :3], np.float64)
         got.clear()
         if y0 <= self._swept < y1:                  # the first sweep: the energy kept

@@ -3,7 +3,8 @@ the source part, the pyramid, its Gaussians and the flared frame are made on the
 device, and the flared frame comes down once. The halo ring (f3) is an FFT on a
 small level, made on the host. What is computed is
 :func:`~ocl_tonemap.models.spencer1995.fast_plan`'s plan; the reference is
-:func:`~ocl_tonemap.models.spencer1995.convolve_fast` (float64)."""
+:func:`~ocl_tonemap.backends.flare_exec.convolve_fast` (float64), whose pyramid
+geometry and ring FFT this uses."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 
 from ...models import spencer1995 as fl
 from ...models.convolution import gaussian_taps
+from .. import flare_exec as fx
 from .image import DeviceImage
 from .runtime import round_up
 
@@ -78,8 +80,8 @@ class DeviceFlare:
         else:
             d_rgb = self._buf("rgb", 12 * n)
             cl.enqueue_copy(q, d_rgb, rgb)
-        sizes = plan.sizes
-        stored = [(sizes[l][0] + 2 * fl.level_margin(l), sizes[l][1] + 2 * fl.level_margin(l))
+        sizes = fx.level_sizes(plan.shape, plan.top)
+        stored = [(sizes[l][0] + 2 * fx.level_margin(l), sizes[l][1] + 2 * fx.level_margin(l))
                   for l in range(plan.top + 1)]
         S = [self._buf(f"S{l}", 16 * hh * ww) for l, (hh, ww) in enumerate(stored)]
         part = self._buf("partial", 16 * groups)
@@ -92,8 +94,8 @@ class DeviceFlare:
         for l in range(1, plan.top + 1):
             (fh, fw), (ch, cw) = stored[l - 1], stored[l]
             k["flare_down"](q, (round_up(cw, 16), round_up(ch, 4)), (16, 4), S[l - 1],
-                            np.int32(fw), np.int32(fh), np.int32(fl.level_margin(l - 1)),
-                            S[l], np.int32(cw), np.int32(ch), np.int32(fl.level_margin(l)))
+                            np.int32(fw), np.int32(fh), np.int32(fx.level_margin(l - 1)),
+                            S[l], np.int32(cw), np.int32(ch), np.int32(fx.level_margin(l)))
         tmp = self._buf("tmp", 16 * stored[0][0] * stored[0][1])
         acc, have = None, False
         for l in range(plan.top, -1, -1):
@@ -103,8 +105,8 @@ class DeviceFlare:
             if have:
                 (ch, cw) = stored[l + 1]
                 k["flare_up"](q, gs, (16, 4), acc, np.int32(cw), np.int32(ch),
-                              np.int32(fl.level_margin(l + 1)), a, np.int32(ww), np.int32(hh),
-                              np.int32(fl.level_margin(l)))
+                              np.int32(fx.level_margin(l + 1)), a, np.int32(ww), np.int32(hh),
+                              np.int32(fx.level_margin(l)))
             for sc, wk in plan.by_level.get(l, []):
                 taps, R = self._tap_buf(sc)
                 k["flare_blur_x"](q, gs, (16, 4), S[l], tmp, np.int32(ww), np.int32(hh), taps,
@@ -140,8 +142,8 @@ class DeviceFlare:
         cl.enqueue_copy(self.rt.queue, lv, S_buf)
         ring = np.zeros((hh, ww, 4), np.float32)
         for c in range(3):
-            ring[..., c] = w3 * fl._fftconvolve_same(lv[..., c].astype(np.float64), None,
-                                                     fl._ring_kernel_fft((hh, ww), deg_per_px, c))
+            ring[..., c] = w3 * fx.fftconvolve_same(lv[..., c].astype(np.float64), None,
+                                                    fx.ring_kernel_fft((hh, ww), deg_per_px, c))
         buf = self._buf("ring", ring.nbytes)
         cl.enqueue_copy(self.rt.queue, buf, ring)
         return buf
