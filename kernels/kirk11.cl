@@ -7,7 +7,6 @@
 #define S_MAX_F 1.606f
 #define ALPHA_F 0.619f
 #define Y_FLOOR 1.0e-10f
-#define DISPLAY_LINEAR_MAX 100.0f
 
 /* q (4 per pixel) = W (4 x nc, row-major) . in (nc per pixel): RGB via H
  * (Sec. 4) or a sampled spectrum (Eq. 8). */

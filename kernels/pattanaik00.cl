@@ -6,7 +6,6 @@
 #define PN 0.73f
 #define L_FLOOR 1.0e-10f
 #define RATIO_FLOOR 1.0e-12f
-#define DISPLAY_LINEAR_MAX 100.0f
 
 /* L^n/(L^n + sigma^n) = 1/(1 + 2^(n (log2 sigma - log2 L))) */
 inline float saturation(float L, float log2_sigma)
