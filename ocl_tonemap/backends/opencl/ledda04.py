@@ -32,8 +32,11 @@ KERNEL_CONSTANTS = (
     ("V_FLOOR", V_FLOOR), ("ALPHA", L.ALPHA), ("BETA_CONE", L.BETA_CONE),
     ("BETA_ROD", L.BETA_ROD), ("TAU_CONE", L.TAU_CONE), ("TAU_ROD", L.TAU_ROD),
     ("LN_RHO_CONE", math.log(L.RHO_CONE)), ("LN_RHO_ROD", math.log(L.RHO_ROD)),
-    ("K_MAX", L.K_MAX), ("K_SLOPE", L.K_SLOPE), ("E_MAX", L.E_MAX), ("T_DONE", L.T_DONE),
-    ("NSTATE", len(L.STATE_CHANNELS)),
+    ("K_MAX", L.K_MAX), ("K_SLOPE", L.K_SLOPE), ("E_MAX", L.E_MAX),
+    ("E_CEILING", L.E_CEILING), ("T_DONE", L.T_DONE),
+    ("MES_LOG_OFFSET", L.MES_LOG_OFFSET), ("MES_LOG_SPAN", L.MES_LOG_SPAN),
+    *((f"Y_COEFF_{c}", v) for c, v in zip("RGB", L.Y_COEFFS)),
+    *((f"YS_COEFF_{c}", v) for c, v in zip("RGB", L.YS_COEFFS)),
 )
 LOGMEAN = MeteringSpec.parse("logmean")
 
