@@ -1,10 +1,12 @@
 """Model constants every kernel program gets (``kernels/common.h`` and any file after it),
 generated from ``ocl_tonemap/models/`` as ``-D`` build options (:func:`runtime.build_options`),
 never retyped in the kernels. Per-operator constants come the same way from the
-operator's own module (``backends/opencl/ledda04.py`` ``KERNEL_CONSTANTS``).
+operator's own module (``backends/opencl/ledda04.py``, ``backends/opencl/kirk11.py``
+``KERNEL_CONSTANTS``; ``operators/pattanaik00.py`` through its ``KernelCall``).
 
 Each value reaches the kernel as the float32 of the model's float64 value
-(:func:`runtime.define_value`).
+(:func:`runtime.define_value`); tests/test_kernel_constants.py checks that no model
+constant is typed into a kernel again.
 """
 
 from __future__ import annotations
