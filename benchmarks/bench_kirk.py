@@ -79,7 +79,8 @@ def bench_nnls(w, h, reps):
     import pyopencl as cl
     from ocl_tonemap.models import lmsr
     rt = get_runtime()
-    k_shift = rt.kernel("kirk11.cl", "kirk11_shift")
+    from ocl_tonemap.backends.opencl.lmsr import KERNEL_CONSTANTS
+    k_shift = rt.kernel("kirk11.cl", "kirk11_shift", KERNEL_CONSTANTS)
     n = w * h
     mf = cl.mem_flags
     rows = []

@@ -1,13 +1,19 @@
-/* Shared by every program: constants that must match ocl_tonemap/models/photometry.py. */
+/* Shared by every program. Its model constants come as build options from
+ * ocl_tonemap/backends/opencl/constants.py (COMMON), generated from ocl_tonemap/models/:
+ *   M_XR .. M_ZB        BT.709 linear RGB -> XYZ (D65), photometry.RGB709_TO_XYZ
+ *                       (the M_Y* row: photopic luminance Y)
+ *   WARD97_GAIN, WARD97_OFFSET  photometry (scotopic luminance, Ward-Larson et al. 1997)
+ *   L_MAX               photometry.L_MAX: scene ceiling, cd/m^2 (+Inf maps here)
+ *   NREPAIR             len(photometry.RepairCounts.KEYS): nan, pos_inf, neg_inf,
+ *                       negative, denormal, over_max
+ *   SIGNAL_CEILING, CHANNEL_KNEE, DISPLAY_LINEAR_MAX  models/display.py
+ * one definition, not retyped here. */
 
 /* No a*b+c contracted into fma: OpenCL C allows it by default and GPU compilers do it
  * where the expression's shape lets them, so a vector body and its scalar tail (or a
  * band's pixel at another offset in its quad) could round the same formula apart:
  * banded frames would no longer equal whole ones bit for bit (seen on NVIDIA). */
 #pragma OPENCL FP_CONTRACT OFF
-#define L_MAX 1.0e10f            /* scene ceiling, cd/m^2 (+Inf maps here) */
-#define NREPAIR 6                /* nan, pos_inf, neg_inf, negative, denormal, over_max */
-#define LN10 2.302585092994046f
 
 /* How the work-items of a reduction share `count` items (quads, pixels): loop
  *     for (int q = lo; q < hi; q += step)
@@ -65,25 +71,14 @@ inline void share_range(const int count, int *lo, int *hi, int *step)
 #endif
 }
 
-/* BT.709 linear RGB -> XYZ (D65) */
-#define M_XR 0.4123907992659595f
-#define M_XG 0.3575843393838780f
-#define M_XB 0.1804807884018343f
-#define M_YR 0.2126390058715104f
-#define M_YG 0.7151686787677560f
-#define M_YB 0.0721923153607337f
-#define M_ZR 0.0193308187155918f
-#define M_ZG 0.1191947797946260f
-#define M_ZB 0.9505321522496606f
-
 inline float scotopic_luminance(float r, float g, float b)
 {
-    /* Ward-Larson et al. 1997: Y' = Y (1.33 (1 + (Y+Z)/X) - 1.68) */
+    /* Ward-Larson et al. 1997: Y' = Y (1.33 (1 + (Y+Z)/X) - 1.68) (WARD97_GAIN, _OFFSET) */
     float X = M_XR * r + M_XG * g + M_XB * b;
     float Y = M_YR * r + M_YG * g + M_YB * b;
     float Z = M_ZR * r + M_ZG * g + M_ZB * b;
     if (!(X > 0.0f)) return 0.0f;
-    return fmax(Y * (1.33f * (1.0f + (Y + Z) / X) - 1.68f), 0.0f);
+    return fmax(Y * (WARD97_GAIN * (1.0f + (Y + Z) / X) - WARD97_OFFSET), 0.0f);
 }
 
 /* scotopic_luminance of four pixels (Y: their photopic luminance). */
@@ -92,7 +87,7 @@ inline float4 scotopic_luminance4(const float4 r, const float4 g, const float4 b
 {
     const float4 X = M_XR * r + M_XG * g + M_XB * b;
     const float4 Z = M_ZR * r + M_ZG * g + M_ZB * b;
-    const float4 ys = fmax(Y * (1.33f * (1.0f + (Y + Z) / X) - 1.68f), 0.0f);
+    const float4 ys = fmax(Y * (WARD97_GAIN * (1.0f + (Y + Z) / X) - WARD97_OFFSET), 0.0f);
     return select((float4)(0.0f), ys, isgreater(X, (float4)(0.0f)));
 }
 
@@ -105,8 +100,6 @@ inline float4 powp4(float4 x, float4 e) { return exp2(e * log2(x)); }
  * then desaturation toward it where the largest channel would exceed S'(max),
  * S' with the later knee CHANNEL_KNEE.
  * Values relative to white (inv_white); knee <= 0: none. */
-#define CHANNEL_KNEE 0.9f
-#define SIGNAL_CEILING 1.0e6f     /* ocl_tonemap/models/display.py SIGNAL_CEILING */
 
 inline float shoulder_curve(const float x, const float knee)
 {

@@ -32,7 +32,7 @@ inline uchar to_out(const float v)
     /* as pack_u8 below: ties to even (OIIO's own rounding of an exact tie depends on
        the machine: tests/test_display_table.py); clamp takes NaN to 0 (fmax);
        convert_uchar_sat_rte gives the same bytes at twice the time on PoCL */
-    return (uchar)((clamp(v * 255.0f, 0.0f, 255.0f) + 12582912.0f) - 12582912.0f);
+    return (uchar)((clamp(v * 255.0f, 0.0f, 255.0f) + 0x1.8p23f) - 0x1.8p23f);
 }
 #else
 typedef float out_t;
@@ -43,7 +43,7 @@ inline float coord_bits(const float v, const float eps, const int e_eps, const f
                         const float scale, const float fmax_idx)
 {
     const int bits = as_int(fabs(v) + eps);
-    const float m = (float)(bits & 0x7FFFFF) * (1.0f / 8388608.0f);
+    const float m = (float)(bits & 0x7FFFFF) * 0x1p-23f;
     float s = (float)((bits >> 23) - e_eps) + m * (4.0f - m) * (1.0f / 3.0f);
     s = (v < 0.0f) ? -s : s;
     return clamp((s - s_lo) * scale, 0.0f, fmax_idx);
@@ -92,7 +92,7 @@ inline float4 coord_bits4(const float4 v, const float eps, const int e_eps, cons
                           const float scale, const float fmax_idx)
 {
     const int4 bits = as_int4(fabs(v) + eps);
-    const float4 m = convert_float4(bits & 0x7FFFFF) * (1.0f / 8388608.0f);
+    const float4 m = convert_float4(bits & 0x7FFFFF) * 0x1p-23f;
     float4 s = convert_float4((bits >> 23) - e_eps) + m * (4.0f - m) * (1.0f / 3.0f);
     s = select(s, -s, isless(v, (float4)(0.0f)));
     return clamp((s - s_lo) * scale, 0.0f, fmax_idx);
@@ -118,7 +118,7 @@ inline uint pack_u8(const float4 a)
 {
     /* clamp (NaN -> 0), then round to nearest, ties to even, by adding 1.5 2^23: the
        sum's low mantissa bits are the rounded value (PoCL's rint on float4 is slow) */
-    const uint4 i = as_uint4(clamp(a * 255.0f, 0.0f, 255.0f) + 12582912.0f) & 0xFFu;
+    const uint4 i = as_uint4(clamp(a * 255.0f, 0.0f, 255.0f) + 0x1.8p23f) & 0xFFu;
     return i.x | (i.y << 8) | (i.z << 16) | (i.w << 24);
 }
 

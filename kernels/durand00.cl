@@ -2,9 +2,8 @@
  * Eq. 5: out = m_C rgb + k m_R s_w (1.05, 0.97, 1.27), display-linear, with
  * the cone signals already chromatically adapted (Eq. 6, colour.cl's
  * apply_gains). Reference: ocl_tonemap/models/durand2000.py (map_reference); the scalars
- * are packed by ocl_tonemap/operators/durand00.py (P_<name>: their indices). */
-
-#define DISPLAY_LINEAR_MAX 100.0f
+ * are packed by ocl_tonemap/operators/durand00.py (P_<name>: their indices);
+ * DISPLAY_LINEAR_MAX and SIGNAL_CEILING come with common.h's build options. */
 
 __kernel void durand00_map(__global const float *rgb, __global const float *Y,
                            __global const float *Ys, __global float *out, const int n,

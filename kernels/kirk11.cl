@@ -1,13 +1,13 @@
 /* Kirk & O'Brien 2011: receptor responses, the Purkinje shift (Cao et al. 2008)
  * with the non-negative display solve, and the final composition.
- * Reference: ocl_tonemap/models/kirk2011.py. */
-
-#define L_MAX_F 0.637f
-#define M_MAX_F 0.392f
-#define S_MAX_F 1.606f
-#define ALPHA_F 0.619f
-#define Y_FLOOR 1.0e-10f
-#define DISPLAY_LINEAR_MAX 100.0f
+ * Reference: ocl_tonemap/models/kirk2011.py.
+ *
+ * L_MAX_F, M_MAX_F, S_MAX_F (models/lmsr.py L_MAX, M_MAX, S_MAX), ALPHA_F (Eq. 16),
+ * REGULATION_C (Eq. 10), A_INV_00, A_INV_02, A_INV_10, A_INV_12 (Eq. 11's A^-1),
+ * N_SUPPORTS (Eq. 15's supports), Y_FLOOR and LOG_FLOOR are given as build options
+ * from ocl_tonemap/models/kirk2011.py (backends/opencl/kirk11.py, KERNEL_CONSTANTS);
+ * DISPLAY_LINEAR_MAX and SIGNAL_CEILING with common.h's: one definition, not retyped
+ * here. */
 
 /* q (4 per pixel) = W (4 x nc, row-major) . in (nc per pixel): RGB via H
  * (Sec. 4) or a sampled spectrum (Eq. 8). */
@@ -43,19 +43,20 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
     const float4 qq = vload4(i, q);
     const float4 dw = (float4)(par[11], par[12], par[13], 1.0f);
     const float4 qt = qq * dw * area;                             /* Eq. 10 units */
-    const float gl = rsqrt(1.0f + 0.33f * (qt.x + k1 * qt.w));         /* Eq. 10 */
-    const float gm = rsqrt(1.0f + 0.33f * (qt.y + k1 * qt.w));
-    const float gs = rsqrt(1.0f + 0.33f * (qt.z + k2 * qt.w));
+    const float gl = rsqrt(1.0f + REGULATION_C * (qt.x + k1 * qt.w));  /* Eq. 10 */
+    const float gm = rsqrt(1.0f + REGULATION_C * (qt.y + k1 * qt.w));
+    const float gs = rsqrt(1.0f + REGULATION_C * (qt.z + k2 * qt.w));
     const float nl = gl / L_MAX_F, nm = gm / M_MAX_F, ns = gs / S_MAX_F;
     const float lum = ALPHA_F * nl + (1.0f - ALPHA_F) * nm;            /* w, Eq. 16 */
     const float rod = gain * qt.w;
     const float d0 = par[4] * k1 * (par[7] * nm - par[8] * nl) * rod;  /* Eq. 12 */
     const float d1 = par[5] * (par[9] * ns - par[10] * lum) * rod;
     const float d2 = par[6] * lum * rod;
-    /* A^-1 of Eq. 11 (o = A q^): rows from the host-checked closed form */
+    /* A^-1 of Eq. 11 (o = A q^), its zero entries left out and its last row (0, 1, 1)
+     * written out (tests/test_kernel_constants.py checks kirk2011.A_INV has that form) */
     float3 qh;
-    qh.x = qq.x + (-0.5f * d0 + 0.5f * d2) / (dw.x * area);
-    qh.y = qq.y + (0.5f * d0 + 0.5f * d2) / (dw.y * area);
+    qh.x = qq.x + (A_INV_00 * d0 + A_INV_02 * d2) / (dw.x * area);
+    qh.y = qq.y + (A_INV_10 * d0 + A_INV_12 * d2) / (dw.y * area);
     qh.z = qq.z + (d1 + d2) / (dw.z * area);
     const float3 p = (float3)(Minv[0] * qh.x + Minv[1] * qh.y + Minv[2] * qh.z,
                               Minv[3] * qh.x + Minv[4] * qh.y + Minv[5] * qh.z,
@@ -66,7 +67,7 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
         best = (float3)(0.0f);
         float best_res = dot(qh, qh);
         int fb = 0;
-        for (int k = 0; k < 7; ++k) {
+        for (int k = 0; k < N_SUPPORTS; ++k) {
             __constant float *P = solvers + 9 * k;
             float3 pk = (float3)(P[0] * qh.x + P[1] * qh.y + P[2] * qh.z,
                                  P[3] * qh.x + P[4] * qh.y + P[5] * qh.z,
@@ -132,12 +133,11 @@ __kernel void kirk11_compose(__global const float *src, __global const float *sh
 }
 
 /* The frame's reductions, per work-group (Kahan in float32; the host adds the groups
- * in float64), two values per group in `partial`:
+ * in float64), two values per group in `partial` (LOG_FLOOR: 1e-6):
  *   mode 0, x = LMSR (4 per pixel): ln max(R, 1e-6), ln max(L + M, 1e-6)  (logmean)
  *   mode 1, x = a plane:            x, 0                                  (w_mean, Eq. 16)
  *   mode 2, x = display-linear RGB: ln max(Y / u, 1e-6), 0                (anchor_gain)
  * Four pixels per step in float4 (PoCL vectorises log on float4, not across items). */
-#define LOG_FLOOR_K 1.0e-6f
 inline float4 kirk_terms4(__global const float *x, const int q, const int mode,
                           const float inv_u, float4 *second)
 {
@@ -145,14 +145,14 @@ inline float4 kirk_terms4(__global const float *x, const int q, const int mode,
         const float4 a = vload4(4 * q, x), b = vload4(4 * q + 1, x),
                      c = vload4(4 * q + 2, x), d = vload4(4 * q + 3, x);
         *second = log(fmax((float4)(a.x + a.y, b.x + b.y, c.x + c.y, d.x + d.y),
-                           LOG_FLOOR_K));
-        return log(fmax((float4)(a.w, b.w, c.w, d.w), LOG_FLOOR_K));
+                           LOG_FLOOR));
+        return log(fmax((float4)(a.w, b.w, c.w, d.w), LOG_FLOOR));
     }
     *second = (float4)(0.0f);
     if (mode == 1) return vload4(q, x);
     float4 r, g, b;
     load_rgb4(q, x, &r, &g, &b);
-    return log(fmax((M_YR * r + M_YG * g + M_YB * b) * inv_u, LOG_FLOOR_K));
+    return log(fmax((M_YR * r + M_YG * g + M_YB * b) * inv_u, LOG_FLOOR));
 }
 
 inline float2 kirk_terms1(__global const float *x, const int i, const int mode,
@@ -160,11 +160,11 @@ inline float2 kirk_terms1(__global const float *x, const int i, const int mode,
 {
     if (mode == 0) {
         const float4 v = vload4(i, x);
-        return (float2)(log(fmax(v.w, LOG_FLOOR_K)), log(fmax(v.x + v.y, LOG_FLOOR_K)));
+        return (float2)(log(fmax(v.w, LOG_FLOOR)), log(fmax(v.x + v.y, LOG_FLOOR)));
     }
     if (mode == 1) return (float2)(x[i], 0.0f);
     const float3 c = vload3(i, x);
-    return (float2)(log(fmax((M_YR * c.x + M_YG * c.y + M_YB * c.z) * inv_u, LOG_FLOOR_K)),
+    return (float2)(log(fmax((M_YR * c.x + M_YG * c.y + M_YB * c.z) * inv_u, LOG_FLOOR)),
                     0.0f);
 }
 

@@ -2,17 +2,19 @@
  * Reference: ocl_tonemap/models/ledda2004.py (float64). */
 
 /* V_FLOOR, ALPHA, BETA_CONE, BETA_ROD, TAU_CONE, TAU_ROD, LN_RHO_CONE, LN_RHO_ROD,
- * K_MAX, K_SLOPE, E_MAX, T_DONE, NSTATE and DISPLAY_LINEAR_MAX are given as build
- * options from ocl_tonemap/models/ledda2004.py (backends/opencl/ledda04.py,
- * KERNEL_CONSTANTS): one definition, not retyped here. */
+ * K_MAX, K_SLOPE, E_MAX, E_CEILING, T_DONE, MES_LOG_OFFSET, MES_LOG_SPAN,
+ * Y_COEFF_R/G/B (Eq. 6) and YS_COEFF_R/G/B (Eq. 7) are given as build options from
+ * ocl_tonemap/models/ledda2004.py (backends/opencl/ledda04.py, KERNEL_CONSTANTS);
+ * DISPLAY_LINEAR_MAX and SIGNAL_CEILING with common.h's: one definition, not retyped
+ * here. */
 
 /* Eqs. 6-7; Y' clamped at 0. ward: Y' of Ward-Larson et al. 1997 instead of
  * Eq. 7 (the default mode; ocl_tonemap/models/ledda2004.py, luminances). */
-inline float ledda_Y(float3 c) { return 0.256f * c.x + 0.67f * c.y + 0.065f * c.z; }
+inline float ledda_Y(float3 c) { return Y_COEFF_R * c.x + Y_COEFF_G * c.y + Y_COEFF_B * c.z; }
 inline float ledda_Ys(float3 c, const int ward)
 {
     return ward ? scotopic_luminance(c.x, c.y, c.z)
-                : fmax(-0.702f * c.x + 1.039f * c.y + 0.433f * c.z, 0.0f);
+                : fmax(YS_COEFF_R * c.x + YS_COEFF_G * c.y + YS_COEFF_B * c.z, 0.0f);
 }
 
 /* The signals the bilateral filter sees: Y and Y', floored at V_FLOOR. */
@@ -79,7 +81,8 @@ inline float2 adaptation_levels(__global const float *Ic, __global const float *
  * where the goal moved more than change_log2).
  *   Ic, Ir: adaptation luminances of cones and rods; Ir is read as
  *           rod_scale * Ic[i] when rod_from_cone is set (rods not filtered).
- *   state:  NSTATE planes of `stride` floats; this band starts at plane offset 0.
+ *   state:  the planes of ledda2004.STATE_CHANNELS, in that order, `stride` floats
+ *           each; this band starts at plane offset 0.
  *   counts[0] += pixels restarted. */
 /* One pixel of ledda04_step; returns 1 when its course restarted. */
 inline int ledda04_step_one(__global const float *Ic, __global const float *Ir,
@@ -105,7 +108,7 @@ inline int ledda04_step_one(__global const float *Ic, __global const float *Ir,
         t = s[6 * stride]; E = s[7 * stride]; K = s[8 * stride];
         const float tn = t + dt;
         const float i_prev = powp(sfc / BETA_CONE, 1.0f / ALPHA);
-        E = fmin(E + i_prev * dt, 1.0e30f);
+        E = fmin(E + i_prev * dt, E_CEILING);
         const bool change = fabs(log2(gc / sac)) > change_log2 ||
                             fabs(log2(gr / sar)) > change_log2;
         if (change) {
@@ -165,7 +168,7 @@ __kernel void ledda04_map(__global const float *rgb, const int rgb_off,
     const float t = s[6 * stride], K = s[8 * stride];
     const float sc = sigma_cone_at(sic, sfc, t, K);
     const float sr = sigma_rod_at(sir, sfr, t, K);
-    const float u = clamp((log10(fmax(ic, V_FLOOR)) + 2.0f) / 2.6f, 0.0f, 1.0f);
+    const float u = clamp((log10(fmax(ic, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
     const float mes = u * u * (3.0f - 2.0f * u);                         /* Eq. 11 */
     const float3 c = vload3(rgb_off + i, rgb);
     const float cone_gain = mes * sigma_disp / sc * inv_unit;            /* Eq. 12 */
@@ -229,7 +232,7 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
             const float sc = sigma_cone_at(s[0], s[stride], s[6 * stride], s[8 * stride]);
             const float sr = sigma_rod_at(s[3 * stride], s[4 * stride], s[6 * stride],
                                           s[8 * stride]);
-            const float u = clamp((log10(fmax(ic, V_FLOOR)) + 2.0f) / 2.6f, 0.0f, 1.0f);
+            const float u = clamp((log10(fmax(ic, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
             const float mes = u * u * (3.0f - 2.0f * u);
             const float3 c = vload3(rgb_off + i, rgb);
             const float3 o = fmin(c * (mes * sigma_disp / sc * inv_unit)
@@ -246,13 +249,13 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
     const float4 t = vload4(0, s + 6 * stride), K = vload4(0, s + 8 * stride);
     const float4 sc = sigma_cone_at4(vload4(0, s), vload4(0, s + stride), t, K);
     const float4 sr = sigma_rod_at4(vload4(0, s + 3 * stride), vload4(0, s + 4 * stride), t, K);
-    const float4 u = clamp((log10(fmax(ic, V_FLOOR)) + 2.0f) / 2.6f, 0.0f, 1.0f);
+    const float4 u = clamp((log10(fmax(ic, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
     const float4 mes = u * u * (3.0f - 2.0f * u);                        /* Eq. 11 */
     float4 r, g, b;
     load_rgb4(0, rgb + 3 * (size_t)(rgb_off + i0), &r, &g, &b);
     const float4 cone_gain = mes * sigma_disp / sc * inv_unit;           /* Eq. 12 */
     const float4 ys = ward ? scotopic_luminance4(r, g, b, M_YR * r + M_YG * g + M_YB * b)
-                           : fmax(-0.702f * r + 1.039f * g + 0.433f * b, 0.0f);
+                           : fmax(YS_COEFF_R * r + YS_COEFF_G * g + YS_COEFF_B * b, 0.0f);
     const float4 rod_out = (1.0f - mes) * sigma_disp * ys / sr * inv_unit;  /* Eq. 13 */
     r = fmin(r * cone_gain + rod_out, SIGNAL_CEILING);
     g = fmin(g * cone_gain + rod_out, SIGNAL_CEILING);
@@ -310,7 +313,7 @@ __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
             K = vload4(0, s + 8 * stride);
             const float4 tn = t + dt;
             const float4 i_prev = powp4(sfc / BETA_CONE, (float4)(1.0f / ALPHA));
-            E = fmin(E + i_prev * dt, 1.0e30f);
+            E = fmin(E + i_prev * dt, E_CEILING);
             const int4 change = isgreater(fabs(log2(gc / sac)), (float4)(change_log2)) |
                                 isgreater(fabs(log2(gr / sar)), (float4)(change_log2));
             t = fmin(tn, T_DONE);

@@ -1,12 +1,12 @@
 /* Pattanaik, Tumblin, Yee & Greenberg 2000: fused per-pixel pass.
  * Eq. 2 responses, Eq. 3 colour slope, Sec. 4.3 inverse appearance (as a
  * per-frame gain/offset) and inverse display response (quadratic in L^n).
- * Reference: ocl_tonemap/models/pattanaik2000.py (map_reference). */
-
-#define PN 0.73f
-#define L_FLOOR 1.0e-10f
-#define RATIO_FLOOR 1.0e-12f
-#define DISPLAY_LINEAR_MAX 100.0f
+ * Reference: ocl_tonemap/models/pattanaik2000.py (map_reference).
+ *
+ * PN (Eq. 2's n: N), L_FLOOR, RATIO_FLOOR and RESPONSE_MARGIN are given as build
+ * options from ocl_tonemap/models/pattanaik2000.py (operators/pattanaik00.py,
+ * KERNEL_CONSTANTS); DISPLAY_LINEAR_MAX and SIGNAL_CEILING with common.h's: one
+ * definition, not retyped here. */
 
 /* L^n/(L^n + sigma^n) = 1/(1 + 2^(n (log2 sigma - log2 L))) */
 inline float saturation(float L, float log2_sigma)
@@ -30,7 +30,7 @@ inline void map_one(const int i, __global const float *rgb, __global const float
 
     /* inverse display response: (Br+Bc-R) x^2 + (Br sc + Bc sr - R(sr+sc)) x - R sr sc = 0 */
     const float rmax = dB_rod + dB_cone;
-    const float Rd = clamp(gain * R + offset, 0.0f, rmax * (1.0f - 1.0e-6f));
+    const float Rd = clamp(gain * R + offset, 0.0f, rmax * (1.0f - RESPONSE_MARGIN));
     const float a = rmax - Rd;
     const float b = dB_rod * ds_cone + dB_cone * ds_rod - Rd * (ds_rod + ds_cone);
     const float c = Rd * ds_rod * ds_cone;
@@ -129,7 +129,7 @@ __kernel void pattanaik00_map8(__global const float *rgb, __global const float *
     const float8 R = B_rod * xr + B_cone * xc;                                  /* Eq. 2 */
     const float8 e = colour_k * xc * (1.0f - xc);                               /* S_color/S_d */
     const float rmax = dB_rod + dB_cone;
-    const float8 Rd = clamp(gain * R + offset, 0.0f, rmax * (1.0f - 1.0e-6f));
+    const float8 Rd = clamp(gain * R + offset, 0.0f, rmax * (1.0f - RESPONSE_MARGIN));
     const float8 a = rmax - Rd;
     const float8 b = dB_rod * ds_cone + dB_cone * ds_rod - Rd * (ds_rod + ds_cone);
     const float8 c = Rd * ds_rod * ds_cone;

@@ -43,6 +43,8 @@ from .photometry import Y_WEIGHTS
 
 #: Rod mixing at full scotopic adaptation (Eq. 10; Cao et al. 2008).
 KAPPA1, KAPPA2 = 0.25, 0.4
+#: Eq. 10's 0.33 (Cao et al. 2008): g = (1 + 0.33 (q + kappa q_R))^-1/2.
+REGULATION_C = 0.33
 #: Eq. 12 constants (Cao et al. 2008 fits).
 RHO = (1.111, 0.939, 0.4, 0.15)
 ALPHA = 0.619
@@ -91,6 +93,9 @@ BASE_PERCENTILES_PAPER = (0.0, 100.0)
 SIGMA_RANGE_LOG10 = 0.4
 #: Floor on luminances before the log, cd/m^2.
 Y_FLOOR = 1.0e-10
+#: Floor before the logs of the log-averages (logmean, anchor_gain): the absolute
+#: threshold of vision, cd/m^2 (as metering.LOG_FLOOR).
+LOG_FLOOR = 1.0e-6
 
 
 
@@ -133,9 +138,10 @@ def regulated_signals(q_td: np.ndarray, k1: float, k2: float) -> np.ndarray:
     """g, Eq. 10 (q in model units, K x LMSR, (..., 4)) -> (..., 3)."""
     q = np.asarray(q_td, np.float64)
     r = q[..., 3]
-    return np.stack([(1.0 + 0.33 * (q[..., 0] + k1 * r)) ** -0.5,
-                     (1.0 + 0.33 * (q[..., 1] + k1 * r)) ** -0.5,
-                     (1.0 + 0.33 * (q[..., 2] + k2 * r)) ** -0.5], axis=-1)
+    c = REGULATION_C
+    return np.stack([(1.0 + c * (q[..., 0] + k1 * r)) ** -0.5,
+                     (1.0 + c * (q[..., 1] + k1 * r)) ** -0.5,
+                     (1.0 + c * (q[..., 2] + k2 * r)) ** -0.5], axis=-1)
 
 
 def mesopic_weight(g: np.ndarray) -> np.ndarray:
@@ -247,7 +253,7 @@ def anchor_gain(Y_out: np.ndarray, L_wa: float, A_cone: float) -> float:
     entering a tunnel, brighter (dazzle) leaving it. The range reduction maps every
     frame's base maximum to white whatever its level; without this a 0.1 cd/m^2
     scene was shown at 0.86x its daylight brightness."""
-    la = float(np.exp(np.mean(np.log(np.maximum(np.asarray(Y_out, np.float64), 1e-6)))))
+    la = float(np.exp(np.mean(np.log(np.maximum(np.asarray(Y_out, np.float64), LOG_FLOOR)))))
     g = float(scene_key(A_cone)) / la
     return g * (max(L_wa, 1e-10) / max(A_cone, 1e-10)) ** TRANSIENT_N
 
@@ -315,7 +321,7 @@ def kappas(settings: KirkSettings, L_waR: float) -> tuple[float, float, float]:
 
 
 def logmean(x: np.ndarray) -> float:
-    return float(np.exp(np.mean(np.log(np.maximum(np.asarray(x, np.float64), 1e-6)))))
+    return float(np.exp(np.mean(np.log(np.maximum(np.asarray(x, np.float64), LOG_FLOOR)))))
 
 
 def compose_reference(src_rgb, shift_rgb, w, logY, base, settings: KirkSettings,

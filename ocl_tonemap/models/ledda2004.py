@@ -62,6 +62,11 @@ DISPLAY_ADAPT_FRACTION = 0.4
 #: moves more than this many log10 units from the goal that started the
 #: current course (Sec. 5.2, last paragraph; our threshold).
 CHANGE_LOG10 = 0.1
+#: Eq. 11: u = (log10 I_A + MES_LOG_OFFSET) / MES_LOG_SPAN, i.e. mes from 0 at
+#: 10^-2 cd/m^2 to 1 at 10^0.6 ~ 4 cd/m^2 (mesopic_factor_ledda2004).
+MES_LOG_OFFSET, MES_LOG_SPAN = 2.0, 2.6
+#: Ceiling of the accumulated energy E, cd/m^2 s (stays finite in float32).
+E_CEILING = 1.0e30
 #: "Long ago": t of a pixel whose course has finished, s.
 T_DONE = 1.0e9
 
@@ -124,7 +129,8 @@ def mesopic_factor_ledda2004(I_A):
 
     0 (rods only) at I_A <= 0.01 cd/m^2, 1 (cones only) at I_A >= 10^0.6 ~ 4 cd/m^2
     ("rods are completely saturated ... above around 4 cd/m^2", Sec. 4.3)."""
-    u = np.clip((np.log10(np.maximum(np.asarray(I_A, np.float64), V_FLOOR)) + 2.0) / 2.6, 0.0, 1.0)
+    u = np.clip((np.log10(np.maximum(np.asarray(I_A, np.float64), V_FLOOR)) + MES_LOG_OFFSET)
+                / MES_LOG_SPAN, 0.0, 1.0)
     return u * u * (3.0 - 2.0 * u)
 
 
@@ -219,7 +225,7 @@ def step_reference(state: dict, I_c, I_r, dt: float, change_log10: float = CHANG
     sig_c_now = sigma_at(s["sigma_in_cone"], s["sigma_fin_cone"], t_prev + dt, s["K"], "cone")
     sig_r_now = sigma_at(s["sigma_in_rod"], s["sigma_fin_rod"], t_prev + dt, s["K"], "rod")
     I_prev = (s["sigma_fin_cone"] / BETA_CONE) ** (1.0 / ALPHA)
-    E = np.minimum(s["energy"] + I_prev * dt, 1e30)
+    E = np.minimum(s["energy"] + I_prev * dt, E_CEILING)
     t = np.minimum(t_prev + dt, T_DONE)
     gc, gr = sigma_of(I_c, BETA_CONE), sigma_of(I_r, BETA_ROD)
     change = ((np.abs(np.log10(gc / s["sigma_anchor_cone"])) > change_log10)

@@ -39,6 +39,9 @@ A_FLOOR = 1.0e-10
 #: Floor on colour ratios before the Eq. 3 power (log of 0 is -inf).
 RATIO_FLOOR = 1.0e-12
 LN10 = math.log(10.0)
+#: The display's response is kept below B_rod + B_cone by this fraction before its
+#: inverse (DisplayObserver.luminance), which diverges there.
+RESPONSE_MARGIN = 1.0e-6
 
 
 # --- The receptor time course, Sec. 4.1.2 (shared by kirk11 and the Purkinje effect) ---
@@ -210,7 +213,7 @@ class DisplayObserver:
         has one non-negative root; solved in the cancellation-free form."""
         sr, sc = self.sigma_rod ** N, self.sigma_cone ** N
         rmax = self.B_rod + self.B_cone
-        R = np.clip(np.asarray(R, np.float64), 0.0, rmax * (1.0 - 1e-6))
+        R = np.clip(np.asarray(R, np.float64), 0.0, rmax * (1.0 - RESPONSE_MARGIN))
         a = rmax - R
         b = self.B_rod * sc + self.B_cone * sr - R * (sr + sc)
         c = R * sr * sc

@@ -22,6 +22,10 @@ RGB709_TO_XYZ = np.array([
 #: Photopic luminance weights of the working space (the Y row above).
 Y_WEIGHTS = RGB709_TO_XYZ[1]
 
+#: Ward-Larson, Rushmeier & Piatko 1997's scotopic luminance from XYZ (scotopic_luminance):
+#: Y' = Y (WARD97_GAIN (1 + (Y + Z) / X) - WARD97_OFFSET).
+WARD97_GAIN, WARD97_OFFSET = 1.33, 1.68
+
 #: Ceiling applied to scene values, cd/m^2 (+Inf maps here). The brief's
 #: range of vision is 1e-6 .. 1e8 cd/m^2; two decades of headroom.
 L_MAX = 1.0e10
@@ -47,7 +51,7 @@ def scotopic_luminance(rgb: np.ndarray) -> np.ndarray:
     xyz = np.asarray(rgb, np.float64)[..., :3] @ RGB709_TO_XYZ.T
     X, Y, Z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
     with np.errstate(divide="ignore", invalid="ignore"):
-        ys = Y * (1.33 * (1.0 + (Y + Z) / X) - 1.68)
+        ys = Y * (WARD97_GAIN * (1.0 + (Y + Z) / X) - WARD97_OFFSET)
     return np.where(X > 0, np.maximum(ys, 0.0), 0.0)
 
 

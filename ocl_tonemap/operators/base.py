@@ -275,13 +275,17 @@ class KernelCall:
     """A per-pixel kernel of signature ``(rgb, Y, Ys, out, n, __constant float *p)``
     (``params``: the frame's scalars in the kernel's order, packed as float32) that maps
     ``pixels_per_item`` pixels per work-item (launched over ceil(n / that) items).
-    ``buffers``: extra read-only float32 arrays passed after ``p`` (tables)."""
+    ``buffers``: extra read-only float32 arrays passed after ``p`` (tables).
+    ``defines``: the kernel file's model constants, (NAME, value) pairs given to the
+    compiler as -DNAME=value beside the parameters' indices P_<name> (never retyped in
+    the kernel; common.h's come with every program)."""
 
     file: str
     kernel: str
     params: tuple
     pixels_per_item: int = 1
     buffers: tuple = ()
+    defines: tuple = ()
 
 
 def finite_positive(flag: str, upper: float = math.inf):

@@ -5,7 +5,7 @@ The model is ``models/kirk2011.py``; this module declares the operator and its
 time course (the shared receptor levels of ``models/pattanaik2000.py``: the rods'
 mixing follows the adapted scotopic level and the rods' dark adaptation, the
 display anchor the adapted cone level). Its phases run on
-``backends/reference.py:KirkSchedule`` and ``backends/opencl/kirk11.py:KirkSchedule``.
+``backends/reference/kirk11.py:KirkSchedule`` and ``backends/opencl/kirk11.py:KirkSchedule``.
 """
 
 from __future__ import annotations

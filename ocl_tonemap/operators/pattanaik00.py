@@ -20,6 +20,10 @@ MODE_OPTION = Option("mode", "--mode", "default: the operator as it looks right 
 KERNEL_PARAMS = ("log2_sigma_rod", "log2_sigma_cone", "B_rod", "B_cone", "gain", "offset",
                  "dB_rod", "dB_cone", "ds_rod", "ds_cone", "colour_k", "out_black", "out_scale",
                  "inv_white", "knee", "chroma")
+#: Model constants of the per-pixel kernel, given as build options (never retyped there).
+KERNEL_CONSTANTS = (("PN", model.N), ("L_FLOOR", model.L_FLOOR),
+                    ("RATIO_FLOOR", model.RATIO_FLOOR),
+                    ("RESPONSE_MARGIN", model.RESPONSE_MARGIN))
 
 
 class Pattanaik00(ModelOperator):
@@ -47,5 +51,6 @@ class Pattanaik00(ModelOperator):
                 d.signal_offset, d.gain, 1.0 / p.white_signal, p.shoulder_knee,
                 p.chroma if p.chroma is not None else 0.0)
         return KernelCall("pattanaik00.cl", "pattanaik00_map8" if vector else "pattanaik00_map",
-                          tuple(zip(KERNEL_PARAMS, vals)), 8 if vector else 1)
+                          tuple(zip(KERNEL_PARAMS, vals)), 8 if vector else 1,
+                          defines=KERNEL_CONSTANTS)
 

@@ -240,7 +240,7 @@ class OpenCLBackend:
     def run_pointwise(self, call, rgb, Y, Ys, out, n: int) -> None:
         """Enqueue a per-pixel kernel (operators.base.KernelCall) over ``n`` pixels."""
         names = tuple(k for k, _ in call.params)
-        knl = self.rt.kernel(call.file, call.kernel, index_defines(names))
+        knl = self.rt.kernel(call.file, call.kernel, index_defines(names) + tuple(call.defines))
         p = self.constant(np.array([v for _, v in call.params] or [0.0], np.float32))
         extra = tuple(self.constant(b) for b in call.buffers)
         items = self.rt.pixel_items(max(n, 1), call.pixels_per_item)

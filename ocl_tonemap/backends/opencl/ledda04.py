@@ -18,7 +18,6 @@ import numpy as np
 
 from ...models import ledda2004 as L
 from ...models.bilateral import LEDDA_RANGE, V_FLOOR, spatial_radius
-from ...models.display import DISPLAY_LINEAR_MAX
 from ...models.metering import MeteringSpec
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
@@ -27,13 +26,17 @@ from ..base import PixelStateMixin
 from .bilateral import Z_IDENTITY, DeviceBilateral
 from .runtime import round_up
 
-#: Model constants of kernels/ledda04.cl, given as build options (never retyped).
+#: Model constants of kernels/ledda04.cl, given as build options (never retyped);
+#: DISPLAY_LINEAR_MAX and the other shared ones come with every program (constants.py).
 KERNEL_CONSTANTS = (
     ("V_FLOOR", V_FLOOR), ("ALPHA", L.ALPHA), ("BETA_CONE", L.BETA_CONE),
     ("BETA_ROD", L.BETA_ROD), ("TAU_CONE", L.TAU_CONE), ("TAU_ROD", L.TAU_ROD),
     ("LN_RHO_CONE", math.log(L.RHO_CONE)), ("LN_RHO_ROD", math.log(L.RHO_ROD)),
-    ("K_MAX", L.K_MAX), ("K_SLOPE", L.K_SLOPE), ("E_MAX", L.E_MAX), ("T_DONE", L.T_DONE),
-    ("NSTATE", len(L.STATE_CHANNELS)), ("DISPLAY_LINEAR_MAX", DISPLAY_LINEAR_MAX),
+    ("K_MAX", L.K_MAX), ("K_SLOPE", L.K_SLOPE), ("E_MAX", L.E_MAX),
+    ("E_CEILING", L.E_CEILING), ("T_DONE", L.T_DONE),
+    ("MES_LOG_OFFSET", L.MES_LOG_OFFSET), ("MES_LOG_SPAN", L.MES_LOG_SPAN),
+    *((f"Y_COEFF_{c}", v) for c, v in zip("RGB", L.Y_COEFFS)),
+    *((f"YS_COEFF_{c}", v) for c, v in zip("RGB", L.YS_COEFFS)),
 )
 LOGMEAN = MeteringSpec.parse("logmean")
 

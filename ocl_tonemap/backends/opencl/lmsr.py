@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 
+from ...models import kirk2011 as K
 from ...models import lmsr
 from ...models.bilateral import RangeKernel
 from ...models.durand2002 import BASE_HIST_BINS, BASE_HIST_HI, BASE_HIST_LO, BaseRange, base_hist_edges
@@ -18,19 +19,32 @@ from .bilateral import DeviceBilateral
 from .runtime import round_up
 
 
+#: Model constants of kernels/kirk11.cl, given as build options (never retyped);
+#: DISPLAY_LINEAR_MAX and the other shared ones come with every program (constants.py).
+#: Eq. 11's A^-1 as the kernel's closed form takes it: the four entries of its first two
+#: rows that are not 0 (the last row, (0, 1, 1), is written out there).
+KERNEL_CONSTANTS = (
+    ("L_MAX_F", lmsr.L_MAX), ("M_MAX_F", lmsr.M_MAX), ("S_MAX_F", lmsr.S_MAX),
+    ("ALPHA_F", K.ALPHA), ("REGULATION_C", K.REGULATION_C),
+    *((f"A_INV_{i}{j}", float(K.A_INV[i, j])) for i in (0, 1) for j in (0, 2)),
+    ("N_SUPPORTS", len(K.SUBSETS)), ("Y_FLOOR", K.Y_FLOOR), ("LOG_FLOOR", K.LOG_FLOOR),
+)
+
+
 class KirkDevice:
     def __init__(self, rt):
         import pyopencl as cl
         self.rt = rt
         self.cl = cl
         self.bil = DeviceBilateral(rt)
-        self._k_lmsr = rt.kernel("kirk11.cl", "to_lmsr")
-        self._k_shift = rt.kernel("kirk11.cl", "kirk11_shift")
-        self._k_compose = rt.kernel("kirk11.cl", "kirk11_compose")
-        self._k_sums = rt.kernel("kirk11.cl", "kirk11_sums")
-        self._k_finish = rt.kernel("kirk11.cl", "kirk11_finish")
+        c = KERNEL_CONSTANTS
+        self._k_lmsr = rt.kernel("kirk11.cl", "to_lmsr", c)
+        self._k_shift = rt.kernel("kirk11.cl", "kirk11_shift", c)
+        self._k_compose = rt.kernel("kirk11.cl", "kirk11_compose", c)
+        self._k_sums = rt.kernel("kirk11.cl", "kirk11_sums", c)
+        self._k_finish = rt.kernel("kirk11.cl", "kirk11_finish", c)
         self._k_spectrum = rt.kernel("colour.cl", "spectrum_to_lmsr")
-        self._k_hist = rt.kernel("kirk11.cl", "base_histogram")
+        self._k_hist = rt.kernel("kirk11.cl", "base_histogram", c)
         self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
         self._hist = self._buf(BASE_HIST_BINS * 4)             # base_histogram's counts
 
@@ -62,9 +76,9 @@ class KirkDevice:
 
     def sums(self, x, n: int, mode: int, inv_u: float = 1.0) -> tuple[float, float]:
         """kirk11_sums over ``n`` pixels of ``x``, added in float64: LOG_LEVELS (LMSR):
-        (sum ln max(R, 1e-6), sum ln max(L+M, 1e-6)), as ``kirk2011.logmean``; PLANE:
-        (sum x, 0); LOG_OUTPUT (display-linear RGB): (sum ln max(Y inv_u, 1e-6), 0), as
-        ``anchor_gain``. Only the groups' records come back."""
+        (sum ln max(R, f), sum ln max(L+M, f)), as ``kirk2011.logmean``; PLANE:
+        (sum x, 0); LOG_OUTPUT (display-linear RGB): (sum ln max(Y inv_u, f), 0), as
+        ``anchor_gain`` (f: ``kirk2011.LOG_FLOOR``). Only the groups' records come back."""
         cl = self.cl
         if n <= 0:
             return 0.0, 0.0

@@ -9,8 +9,9 @@ work-group reduction in local memory (``group_sum4``), a branch and a ``select``
 
 The verdict is kept in the user's cache (``icd.cache_dir()/probe.json``), keyed by the
 device, its platform, the driver's version, this project's version, the probe's source
-and the PoCL settings in the environment (``POCL_*``, the cache folder excepted), so a
-warm start pays one small JSON read. A driver or project change asks again. A kernel
+(with common.h's model constants, given as build options) and the PoCL settings in the
+environment (``POCL_*``, the cache folder excepted), so a warm start pays one small JSON
+read. A driver or project change asks again. A kernel
 that fails to build later, after the probe passed, forgets the verdict
 (:func:`forget`).
 """
@@ -67,6 +68,13 @@ def _source() -> str:
     return (kernel_dir() / "common.h").read_text() + PROBE_KERNEL
 
 
+def _source_key() -> str:
+    """The probe's source and the model constants common.h gets as build options
+    (:mod:`.constants`): the verdict is asked again when either changes."""
+    from .constants import common_options
+    return "\n".join([_source(), *common_options()])
+
+
 def _pocl_env() -> list:
     return sorted((k, v) for k, v in os.environ.items()
                   if k.startswith("POCL_") and k != "POCL_CACHE_DIR")
@@ -84,7 +92,7 @@ def device_record(device) -> dict:
 def cache_key(device) -> str:
     from ... import __version__
     parts = {**device_record(device), "project": __version__,
-             "probe": hashlib.sha256(_source().encode()).hexdigest(),
+             "probe": hashlib.sha256(_source_key().encode()).hexdigest(),
              "env": _pocl_env(), "form": CACHE_VERSION}
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 

@@ -327,13 +327,15 @@ def vector_pixels(device) -> bool:
 
 
 def build_options(device) -> list:
-    """Compiler options of every program (and of the probe kernel)."""
+    """Compiler options of every program (and of the probe kernel): the model constants
+    of common.h (:data:`constants.COMMON`) among them."""
+    from .constants import common_options
     cl = cl_api()
     # No -cl-fast-relaxed-math: the kernels rely on IEEE inf/0 behaviour at the
     # extremes (docs/models.md); measured, it bought no time (docs/architecture.md).
     cpu = int(bool(device.type & cl.device_type.CPU))      # common.h share_range
     return ["-cl-std=CL1.2", f"-DDEVICE_CPU={cpu}",
-            f"-DVECTOR_PIXELS={int(vector_pixels(device))}"]
+            f"-DVECTOR_PIXELS={int(vector_pixels(device))}", *common_options()]
 
 
 @functools.lru_cache(maxsize=None)
