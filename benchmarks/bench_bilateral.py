@@ -1,6 +1,6 @@
 """Benchmark of the bilateral filters (exact vs grid) and of the ledda04 operator.
 
-One command:  python benchmarks/bench_bilateral.py [--quick]
+One command:  python -m benchmarks.bench_bilateral [--quick]
 Writes benchmarks/results/bilateral_ledda04.md (and prints it).
 
 Filters the photopic luminance of generated HDR scenes with Ledda's range
@@ -28,21 +28,16 @@ import argparse
 import math
 import os
 import platform
-import sys
 import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import timeit  # noqa: E402
-
-from ocl_tonemap.models import ledda2004 as L  # noqa: E402
-from ocl_tonemap.backends.opencl.bilateral import DeviceBilateral  # noqa: E402
-from ocl_tonemap.models.bilateral import LEDDA_RANGE, prepare_signal  # noqa: E402
-from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
+from benchmarks.lib.timing import timeit
+from ocl_tonemap.models import ledda2004 as L
+from ocl_tonemap.backends.opencl.bilateral import DeviceBilateral
+from ocl_tonemap.models.bilateral import LEDDA_RANGE, prepare_signal
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 
 SIZES = [(640, 360), (1920, 1080), (3840, 2160)]
 EXACT_BUDGET_S = 6.0
@@ -156,7 +151,7 @@ def main():
     reps = 1 if a.quick else 3
     lines = [f"# Bilateral filtering and ledda04 on {describe_device(rt.device)}", "",
              f"Host: {platform.processor() or platform.machine()}, Python {platform.python_version()}. "
-             "Command: `python benchmarks/bench_bilateral.py`.", "",
+             "Command: `python -m benchmarks.bench_bilateral`.", "",
              "## Exact vs fast (grid, q_s = q_r = 2, the default) per filtered channel", "",
              "| size | scene | sigma_s px | exact ms | grid ms | exact/grid | PSNR log10 I_A dB "
              "| max err log10 | PSNR output dB | rows compared |",

@@ -1,7 +1,7 @@
 """Benchmark of the display encoding: OCIO's CPU processor against the baked table on
 the OpenCL device (colour.bake_display_table, kernels/display.cl), time and error.
 
-One command:  python benchmarks/bench_display_table.py [--quick]
+One command:  python -m benchmarks.bench_display_table [--quick]
 Writes benchmarks/results/display_table.md (and prints it).
 
 1. Every display/view of the bundled config (and, for the 3D form, HLG and an ACES
@@ -21,20 +21,15 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 import tempfile
 import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import table, timeit  # noqa: E402
-
-from ocl_tonemap import colour  # noqa: E402
-from ocl_tonemap.backends.opencl.display import DeviceDisplayTable  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
+from benchmarks.lib.timing import table, timeit
+from ocl_tonemap import colour
+from ocl_tonemap.backends.opencl.display import DeviceDisplayTable
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 
 STUDIO = "ocio://studio-config-latest"
 EXTRA_3D = [(STUDIO, "Rec.2100-HLG - Display", "Un-tone-mapped"),
@@ -127,7 +122,7 @@ def main():
     parts = [
         "# Display encoding: OCIO CPU processor against the baked device table\n",
         f"Device: {describe_device(rt.device)}; host: "
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs. Command: `python benchmarks/bench_display_table.py"
+        f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs. Command: `python -m benchmarks.bench_display_table"
         f"{' --quick' if a.quick else ''}`. Median of {reps} runs after a warm-up.\n",
         f"## 1. Per display/view\n\nErrors: the device's output against OCIO's CPU processor "
         f"over {n} working-space RGB in [0, 100] (`colour.display_probe_set`), in 10-bit "

@@ -1,6 +1,6 @@
 """Benchmark of durand00 and the effects: speed beside accuracy for every knob.
 
-One command:  python benchmarks/bench_durand.py [--quick]
+One command:  python -m benchmarks.bench_durand [--quick]
 Writes benchmarks/results/durand00.md (and prints it).
 
 Tables:
@@ -20,22 +20,17 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import table, timeit  # noqa: E402
-
+from benchmarks.lib.timing import table, timeit
 from ocl_tonemap.models import durand2000 as dd
-from ocl_tonemap.models import spencer1995 as fl  # noqa: E402
-from ocl_tonemap.backends.opencl.convolution import DeviceBlur  # noqa: E402
-from ocl_tonemap.models.convolution import EDGE_CLAMP, blur_reference, gaussian_taps  # noqa: E402
-from ocl_tonemap.effects import EffectSettings  # noqa: E402
-from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
+from ocl_tonemap.models import spencer1995 as fl
+from ocl_tonemap.backends.opencl.convolution import DeviceBlur
+from ocl_tonemap.models.convolution import EDGE_CLAMP, blur_reference, gaussian_taps
+from ocl_tonemap.effects import EffectSettings
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 
 OFF = EffectSettings()
 
@@ -222,7 +217,7 @@ def main():
     parts = [
         "# durand00 and effects benchmark\n",
         f"Device: {describe_device(rt.device)}; host: {platform.processor() or platform.machine()}, "
-        f"{os.cpu_count()} CPUs. Command: `python benchmarks/bench_durand.py"
+        f"{os.cpu_count()} CPUs. Command: `python -m benchmarks.bench_durand"
         f"{' --quick' if a.quick else ''}`. Median of {reps} runs after a warm-up.\n",
         "## 1. durand00 per frame (effects off)\n", bench_operator(big, reps),
         "\n## 2. Look-up tables (Sec. 5), per-pixel kernel at "

@@ -1,6 +1,6 @@
 """Benchmark of kirk11: time per frame beside error, the Eq. 15 fallback rate and cost.
 
-One command:  python benchmarks/bench_kirk.py [--quick]
+One command:  python -m benchmarks.bench_kirk [--quick]
 Writes benchmarks/results/kirk11.md (and prints it).
 
 1. Whole frame, RGB and spectral (31 channels) input, OpenCL with the fast and the
@@ -17,19 +17,14 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import table, timeit  # noqa: E402
-
-from ocl_tonemap.models import kirk2011 as ko  # noqa: E402
-from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
-from ocl_tonemap.sample import spectral_patches  # noqa: E402
+from benchmarks.lib.timing import table, timeit
+from ocl_tonemap.models import kirk2011 as ko
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
+from ocl_tonemap.sample import spectral_patches
 
 
 def rgb_scene(w, h, seed=0):
@@ -129,7 +124,7 @@ def main():
     text = "\n".join([
         "# kirk11 benchmark\n",
         f"Device: {describe_device(rt.device)}; host: {platform.processor() or platform.machine()}, "
-        f"{os.cpu_count()} CPUs. Command: `python benchmarks/bench_kirk.py"
+        f"{os.cpu_count()} CPUs. Command: `python -m benchmarks.bench_kirk"
         f"{' --quick' if a.quick else ''}`. Median of {reps} runs after a warm-up.\n",
         "## 1. Whole frame\n", bench_frames(sizes, (160, 90), reps),
         f"\n## 2. Purkinje shift + Eq. 15 solve alone, {nw}x{nh}, fixed (paper) kappa\n",

@@ -1,6 +1,6 @@
 """Peak memory and time per frame on huge frames: whole-frame against streamed.
 
-    python benchmarks/bench_memory.py [--size 12000x8000] [--also 16000x16000] [--cases a,b]
+    python -m benchmarks.bench_memory [--size 12000x8000] [--also 16000x16000] [--cases a,b]
 
 Writes benchmarks/results/memory.md. Each run is a child ``ocl-tonemap run`` whose
 peak resident set (ru_maxrss) is read after it exits; the frame is generated
@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
+from benchmarks.lib.timing import table
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-from benchutil import table  # noqa: E402
 
 
 def make_frame(path: str, w: int, h: int) -> None:
@@ -103,7 +103,7 @@ def main() -> None:
     out = os.path.join(HERE, "results", "memory.md")
     with open(out, "w") as fh:
         fh.write("# Peak memory on huge frames\n\n")
-        fh.write(f"Command: `python benchmarks/bench_memory.py --size {a.size}"
+        fh.write(f"Command: `python -m benchmarks.bench_memory --size {a.size}"
                  + (f" --also {a.also}" if a.also else "") + "`. Machine: "
                  f"{platform.machine()}, {os.cpu_count()} CPUs, PoCL. Peak resident set of the "
                  "whole `ocl-tonemap run` (PNG out), against the frame's size as float32 RGB. "

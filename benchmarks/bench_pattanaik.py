@@ -1,6 +1,6 @@
 """Benchmark of the pattanaik00 pipeline: OpenCL vs the float64 reference.
 
-One command:  python benchmarks/bench_pattanaik.py [--quick]
+One command:  python -m benchmarks.bench_pattanaik [--quick]
 Writes benchmarks/results/pattanaik00.md (and prints it).
 
 For 640x360, 1920x1080 and 3840x2160 frames of a generated HDR scene:
@@ -22,17 +22,12 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import timeit  # noqa: E402
-
-from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
+from benchmarks.lib.timing import timeit
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 
 SIZES = [(640, 360), (1920, 1080), (3840, 2160)]
 
@@ -107,7 +102,7 @@ def main():
              f"- device: {describe_device(rt.device)}",
              f"- host: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
              f"Python {platform.python_version()}, NumPy {np.__version__}",
-             f"- command: `python benchmarks/bench_pattanaik.py{' --quick' if args.quick else ''}`",
+             f"- command: `python -m benchmarks.bench_pattanaik{' --quick' if args.quick else ''}`",
              f"- median of {reps} runs after a warm-up; ratios are what to compare across machines.", ""]
     lines += ["## Whole frame and per-pixel pass", "",
               "| size | OpenCL ms/frame | MPix/s | kernel ms (vector: 8 px/item) | kernel ms (scalar) "

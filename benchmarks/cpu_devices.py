@@ -12,7 +12,7 @@ Intel's CPU runtime from the ``intel-cpu`` extra) is decided from this table:
    ``pfsin | pfstmo_pattanaik00 | pfsout`` on the same frame, and, with ``--before
    REV``, the same command of that revision (a git worktree) for a before/after.
 
-One command:  python benchmarks/cpu_devices.py [--before REV] [--out FILE]
+One command:  python -m benchmarks.cpu_devices [--before REV] [--out FILE]
 Results: benchmarks/results/cpu_devices.md
 """
 
@@ -144,6 +144,7 @@ def section_first_frame(devs, before: str | None) -> list[str]:
     pattern, fr = write_tunnel_sequence(str(tmp / "in"), 320, 180, 30.0, 0.1)
     src = pattern.replace("####", f"{fr[0]:04d}")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPATH"] = str(HERE.parent)       # "now": this tree, as section 1 imports it
     rows = []
     py = [sys.executable, "-m", "ocl_tonemap", "run", src]
     if before:
@@ -200,7 +201,7 @@ def main(argv=None) -> int:
              f"Python {platform.python_version()}. Working CPU devices: "
              + (", ".join(f"{k} {d.name.strip()} on {d.platform.name.strip()} "
                           f"(driver {d.driver_version.strip()})" for k, d in devs) or "none"),
-             "", "`python benchmarks/cpu_devices.py` writes this file.", ""]
+             "", "`python -m benchmarks.cpu_devices` writes this file.", ""]
     secs = a.sections.split(",")
     if "1" in secs:
         lines += section_devices(devs)

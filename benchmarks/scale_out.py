@@ -1,6 +1,6 @@
 """A shot on many workers: the serial run against measure -> integrate -> apply on Dask.
 
-One command:  python benchmarks/scale_out.py [--frames 600] [--size 1920x1080]
+One command:  python -m benchmarks.scale_out [--frames 600] [--size 1920x1080]
               [--operators pattanaik00,ledda04] [--workers 1,2]
 Writes benchmarks/results/scale_out.md (and .json).
 
@@ -150,7 +150,7 @@ def write_report(path: Path, rows: list, w: int, h: int, n: int) -> None:
     lines = [
         "# A shot on many workers: serial run vs measure -> integrate -> apply on Dask",
         "",
-        f"`python benchmarks/scale_out.py --frames {n} --size {w}x{h}` on {platform.node()}: "
+        f"`python -m benchmarks.scale_out --frames {n} --size {w}x{h}` on {platform.node()}: "
         f"{os.cpu_count()} cores, {device}, Python {platform.python_version()}; "
         f"{time.strftime('%Y-%m-%d')}. The tunnel drive, {n} frames {w}x{h} EXR -> "
         "8-bit PNG, the whole command line each time (LocalCluster start included).",

@@ -8,7 +8,7 @@ their paths; later calls find them there and download nothing.
 
 Cache folder: ``$OCLTM_PHOTOS``, else ``~/.cache/ocl-tonemap/photos/``.
 
-One command (fetch and list):  python benchmarks/photos.py [--cache DIR]
+One command (fetch and list):  python -m benchmarks.lib.photos [--cache DIR]
 """
 
 from __future__ import annotations
