@@ -39,6 +39,7 @@ import numpy as np
 from benchmarks.lib import appearance_metrics as am
 from benchmarks.lib import photos as ph
 from benchmarks.lib import scenes
+from benchmarks.lib.photos import load_photo
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -68,23 +69,6 @@ def lvl(L: float) -> str:
 
 
 # --- images ----------------------------------------------------------------------
-
-def load_photo(path, width: int) -> np.ndarray:
-    import OpenImageIO as oiio
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise RuntimeError(f"cannot read {path}: {buf.geterror()}")
-    spec = buf.spec()
-    h = max(1, int(round(spec.height * width / spec.width)))
-    if width != spec.width:
-        # box (area) filter: a windowed-sinc filter rings around the sun (negative lobes
-        # of -3000 next to 60 000) and would paint black halos into the scene
-        buf = oiio.ImageBufAlgo.resize(buf, filtername="box",
-                                       roi=oiio.ROI(0, width, 0, h, 0, 1, 0, spec.nchannels))
-    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)[..., :3]
-    px = np.nan_to_num(px, nan=0.0, posinf=0.0, neginf=0.0)
-    return np.ascontiguousarray(np.maximum(px, 0.0))
-
 
 def log_average(rgb) -> float:
     try:

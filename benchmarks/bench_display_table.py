@@ -26,6 +26,7 @@ import time
 
 import numpy as np
 
+from benchmarks.lib.scenes import display_frame
 from benchmarks.lib.timing import table, timeit
 from ocl_tonemap import colour
 from ocl_tonemap.backends.opencl.display import DeviceDisplayTable
@@ -34,17 +35,6 @@ from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 STUDIO = "ocio://studio-config-latest"
 EXTRA_3D = [(STUDIO, "Rec.2100-HLG - Display", "Un-tone-mapped"),
             (STUDIO, "sRGB - Display", "ACES 2.0 - SDR 100 nits (Rec.709)")]
-
-
-def display_frame(w, h, seed=0):
-    """A smooth display-linear frame like an operator's output: mostly [0, 1], deep
-    shadows to 1e-4, highlights to 20, varied colour."""
-    rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:h, 0:w] / max(h, w)
-    lum = 10.0 ** (1.3 * np.sin(6 * x) * np.cos(4 * y) - 0.7)
-    chroma = 0.55 + 0.45 * np.stack([np.sin(3 * x + 1), np.cos(5 * y), np.sin(4 * (x + y))], -1)
-    noise = rng.uniform(0.97, 1.03, (h, w, 3))
-    return np.ascontiguousarray(lum[..., None] * chroma * noise, np.float32)
 
 
 def cases():

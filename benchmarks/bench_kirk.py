@@ -20,33 +20,18 @@ import platform
 
 import numpy as np
 
+from benchmarks.lib.scenes import sine_texture, spectral_chart
 from benchmarks.lib.timing import table, timeit
 from ocl_tonemap.models import kirk2011 as ko
 from ocl_tonemap.pipeline import Tonemapper
 from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
-from ocl_tonemap.sample import spectral_patches
-
-
-def rgb_scene(w, h, seed=0):
-    rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:h, 0:w] / max(h, w)
-    lum = 10.0 ** (2.0 * np.sin(6 * x) * np.cos(4 * y))
-    return (lum[..., None] * rng.uniform(0.05, 1.0, (h, w, 3))).astype(np.float32)
-
-
-def spectral_scene(w, h):
-    lam, spectra, _ = spectral_patches("A", 1.0)
-    idx = (np.arange(h)[:, None] * 6 // h) * 4 + (np.arange(w)[None, :] * 4 // w)
-    y, x = np.mgrid[0:h, 0:w] / max(h, w)
-    lum = 10.0 ** (1.5 * np.sin(5 * x) * np.cos(3 * y))
-    return lam, (spectra[idx % 24] * lum[..., None]).astype(np.float32)
 
 
 def bench_frames(sizes, ref_size, reps):
     rows = []
     for w, h in sizes:
-        img = rgb_scene(w, h)
-        lam, cube = spectral_scene(w, h)
+        img = sine_texture(w, h)
+        lam, cube = spectral_chart(w, h)
         for label, frame, kw in (("RGB", img, {}), ("spectral 31", cube, {"wavelengths": lam})):
             ref = None
             if (w, h) == ref_size:
@@ -78,7 +63,7 @@ def bench_nnls(w, h, reps):
     n = w * h
     mf = cl.mem_flags
     rows = []
-    base = rgb_scene(w, h) / np.float32(rgb_scene(w, h).mean())
+    base = sine_texture(w, h) / np.float32(sine_texture(w, h).mean())
     for mode in ("paper", "default"):
         st = ko.KirkSettings(kappa="full", mode=mode)
         M, D = ko.display_matrix(np.eye(3)), np.eye(3)

@@ -31,6 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.lib.scenes import tunnel
+from benchmarks.lib.timing import child_peak
+
 HERE = Path(__file__).resolve().parent
 OPS = ("pattanaik00", "durand00", "ledda04", "kirk11")
 
@@ -63,8 +66,7 @@ def delta_e(a, b) -> tuple[float, float, float]:
 
 
 def frames(w, h):
-    from ocl_tonemap.sample import render_frame
-    return [render_frame(5.5 + i / 30.0, w, h, 8.0) for i in range(6)]
+    return [tunnel(w, h, t=5.5 + i / 30.0) for i in range(6)]
 
 
 def per_frame_ms(op, backend, device, imgs) -> tuple[float, list]:
@@ -124,18 +126,7 @@ def timed(cmd, env, repeat=5, cwd=None) -> tuple[float, float] | None:
 
 def peak_of(cmd, env, cwd=None) -> float | None:
     """Peak RSS (MiB) of one run of ``cmd`` (a shell pipeline: its largest process)."""
-    code = ("import resource, subprocess, sys; "
-            "r = subprocess.run(sys.argv[1], shell=True, executable='/bin/bash', "
-            "capture_output=True); "
-            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)")
-    import shlex
-    line = cmd if isinstance(cmd, str) else " ".join(shlex.quote(str(c)) for c in cmd)
-    r = subprocess.run([sys.executable, "-c", code, line], env=env, cwd=cwd,
-                       capture_output=True, text=True)
-    try:
-        return float(r.stdout.strip().splitlines()[-1])
-    except (ValueError, IndexError):
-        return None
+    return child_peak(cmd, env, cwd)[0]
 
 
 def section_first_frame(devs, before: str | None) -> list[str]:

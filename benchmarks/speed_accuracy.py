@@ -29,9 +29,10 @@ benchmarks/results/speed_accuracy.png (and prints the tables as it goes).
 2. Tiers table: operator x tier x size (+3840x2160): ms/frame, MPix/s, Delta E
    median/p99/max (worst scene), PASS/FAIL for "balanced p99 <= 1, draft p99 <= 3 on
    every scene".
-3. Roofline: the device's buffer-copy bandwidth (bench_pattanaik.py's method) and
-   each kernel of one 1080p frame per operator, timed on an OpenCL profiling queue,
-   against the time its buffers would take at that bandwidth.
+3. Roofline: the device's buffer-copy bandwidth (bench_pattanaik's method,
+   ``benchmarks.lib.timing.copy_bandwidth``) and each kernel of one 1080p frame per
+   operator, timed on an OpenCL profiling queue, against the time its buffers would
+   take at that bandwidth.
 4. Whole command over 60 frames (not with --quick): the tunnel sample at 640x360 and
    1920x1080 through ``ocl-tonemap run`` to 8-bit PNG, against OIIO read + PNG write
    alone and the pfstools/pfstmo chains (pattanaik00, durand02) and pfstools' own
@@ -68,6 +69,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from benchmarks.lib.photos import load_photo
+from benchmarks.lib.scenes import tunnel
 from benchmarks.lib.timing import table
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -114,23 +117,6 @@ def fmt_de(v) -> str:
 
 # --- scenes -------------------------------------------------------------------------------
 
-def load_photo(path, w: int, h: int) -> np.ndarray:
-    """The photograph centre-cropped to w:h and resized (box filter down: a windowed sinc
-    rings around the sun; triangle up), relative radiance, finite, >= 0."""
-    import OpenImageIO as oiio
-    buf = oiio.ImageBuf(str(path))
-    spec = buf.spec()
-    ch, cw = spec.height, int(round(spec.height * w / h))
-    if cw > spec.width:
-        cw, ch = spec.width, int(round(spec.width * h / w))
-    x0, y0 = (spec.width - cw) // 2, (spec.height - ch) // 2
-    buf = oiio.ImageBufAlgo.cut(buf, oiio.ROI(x0, x0 + cw, y0, y0 + ch, 0, 1, 0, 3))
-    buf = oiio.ImageBufAlgo.resize(buf, filtername="box" if w <= cw else "triangle",
-                                   roi=oiio.ROI(0, w, 0, h, 0, 1, 0, 3))
-    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)[..., :3]
-    return np.ascontiguousarray(np.maximum(np.nan_to_num(px, nan=0, posinf=0, neginf=0), 0))
-
-
 class Scenes:
     def __init__(self, names):
         from benchmarks.lib.photos import PhotoFetchError, fetch_photos
@@ -150,10 +136,9 @@ class Scenes:
         key = (name, w, h)
         if key not in self._cache:
             from ocl_tonemap.calibration import log_average
-            from ocl_tonemap.sample import render_frame
             stem, level = next((s, L) for n, s, L in SCENES if n == name)
             if stem is None:
-                img = render_frame(TUNNEL_T, w, h, TUNNEL_SECONDS)
+                img = tunnel(w, h, t=TUNNEL_T, seconds=TUNNEL_SECONDS)
             else:
                 img = load_photo(self.paths[stem], w, h)
                 img = np.ascontiguousarray(img * np.float32(level / log_average(img)))
@@ -631,8 +616,7 @@ def roofline_child(w: int, h: int, ops: list[str], frames: int) -> dict:
     from ocl_tonemap.backends.opencl import runtime as R
     from ocl_tonemap.pipeline import Tonemapper
     from ocl_tonemap.operators import get_operator
-    from ocl_tonemap.sample import render_frame
-    from benchmarks.bench_pattanaik import copy_bandwidth
+    from benchmarks.lib.timing import copy_bandwidth
     rt = R.get_runtime()
     hook = "OCLTM_PROFILE=1 (runtime profiling queue)"
     if not (rt.queue.properties & cl.command_queue_properties.PROFILING_ENABLE):
@@ -672,7 +656,7 @@ def roofline_child(w: int, h: int, ops: list[str], frames: int) -> dict:
     cp = ColourPipeline(load_config("ocl-tonemap"), "sRGB - Display")
     cp.set_display_encode("auto", "opencl")
     bw = copy_bandwidth(rt, w * h * 16)
-    img = render_frame(TUNNEL_T, w, h, TUNNEL_SECONDS)
+    img = tunnel(w, h, t=TUNNEL_T, seconds=TUNNEL_SECONDS)
     out = {"bandwidth": bw, "hook": hook, "device": R.describe_device(rt.device), "ops": {}}
     for op in ops:
         stages = {}
