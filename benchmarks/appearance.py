@@ -1,12 +1,12 @@
 """Appearance benchmark: what a person sees from each operator, on real HDR photographs.
 
-One command:  python benchmarks/appearance.py [--quick] [--operators a,b]
+One command:  python -m benchmarks.appearance [--quick] [--operators a,b]
                   [--images a,b] [--size W] [--out DIR] [--photos DIR]
 
 Real photographs: six Poly Haven HDRIs (CC0) fetched once from the PyPI wheel
-viser==0.2.23 (benchmarks/photos.py, cached in ~/.cache/ocl-tonemap/photos or
+viser==0.2.23 (benchmarks/lib/photos.py, cached in ~/.cache/ocl-tonemap/photos or
 $OCLTM_PHOTOS), resized to W pixels wide; plus three small generated scenes
-(ocl_tonemap/appearance_scenes.py). Each image is calibrated so that its
+(benchmarks/lib/scenes.py). Each image is calibrated so that its
 log-average photopic luminance is L cd/m^2 for L in 1e-3 ... 1e4 and shown to a
 fresh observer, steady-state adapted to the still, of every operator (all
 effects off, SDR sRGB display, 1.0 = 100 cd/m^2). The reference is the plain
@@ -19,7 +19,7 @@ Writes:
   DIR/<image>.png                       contact sheet per image (rows: reference +
                                         operators, columns: levels)
   DIR/readme_sheet.png                  4 photos at their natural levels x operators
-(DIR defaults to benchmarks/results/appearance/.) Metrics: ocl_tonemap/appearance_metrics.py.
+(DIR defaults to benchmarks/results/appearance/.) Metrics: benchmarks/lib/appearance_metrics.py.
 """
 
 from __future__ import annotations
@@ -36,13 +36,12 @@ import warnings
 
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, ".."))
-sys.path.insert(0, HERE)
+from benchmarks.lib import appearance_metrics as am
+from benchmarks.lib import photos as ph
+from benchmarks.lib import scenes
+from benchmarks.lib.photos import load_photo
 
-from ocl_tonemap import appearance_metrics as am  # noqa: E402
-from ocl_tonemap import appearance_scenes as scenes  # noqa: E402
-import photos as ph  # noqa: E402
+HERE = os.path.dirname(os.path.abspath(__file__))
 
 LEVELS = [1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4]
 QUICK_LEVELS = [1e-3, 0.1, 10.0, 1e3]
@@ -70,23 +69,6 @@ def lvl(L: float) -> str:
 
 
 # --- images ----------------------------------------------------------------------
-
-def load_photo(path, width: int) -> np.ndarray:
-    import OpenImageIO as oiio
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise RuntimeError(f"cannot read {path}: {buf.geterror()}")
-    spec = buf.spec()
-    h = max(1, int(round(spec.height * width / spec.width)))
-    if width != spec.width:
-        # box (area) filter: a windowed-sinc filter rings around the sun (negative lobes
-        # of -3000 next to 60 000) and would paint black halos into the scene
-        buf = oiio.ImageBufAlgo.resize(buf, filtername="box",
-                                       roi=oiio.ROI(0, width, 0, h, 0, 1, 0, spec.nchannels))
-    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)[..., :3]
-    px = np.nan_to_num(px, nan=0.0, posinf=0.0, neginf=0.0)
-    return np.ascontiguousarray(np.maximum(px, 0.0))
-
 
 def log_average(rgb) -> float:
     try:
@@ -379,7 +361,7 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
         "the still (`Tonemapper(op, backend='opencl', display=sRGB, effects off)`). Output: "
         "display-linear Rec.709, 1.0 = display white 100 cd/m². Reference: the plain OCIO "
         "rendering of the scene exposure-matched (log-average -> 0.18 of white, no tone "
-        "curve). Metrics: `ocl_tonemap/appearance_metrics.py`. Contact sheets: "
+        "curve). Metrics: `benchmarks/lib/appearance_metrics.py`. Contact sheets: "
         f"`{meta['sheets_dir']}/<image>.png` (rows: reference + operators, columns: levels).",
         "",
         "**Tables give the worst case over the images** (the image in brackets).",
@@ -714,7 +696,7 @@ def main(argv=None) -> int:
         sheets.append(p)
 
     run_time = time.perf_counter() - t0
-    cmd = "python benchmarks/appearance.py" + ("" if not argv and len(sys.argv) <= 1
+    cmd = "python -m benchmarks.appearance" + ("" if not argv and len(sys.argv) <= 1
                                                else " " + " ".join(argv if argv else sys.argv[1:]))
     scene_sizes = {f"{i['rgb'].shape[1]}x{i['rgb'].shape[0]}" for i in images.values()
                    if i["source"] == "generated"}

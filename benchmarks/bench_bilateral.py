@@ -1,6 +1,6 @@
 """Benchmark of the bilateral filters (exact vs grid) and of the ledda04 operator.
 
-One command:  python benchmarks/bench_bilateral.py [--quick]
+One command:  python -m benchmarks.bench_bilateral [--quick]
 Writes benchmarks/results/bilateral_ledda04.md (and prints it).
 
 Filters the photopic luminance of generated HDR scenes with Ledda's range
@@ -28,69 +28,28 @@ import argparse
 import math
 import os
 import platform
-import sys
 import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import timeit  # noqa: E402
-
-from ocl_tonemap.models import ledda2004 as L  # noqa: E402
-from ocl_tonemap.backends.opencl.bilateral import DeviceBilateral  # noqa: E402
-from ocl_tonemap.models.bilateral import LEDDA_RANGE, prepare_signal  # noqa: E402
-from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
+from benchmarks.lib import scenes as sc
+from benchmarks.lib.timing import timeit
+from ocl_tonemap.models import ledda2004 as L
+from ocl_tonemap.backends.opencl.bilateral import DeviceBilateral
+from ocl_tonemap.models.bilateral import LEDDA_RANGE, prepare_signal
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 
 SIZES = [(640, 360), (1920, 1080), (3840, 2160)]
 EXACT_BUDGET_S = 6.0
 
 
-def scene_night_street(w, h, seed=0):
-    """Dark street (0.01-0.1 cd/m^2) with lit windows (50-500) and lamps (1e4)."""
-    rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:h, 0:w] / max(w, h)
-    lum = 0.02 * (1 + 3 * y) * (1 + 0.2 * rng.standard_normal((h, w)) ** 2)
-    for _ in range(40):
-        cx, cy = rng.uniform(0, w), rng.uniform(0, 0.7 * h)
-        sw, sh = rng.uniform(0.01, 0.05) * w, rng.uniform(0.02, 0.08) * h
-        m = (np.abs(np.arange(w)[None, :] - cx) < sw) & (np.abs(np.arange(h)[:, None] - cy) < sh)
-        lum[m] = rng.uniform(50, 500)
-    for _ in range(8):
-        cx, cy = rng.uniform(0, w), rng.uniform(0, 0.5 * h)
-        r2 = (np.arange(w)[None, :] - cx) ** 2 + (np.arange(h)[:, None] - cy) ** 2
-        lum += 1e4 * np.exp(-r2 / (2 * (0.004 * w) ** 2))
-    col = np.stack([1.1 + 0 * lum, 1.0 + 0 * lum, 0.7 + 0 * lum], -1)
-    return (lum[..., None] * col).astype(np.float32)
+def scene_tunnel(w, h):
+    return sc.tunnel(w, h, t=3.0)
 
 
-def scene_sky(w, h, seed=1):
-    """Smooth sky gradient with a sun disc (1e8) over darker ground (textured)."""
-    rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:h, 0:w] / np.array([h, w])[:, None, None]
-    sky = 10 ** (3.5 + 0.5 * x - y)
-    ground = 10 ** (1.0 + 0.3 * np.sin(40 * x) + 0.1 * rng.standard_normal((h, w)))
-    lum = np.where(y < 0.55, sky, ground)
-    lum[(x - 0.7) ** 2 * (w / h) ** 2 + (y - 0.2) ** 2 < 0.02 ** 2] = 1e8
-    col = np.stack([0.8 + 0.2 * y, 0.95 + 0 * y, 1.2 - 0.4 * y], -1)
-    return (lum[..., None] * col).astype(np.float32)
-
-
-def scene_tunnel(w, h, seed=0):
-    from ocl_tonemap.sample import render_frame
-    return render_frame(3.0, w, h, 8.0).astype(np.float32)
-
-
-def scene_noise(w, h, seed=2):
-    """White-noise HDR over 9 decades: the grid's worst case."""
-    rng = np.random.default_rng(seed)
-    return (10 ** rng.uniform(-4, 5, (h, w, 1)) * rng.uniform(0.1, 1, (h, w, 3))).astype(np.float32)
-
-
-SCENES = {"night street": scene_night_street, "sky + sun": scene_sky,
-          "tunnel (sample)": scene_tunnel, "noise (worst)": scene_noise}
+SCENES = {"night street": sc.night_street_windows, "sky + sun": sc.sky_sun,
+          "tunnel (sample)": scene_tunnel, "noise (worst)": sc.log_noise}
 
 
 def psnr(err, peak):
@@ -156,7 +115,7 @@ def main():
     reps = 1 if a.quick else 3
     lines = [f"# Bilateral filtering and ledda04 on {describe_device(rt.device)}", "",
              f"Host: {platform.processor() or platform.machine()}, Python {platform.python_version()}. "
-             "Command: `python benchmarks/bench_bilateral.py`.", "",
+             "Command: `python -m benchmarks.bench_bilateral`.", "",
              "## Exact vs fast (grid, q_s = q_r = 2, the default) per filtered channel", "",
              "| size | scene | sigma_s px | exact ms | grid ms | exact/grid | PSNR log10 I_A dB "
              "| max err log10 | PSNR output dB | rows compared |",

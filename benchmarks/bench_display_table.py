@@ -1,7 +1,7 @@
 """Benchmark of the display encoding: OCIO's CPU processor against the baked table on
 the OpenCL device (colour.bake_display_table, kernels/display.cl), time and error.
 
-One command:  python benchmarks/bench_display_table.py [--quick]
+One command:  python -m benchmarks.bench_display_table [--quick]
 Writes benchmarks/results/display_table.md (and prints it).
 
 1. Every display/view of the bundled config (and, for the 3D form, HLG and an ACES
@@ -21,35 +21,20 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 import tempfile
 import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import table, timeit  # noqa: E402
-
-from ocl_tonemap import colour  # noqa: E402
-from ocl_tonemap.backends.opencl.display import DeviceDisplayTable  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
+from benchmarks.lib.scenes import display_frame
+from benchmarks.lib.timing import table, timeit
+from ocl_tonemap import colour
+from ocl_tonemap.backends.opencl.display import DeviceDisplayTable
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 
 STUDIO = "ocio://studio-config-latest"
 EXTRA_3D = [(STUDIO, "Rec.2100-HLG - Display", "Un-tone-mapped"),
             (STUDIO, "sRGB - Display", "ACES 2.0 - SDR 100 nits (Rec.709)")]
-
-
-def display_frame(w, h, seed=0):
-    """A smooth display-linear frame like an operator's output: mostly [0, 1], deep
-    shadows to 1e-4, highlights to 20, varied colour."""
-    rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:h, 0:w] / max(h, w)
-    lum = 10.0 ** (1.3 * np.sin(6 * x) * np.cos(4 * y) - 0.7)
-    chroma = 0.55 + 0.45 * np.stack([np.sin(3 * x + 1), np.cos(5 * y), np.sin(4 * (x + y))], -1)
-    noise = rng.uniform(0.97, 1.03, (h, w, 3))
-    return np.ascontiguousarray(lum[..., None] * chroma * noise, np.float32)
 
 
 def cases():
@@ -127,7 +112,7 @@ def main():
     parts = [
         "# Display encoding: OCIO CPU processor against the baked device table\n",
         f"Device: {describe_device(rt.device)}; host: "
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs. Command: `python benchmarks/bench_display_table.py"
+        f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs. Command: `python -m benchmarks.bench_display_table"
         f"{' --quick' if a.quick else ''}`. Median of {reps} runs after a warm-up.\n",
         f"## 1. Per display/view\n\nErrors: the device's output against OCIO's CPU processor "
         f"over {n} working-space RGB in [0, 100] (`colour.display_probe_set`), in 10-bit "

@@ -1,6 +1,6 @@
 """Benchmark of durand00 and the effects: speed beside accuracy for every knob.
 
-One command:  python benchmarks/bench_durand.py [--quick]
+One command:  python -m benchmarks.bench_durand [--quick]
 Writes benchmarks/results/durand00.md (and prints it).
 
 Tables:
@@ -20,50 +20,27 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import table, timeit  # noqa: E402
-
+from benchmarks.lib.scenes import night_street_lamps
+from benchmarks.lib.timing import table, timeit
 from ocl_tonemap.models import durand2000 as dd
-from ocl_tonemap.models import spencer1995 as fl  # noqa: E402
-from ocl_tonemap.backends import flare_exec as flx  # noqa: E402
-from ocl_tonemap.backends.opencl.convolution import DeviceBlur  # noqa: E402
-from ocl_tonemap.models.convolution import EDGE_CLAMP, blur_reference, gaussian_taps  # noqa: E402
-from ocl_tonemap.effects import EffectSettings  # noqa: E402
-from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
+from ocl_tonemap.models import spencer1995 as fl
+from ocl_tonemap.backends import flare_exec as flx
+from ocl_tonemap.backends.opencl.convolution import DeviceBlur
+from ocl_tonemap.models.convolution import EDGE_CLAMP, blur_reference, gaussian_taps
+from ocl_tonemap.effects import EffectSettings
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 
 OFF = EffectSettings()
-
-
-def night_street(w, h, seed=0):
-    """A night street: dim surfaces (0.01-3 cd/m^2), a lit sky strip, street lamps
-    (2e4 cd/m^2), a red and a green traffic light, car headlights (1e5)."""
-    rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:h, 0:w] / max(h, w)
-    base = 0.05 + 2.0 * np.exp(-((y - 0.55) ** 2) / 0.01) * (0.5 + 0.5 * np.sin(40 * x))
-    img = base[..., None] * rng.uniform(0.3, 1.0, (h, w, 3))
-    img[: h // 6] = [0.02, 0.03, 0.06]
-    s = max(1, w // 320)
-    for k in range(6):
-        cx, cy = int((0.1 + 0.16 * k) * w), int(0.3 * h)
-        img[cy - s:cy + s + 1, cx - s:cx + s + 1] = [2.4e4, 2.0e4, 1.2e4]
-    img[int(0.45 * h):int(0.45 * h) + 2 * s, int(0.8 * w):int(0.8 * w) + 2 * s] = [3e3, 2e2, 1e2]
-    img[int(0.45 * h):int(0.45 * h) + 2 * s, int(0.85 * w):int(0.85 * w) + 2 * s] = [1e2, 3e3, 1e3]
-    for cx in (0.45, 0.55):
-        img[int(0.6 * h):int(0.6 * h) + 2 * s, int(cx * w):int(cx * w) + 3 * s] = 1e5
-    return img.astype(np.float32)
 
 
 def bench_operator(sizes, reps):
     rows = []
     for w, h in sizes:
-        img = night_street(w, h)
+        img = night_street_lamps(w, h)
         ocl = Tonemapper("durand00", "opencl", effects=OFF)
         ref = Tonemapper("durand00", "reference", effects=OFF)
         ocl.process(img)
@@ -82,7 +59,7 @@ def bench_operator(sizes, reps):
 def bench_lut(w, h, reps):
     import pyopencl as cl
     rt = get_runtime()
-    img = night_street(w, h)
+    img = night_street_lamps(w, h)
     tm = Tonemapper("durand00", "reference", effects=OFF)
     direct = tm.process(img)
     p0 = dd.FrameParams(**{**tm.last.params, "tint": tuple(tm.last.params["tint"])})
@@ -135,7 +112,7 @@ def bench_flare(sizes, reps):
     whole = OpenCLBackend().flare_device()
     rows = []
     for w, h in sizes:
-        img = night_street(w, h).astype(np.float64)
+        img = night_street_lamps(w, h).astype(np.float64)
         img32 = img.astype(np.float32)
         L = 0.3
         t_e = timeit(lambda: flx.apply_flare(img, L, L, 50.0, "exact"), 1)
@@ -200,7 +177,7 @@ def bench_acuity(sizes, reps):
 def bench_frame(sizes, reps):
     rows = []
     for w, h in sizes:
-        img = night_street(w, h) * np.float32(0.002)     # moonless: acuity matters at 50 deg
+        img = night_street_lamps(w, h) * np.float32(0.002)     # moonless: acuity matters at 50 deg
         for label, fxs in (("effects off", OFF),
                            ("auto (flare + acuity + chromatic)",
                             EffectSettings.for_operator("durand00"))):
@@ -223,7 +200,7 @@ def main():
     parts = [
         "# durand00 and effects benchmark\n",
         f"Device: {describe_device(rt.device)}; host: {platform.processor() or platform.machine()}, "
-        f"{os.cpu_count()} CPUs. Command: `python benchmarks/bench_durand.py"
+        f"{os.cpu_count()} CPUs. Command: `python -m benchmarks.bench_durand"
         f"{' --quick' if a.quick else ''}`. Median of {reps} runs after a warm-up.\n",
         "## 1. durand00 per frame (effects off)\n", bench_operator(big, reps),
         "\n## 2. Look-up tables (Sec. 5), per-pixel kernel at "

@@ -1,6 +1,6 @@
 """Benchmark of kirk11: time per frame beside error, the Eq. 15 fallback rate and cost.
 
-One command:  python benchmarks/bench_kirk.py [--quick]
+One command:  python -m benchmarks.bench_kirk [--quick]
 Writes benchmarks/results/kirk11.md (and prints it).
 
 1. Whole frame, RGB and spectral (31 channels) input, OpenCL with the fast and the
@@ -17,41 +17,21 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import table, timeit  # noqa: E402
-
-from ocl_tonemap.models import kirk2011 as ko  # noqa: E402
-from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
-from ocl_tonemap.sample import spectral_patches  # noqa: E402
-
-
-def rgb_scene(w, h, seed=0):
-    rng = np.random.default_rng(seed)
-    y, x = np.mgrid[0:h, 0:w] / max(h, w)
-    lum = 10.0 ** (2.0 * np.sin(6 * x) * np.cos(4 * y))
-    return (lum[..., None] * rng.uniform(0.05, 1.0, (h, w, 3))).astype(np.float32)
-
-
-def spectral_scene(w, h):
-    lam, spectra, _ = spectral_patches("A", 1.0)
-    idx = (np.arange(h)[:, None] * 6 // h) * 4 + (np.arange(w)[None, :] * 4 // w)
-    y, x = np.mgrid[0:h, 0:w] / max(h, w)
-    lum = 10.0 ** (1.5 * np.sin(5 * x) * np.cos(3 * y))
-    return lam, (spectra[idx % 24] * lum[..., None]).astype(np.float32)
+from benchmarks.lib.scenes import sine_texture, spectral_chart
+from benchmarks.lib.timing import table, timeit
+from ocl_tonemap.models import kirk2011 as ko
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 
 
 def bench_frames(sizes, ref_size, reps):
     rows = []
     for w, h in sizes:
-        img = rgb_scene(w, h)
-        lam, cube = spectral_scene(w, h)
+        img = sine_texture(w, h)
+        lam, cube = spectral_chart(w, h)
         for label, frame, kw in (("RGB", img, {}), ("spectral 31", cube, {"wavelengths": lam})):
             ref = None
             if (w, h) == ref_size:
@@ -84,7 +64,7 @@ def bench_nnls(w, h, reps):
     n = w * h
     mf = cl.mem_flags
     rows = []
-    base = rgb_scene(w, h) / np.float32(rgb_scene(w, h).mean())
+    base = sine_texture(w, h) / np.float32(sine_texture(w, h).mean())
     for mode in ("paper", "default"):
         st = ko.KirkSettings(kappa="full", mode=mode)
         M, D = ko.display_matrix(np.eye(3)), np.eye(3)
@@ -130,7 +110,7 @@ def main():
     text = "\n".join([
         "# kirk11 benchmark\n",
         f"Device: {describe_device(rt.device)}; host: {platform.processor() or platform.machine()}, "
-        f"{os.cpu_count()} CPUs. Command: `python benchmarks/bench_kirk.py"
+        f"{os.cpu_count()} CPUs. Command: `python -m benchmarks.bench_kirk"
         f"{' --quick' if a.quick else ''}`. Median of {reps} runs after a warm-up.\n",
         "## 1. Whole frame\n", bench_frames(sizes, (160, 90), reps),
         f"\n## 2. Purkinje shift + Eq. 15 solve alone, {nw}x{nh}, fixed (paper) kappa\n",

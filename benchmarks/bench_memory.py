@@ -1,6 +1,6 @@
 """Peak memory and time per frame on huge frames: whole-frame against streamed.
 
-    python benchmarks/bench_memory.py [--size 12000x8000] [--also 16000x16000] [--cases a,b]
+    python -m benchmarks.bench_memory [--size 12000x8000] [--also 16000x16000] [--cases a,b]
 
 Writes benchmarks/results/memory.md. Each run is a child ``ocl-tonemap run`` whose
 peak resident set (ru_maxrss) is read after it exits; the frame is generated
@@ -12,28 +12,24 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import subprocess
 import sys
 import tempfile
 import time
 
 import numpy as np
 
+from benchmarks.lib.scenes import exr_spec, tunnel
+from benchmarks.lib.timing import child_peak, table
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-from benchutil import table  # noqa: E402
 
 
 def make_frame(path: str, w: int, h: int) -> None:
     import OpenImageIO as oiio
-    from ocl_tonemap.sample import render_frame
-    spec = oiio.ImageSpec(w, h, 3, oiio.HALF)
-    spec.attribute("whiteLuminance", 1.0)
-    spec.attribute("oiio:ColorSpace", "lin_rec709")
     out = oiio.ImageOutput.create(path)
-    assert out.open(path, spec)
+    assert out.open(path, exr_spec(w, h))
     tw, th = 1500, 1000                               # the sample, tiled across
-    tile = render_frame(1.2, tw, th, 8.0).astype(np.float32)
+    tile = tunnel(tw, th)
     reps = -(-w // tw)
     for y0 in range(0, h, th):                        # written in bands of the tile
         y1 = min(h, y0 + th)
@@ -42,15 +38,9 @@ def make_frame(path: str, w: int, h: int) -> None:
     out.close()
 
 
-def child(args: list[str]) -> tuple[float, float, int]:
+def child(args: list[str]) -> tuple[float | None, float | None, int | None]:
     """(peak RSS MiB, seconds, return code) of one ocl-tonemap run."""
-    code = ("import resource, subprocess, sys, time; t = time.perf_counter(); "
-            "r = subprocess.run([sys.executable, '-m', 'ocl_tonemap', *sys.argv[1:]]); "
-            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, "
-            "time.perf_counter() - t, r.returncode)")
-    p = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
-    rss, sec, rc = p.stdout.split()
-    return float(rss), float(sec), int(rc)
+    return child_peak([sys.executable, "-m", "ocl_tonemap", *args])
 
 
 #: (label, operator, extra arguments, also whole?): every operator and effect.
@@ -94,7 +84,8 @@ def main() -> None:
                                           op, "-q", *ck, *fx, *extra])
                     rows.append((f"{w}x{h}", label, mode, f"{frame_mb:.0f}",
                                  f"{rss:.0f}" if rc == 0 else f"failed ({rc})",
-                                 f"{rss / frame_mb:.2f}" if rc == 0 else "-", f"{sec:.1f}"))
+                                 f"{rss / frame_mb:.2f}" if rc == 0 else "-",
+                                 "-" if sec is None else f"{sec:.1f}"))
                     print(rows[-1], flush=True)
                     for x in os.listdir(d):                  # checkpoints of the last case
                         if x.startswith("o.png.state"):
@@ -103,7 +94,7 @@ def main() -> None:
     out = os.path.join(HERE, "results", "memory.md")
     with open(out, "w") as fh:
         fh.write("# Peak memory on huge frames\n\n")
-        fh.write(f"Command: `python benchmarks/bench_memory.py --size {a.size}"
+        fh.write(f"Command: `python -m benchmarks.bench_memory --size {a.size}"
                  + (f" --also {a.also}" if a.also else "") + "`. Machine: "
                  f"{platform.machine()}, {os.cpu_count()} CPUs, PoCL. Peak resident set of the "
                  "whole `ocl-tonemap run` (PNG out), against the frame's size as float32 RGB. "

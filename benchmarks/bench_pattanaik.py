@@ -1,6 +1,6 @@
 """Benchmark of the pattanaik00 pipeline: OpenCL vs the float64 reference.
 
-One command:  python benchmarks/bench_pattanaik.py [--quick]
+One command:  python -m benchmarks.bench_pattanaik [--quick]
 Writes benchmarks/results/pattanaik00.md (and prints it).
 
 For 640x360, 1920x1080 and 3840x2160 frames of a generated HDR scene:
@@ -22,42 +22,15 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.dirname(__file__))
-
-from benchutil import timeit  # noqa: E402
-
-from ocl_tonemap.pipeline import Tonemapper  # noqa: E402
-from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime  # noqa: E402
+from benchmarks.lib.scenes import sky_gradient
+from benchmarks.lib.timing import copy_bandwidth, timeit
+from ocl_tonemap.pipeline import Tonemapper
+from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
 
 SIZES = [(640, 360), (1920, 1080), (3840, 2160)]
-
-
-def scene(w, h, seed=0):
-    rng = np.random.default_rng(seed)
-    y = np.linspace(0, 1, h)[:, None]
-    x = np.linspace(0, 1, w)[None, :]
-    lum = 10 ** (4 * (1 - y) - 1 + 0.5 * np.sin(12 * x)) * (1 + 0.1 * rng.standard_normal((h, w)))
-    col = np.stack([0.8 + 0.2 * x + 0 * y, 0.9 + 0 * x * y, 1.1 - 0.3 * y + 0 * x], -1)
-    return (np.abs(lum)[..., None] * col).astype(np.float32)
-
-
-def copy_bandwidth(rt, nbytes):
-    import pyopencl as cl
-    a = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, nbytes)
-    b = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, nbytes)
-    cl.enqueue_fill_buffer(rt.queue, a, np.float32(1), 0, nbytes)
-
-    def go():
-        cl.enqueue_copy(rt.queue, b, a)
-        rt.queue.finish()
-    t = timeit(go, 5)
-    return 2 * nbytes / t  # read + write
-
 
 POW_SRC = r"""
 __kernel void k_pow(__global const float *x, __global float *y, const float e, const int n)
@@ -107,14 +80,14 @@ def main():
              f"- device: {describe_device(rt.device)}",
              f"- host: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
              f"Python {platform.python_version()}, NumPy {np.__version__}",
-             f"- command: `python benchmarks/bench_pattanaik.py{' --quick' if args.quick else ''}`",
+             f"- command: `python -m benchmarks.bench_pattanaik{' --quick' if args.quick else ''}`",
              f"- median of {reps} runs after a warm-up; ratios are what to compare across machines.", ""]
     lines += ["## Whole frame and per-pixel pass", "",
               "| size | OpenCL ms/frame | MPix/s | kernel ms (vector: 8 px/item) | kernel ms (scalar) "
               "| roofline ms | kernel/roofline | reference ms | reference/OpenCL | max err | mean err |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     for w, h in SIZES:
-        img = scene(w, h)
+        img = sky_gradient(w, h)
         tm = Tonemapper(backend="opencl")
         tm.process(img)
         t_ocl = timeit(lambda: tm.process(img, dt=1 / 30), reps)

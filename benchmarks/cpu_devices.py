@@ -12,7 +12,7 @@ Intel's CPU runtime from the ``intel-cpu`` extra) is decided from this table:
    ``pfsin | pfstmo_pattanaik00 | pfsout`` on the same frame, and, with ``--before
    REV``, the same command of that revision (a git worktree) for a before/after.
 
-One command:  python benchmarks/cpu_devices.py [--before REV] [--out FILE]
+One command:  python -m benchmarks.cpu_devices [--before REV] [--out FILE]
 Results: benchmarks/results/cpu_devices.md
 """
 
@@ -30,6 +30,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from benchmarks.lib.scenes import tunnel
+from benchmarks.lib.timing import child_peak
 
 HERE = Path(__file__).resolve().parent
 OPS = ("pattanaik00", "durand00", "ledda04", "kirk11")
@@ -63,8 +66,7 @@ def delta_e(a, b) -> tuple[float, float, float]:
 
 
 def frames(w, h):
-    from ocl_tonemap.sample import render_frame
-    return [render_frame(5.5 + i / 30.0, w, h, 8.0) for i in range(6)]
+    return [tunnel(w, h, t=5.5 + i / 30.0) for i in range(6)]
 
 
 def per_frame_ms(op, backend, device, imgs) -> tuple[float, list]:
@@ -124,18 +126,7 @@ def timed(cmd, env, repeat=5, cwd=None) -> tuple[float, float] | None:
 
 def peak_of(cmd, env, cwd=None) -> float | None:
     """Peak RSS (MiB) of one run of ``cmd`` (a shell pipeline: its largest process)."""
-    code = ("import resource, subprocess, sys; "
-            "r = subprocess.run(sys.argv[1], shell=True, executable='/bin/bash', "
-            "capture_output=True); "
-            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)")
-    import shlex
-    line = cmd if isinstance(cmd, str) else " ".join(shlex.quote(str(c)) for c in cmd)
-    r = subprocess.run([sys.executable, "-c", code, line], env=env, cwd=cwd,
-                       capture_output=True, text=True)
-    try:
-        return float(r.stdout.strip().splitlines()[-1])
-    except (ValueError, IndexError):
-        return None
+    return child_peak(cmd, env, cwd)[0]
 
 
 def section_first_frame(devs, before: str | None) -> list[str]:
@@ -144,6 +135,7 @@ def section_first_frame(devs, before: str | None) -> list[str]:
     pattern, fr = write_tunnel_sequence(str(tmp / "in"), 320, 180, 30.0, 0.1)
     src = pattern.replace("####", f"{fr[0]:04d}")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPATH"] = str(HERE.parent)       # "now": this tree, as section 1 imports it
     rows = []
     py = [sys.executable, "-m", "ocl_tonemap", "run", src]
     if before:
@@ -200,7 +192,7 @@ def main(argv=None) -> int:
              f"Python {platform.python_version()}. Working CPU devices: "
              + (", ".join(f"{k} {d.name.strip()} on {d.platform.name.strip()} "
                           f"(driver {d.driver_version.strip()})" for k, d in devs) or "none"),
-             "", "`python benchmarks/cpu_devices.py` writes this file.", ""]
+             "", "`python -m benchmarks.cpu_devices` writes this file.", ""]
     secs = a.sections.split(",")
     if "1" in secs:
         lines += section_devices(devs)

@@ -6,8 +6,8 @@ appearance scenes and, when cached, real photographs, through every operator in
 both modes, on both backends, and with the effects on, through the public API
 only (``Tonemapper``), and either saves them or compares them with a saved set:
 
-    python benchmarks/equivalence.py --save /tmp/before     # on the old tree
-    python benchmarks/equivalence.py --compare /tmp/before  # on the new tree
+    python -m benchmarks.equivalence --save /tmp/before     # on the old tree
+    python -m benchmarks.equivalence --compare /tmp/before  # on the new tree
 
 ``--compare`` prints the largest absolute difference per case and exits 1 when
 any exceeds ``--tol`` (default 1e-6, display-linear units).
@@ -21,16 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
 
 def scenes(size=(96, 64)):
-    from ocl_tonemap import appearance_scenes as sc
+    from benchmarks.lib import scenes as sc
     w, h = size
     out = {"tunnel": sc.tunnel(w, h), "patches": sc.patches(w, h), "lamp": sc.lamp(w, h)}
     try:
-        from photos import cached_photos
+        from benchmarks.lib.photos import cached_photos
         import OpenImageIO as oiio
         for p in cached_photos()[:2]:
             buf = oiio.ImageBufAlgo.resize(oiio.ImageBuf(str(p)), roi=oiio.ROI(0, w, 0, h, 0, 1, 0, 3))

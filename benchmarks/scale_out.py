@@ -1,6 +1,6 @@
 """A shot on many workers: the serial run against measure -> integrate -> apply on Dask.
 
-One command:  python benchmarks/scale_out.py [--frames 600] [--size 1920x1080]
+One command:  python -m benchmarks.scale_out [--frames 600] [--size 1920x1080]
               [--operators pattanaik00,ledda04] [--workers 1,2]
 Writes benchmarks/results/scale_out.md (and .json).
 
@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.lib.scenes import exr_spec, tunnel
 from ocl_tonemap.shot.store import ShotStore
 
 HERE = Path(__file__).resolve().parent
@@ -47,7 +48,6 @@ def make_shot(root: Path, w: int, h: int, n: int) -> str:
     sample is (``sample.write_tunnel_sequence``: half, zip, cd/m^2, 30 fps)."""
     import OpenImageIO as oiio
 
-    from ocl_tonemap.sample import render_frame
     d = root / f"scene_{w}x{h}_{n}"
     pattern = str(d / "tunnel.####.exr")
     if not (d / "done").exists():
@@ -58,14 +58,9 @@ def make_shot(root: Path, w: int, h: int, n: int) -> str:
         for i in range(n):
             small = oiio.ImageBuf(oiio.ImageSpec(rw, rh, 3, oiio.FLOAT))
             small.set_pixels(oiio.ROI(0, rw, 0, rh, 0, 1, 0, 3),
-                             render_frame(i / 30.0, rw, rh, n / 30.0))
+                             tunnel(rw, rh, t=i / 30.0, seconds=n / 30.0))
             big = oiio.ImageBufAlgo.resample(small, roi=oiio.ROI(0, w, 0, h, 0, 1, 0, 3))
-            spec = oiio.ImageSpec(w, h, 3, oiio.HALF)
-            spec.attribute("whiteLuminance", 1.0)
-            spec.attribute("FramesPerSecond", oiio.TypeDesc("rational"), (30000, 1000))
-            spec.attribute("oiio:ColorSpace", "lin_rec709")
-            spec.attribute("compression", "zip")
-            out = oiio.ImageBuf(spec)
+            out = oiio.ImageBuf(exr_spec(w, h, fps=30.0, compression="zip"))
             out.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, 3),
                            np.maximum(big.get_pixels(oiio.FLOAT), 0.0))
             if not out.write(str(d / f"tunnel.{i + 1:04d}.exr")):
@@ -150,7 +145,7 @@ def write_report(path: Path, rows: list, w: int, h: int, n: int) -> None:
     lines = [
         "# A shot on many workers: serial run vs measure -> integrate -> apply on Dask",
         "",
-        f"`python benchmarks/scale_out.py --frames {n} --size {w}x{h}` on {platform.node()}: "
+        f"`python -m benchmarks.scale_out --frames {n} --size {w}x{h}` on {platform.node()}: "
         f"{os.cpu_count()} cores, {device}, Python {platform.python_version()}; "
         f"{time.strftime('%Y-%m-%d')}. The tunnel drive, {n} frames {w}x{h} EXR -> "
         "8-bit PNG, the whole command line each time (LocalCluster start included).",

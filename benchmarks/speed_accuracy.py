@@ -1,7 +1,7 @@
 """Speed against accuracy of the quality tiers (``--quality draft|balanced|reference``)
 and of every speed/accuracy knob they are made of.
 
-One command:  python benchmarks/speed_accuracy.py [--quick]
+One command:  python -m benchmarks.speed_accuracy [--quick]
 Writes benchmarks/results/speed_accuracy.md and the Pareto plot
 benchmarks/results/speed_accuracy.png (and prints the tables as it goes).
 
@@ -13,9 +13,9 @@ benchmarks/results/speed_accuracy.png (and prints the tables as it goes).
    is on ``auto``: it runs on the scenes with light sources); every operator: the
    display encoding, device table | OCIO). Each: ms/frame (tone mapping + display
    encoding, the median of repeated frames after a warm-up, the rule of
-   ``benchutil.timeit``), MPix/s, and Delta E ITP (ITU-R BT.2124) against the
+   ``benchmarks.lib.timing.timeit``), MPix/s, and Delta E ITP (ITU-R BT.2124) against the
    ``reference`` tier's output of the same frame: median, 99th percentile, max.
-   Scenes: the Poly Haven photographs of ``benchmarks/photos.py`` (centre-cropped to
+   Scenes: the Poly Haven photographs of ``benchmarks/lib/photos.py`` (centre-cropped to
    16:9, resized with OIIO) calibrated to a log-average of 5000 (daylight), 30
    (interior), 1 (dusk) and 0.01 cd/m^2 (night), and a frame of the built-in tunnel
    drive with the exit and the sodium lamps in view. The observer is in the steady
@@ -29,9 +29,10 @@ benchmarks/results/speed_accuracy.png (and prints the tables as it goes).
 2. Tiers table: operator x tier x size (+3840x2160): ms/frame, MPix/s, Delta E
    median/p99/max (worst scene), PASS/FAIL for "balanced p99 <= 1, draft p99 <= 3 on
    every scene".
-3. Roofline: the device's buffer-copy bandwidth (bench_pattanaik.py's method) and
-   each kernel of one 1080p frame per operator, timed on an OpenCL profiling queue,
-   against the time its buffers would take at that bandwidth.
+3. Roofline: the device's buffer-copy bandwidth (bench_pattanaik's method,
+   ``benchmarks.lib.timing.copy_bandwidth``) and each kernel of one 1080p frame per
+   operator, timed on an OpenCL profiling queue, against the time its buffers would
+   take at that bandwidth.
 4. Whole command over 60 frames (not with --quick): the tunnel sample at 640x360 and
    1920x1080 through ``ocl-tonemap run`` to 8-bit PNG, against OIIO read + PNG write
    alone and the pfstools/pfstmo chains (pattanaik00, durand02) and pfstools' own
@@ -68,12 +69,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from benchmarks.lib.photos import load_photo
+from benchmarks.lib.scenes import tunnel
+from benchmarks.lib.timing import table
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
-sys.path.insert(0, ROOT)
-sys.path.insert(0, HERE)
-
-from benchutil import table  # noqa: E402
 
 OPERATORS = ("pattanaik00", "durand00", "ledda04", "kirk11")
 BILATERAL_OPS = ("ledda04", "kirk11")
@@ -116,26 +117,9 @@ def fmt_de(v) -> str:
 
 # --- scenes -------------------------------------------------------------------------------
 
-def load_photo(path, w: int, h: int) -> np.ndarray:
-    """The photograph centre-cropped to w:h and resized (box filter down: a windowed sinc
-    rings around the sun; triangle up), relative radiance, finite, >= 0."""
-    import OpenImageIO as oiio
-    buf = oiio.ImageBuf(str(path))
-    spec = buf.spec()
-    ch, cw = spec.height, int(round(spec.height * w / h))
-    if cw > spec.width:
-        cw, ch = spec.width, int(round(spec.width * h / w))
-    x0, y0 = (spec.width - cw) // 2, (spec.height - ch) // 2
-    buf = oiio.ImageBufAlgo.cut(buf, oiio.ROI(x0, x0 + cw, y0, y0 + ch, 0, 1, 0, 3))
-    buf = oiio.ImageBufAlgo.resize(buf, filtername="box" if w <= cw else "triangle",
-                                   roi=oiio.ROI(0, w, 0, h, 0, 1, 0, 3))
-    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)[..., :3]
-    return np.ascontiguousarray(np.maximum(np.nan_to_num(px, nan=0, posinf=0, neginf=0), 0))
-
-
 class Scenes:
     def __init__(self, names):
-        from photos import PhotoFetchError, fetch_photos
+        from benchmarks.lib.photos import PhotoFetchError, fetch_photos
         self.names, self.paths, self.note = list(names), {}, ""
         stems = [s for n, s, _ in SCENES if n in self.names and s]
         if stems:
@@ -152,10 +136,9 @@ class Scenes:
         key = (name, w, h)
         if key not in self._cache:
             from ocl_tonemap.calibration import log_average
-            from ocl_tonemap.sample import render_frame
             stem, level = next((s, L) for n, s, L in SCENES if n == name)
             if stem is None:
-                img = render_frame(TUNNEL_T, w, h, TUNNEL_SECONDS)
+                img = tunnel(w, h, t=TUNNEL_T, seconds=TUNNEL_SECONDS)
             else:
                 img = load_photo(self.paths[stem], w, h)
                 img = np.ascontiguousarray(img * np.float32(level / log_average(img)))
@@ -164,7 +147,7 @@ class Scenes:
         return self._cache[key]
 
     def describe(self) -> list[str]:
-        from photos import WHEEL
+        from benchmarks.lib.photos import WHEEL
         from ocl_tonemap.calibration import log_average
         out = []
         for n, stem, level in SCENES:
@@ -399,7 +382,7 @@ class Run:
 def run_config(op: str, cfg: Config, img: np.ndarray, col: Colour, reps: int,
                band=None, time_it: bool = True) -> Run:
     """The steady-state frame (the first, fresh observer: also the warm-up), then up
-    to ``reps`` more frames timed (median), as benchutil.timeit."""
+    to ``reps`` more frames timed (median), as ``timing.timeit``."""
     r = Run()
     try:
         mode = col.resolve(cfg.encode or tier_of(cfg).display_encode, backend_of(cfg))
@@ -633,8 +616,7 @@ def roofline_child(w: int, h: int, ops: list[str], frames: int) -> dict:
     from ocl_tonemap.backends.opencl import runtime as R
     from ocl_tonemap.pipeline import Tonemapper
     from ocl_tonemap.operators import get_operator
-    from ocl_tonemap.sample import render_frame
-    from bench_pattanaik import copy_bandwidth
+    from benchmarks.lib.timing import copy_bandwidth
     rt = R.get_runtime()
     hook = "OCLTM_PROFILE=1 (runtime profiling queue)"
     if not (rt.queue.properties & cl.command_queue_properties.PROFILING_ENABLE):
@@ -674,7 +656,7 @@ def roofline_child(w: int, h: int, ops: list[str], frames: int) -> dict:
     cp = ColourPipeline(load_config("ocl-tonemap"), "sRGB - Display")
     cp.set_display_encode("auto", "opencl")
     bw = copy_bandwidth(rt, w * h * 16)
-    img = render_frame(TUNNEL_T, w, h, TUNNEL_SECONDS)
+    img = tunnel(w, h, t=TUNNEL_T, seconds=TUNNEL_SECONDS)
     out = {"bandwidth": bw, "hook": hook, "device": R.describe_device(rt.device), "ops": {}}
     for op in ops:
         stages = {}
@@ -721,9 +703,9 @@ def roofline_child(w: int, h: int, ops: list[str], frames: int) -> dict:
 
 
 def roofline(w: int, h: int, ops: list[str], frames: int) -> dict | None:
-    cmd = [sys.executable, os.path.abspath(__file__), "--roofline-child", f"{w}x{h}",
+    cmd = [sys.executable, "-m", "benchmarks.speed_accuracy", "--roofline-child", f"{w}x{h}",
            "--operators", ",".join(ops), "--repeat", str(frames)]
-    r = subprocess.run(cmd, capture_output=True, text=True)
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     if r.returncode != 0:
         log("roofline child failed:\n" + r.stderr[-2000:])
         return None
@@ -1192,7 +1174,7 @@ def main(argv=None) -> int:
         plot(png, prows, psize)
     trows, verdict, _ = tier_rows(all_rows, ops, sizes)
     sanity = col.sanity()
-    cmdline = "python benchmarks/speed_accuracy.py" + "".join(
+    cmdline = "python -m benchmarks.speed_accuracy" + "".join(
         " " + shlex.quote(x) for x in (argv if argv is not None else sys.argv[1:]))
     lines = ["# Speed against accuracy: the quality tiers and their knobs", "",
              f"- device: {describe_device(rt.device)}",

@@ -1,5 +1,5 @@
-"""What a person sees, on small generated scenes (ocl_tonemap/appearance_scenes.py),
-with the metrics of benchmarks/appearance.py (ocl_tonemap/appearance_metrics.py).
+"""What a person sees, on small generated scenes (benchmarks/lib/scenes.py),
+with the metrics of benchmarks/appearance.py (benchmarks/lib/appearance_metrics.py).
 
 Each test reproduces a failure found on photographs: night brighter than dusk
 (pattanaik00, kirk11), daylight clipping (ledda04, durand00), strange colours
@@ -9,9 +9,9 @@ and operators that do not adapt over time (kirk11)."""
 import numpy as np
 import pytest
 
+from benchmarks.lib import appearance_metrics as am
+from benchmarks.lib import scenes
 from ocl_tonemap import Tonemapper
-from ocl_tonemap import appearance_metrics as am
-from ocl_tonemap import appearance_scenes as scenes
 from ocl_tonemap.calibration import log_average
 from ocl_tonemap.models.display import display_for
 from ocl_tonemap.effects import EffectSettings

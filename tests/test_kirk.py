@@ -36,7 +36,7 @@ def test_spectral_integration_is_exact_for_piecewise_linear_spectra():
 
 
 def test_refit_gives_the_shipped_matrix_and_held_out_errors():
-    from ocl_tonemap.fit_lmsr import fit
+    from benchmarks.lib.fit_lmsr import fit
     doc = fit()
     shipped = json.loads(lmsr.FIT_FILE.read_text())
     np.testing.assert_allclose(doc["H"], shipped["H"], rtol=1e-10, atol=1e-12)

@@ -184,7 +184,7 @@ def test_small_changes_continue_the_course():
 
 @pytest.mark.requires_opencl
 def test_figure_11_trend():
-    from ocl_tonemap.validation import dark_adaptation_thresholds
+    from benchmarks.lib.validation import dark_adaptation_thresholds
     times = np.geomspace(0.5, 2700, 40)
     lo_E = dark_adaptation_thresholds(5.0, times)       # E = 1000
     hi_E = dark_adaptation_thresholds(120.0, times)     # E beyond 10567

@@ -20,6 +20,10 @@ def test_wheel_contains_kernels_and_config(tmp_path):
             assert f"ocl_tonemap/kernels/{k.name}" in names
     assert "ocl_tonemap/ocio_configs/ocl_tonemap.ocio" in names
     assert "ocl_tonemap/data/rgb_to_lmsr.json" in names
+    # evaluation code stays in the source tree (benchmarks/lib), out of the wheel
+    assert not [n for n in names if n.startswith("benchmarks/")]
+    for gone in ("appearance_metrics", "appearance_scenes", "validation", "fit_lmsr"):
+        assert f"ocl_tonemap/{gone}.py" not in names
     # run from the unpacked wheel, away from the source tree
     site = tmp_path / "site"
     zipfile.ZipFile(whl).extractall(site)

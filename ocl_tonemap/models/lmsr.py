@@ -14,7 +14,7 @@ cd/m^2). ``kirk11`` scales them into the units of Eq. 10 (``model_scale``).
 From spectral radiance (W sr^-1 m^-2 nm^-1 sampled at wavelengths), Eq. 8 is
 integrated exactly for the piecewise-linear spectrum through the samples.
 From RGB (linear BT.709, cd/m^2), a fitted 4x3 matrix H (Sec. 4): see
-``ocl_tonemap/fit_lmsr.py`` and ``ocl_tonemap/data/rgb_to_lmsr.json``.
+``benchmarks/lib/fit_lmsr.py`` and ``ocl_tonemap/data/rgb_to_lmsr.json``.
 """
 
 from __future__ import annotations

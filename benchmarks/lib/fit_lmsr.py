@@ -1,6 +1,6 @@
 """Fit the RGB -> LMSR matrix H of Kirk & O'Brien 2011, Sec. 4, on real spectra.
 
-    python -m ocl_tonemap.fit_lmsr            # rewrites ocl_tonemap/data/rgb_to_lmsr.json
+    python -m benchmarks.lib.fit_lmsr         # rewrites ocl_tonemap/data/rgb_to_lmsr.json
 
 Training spectra: reflectances shipped with colour-science (the 24 patches of
 the ColorChecker, Ohta's measurements; the 14 CIE 1995 test colour samples of
@@ -21,8 +21,8 @@ import sys
 
 import numpy as np
 
-from .models import lmsr
-from .models.photometry import RGB709_TO_XYZ
+from ocl_tonemap.models import lmsr
+from ocl_tonemap.models.photometry import RGB709_TO_XYZ
 
 TRAIN_REFLECTANCES = (("colourchecker", "ColorChecker N Ohta"), ("tcs", "CIE 1995"))
 HELD_OUT_REFLECTANCES = (("vs", "NIST CQS 9.0"),)

@@ -4,11 +4,12 @@ The wheel of ``viser==0.2.23`` ships ten Poly Haven HDRIs (CC0, 1024x512
 Radiance .hdr, linear Rec.709, *relative* radiance) at
 ``viser/client/public/hdri/*.hdr``. :func:`fetch_photos` downloads the wheel
 once with pip, extracts only those .hdr files into a cache folder and returns
-their paths; later calls find them there and download nothing.
+their paths; later calls find them there and download nothing. :func:`load_photo`
+reads one at the size a benchmark needs.
 
 Cache folder: ``$OCLTM_PHOTOS``, else ``~/.cache/ocl-tonemap/photos/``.
 
-One command (fetch and list):  python benchmarks/photos.py [--cache DIR]
+One command (fetch and list):  python -m benchmarks.lib.photos [--cache DIR]
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ import sys
 import tempfile
 import zipfile
 from pathlib import Path
+
+import numpy as np
 
 WHEEL = "viser==0.2.23"
 HDRI_PREFIX = "viser/client/public/hdri/"
@@ -130,6 +133,38 @@ def fetch_photos(cache_dir: str | os.PathLike | None = None, names=None,
         raise PhotoFetchError(f"{WHEEL} lacks the photographs {', '.join(missing)}")
     print(f"photos: {len(have)} .hdr files in {d}", file=sys.stderr)
     return sorted(have.values())
+
+
+def load_photo(path, w: int, h: int | None = None) -> np.ndarray:
+    """A photograph ``w`` pixels wide: (h, w, 3) float32, relative radiance, finite, >= 0.
+
+    ``h`` None: the whole picture, its aspect kept; resized with a box (area) filter
+    where ``w`` is not its width, else left as read. ``h`` given: centre-cropped to
+    w:h and resized, box filter down, triangle up. Never a windowed sinc: it rings
+    around the sun (negative lobes of -3000 next to 60 000) and would paint black
+    halos into the scene.
+    """
+    import OpenImageIO as oiio
+    buf = oiio.ImageBuf(str(path))
+    if buf.has_error:
+        raise RuntimeError(f"cannot read {path}: {buf.geterror()}")
+    spec = buf.spec()
+    if h is None:
+        h = max(1, int(round(spec.height * w / spec.width)))
+        if w != spec.width:
+            buf = oiio.ImageBufAlgo.resize(buf, filtername="box",
+                                           roi=oiio.ROI(0, w, 0, h, 0, 1, 0, spec.nchannels))
+    else:
+        ch, cw = spec.height, int(round(spec.height * w / h))
+        if cw > spec.width:
+            cw, ch = spec.width, int(round(spec.width * h / w))
+        x0, y0 = (spec.width - cw) // 2, (spec.height - ch) // 2
+        buf = oiio.ImageBufAlgo.cut(buf, oiio.ROI(x0, x0 + cw, y0, y0 + ch, 0, 1, 0, 3))
+        buf = oiio.ImageBufAlgo.resize(buf, filtername="box" if w <= cw else "triangle",
+                                       roi=oiio.ROI(0, w, 0, h, 0, 1, 0, 3))
+    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)[..., :3]
+    return np.ascontiguousarray(np.maximum(np.nan_to_num(px, nan=0.0, posinf=0.0, neginf=0.0),
+                                           0.0))
 
 
 def main(argv=None) -> int:

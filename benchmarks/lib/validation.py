@@ -11,7 +11,7 @@ L_d, so a luminance difference is visible when it reaches a Weber fraction
 of L_d (2%, a textbook photopic Weber fraction):
     |L_target - L_background| >= 0.02 L_d    (display cd/m^2).
 
-Run ``python -m ocl_tonemap.validation docs/ledda04_fig11.png`` to redraw the
+Run ``python -m benchmarks.lib.validation docs/ledda04_fig11.png`` to redraw the
 figure shipped in docs/.
 """
 
@@ -57,7 +57,7 @@ def dark_adaptation_thresholds(preadapt_seconds: float, times_s, operator: str =
                                options: dict | None = None) -> np.ndarray:
     """Minimum visible target luminance (cd/m^2; inf when none) at each time after
     the switch from ``preadapt_cd`` (held ``preadapt_seconds``; E = L x t, Eq. 16)."""
-    from .pipeline import Tonemapper
+    from ocl_tonemap.pipeline import Tonemapper
     scene = target_scene(background, targets)
     tm = Tonemapper(operator, backend, preadapt=(preadapt_cd, preadapt_seconds), options=options)
     tm.process(scene, time_s=0.0)
