@@ -25,12 +25,27 @@ def _modules():
         yield ".".join(parts), p
 
 
+def _type_checking_blocks(tree) -> set:
+    """The nodes inside ``if TYPE_CHECKING:`` blocks (annotations only, never run)."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and getattr(node.test, "id", None) == "TYPE_CHECKING":
+            for child in node.body:
+                out.update(id(n) for n in ast.walk(child))
+    return out
+
+
 def _imports(name: str, path: Path, top_level_only: bool = False):
-    """(imported module, names, line) of every import in a module."""
+    """(imported module, names, line) of every import in a module, those inside
+    functions included (``top_level_only``: the module's own statements only);
+    ``if TYPE_CHECKING:`` imports are left out (they never run)."""
     tree = ast.parse(path.read_text())
     is_pkg = path.name == "__init__.py"
+    skip = _type_checking_blocks(tree)
     nodes = tree.body if top_level_only else ast.walk(tree)
     for node in nodes:
+        if id(node) in skip:
+            continue
         if isinstance(node, ast.Import):
             for a in node.names:
                 yield a.name, [], node.lineno
@@ -71,29 +86,43 @@ def test_models_are_pure_numpy():
 
 
 def test_no_import_cycles():
-    """The module graph (imports at module level) has no cycle."""
+    """The module graph has no cycle, imports inside functions counted (a package's
+    ``__init__`` importing its own submodules is not a cycle)."""
     graph = {}
     for name, path in _modules():
         deps = set()
-        for mod, names, _ in _imports(name, path, top_level_only=True):
+        for mod, names, _ in _imports(name, path):
             deps.update(d for d in _resolve(mod, names) if d != name)
         graph[name] = deps
-    state, cycle = {}, []
+    # strongly connected components (Tarjan): every module of a cycle, all cycles at once
+    index, low, stack, on, comps = {}, {}, [], set(), []
 
-    def visit(n, stack):
-        state[n] = 1
+    def strong(n):
+        index[n] = low[n] = len(index)
+        stack.append(n)
+        on.add(n)
         for d in graph.get(n, ()):
             if d.startswith(n + "."):
                 continue               # a package importing its own submodules
-            if state.get(d) == 1:
-                cycle.append(stack[stack.index(d):] + [d] if d in stack else [n, d])
-            elif not state.get(d):
-                visit(d, stack + [d])
-        state[n] = 2
-    for n in graph:
-        if not state.get(n):
-            visit(n, [n])
-    assert not cycle, cycle
+            if d not in index:
+                strong(d)
+                low[n] = min(low[n], low[d])
+            elif d in on:
+                low[n] = min(low[n], index[d])
+        if low[n] == index[n]:
+            comp = []
+            while True:
+                m = stack.pop()
+                on.discard(m)
+                comp.append(m)
+                if m == n:
+                    break
+            if len(comp) > 1:
+                comps.append(sorted(comp))
+    for n in sorted(graph):
+        if n not in index:
+            strong(n)
+    assert not comps, comps
 
 
 def test_no_private_names_across_modules():
@@ -127,3 +156,39 @@ def test_registry_has_the_four_operators_with_one_protocol():
         assert all(s.kind in STAGE_KINDS for s in cls.stages)
         assert any(o.name == "mode" for o in cls.options)
     assert reg["ledda04"].state.planes and not reg["pattanaik00"].state.planes
+
+
+#: The size a module may reach before it is split (issue 29: one room, one job).
+MAX_MODULE_LINES = 700
+
+
+def test_no_module_over_the_size_limit():
+    big = [f"{p.relative_to(PKG.parent)}: {n} lines" for p in sorted(PKG.rglob("*.py"))
+           if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES]
+    assert not big, big
+
+
+def test_the_job_asks_backends_nothing_by_probing():
+    """Backends and schedules are known through backends/base.py's protocols: at most
+    three ``hasattr`` / ``getattr(..., default)`` probes on a backend, schedule or
+    runtime object in the package (probes of OCIO's or OIIO's version are fine)."""
+    import re
+    target = re.compile(r"\b(backend|be|schedule|rt|runtime|_blur|device)\b")
+    probes = []
+    for name, path in _modules():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) in ("hasattr",
+                                                                                "getattr"):
+                if node.func.id == "getattr" and len(node.args) < 3:
+                    continue                      # getattr(obj, name): no probe
+                if target.search(ast.unparse(node.args[0])):
+                    probes.append(f"{name}:{node.lineno} {ast.unparse(node)}")
+    assert len(probes) <= 3, probes
+
+
+def test_no_sys_path_edits_in_tests_or_benchmarks():
+    root = PKG.parent
+    bad = [f"{p.relative_to(root)}" for d in ("tests", "benchmarks") if (root / d).is_dir()
+           for p in sorted((root / d).rglob("*.py")) if "sys.path.insert" in p.read_text()
+           and p.name != "test_architecture.py"]
+    assert not bad, bad

@@ -34,7 +34,14 @@ COMMON = (
 )
 
 
+def define_value(v) -> str:
+    """A -D value: ints as they are, floats as float32 literals that round-trip."""
+    if isinstance(v, (bool, int)):
+        return str(int(v))
+    import numpy as np
+    return f"{float(np.float32(v))!r}f".replace("inff", "INFINITY")
+
+
 def common_options() -> list:
     """COMMON as compiler options, ``-DNAME=value``."""
-    from .runtime import define_value
     return [f"-D{k}={define_value(v)}" for k, v in COMMON]

@@ -64,7 +64,7 @@ def _probe_inputs():
 
 
 def _source() -> str:
-    from .runtime import kernel_dir
+    from .driver import kernel_dir
     return (kernel_dir() / "common.h").read_text() + PROBE_KERNEL
 
 
@@ -138,7 +138,7 @@ def first_error_line(text: str) -> str:
 def run_probe(device) -> Verdict:
     """Build and run the probe kernel on ``device`` (no cache)."""
     import numpy as np
-    from .runtime import build_options, cl_api
+    from .driver import build_options, cl_api
     cl = cl_api()
     t0 = time.perf_counter()
     try:

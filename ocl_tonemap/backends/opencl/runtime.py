@@ -22,50 +22,10 @@ from pathlib import Path
 
 log = logging.getLogger("ocl_tonemap")
 
-
-INSTALL_HINT = (
-    'no OpenCL platform found. Install a CPU OpenCL driver with '
-    '`pip install "pyopencl[pocl]"` (or `pip install pocl-binary-distribution`), '
-    "or install your GPU vendor's OpenCL ICD."
-)
-
-
-class OpenCLUnavailable(RuntimeError):
-    """Raised when no usable OpenCL platform or device exists. ``detail``: what is
-    wrong, ``fix``: how to mend it (``str()`` is both)."""
-
-    def __init__(self, detail: str, fix: str = ""):
-        super().__init__(f"{detail}; {fix}" if fix else detail)
-        self.detail, self.fix = detail, fix
-
-
-class DeviceBroken(OpenCLUnavailable):
-    """A device named explicitly (``--device``, ``PYOPENCL_CTX``) failed its probe."""
-
-
-class KernelBuildError(OpenCLUnavailable):
-    """A kernel program failed to build on a device that had passed its probe."""
-
-
-@functools.lru_cache(maxsize=None)
-def cl_api():
-    from . import icd
-    icd.register()                      # before the ICD loader's first look
-    try:
-        import warnings
-        import pyopencl as cl
-        # A driver's build log on success (Intel's says "Compilation started ... done")
-        # is not a warning to a user; a failing build raises and is reported.
-        warnings.filterwarnings("ignore", category=cl.CompilerWarning)
-    except ImportError as exc:  # pragma: no cover - dependency is required
-        raise OpenCLUnavailable(f"pyopencl is not importable ({exc}); {INSTALL_HINT}") from exc
-    return cl
-
-
-def kernel_dir() -> Path:
-    """Folder holding the OpenCL sources (``*.cl`` and ``common.h``)."""
-    from ...resources import package_data_dir
-    return package_data_dir("kernels", "common.h")
+# the driver layer below the runtime (probe.py builds on it too); names kept here
+from .driver import (INSTALL_HINT, DeviceBroken, KernelBuildError,  # noqa: E402,F401
+                     OpenCLUnavailable, build_options, cl_api, define_value, kernel_dir,
+                     vector_pixels)
 
 
 @functools.lru_cache(maxsize=1)
@@ -300,42 +260,9 @@ def get_runtime(spec: str | None = None) -> Runtime:
     return _runtime_for(choose_device(spec))
 
 
-def define_value(v) -> str:
-    """A -D value: ints as they are, floats as float32 literals that round-trip."""
-    if isinstance(v, (bool, int)):
-        return str(int(v))
-    import numpy as np
-    return f"{float(np.float32(v))!r}f".replace("inff", "INFINITY")
-
-
 def index_defines(names, prefix: str = "P_") -> tuple:
     """-D pairs giving each packed parameter's index: P_<name> = i."""
     return tuple((f"{prefix}{n}", i) for i, n in enumerate(names))
-
-
-def vector_pixels(device) -> bool:
-    """Whether the per-pixel kernels on ``device`` take several pixels a work-item in
-    vector types (CPU devices: PoCL vectorises within a work-item only) or one pixel
-    a work-item in scalar code (other devices: coalesced loads, and a pixel's value
-    cannot depend on its lane). ``OCLTM_VECTOR_PIXELS=0|1`` in the environment forces
-    one or the other: the GPU path tested on a CPU device. Set it before the process
-    starts: built programs are kept for the life of the process."""
-    forced = os.environ.get("OCLTM_VECTOR_PIXELS", "").strip()
-    if forced in ("0", "1"):
-        return forced == "1"
-    return bool(device.type & cl_api().device_type.CPU)
-
-
-def build_options(device) -> list:
-    """Compiler options of every program (and of the probe kernel): the model constants
-    of common.h (:data:`constants.COMMON`) among them."""
-    from .constants import common_options
-    cl = cl_api()
-    # No -cl-fast-relaxed-math: the kernels rely on IEEE inf/0 behaviour at the
-    # extremes (docs/models.md); measured, it bought no time (docs/architecture.md).
-    cpu = int(bool(device.type & cl.device_type.CPU))      # common.h share_range
-    return ["-cl-std=CL1.2", f"-DDEVICE_CPU={cpu}",
-            f"-DVECTOR_PIXELS={int(vector_pixels(device))}", *common_options()]
 
 
 @functools.lru_cache(maxsize=None)
@@ -378,7 +305,6 @@ def program_cache_path(device, src: str, opts: list) -> Path | None:
         return None
     import hashlib
     from ...resources import user_cache_dir
-    from . import probe
     h = hashlib.sha256("\0".join([_device_key(device), src, *opts]).encode())
     return user_cache_dir() / "programs" / f"{h.hexdigest()[:40]}.bin"
 
