@@ -30,7 +30,7 @@ typedef uchar out_t;
 inline uchar to_out(const float v)
 {
     /* as pack_u8 below: ties to even (OIIO's own rounding of an exact tie depends on
-       the machine: tests/test_display_table.py); clamp takes NaN to 0 (fmax);
+       the machine: tests/colour/test_display_table.py); clamp takes NaN to 0 (fmax);
        convert_uchar_sat_rte gives the same bytes at twice the time on PoCL */
     return (uchar)((clamp(v * 255.0f, 0.0f, 255.0f) + 0x1.8p23f) - 0x1.8p23f);
 }

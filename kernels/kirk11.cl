@@ -53,7 +53,7 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
     const float d1 = par[5] * (par[9] * ns - par[10] * lum) * rod;
     const float d2 = par[6] * lum * rod;
     /* A^-1 of Eq. 11 (o = A q^), its zero entries left out and its last row (0, 1, 1)
-     * written out (tests/test_kernel_constants.py checks kirk2011.A_INV has that form) */
+     * written out (tests/backends/test_kernel_constants.py checks kirk2011.A_INV has that form) */
     float3 qh;
     qh.x = qq.x + (A_INV_00 * d0 + A_INV_02 * d2) / (dw.x * area);
     qh.y = qq.y + (A_INV_10 * d0 + A_INV_12 * d2) / (dw.y * area);

@@ -87,10 +87,10 @@ class BandedFlare:
     source part band by band (one pass over the frame), the finer levels and the
     delta per band from the rows around it. The same arithmetic on every pixel as
     the whole frame's ``fast`` flare: equal to it bit for bit in
-    tests/test_stream_effects.py (device blurs; the float64 reference: 1e-12 of
+    tests/effects/test_stream_effects.py (device blurs; the float64 reference: 1e-12 of
     the largest flare). ``exact`` is not banded (its FFT spans the frame): streamed
     frames get the fast method (said in the info), whose error against ``exact``
-    measured on frames with lamps inside them is in tests/test_stream_effects.py.
+    measured on frames with lamps inside them is in tests/effects/test_stream_effects.py.
 
     ``rgb_rows(a, b)``: rows [a, b) of the working frame (cd/m^2, float32);
     ``max_pixels``: the split level's image and the bands of the pass that builds

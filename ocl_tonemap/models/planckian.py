@@ -12,7 +12,7 @@ under the CIE 1931 2-degree observer every 0.5 mired (1e6 / T) from 1000 K to
 range is that of its Ohno 2013 table. :func:`make_table` writes the file.
 - **Between samples:** the position is linear, and the tangent (central differences
   at the samples) is interpolated.
-- **Against colour-science's Ohno 2013** (``tests/test_durand.py``), over
+- **Against colour-science's Ohno 2013** (``tests/models/test_durand2000.py``), over
   1500-25000 K and |Duv| <= 0.02:
   - CCT within 5e-6 (relative);
   - Duv within 4e-8;

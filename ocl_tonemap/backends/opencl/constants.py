@@ -5,7 +5,7 @@ operator's own module (``backends/opencl/ledda04.py``, ``backends/opencl/lmsr.py
 ``KERNEL_CONSTANTS``; ``operators/pattanaik00.py`` through its ``KernelCall``).
 
 Each value reaches the kernel as the float32 of the model's float64 value
-(:func:`runtime.define_value`); tests/test_kernel_constants.py checks that no model
+(:func:`runtime.define_value`); tests/backends/test_kernel_constants.py checks that no model
 constant is typed into a kernel again.
 """
 

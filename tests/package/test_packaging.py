@@ -5,7 +5,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_wheel_contains_kernels_and_config(tmp_path):
@@ -35,3 +35,14 @@ def test_wheel_contains_kernels_and_config(tmp_path):
                        text=True, env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"})
     assert r.returncode == 0, r.stderr
     assert "(2, 2, 3)" in r.stdout
+
+
+def test_every_package_of_the_tree_is_declared_for_the_wheel():
+    """pyproject's explicit package list names every folder of ocl_tonemap/ with an
+    __init__.py (a package left out installs without it, and only CI would notice)."""
+    import tomllib
+    declared = set(tomllib.loads((ROOT / "pyproject.toml").read_text())
+                   ["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(ROOT).parts)
+             for p in (ROOT / "ocl_tonemap").rglob("__init__.py")}
+    assert found <= declared, sorted(found - declared)

@@ -13,7 +13,7 @@ from ocl_tonemap.backends.planes import PlaneStore, UniformPlanes, read_rows
 from ocl_tonemap.cli import main
 from ocl_tonemap.state import AdaptationState
 
-from test_reliability import STREAM_SLACK_MB, _big, _exr, _peak_rss_mb
+from job.test_reliability import STREAM_SLACK_MB, _big, _exr, _peak_rss_mb
 
 #: Streamed vs whole: the same kernels; the grid's sums and the log-averages are
 #: added in another order (band by band), so float32 rounding differs a little.

@@ -12,7 +12,7 @@ import pytest
 from ocl_tonemap.cli import main
 from ocl_tonemap.pipeline import Tonemapper
 
-from test_reliability import STREAM_SLACK_MB, _big, _exr, _peak_rss_mb
+from job.test_reliability import STREAM_SLACK_MB, _big, _exr, _peak_rss_mb
 
 #: Streamed vs whole: the same kernels on the same pixels; only sums run in another
 #: order: the frame's log-averages (levels, the anchor's output log-average) and
@@ -69,7 +69,7 @@ def test_streamed_kirk11_bounds_memory(tmp_path):
 def test_kirk11_flare_auto_streams_every_frame(tmp_path, caplog):
     """--flare auto: the measure pass leaves the frame's largest luminance for the
     flare check; a frame without light sources and one with a lamp (its flare in row
-    bands, tests/test_stream_effects.py) both stream and equal the whole renders."""
+    bands, tests/effects/test_stream_effects.py) both stream and equal the whole renders."""
     import logging
     rng = np.random.default_rng(7)
     pix = (500.0 * rng.uniform(0.5, 2.0, (203, 301, 3))).astype(np.float32)

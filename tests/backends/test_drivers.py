@@ -258,7 +258,7 @@ def test_intel_runtime_registered_beside_a_system_icd(tmp_path):
 @needs_pocl
 @pytest.mark.parametrize("ci", ["true", ""])
 def test_requires_opencl_fails_in_ci_and_skips_elsewhere(tmp_path, ci):
-    shutil.copy(HERE / "conftest.py", tmp_path / "conftest.py")
+    shutil.copy(HERE.parent / "conftest.py", tmp_path / "conftest.py")
     (tmp_path / "test_x.py").write_text(textwrap.dedent("""
         import pytest
 

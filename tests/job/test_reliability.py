@@ -389,7 +389,7 @@ def test_operators_that_cannot_stream_say_so(tmp_path, caplog):
 @pytest.mark.requires_opencl
 def test_durand00_defaults_stream_unless_a_frame_needs_flare(tmp_path, caplog):
     """flare and acuity on auto: every frame streams now, one with a light source too
-    (the flare in row bands: tests/test_stream_effects.py), and both equal the
+    (the flare in row bands: tests/effects/test_stream_effects.py), and both equal the
     whole-frame renders; nothing is read whole."""
     import logging
     rng = np.random.default_rng(7)                             # an even, daylit field

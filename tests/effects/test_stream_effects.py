@@ -17,7 +17,7 @@ from ocl_tonemap.models import spencer1995 as fl
 from ocl_tonemap.backends import flare_exec as flx
 from ocl_tonemap.pipeline import Tonemapper
 
-from test_reliability import STREAM_SLACK_MB, _exr, _peak_rss_mb
+from job.test_reliability import STREAM_SLACK_MB, _exr, _peak_rss_mb
 
 #: Streamed vs whole through the CLI: the same kernels on the same pixels, the flare
 #: and the blur the whole frame's bit for bit; only the metering sums run in another

@@ -1,0 +1,74 @@
+"""Loss of acuity (Shaler 1937): the blur widens as light falls, none above the cut-off; the device blur equals the reference."""
+
+import math
+
+import numpy as np
+import pytest
+
+from conftest import hdr_image
+from ocl_tonemap.models import durand2000 as dd
+from ocl_tonemap.models import ferwerda1996 as fw
+from ocl_tonemap.models import durand2000 as fx
+from ocl_tonemap.models import shaler1937 as acu
+from ocl_tonemap.models import spencer1995 as fl
+from ocl_tonemap.backends import flare_exec as flx
+from ocl_tonemap.backends.opencl.convolution import DeviceBlur
+from ocl_tonemap.models.convolution import EDGE_CLAMP, EDGE_ZERO, blur_reference, gaussian_taps
+from ocl_tonemap.effects import EffectSettings
+from ocl_tonemap.models.photometry import RGB709_TO_XYZ
+from ocl_tonemap.pipeline import Tonemapper
+
+
+NO_FX = EffectSettings()  # all effects off
+
+def _xy(rgb):
+    X = RGB709_TO_XYZ @ np.asarray(rgb, np.float64)
+    return X[:2] / X.sum()
+
+def _lamp_scene(h=90, w=160):
+    rgb = np.full((h, w, 3), 2.0)
+    rgb[60:, :] = 0.5
+    rgb[30, 80] = 2e5
+    rgb[20:23, 20:24] = [4e3, 2e3, 1e3]
+    return rgb
+
+
+def test_acuity_blur_widens_monotonically_as_light_falls():
+    L = 10.0 ** np.linspace(-6, 4, 400)
+    sig = acu.acuity_sigma_px(acu.acuity_a_px(L, 50.0, 1920))
+    assert np.all(np.diff(sig) <= 0)                                  # never less blur in the dark
+    inside = (np.log10(L) > -3.5) & (np.log10(L) < 3.0)
+    assert np.all(np.diff(sig[inside]) < 0)
+    # Ferwerda's criterion G(omega) = eps_R(L)/L (Eq. 9) gives a blur that
+    # narrows again as light falls below the rods' absolute threshold
+    Lf = 10.0 ** np.linspace(-3.5, -1.0, 200)
+    g = fw.threshold_rod(Lf) / Lf
+    ok = g < 1
+    a_f = acu.acuity_cutoff(Lf[ok]) * np.sqrt(np.pi / -np.log(g[ok]))
+    sig_f = 1.0 / (a_f * np.sqrt(2 * np.pi))
+    assert np.any(np.diff(sig_f) > 0) and np.any(np.diff(sig_f) < 0)
+    assert acu.ACUITY_A_PER_OMEGA == pytest.approx(1.86, abs=0.005)   # Eq. 10
+
+def test_no_blur_above_cutoff_and_smooth_transition(rt):
+    rng = np.random.default_rng(0)
+    img = rng.random((30, 40, 3)).astype(np.float32)
+    out, info = acu.apply_acuity(img, 100.0, 50.0)                  # daylight: no blur
+    assert info["blend"] == 0.0 and out is img
+    # width such that a_px crosses 1.1 .. 1.0: the blend is continuous and monotone
+    a = np.linspace(1.2, 0.9, 61)
+    b = acu.acuity_blend(a)
+    assert b[0] == 0 and b[-1] == 1 and np.all(np.diff(b) >= 0) and np.max(np.diff(b)) < 0.06
+    dark, info = acu.apply_acuity(img, 1e-4, 5.0)                  # 40 px over 5 degrees
+    assert info["blend"] == 1.0 and info["sigma_px"] > 0.4
+    assert dark.std() < img.std()
+
+@pytest.mark.parametrize("edge", [EDGE_ZERO, EDGE_CLAMP])
+def test_device_blur_matches_reference_and_bands(edge, rt):
+    rng = np.random.default_rng(4)
+    img = rng.random((41, 29, 3)).astype(np.float32)
+    taps = gaussian_taps(3.3)
+    ref = blur_reference(img, taps, edge)
+    dev = DeviceBlur(rt).blur(img, taps, edge)
+    banded = DeviceBlur(rt, max_pixels=29 * 30).blur(img, taps, edge)
+    np.testing.assert_allclose(dev, ref, atol=2e-6)
+    assert np.array_equal(dev, banded)
