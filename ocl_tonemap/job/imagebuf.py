@@ -21,17 +21,7 @@ def process_imagebuf(tm: Tonemapper, buf, dt: float | None = None, time_s: float
                      iscolorspace: str | None = None, encode: bool = False,
                      unpremult: bool | None = None, frame_number: int | None = None,
                      channels: list[str] | None = None):
-    """ImageBuf in, ImageBuf out: the same front door as the command line.
-
-    The input's colourspace (``oiio:ColorSpace``, EXR ``chromaticities``, else
-    scene-linear Rec.709; ``iscolorspace`` overrides), its calibration
-    (``luminance_scale`` S or ``"auto:LEVEL"`` > ``whiteLuminance`` > EXIF
-    exposure > ...; see ``calibration.py``) and its alpha
-    (``oiio:UnassociatedAlpha``; ``unpremult`` overrides) are read as the CLI
-    reads them, with the OCIO config ``colorconfig`` (> $OCIO > ocio://default).
-    The result is float display-linear light in the display's linear
-    colourspace (``encode``: display code values), tagged and carrying the same
-    ``ocltm:*`` attributes as the CLI's outputs."""
+    """``Tonemapper.process_imagebuf`` (its docstring says what is read and written)."""
     import OpenImageIO as oiio
     fr = frame_from_imagebuf(buf, "<ImageBuf>", frame_number, channels)
     key = (colorconfig, iscolorspace, luminance_scale, unpremult)

@@ -1,36 +1,12 @@
 """Loss of acuity (Shaler 1937): the blur widens as light falls, none above the cut-off; the device blur equals the reference."""
 
-import math
-
 import numpy as np
 import pytest
 
-from conftest import hdr_image
-from ocl_tonemap.models import durand2000 as dd
 from ocl_tonemap.models import ferwerda1996 as fw
-from ocl_tonemap.models import durand2000 as fx
 from ocl_tonemap.models import shaler1937 as acu
-from ocl_tonemap.models import spencer1995 as fl
-from ocl_tonemap.backends import flare_exec as flx
 from ocl_tonemap.backends.opencl.convolution import DeviceBlur
 from ocl_tonemap.models.convolution import EDGE_CLAMP, EDGE_ZERO, blur_reference, gaussian_taps
-from ocl_tonemap.effects import EffectSettings
-from ocl_tonemap.models.photometry import RGB709_TO_XYZ
-from ocl_tonemap.pipeline import Tonemapper
-
-
-NO_FX = EffectSettings()  # all effects off
-
-def _xy(rgb):
-    X = RGB709_TO_XYZ @ np.asarray(rgb, np.float64)
-    return X[:2] / X.sum()
-
-def _lamp_scene(h=90, w=160):
-    rgb = np.full((h, w, 3), 2.0)
-    rgb[60:, :] = 0.5
-    rgb[30, 80] = 2e5
-    rgb[20:23, 20:24] = [4e3, 2e3, 1e3]
-    return rgb
 
 
 def test_acuity_blur_widens_monotonically_as_light_falls():
