@@ -11,16 +11,26 @@ from ocl_tonemap.models.convolution import EDGE_CLAMP, EDGE_ZERO, blur_reference
 
 def test_acuity_blur_widens_monotonically_as_light_falls():
     L = 10.0 ** np.linspace(-6, 4, 400)
-    sig = acu.acuity_sigma_px(acu.acuity_a_px(L, 50.0, 1920))
+    # paper mode: Table 1 at L_waR, strictly monotone between the table's ends
+    sig = acu.acuity_sigma_px(acu.acuity_a_px(L, 50.0, 1920, mode="paper"))
     assert np.all(np.diff(sig) <= 0)                                  # never less blur in the dark
     inside = (np.log10(L) > -3.5) & (np.log10(L) < 3.0)
     assert np.all(np.diff(sig[inside]) < 0)
+    # default: the table in Shlaer's photopic units, its ends at 10^-3.5 x 1.29 and
+    # 10^3 x 2.57 scotopic cd/m^2, flat at the rod-cone break (4.8 c/deg) between the
+    # rods' branch and the cones' (tests/models/test_shaler1937.py)
+    sig = acu.acuity_sigma_px(acu.acuity_a_px(L, 50.0, 1920))
+    assert np.all(np.diff(sig) <= 0)
+    lo, hi = 10.0 ** -3.5 * acu.source_scotopic_ratio(), 1e3 * acu.neutral_scotopic_ratio()
+    br = acu.acuity_cutoff(L) == acu.SHLAER_ROD_CONE_BREAK_CPD
+    inside = (L > lo) & (L < hi) & ~br
+    assert np.all(np.diff(sig)[inside[1:] & inside[:-1]] < 0)
     # Ferwerda's criterion G(omega) = eps_R(L)/L (Eq. 9) gives a blur that
     # narrows again as light falls below the rods' absolute threshold
     Lf = 10.0 ** np.linspace(-3.5, -1.0, 200)
     g = fw.threshold_rod(Lf) / Lf
     ok = g < 1
-    a_f = acu.acuity_cutoff(Lf[ok]) * np.sqrt(np.pi / -np.log(g[ok]))
+    a_f = acu.acuity_cutoff(Lf[ok], mode="paper") * np.sqrt(np.pi / -np.log(g[ok]))
     sig_f = 1.0 / (a_f * np.sqrt(2 * np.pi))
     assert np.any(np.diff(sig_f) > 0) and np.any(np.diff(sig_f) < 0)
     assert acu.ACUITY_A_PER_OMEGA == pytest.approx(1.86, abs=0.005)   # Eq. 10
