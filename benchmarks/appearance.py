@@ -45,7 +45,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 LEVELS = [1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4]
 QUICK_LEVELS = [1e-3, 0.1, 10.0, 1e3]
-DEFAULT_IMAGES = [n[:-3] for n in ph.PHOTOS] + list(scenes.SCENES)
+DEFAULT_IMAGES = [n[:-3] if n.endswith("_1k") else n for n in ph.PHOTOS] + list(scenes.SCENES)
 QUICK_IMAGES = ["rooitou_park", "st_fagans_interior", "dikhololo_night", "patches"]
 #: README sheet: (photo, level cd/m^2, label)
 README_SHEET = [("rooitou_park", 5000.0, "daylight"), ("st_fagans_interior", 30.0, "interior"),
@@ -96,9 +96,10 @@ def resolve_images(names, photo_paths, size):
             w = max(64, size // 2)
             out[n] = dict(rgb=fn(w, w // 2), kind=what, natural=nat, source="generated")
         elif n in by_stem:
-            what, nat = ph.PHOTOS.get(n + "_1k", ("photograph", None))
+            stem = by_stem[n].stem
+            what, nat = ph.PHOTOS.get(stem, ("photograph", None))
             out[n] = dict(rgb=load_photo(by_stem[n], size), kind="photo: " + what, natural=nat,
-                          source=f"Poly Haven {n}_1k.hdr (CC0, via {ph.WHEEL})")
+                          source=ph.source_of(stem))
         else:
             raise ValueError(f"unknown image {n!r}; photos: "
                              f"{', '.join(sorted(by_stem))}; scenes: {', '.join(scenes.SCENES)}")
