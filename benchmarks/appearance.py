@@ -53,7 +53,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 LEVELS = [1e-3, 0.1, 10.0, 1e3]
 ALL_LEVELS = [1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4]
 DEFAULT_IMAGES = [n[:-3] if n.endswith("_1k") else n for n in ph.PHOTOS] + list(scenes.SCENES)
-QUICK_IMAGES = ["rooitou_park", "st_fagans_interior", "dikhololo_night", "patches"]
+QUICK_IMAGES = ["rooitou_park", "st_fagans_interior", "dikhololo_night", "venice_sunset",
+                "blender_interior", "patches"]
 #: README sheet: (photo, level cd/m^2, label)
 README_SHEET = [("rooitou_park", 5000.0, "daylight"), ("st_fagans_interior", 30.0, "interior"),
                 ("kiara_1_dawn", 1.0, "dusk"), ("dikhololo_night", 0.01, "night")]
@@ -776,7 +777,8 @@ def _json_safe(o):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="4 images, 256 px")
+    ap.add_argument("--quick", action="store_true",
+                    help="6 images (the sunset and the tungsten interior among them), 256 px")
     ap.add_argument("--levels", help="comma list of scene log-averages in cd/m^2, or 'all' "
                     f"({', '.join(lvl(L) for L in ALL_LEVELS)}); default "
                     f"{', '.join(lvl(L) for L in LEVELS)}")
