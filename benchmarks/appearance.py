@@ -1,20 +1,26 @@
 """Appearance benchmark: what a person sees from each operator, on real HDR photographs.
 
 One command:  python -m benchmarks.appearance [--quick] [--operators a,b]
-                  [--images a,b] [--size W] [--out DIR] [--photos DIR]
+                  [--images a,b] [--levels L,L|all] [--effects-off] [--size W]
+                  [--out DIR] [--photos DIR]
 
-Real photographs: six Poly Haven HDRIs (CC0) fetched once from the PyPI wheel
-viser==0.2.23 (benchmarks/lib/photos.py, cached in ~/.cache/ocl-tonemap/photos or
-$OCLTM_PHOTOS), resized to W pixels wide; plus three small generated scenes
-(benchmarks/lib/scenes.py). Each image is calibrated so that its
-log-average photopic luminance is L cd/m^2 for L in 1e-3 ... 1e4 and shown to a
-fresh observer, steady-state adapted to the still, of every operator (all
-effects off, SDR sRGB display, 1.0 = 100 cd/m^2). The reference is the plain
-OCIO rendering of the same scene exposure-matched (log-average -> 0.18 of
-display white, no tone curve).
+Real photographs: eight Poly Haven HDRIs (CC0): six from the PyPI wheel
+viser==0.2.23 and a sunrise and a tungsten-lit interior from Debian's
+blender-data (benchmarks/lib/photos.py; fetched once, cached in
+~/.cache/ocl-tonemap/photos or $OCLTM_PHOTOS), resized to W pixels wide; plus
+three small generated scenes (benchmarks/lib/scenes.py). Each image is
+calibrated so that its log-average photopic luminance is L cd/m^2, L in 1e-3,
+0.1, 10, 1000 (``--levels all``: 1e-3 ... 1e4), and shown to a fresh observer,
+steady-state adapted to the still, of every operator with its defaults,
+``Tonemapper(op)`` (``--effects-off``: every effect off, the former setting;
+SDR sRGB display, 1.0 = 100 cd/m^2). The reference is the plain OCIO rendering
+of the same scene exposure-matched (log-average -> 0.18 of display white, no
+tone curve). Light sources (scene luminance > 30x the log-average) are left out
+of every measure.
 
 Writes:
-  benchmarks/results/appearance.md     metric tables (worst case over images), targets
+  benchmarks/results/appearance.md     metric tables (worst case over images), targets,
+                                        a table per photo for the sunset, sunrise, tungsten
   benchmarks/results/appearance.json   the raw numbers
   DIR/<image>.png                       contact sheet per image (rows: reference +
                                         operators, columns: levels)
@@ -43,10 +49,12 @@ from benchmarks.lib.photos import load_photo
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
-LEVELS = [1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4]
-QUICK_LEVELS = [1e-3, 0.1, 10.0, 1e3]
-DEFAULT_IMAGES = [n[:-3] for n in ph.PHOTOS] + list(scenes.SCENES)
-QUICK_IMAGES = ["rooitou_park", "st_fagans_interior", "dikhololo_night", "patches"]
+#: The levels of the report (scene log-average, cd/m^2); ``--levels all``: ALL_LEVELS.
+LEVELS = [1e-3, 0.1, 10.0, 1e3]
+ALL_LEVELS = [1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4]
+DEFAULT_IMAGES = [n[:-3] if n.endswith("_1k") else n for n in ph.PHOTOS] + list(scenes.SCENES)
+QUICK_IMAGES = ["rooitou_park", "st_fagans_interior", "dikhololo_night", "venice_sunset",
+                "blender_interior", "patches"]
 #: README sheet: (photo, level cd/m^2, label)
 README_SHEET = [("rooitou_park", 5000.0, "daylight"), ("st_fagans_interior", 30.0, "interior"),
                 ("kiara_1_dawn", 1.0, "dusk"), ("dikhololo_night", 0.01, "night")]
@@ -56,6 +64,13 @@ REF = "OCIO (exposure-matched)"
 
 CLIP_TARGET, HUE_TARGET, REV_TARGET, RHO_TARGET = 0.02, 5.0, 0.01, 0.9
 HUE_MIN_LEVEL, SCOTOPIC_MAX_LEVEL = 100.0, 0.01
+#: Colour as shown: magenta excess <= 1% (all levels); warm turned cool < 5% at
+#: >= 10 cd/m^2; median hue difference to the input <= 15 degrees at >= 100 cd/m^2.
+MAGENTA_TARGET, WARMCOOL_TARGET, SHIFT_TARGET = 0.01, 0.05, 15.0
+WARMCOOL_MIN_LEVEL, SHIFT_MIN_LEVEL = 10.0, 100.0
+SOURCE_FACTOR = 30.0                 # light sources: scene Y > 30 x log-average, left out
+#: The issue's photographs (sunset, sunrise, tungsten light): a table each.
+ISSUE_PHOTOS = ("venice_sunset", "blender_sunrise", "blender_interior")
 VISIBLE_TOL = math.log10(1.01)      # a reversal of > 1% contrast (about a JND) is "visible"
 TILE_W = 256
 
@@ -96,9 +111,10 @@ def resolve_images(names, photo_paths, size):
             w = max(64, size // 2)
             out[n] = dict(rgb=fn(w, w // 2), kind=what, natural=nat, source="generated")
         elif n in by_stem:
-            what, nat = ph.PHOTOS.get(n + "_1k", ("photograph", None))
+            stem = by_stem[n].stem
+            what, nat = ph.PHOTOS.get(stem, ("photograph", None))
             out[n] = dict(rgb=load_photo(by_stem[n], size), kind="photo: " + what, natural=nat,
-                          source=f"Poly Haven {n}_1k.hdr (CC0, via {ph.WHEEL})")
+                          source=ph.source_of(stem))
         else:
             raise ValueError(f"unknown image {n!r}; photos: "
                              f"{', '.join(sorted(by_stem))}; scenes: {', '.join(scenes.SCENES)}")
@@ -108,7 +124,11 @@ def resolve_images(names, photo_paths, size):
 # --- running -----------------------------------------------------------------------
 
 class Runner:
-    def __init__(self):
+    """Runs the operators: ``Tonemapper(op)`` (the operator's defaults: backend,
+    display sRGB, effects), or with ``effects_off`` the former setting
+    (``backend="opencl"``, sRGB display, ``EffectSettings()``: every effect off)."""
+
+    def __init__(self, effects_off: bool = False):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             from ocl_tonemap import Tonemapper
@@ -118,12 +138,29 @@ class Runner:
         self.Tonemapper, self.display_for, self.EffectSettings = Tonemapper, display_for, EffectSettings
         self.cp = ColourPipeline(load_config("ocl-tonemap"), DISPLAY)
         self.times: dict[str, list[float]] = {}
+        self.effects_off = effects_off
+        self.effects_seen: dict[str, dict] = {}
+
+    def make(self, op: str):
+        if self.effects_off:
+            return self.Tonemapper(op, backend="opencl", display=self.display_for(DISPLAY),
+                                   effects=self.EffectSettings())
+        return self.Tonemapper(op)
+
+    def call(self, op: str) -> str:
+        return (f"Tonemapper({op}, backend='opencl', display=sRGB, effects=EffectSettings())"
+                if self.effects_off else f"Tonemapper({op})")
 
     def tonemap(self, op: str, rgb_cd: np.ndarray):
         """(display-linear output or None, error text or None)."""
         try:
-            tm = self.Tonemapper(op, backend="opencl", display=self.display_for(DISPLAY),
-                                 effects=self.EffectSettings())
+            tm = self.make(op)
+            if op not in self.effects_seen:
+                s = tm.effects.s
+                self.effects_seen[op] = {
+                    k: getattr(s, k) for k in ("flare", "acuity", "chromatic_adaptation",
+                                               "purkinje")}
+                self.effects_seen[op]["backend"] = type(tm.backend).__name__
             t = time.perf_counter()
             out = tm.process(rgb_cd, luminance_scale=1.0)
             self.times.setdefault(op, []).append(time.perf_counter() - t)
@@ -181,7 +218,11 @@ def run_image(R: Runner, name: str, info: dict, ops, levels):
     base = info["rgb"]
     la0 = log_average(base)
     ref = base * np.float32(0.18 / la0)                 # exposure-matched, display-linear
-    res = {"ref": {"clip": am.clip_fraction(ref, am.luminance(base) / la0, 1.0)}, "ops": {}}
+    keep = ~am.light_source_mask(am.luminance(base), la0, SOURCE_FACTOR)   # same at every level
+    res = {"ref": {"clip": am.clip_fraction(ref, am.luminance(base) / la0, 1.0),
+                   "magenta_hue_preserving": am.magenta_share(am.hue_preserving_render(base),
+                                                              keep),
+                   "sources": float(1.0 - keep.mean())}, "ops": {}}
     tiles = {REF: [R.tile(ref)] * len(levels)}
     for op in ops:
         outs, per = [], {}
@@ -197,8 +238,15 @@ def run_image(R: Runner, name: str, info: dict, ops, levels):
                 tiles[op].append(None)
             else:
                 oY = am.luminance(out)
-                m["mean_Y"] = float(oY.mean())
-                m["clip"] = am.clip_fraction(out, sY, L)
+                m["mean_Y"] = float(oY[keep].mean()) if keep.any() else float(oY.mean())
+                m["clip"] = am.clip_fraction(out, sY, L, source_factor=SOURCE_FACTOR)
+                m["clip_any"] = am.clip_fraction(out, sY, L, source_factor=SOURCE_FACTOR,
+                                                 channels="any")
+                mg = am.magenta_excess(out, base, keep)
+                m["magenta"], m["magenta_share"] = mg["excess"], mg["share"]
+                wc = am.warm_to_cool(out, base, keep)
+                m["warm_cool"], m["warm_cool_of_warm"] = wc["share"], wc["of_warm"]
+                m["hue_shift_deg"] = am.hue_shift_deg(out, base, keep)
                 g = am.gradient_reversal(sY, oY)
                 m["reversal"] = g["all"]
                 m["reversal_by_scale"] = {str(k): v for k, v in g.items() if k != "all"}
@@ -213,7 +261,7 @@ def run_image(R: Runner, name: str, info: dict, ops, levels):
                     m["hue_deg"] = am.hue_difference_deg(out, ref, mask=~am.light_source_mask(sY, L))
                 tiles[op].append(R.tile(out))
             per[lvl(L)] = m
-        means, inc = am.brightness_means(outs)
+        means, inc = am.brightness_means(outs, mask=keep)
         day = next((o for o in reversed(outs) if o is not None), None)
         day_L = next((L for L, o in zip(reversed(levels), reversed(outs)) if o is not None), None)
         for L, out in zip(levels, outs):
@@ -222,7 +270,8 @@ def run_image(R: Runner, name: str, info: dict, ops, levels):
                 per[lvl(L)]["scotopic"]["day_level"] = day_L
         res["ops"][op] = {"levels": per, "brightness_means": means, "brightness_increasing": inc}
         print(f"  {name:20s} {op:12s} " + " ".join(
-            "ERR" if "error" in per[lvl(L)] else f"{per[lvl(L)]['clip']:5.1%}" for L in levels)
+            "ERR" if "error" in per[lvl(L)] else
+            f"{per[lvl(L)]['clip']:5.1%}/{per[lvl(L)]['magenta']:+5.1%}" for L in levels)
             + f"  bright-order {'ok' if inc else 'NO'}", flush=True)
     return res, tiles
 
@@ -260,11 +309,31 @@ def _figure(nrows, ncols, tile_h, tile_w=TILE_W, left=1.25, top=0.75, dpi=100):
     return plt, fig, axes
 
 
-def contact_sheet(path, name, info, tiles, res, ops, levels):
+def _tile_label(m, L):
+    """Two lines of a contact-sheet tile (clip, reversal, hue to OCIO; magenta excess,
+    warm turned cool, hue to the input where they have targets) and whether the
+    tile misses a target."""
+    bad = m["clip"] >= CLIP_TARGET or m["reversal"] >= REV_TARGET
+    top = f"clip {m['clip']:.1%}  rev {m['reversal']:.1%}"
+    if "hue_deg" in m and np.isfinite(m["hue_deg"]):
+        top += f"  dh {m['hue_deg']:.0f}°"
+        bad = bad or m["hue_deg"] >= HUE_TARGET
+    low = f"mag {m['magenta']:+.1%}"
+    bad = bad or m["magenta"] > MAGENTA_TARGET
+    if L >= WARMCOOL_MIN_LEVEL:
+        low += f"  w>c {m['warm_cool']:.1%}"
+        bad = bad or m["warm_cool"] >= WARMCOOL_TARGET
+    if L >= SHIFT_MIN_LEVEL and np.isfinite(m["hue_shift_deg"]):
+        low += f"  dh-in {m['hue_shift_deg']:.0f}°"
+        bad = bad or m["hue_shift_deg"] > SHIFT_TARGET
+    return top + "\n" + low, bad
+
+
+def contact_sheet(path, name, info, tiles, res, ops, levels, effects="effects off"):
     rows = [REF] + list(ops)
     t0 = tiles[REF][0]
     th = int(round(TILE_W * t0.shape[0] / t0.shape[1]))
-    plt, fig, axes = _figure(len(rows), len(levels), th)
+    plt, fig, axes = _figure(len(rows), len(levels), th, top=0.95)
     for i, r in enumerate(rows):
         for j, L in enumerate(levels):
             ax = axes[i][j]
@@ -272,11 +341,7 @@ def contact_sheet(path, name, info, tiles, res, ops, levels):
             if r != REF:
                 m = res["ops"][r]["levels"][lvl(L)]
                 if "error" not in m:
-                    bad = m["clip"] >= CLIP_TARGET or m["reversal"] >= REV_TARGET
-                    text = f"clip {m['clip']:.1%}  rev {m['reversal']:.1%}"
-                    if "hue_deg" in m and np.isfinite(m["hue_deg"]):
-                        text += f"  dh {m['hue_deg']:.0f}°"
-                        bad = bad or m["hue_deg"] >= HUE_TARGET
+                    text, bad = _tile_label(m, L)
                     col = "#ff8080" if bad else "white"
             _show(ax, tiles[r][j], text, col, t0.shape[:2])
             if i == 0:
@@ -287,10 +352,11 @@ def contact_sheet(path, name, info, tiles, res, ops, levels):
     nat = info.get("natural")
     fig.suptitle(f"{name} ({info['kind']}; natural level ~{lvl(nat)} cd/m²)" if nat else name,
                  fontsize=13, x=0.5, y=1 - 0.12 / fig.get_figheight())
-    fig.text(0.5, 1 - 0.42 / fig.get_figheight(),
+    fig.text(0.5, 1 - 0.34 / fig.get_figheight(),
              "scene log-average luminance; sRGB display, white 100 cd/m², steady-state observer, "
-             "effects off; red labels miss a target (clip >= 2%, reversal >= 1%, hue >= 5°)",
-             ha="center", fontsize=8.5)
+             f"{effects};\nred labels miss a target (clip >= 2%, reversal >= 1%, "
+             "hue to OCIO >= 5°, magenta excess > 1%, warm>cool >= 5%, hue to input > 15°)",
+             ha="center", va="top", fontsize=8.5)
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
@@ -347,6 +413,8 @@ def worst(results, op, L, key, pick=max, fmt="{:.1%}", sub=None):
 def report(results, images, ops, levels, meta) -> tuple[str, dict]:
     L_hue = [L for L in levels if L >= HUE_MIN_LEVEL]
     L_sco = [L for L in levels if L <= SCOTOPIC_MAX_LEVEL]
+    L_wc = [L for L in levels if L >= WARMCOOL_MIN_LEVEL]
+    L_sh = [L for L in levels if L >= SHIFT_MIN_LEVEL]
     verdict = {op: {} for op in ops}
     parts = [
         "# Appearance benchmark",
@@ -358,7 +426,7 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
         "",
         "Each image is calibrated so that its log-average photopic luminance is the level "
         "(cd/m²), and shown to a fresh observer of each operator, steady-state adapted to "
-        "the still (`Tonemapper(op, backend='opencl', display=sRGB, effects off)`). Output: "
+        f"the still (`{meta['call']}`; {meta['effects']}). Output: "
         "display-linear Rec.709, 1.0 = display white 100 cd/m². Reference: the plain OCIO "
         "rendering of the scene exposure-matched (log-average -> 0.18 of white, no tone "
         "curve). Metrics: `benchmarks/lib/appearance_metrics.py`. Contact sheets: "
@@ -408,6 +476,11 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
                     if op in LOCAL_OPS else "n/a (global)"),
             "rho_mes": (cell(fails(op, "rho_mes", lambda m: m["spearman_mesopic"] < RHO_TARGET,
                                    levels)) if op in LOCAL_OPS else "n/a (global)"),
+            "magenta": cell(fails(op, "magenta", lambda m: m["magenta"] > MAGENTA_TARGET, levels)),
+            "warm_cool": cell(fails(op, "warm_cool", lambda m: m["warm_cool"] >= WARMCOOL_TARGET,
+                                    L_wc)) if L_wc else "-",
+            "hue_shift": cell(fails(op, "hue_shift", lambda m: np.isfinite(m["hue_shift_deg"])
+                                    and m["hue_shift_deg"] > SHIFT_TARGET, L_sh)) if L_sh else "-",
         }
         verdict[op] = v
         rows.append([op] + list(v.values()))
@@ -422,7 +495,12 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
                         f"gradient reversal < {REV_TARGET:.0%} (photopic Y)",
                         f"gradient reversal < {REV_TARGET:.0%} (mesopic Y, CIE 191)",
                         f"Spearman >= {RHO_TARGET} (local ops; photopic Y)",
-                        f"Spearman >= {RHO_TARGET} (local ops; mesopic Y)"), rows), "",
+                        f"Spearman >= {RHO_TARGET} (local ops; mesopic Y)",
+                        f"magenta excess <= {MAGENTA_TARGET:.0%}",
+                        f"warm turned cool < {WARMCOOL_TARGET:.0%} (levels >= "
+                        f"{WARMCOOL_MIN_LEVEL:g})",
+                        f"hue to the input <= {SHIFT_TARGET:g}° (levels >= {SHIFT_MIN_LEVEL:g})"),
+                       rows), "",
               "The artefact targets are given twice: against photopic luminance Y (the "
               "brief's literal metric) and against the CIE 191:2010 mesopic luminance of "
               "the scene at its level (scotopic V' at night, V by day; m from the frame's "
@@ -435,8 +513,8 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
     # 1 brightness
     names = list(results)
     parts += ["## 1. Brightness order", "",
-              "Does the mean output luminance strictly increase with the scene level? "
-              "(per image; the means are in the per-image detail)", "",
+              "Does the mean output luminance (light sources excluded) strictly increase with "
+              "the scene level? (per image; the means are in the per-image detail)", "",
               md_table(["operator"] + names,
                        [[op] + [_order_cell(results[n]["ops"][op], levels)
                                 for n in names] for op in ops]), "",
@@ -446,12 +524,17 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
                   for k in range(len(levels))] for op in ops]), ""]
     # 2 clipping
     parts += ["## 2. Clipping", "",
-              "Share of pixels with a channel >= 0.999 of display white, light sources (scene "
+              "Share of pixels whose three 8-bit sRGB code values are >= 0.999 of 255 (255: "
+              "display-linear >= 0.9956), light sources (scene "
               f"luminance > 30x the log-average) excluded; worst image. Target < {CLIP_TARGET:.0%}. "
               "(The exposure-matched reference clips "
               + ", ".join(f"{short(n)} {r['ref']['clip']:.1%}" for n, r in results.items()) + ".)",
               "", md_table(head, [[op] + [_mark(*worst(results, op, L, "clip"), CLIP_TARGET)
-                                          for L in levels] for op in ops]), ""]
+                                          for L in levels] for op in ops]), "",
+              "The same counting a pixel when any one channel is at 255 (saturated colours "
+              "included; the former definition); worst image:", "",
+              md_table(head, [[op] + [worst(results, op, L, "clip_any")[0] for L in levels]
+                              for op in ops]), ""]
     # 3 hue
     if L_hue:
         hh = ["operator"] + [lvl(L) for L in L_hue]
@@ -537,6 +620,56 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
                                       if op in LOCAL_OPS else
                                       worst(results, op, L, "spearman", pick=min, fmt="{:.3f}")[0]
                                       for L in levels] for op in ops]), ""]
+    # 6 colour as shown
+    parts += ["## 6. Colour as shown", "",
+              "The output as the display shows it (clipped to 0..1), CIELAB relative to display "
+              "white; light sources (scene luminance > 30x the log-average) left out. "
+              "Definitions: `benchmarks/lib/appearance_metrics.py` section 6.", "",
+              "Magenta excess: share of pixels with CIELAB hue 290-350° and C*ab > 15, minus the "
+              "same share in a hue-preserving rendering of the photograph (log-average scaled to "
+              "0.18, Y/(1+Y) on luminance, RGB ratios kept); worst image. Target <= "
+              f"{MAGENTA_TARGET:.0%}. (CIELAB puts saturated deep blue in that hue range too: "
+              "the Rec.709 blue primary is at 306°.)", "",
+              md_table(head, [[op] + [_mark(*worst(results, op, L, "magenta", fmt="{:+.1%}"),
+                                            MAGENTA_TARGET + 1e-12) for L in levels]
+                              for op in ops]), "",
+              "Warm turned cool: share of pixels with scene R > 1.3 B shown with B > 1.15 R; "
+              f"worst image. Target < {WARMCOOL_TARGET:.0%} at levels >= {WARMCOOL_MIN_LEVEL:g} "
+              "(lower levels for information: the Purkinje shift and night tint are blue on "
+              "purpose).", "",
+              md_table(head, [[op] + [_mark(*worst(results, op, L, "warm_cool"),
+                                            WARMCOOL_TARGET) if L >= WARMCOOL_MIN_LEVEL
+                                      else worst(results, op, L, "warm_cool")[0]
+                                      for L in levels] for op in ops]), "",
+              "Hue to the input: median |CIELAB hue difference| between the output and the "
+              "scene scaled by its 99th luminance percentile, over pixels with input C*ab > 8 "
+              f"and output C*ab > 4; worst image. Target <= {SHIFT_TARGET:g}° at levels >= "
+              f"{SHIFT_MIN_LEVEL:g}.", "",
+              md_table(head, [[op] + [_mark(*worst(results, op, L, "hue_shift_deg",
+                                                   fmt="{:.1f}°"), SHIFT_TARGET + 1e-9)
+                                      if L >= SHIFT_MIN_LEVEL else
+                                      worst(results, op, L, "hue_shift_deg", fmt="{:.1f}°")[0]
+                                      for L in levels] for op in ops]), ""]
+    issue = [n for n in ISSUE_PHOTOS if n in results]
+    if issue:
+        parts += ["## The sunset, the sunrise and the tungsten interior", "",
+                  "Per photograph, operator and level: clip (three channels at 255) / magenta "
+                  "excess / warm turned cool / hue to the input; **bold** misses its target "
+                  "(warm turned cool from "
+                  f"{WARMCOOL_MIN_LEVEL:g}, hue from {SHIFT_MIN_LEVEL:g} cd/m²). Last column: "
+                  "does the brightness rise with the level.", ""]
+        for n in issue:
+            r, info = results[n], images[n]
+            parts += [f"### {n}: {info['kind']} (natural level ~{lvl(info['natural'])} cd/m²)"
+                      if info.get("natural") else f"### {n}", "",
+                      f"Source: {info['source']}. Light sources: {r['ref']['sources']:.1%} of the "
+                      f"pixels; the hue-preserving rendering's own magenta share: "
+                      f"{r['ref']['magenta_hue_preserving']:.1%}.", "",
+                      md_table(head + ["brightness rises"],
+                               [[op] + [_colour_cell(r["ops"][op]["levels"][lvl(L)], L)
+                                        for L in levels]
+                                + ["yes" if r["ops"][op]["brightness_increasing"] else "**no**"]
+                                for op in ops]), ""]
     # timing
     t_rows = []
     for op in ops:
@@ -554,9 +687,10 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
     parts += ["## Per-image detail", ""]
     for n, r in results.items():
         parts += [f"<details><summary>{n}</summary>", "",
-                  "Cells: clip / gradient reversal / Spearman / hue° (levels >= 100) / scotopic "
+                  "Cells: clip / gradient reversal / Spearman / hue° to OCIO (levels >= 100) / "
+                  "magenta excess, warm turned cool, hue to the input / scotopic "
                   "chroma ratio, neutral hue, magenta share (levels <= 0.01); last column: mean "
-                  "output luminance per level (cd/m²).", ""]
+                  "output luminance per level (cd/m², light sources excluded).", ""]
         rows = []
         for op in ops:
             o = r["ops"][op]
@@ -569,6 +703,8 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
                 c = f"{m['clip']:.1%} / {m['reversal']:.2%} / {m['spearman']:.3f}"
                 if "hue_deg" in m:
                     c += f" / {m['hue_deg']:.1f}°"
+                c += (f" / mag {m['magenta']:+.1%}, w>c {m['warm_cool']:.1%}, "
+                      f"dh-in {m['hue_shift_deg']:.0f}°")
                 s = m.get("scotopic")
                 if s:
                     ratio = s["chroma"] / s["chroma_day"] if s["chroma_day"] > 0 else float("inf")
@@ -579,6 +715,21 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
                                                  else " (**not increasing**)")])
         parts += [md_table(head + ["mean output cd/m²"], rows), "", "</details>", ""]
     return "\n".join(parts), verdict
+
+
+def _colour_cell(m, L):
+    """clip / magenta excess / warm turned cool / hue to the input, misses in bold."""
+    if "error" in m:
+        return "error: " + m["error"].replace("|", "/")
+
+    def b(text, bad):
+        return f"**{text}**" if bad else text
+    h = m["hue_shift_deg"]
+    return " / ".join([
+        b(f"{m['clip']:.1%}", m["clip"] >= CLIP_TARGET),
+        b(f"{m['magenta']:+.1%}", m["magenta"] > MAGENTA_TARGET),
+        b(f"{m['warm_cool']:.1%}", L >= WARMCOOL_MIN_LEVEL and m["warm_cool"] >= WARMCOOL_TARGET),
+        "-" if not np.isfinite(h) else b(f"{h:.0f}°", L >= SHIFT_MIN_LEVEL and h > SHIFT_TARGET)])
 
 
 def _order_cell(o, levels):
@@ -626,10 +777,18 @@ def _json_safe(o):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="4 levels, 4 images, 256 px")
+    ap.add_argument("--quick", action="store_true",
+                    help="6 images (the sunset and the tungsten interior among them), 256 px")
+    ap.add_argument("--levels", help="comma list of scene log-averages in cd/m^2, or 'all' "
+                    f"({', '.join(lvl(L) for L in ALL_LEVELS)}); default "
+                    f"{', '.join(lvl(L) for L in LEVELS)}")
+    ap.add_argument("--effects-off", action="store_true",
+                    help="every effect off (the former setting: Tonemapper(op, "
+                    "backend='opencl', display=sRGB, effects=EffectSettings())); default: "
+                    "the operator's defaults, Tonemapper(op)")
     ap.add_argument("--operators", help="comma list (default: every operator in the registry)")
-    ap.add_argument("--images", help="comma list of photos (rooitou_park, ...) and scenes "
-                    "(tunnel, patches, lamp)")
+    ap.add_argument("--images", help="comma list of photos (rooitou_park, blender_sunrise, "
+                    "...) and scenes (tunnel, patches, lamp)")
     ap.add_argument("--size", type=int, help="photo width in pixels (default 512, --quick 256)")
     ap.add_argument("--out", default=os.path.join(HERE, "results", "appearance"),
                     help="folder of the contact sheets")
@@ -651,11 +810,21 @@ def main(argv=None) -> int:
         print(f"appearance ERROR: unknown operator(s) {', '.join(bad)}; available: "
               f"{', '.join(REGISTRY)}", file=sys.stderr)
         return 2
-    levels = QUICK_LEVELS if a.quick else LEVELS
-    size = a.size or (256 if a.quick else 512)
-    names = a.images.split(",") if a.images else (QUICK_IMAGES if a.quick else DEFAULT_IMAGES)
     try:
-        paths = ph.fetch_photos(a.photos)
+        levels = (ALL_LEVELS if a.levels == "all" else
+                  sorted(float(x) for x in a.levels.split(",")) if a.levels else LEVELS)
+    except ValueError:
+        print(f"appearance ERROR: bad --levels {a.levels!r}", file=sys.stderr)
+        return 2
+    size = a.size or (256 if a.quick else 512)
+    names = [short(n.strip()) for n in (a.images.split(",") if a.images else
+                                        (QUICK_IMAGES if a.quick else DEFAULT_IMAGES))]
+    photo_stems = {short(k): k for k in ph.PHOTOS}
+    want = {photo_stems[n] for n in names if n in photo_stems}
+    if not a.no_readme_sheet:
+        want |= {photo_stems[n] for n, _, _ in README_SHEET}
+    try:
+        paths = ph.fetch_photos(a.photos, names=sorted(want))
     except ph.PhotoFetchError as e:
         print(f"appearance ERROR: {e}", file=sys.stderr)
         return 2
@@ -673,7 +842,7 @@ def main(argv=None) -> int:
     except Exception as e:  # noqa: BLE001
         print(f"appearance ERROR: no OpenCL device: {e}", file=sys.stderr)
         return 2
-    R = Runner()
+    R = Runner(effects_off=a.effects_off)
     print(f"appearance: {len(images)} images x {len(ops)} operators x {len(levels)} levels; "
           f"OpenCL {opencl}", flush=True)
     print(f"  {'image':20s} {'operator':12s} clipping at " + " ".join(f"{lvl(L):>5s}" for L in levels))
@@ -682,7 +851,8 @@ def main(argv=None) -> int:
         res, tiles = run_image(R, n, info, ops, levels)
         results[n] = res
         p = os.path.join(a.out, f"{n}.png")
-        contact_sheet(p, n, info, tiles, res, ops, levels)
+        contact_sheet(p, n, info, tiles, res, ops, levels,
+                      "effects off" if a.effects_off else "operator defaults")
         sheets.append(p)
     if not a.no_readme_sheet:
         photos_rgb = {n: (images[n]["rgb"] if n in images else None) for n, _, _ in README_SHEET}
@@ -707,6 +877,10 @@ def main(argv=None) -> int:
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
                    f"{platform.system()} {platform.release()}, Python {platform.python_version()}",
         "opencl": opencl, "code": code, "run_time_s": run_time, "times": R.times,
+        "call": R.call("op"),
+        "effects": ("every effect off" if a.effects_off else "the operator's default effects: "
+                    + "; ".join(f"{op} " + ", ".join(f"{k} {v}" for k, v in e.items())
+                                for op, e in R.effects_seen.items())),
         "sheets_dir": os.path.relpath(a.out, os.path.join(HERE, "..")),
         "photo_size": ", ".join(sorted(photo_sizes)) or "-",
         "scene_size": ", ".join(sorted(scene_sizes)) or "-",
@@ -721,7 +895,9 @@ def main(argv=None) -> int:
                          "source": i["source"], "size": list(i["rgb"].shape[:2])}
                      for n, i in images.items()},
           "targets": {"clip": CLIP_TARGET, "hue_deg": HUE_TARGET, "reversal": REV_TARGET,
-                      "spearman_local": RHO_TARGET},
+                      "spearman_local": RHO_TARGET, "magenta": MAGENTA_TARGET,
+                      "warm_cool": WARMCOOL_TARGET, "warm_cool_min_level": WARMCOOL_MIN_LEVEL,
+                      "hue_shift_deg": SHIFT_TARGET, "hue_shift_min_level": SHIFT_MIN_LEVEL},
           "verdict": verdict, "results": results}
     js_path = os.path.join(a.results, "appearance.json")
     with open(js_path, "w") as fh:

@@ -1,7 +1,7 @@
 """Shared by the benchmark scripts and the tests; not part of the runtime package.
 
 * :mod:`.timing`: the timing rule, Markdown tables, copy bandwidth, a child's peak memory.
-* :mod:`.photos`: the Poly Haven photographs (fetched once from PyPI) and ``load_photo``.
+* :mod:`.photos`: the Poly Haven photographs (fetched once from PyPI and Debian) and ``load_photo``.
 * :mod:`.scenes`: generated HDR scenes (the appearance scenes and the benchmarks' frames).
 * :mod:`.appearance_metrics`: what a person sees (benchmarks/appearance.py, tests).
 * :mod:`.validation`: the papers' experiments (Ledda 2004, Fig. 11).

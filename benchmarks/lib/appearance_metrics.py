@@ -2,10 +2,13 @@
 
 Inputs are float arrays: ``out`` the operator's display-linear output (H x W x 3,
 linear Rec.709, 1.0 = display white), ``scene_Y`` / ``scene_rgb`` the scene in
-cd/m^2. Luminance is Y = 0.2126 R + 0.7152 G + 0.0722 B. CIELAB is taken after
-normalising each image so that its log-average (geometric mean over Y > 0) is
-0.18 (exposure does not count; unlike the arithmetic mean it is not dominated by
-a light source), with the sRGB (D65) white. Used by ``benchmarks/appearance.py``; importable by tests.
+cd/m^2. Luminance is Y = 0.2126 R + 0.7152 G + 0.0722 B. CIELAB uses the sRGB
+(D65) white. Sections 3-4 take it after normalising each image so that its
+log-average (geometric mean over Y > 0) is 0.18 (exposure does not count; unlike
+the arithmetic mean it is not dominated by a light source); section 6 (magenta,
+warm turned cool, hue shift against the input) takes the output as the display
+shows it (clipped to 0..1, relative to display white). Used by
+``benchmarks/appearance.py``; importable by tests.
 """
 
 from __future__ import annotations
@@ -36,13 +39,16 @@ def _colour():
     return colour
 
 
-def to_lab(rgb, mean_Y: float = 0.18, norm: str = "logavg") -> np.ndarray:
-    """CIELAB (D65 white, Y_white = 1) of linear Rec.709 ``rgb`` scaled so that its
-    log-average luminance (``norm="logavg"``) or its mean (``"mean"``) is
-    ``mean_Y`` (an all-black image stays black)."""
+def to_lab(rgb, mean_Y: float = 0.18, norm: str | None = "logavg") -> np.ndarray:
+    """CIELAB (D65 white, Y_white = 1) of linear Rec.709 ``rgb`` (negatives as 0)
+    scaled so that its log-average luminance (``norm="logavg"``) or its mean
+    (``"mean"``) is ``mean_Y`` (an all-black image stays black); ``norm=None``:
+    as given (a display image: 1.0 = display white)."""
     a = np.maximum(np.asarray(rgb, np.float64)[..., :3], 0.0)
     Y = luminance(a)
-    if norm == "mean":
+    if norm is None:
+        m = 0.0
+    elif norm == "mean":
         m = float(Y.mean())
     else:
         pos = Y[Y > 0]
@@ -86,11 +92,17 @@ def circular_median(h) -> float:
 
 # --- 1. brightness order ----------------------------------------------------------
 
-def brightness_means(outputs) -> tuple[list[float], bool]:
+def brightness_means(outputs, mask=None) -> tuple[list[float], bool]:
     """Mean output luminance of each output (ordered by increasing scene level) and
-    whether it strictly increases with the level. ``None`` entries (an operator
-    that failed) give NaN and ``False``."""
-    means = [float("nan") if o is None else float(luminance(o).mean()) for o in outputs]
+    whether it strictly increases with the level; over the pixels where ``mask``
+    (e.g. not a light source) when given. ``None`` entries (an operator that
+    failed) give NaN and ``False``."""
+    m = None if mask is None else np.asarray(mask, bool)
+
+    def mean(o):
+        Y = luminance(o)
+        return float(Y.mean() if m is None or not m.any() else Y[m].mean())
+    means = [float("nan") if o is None else mean(o) for o in outputs]
     ok = all(np.isfinite(means)) and all(b > a for a, b in zip(means, means[1:]))
     return means, bool(ok)
 
@@ -102,17 +114,36 @@ def light_source_mask(scene_Y, logavg: float, factor: float = 30.0) -> np.ndarra
     return np.asarray(scene_Y) > factor * logavg
 
 
+def srgb_encode(lin) -> np.ndarray:
+    """The sRGB transfer function (IEC 61966-2-1) of display-linear values in 0..1."""
+    x = np.clip(np.asarray(lin, np.float64), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def code_values_8bit(out) -> np.ndarray:
+    """The 8-bit sRGB code values (0..255, float) a display is sent for the
+    display-linear ``out`` (clipped to 0..1, encoded, rounded)."""
+    return np.round(255.0 * srgb_encode(np.asarray(out)[..., :3]))
+
+
 def clip_fraction(out, scene_Y, logavg: float, threshold: float = 0.999,
-                  source_factor: float = 30.0) -> float:
-    """Share of pixels with any channel >= ``threshold`` of display white (1.0),
-    among the pixels that are not light sources (scene Y <= ``source_factor`` x
-    the log-average ``logavg``). Target: < 2%."""
+                  source_factor: float = 30.0, channels: str = "all",
+                  eight_bit: bool = True) -> float:
+    """Share of pixels at display white, among the pixels that are not light
+    sources (scene Y <= ``source_factor`` x the log-average ``logavg``).
+
+    At white: ``channels="all"`` three (``"any"``: any one) channels whose 8-bit
+    sRGB code value / 255 is >= ``threshold`` (0.999: code 255, i.e. display-linear
+    >= 0.9956); ``eight_bit=False`` compares the display-linear value itself.
+    Target: < 2%."""
     o = np.asarray(out)[..., :3]
     keep = ~light_source_mask(scene_Y, logavg, source_factor)
     n = int(keep.sum())
     if n == 0:
         return 0.0
-    clipped = np.any(o >= threshold, axis=-1) & keep
+    v = code_values_8bit(o) / 255.0 if eight_bit else o
+    at = v >= threshold
+    clipped = (np.all(at, axis=-1) if channels == "all" else np.any(at, axis=-1)) & keep
     return float(clipped.sum()) / n
 
 
@@ -272,3 +303,101 @@ def mesopic_luminance(rgb_cd, m: float | None = None) -> np.ndarray:
             return float(np.exp(np.mean(np.log(pos)))) if pos.size else 0.0
         m = mesopic_weight(la(Y), la(Ys))
     return (m * Y + (1.0 - m) * Ys * V_PRIME_0) / (m + (1.0 - m) * V_PRIME_0)
+
+
+# --- 6. colour on the display (the issue's measures) -------------------------------------
+#
+# ``out`` is what the display is sent: display-linear Rec.709, 1.0 = display white,
+# taken as shown (clipped to 0..1); CIELAB relative to display white (no exposure
+# normalisation: a dim night rendering has little chroma, as a person sees it).
+# ``keep``: the pixels measured (not light sources: scene Y <= 30 x log-average).
+
+MAGENTA_RANGE = (290.0, 350.0)        #: CIELAB hue angles counted as magenta
+MAGENTA_CHROMA = 15.0                 #: ... with C*ab above this
+
+
+def shown(out) -> np.ndarray:
+    """The display-linear image as the display shows it: clipped to 0..1."""
+    return np.clip(np.asarray(out, np.float64)[..., :3], 0.0, 1.0)
+
+
+def _keep(shape, keep) -> np.ndarray:
+    return np.ones(shape, bool) if keep is None else np.asarray(keep, bool)
+
+
+def hue_preserving_render(scene_rgb) -> np.ndarray:
+    """A plain, hue-preserving rendering of the scene: scaled so that its log-average
+    luminance is 0.18, then the global curve Y/(1+Y) on luminance with the RGB
+    ratios kept (``rgb / (1 + Y)``); display-linear, may exceed 1 where saturated."""
+    a = np.maximum(np.asarray(scene_rgb, np.float64)[..., :3], 0.0)
+    Y = luminance(a)
+    pos = Y[Y > 0]
+    if pos.size:
+        a = a * (0.18 / float(np.exp(np.mean(np.log(pos)))))
+    return a / (1.0 + luminance(a))[..., None]
+
+
+def magenta_share(display_rgb, keep=None, hues=MAGENTA_RANGE,
+                  min_chroma: float = MAGENTA_CHROMA) -> float:
+    """Share of the ``keep`` pixels of a display image (as shown) whose CIELAB hue
+    lies in ``hues`` (290-350 degrees) with chroma C*ab > ``min_chroma`` (15).
+
+    CIELAB's hue of a saturated deep blue lies in that range too (the Rec.709 blue
+    primary: 306 degrees; (0.1, 0.1, 0.5): 298): :func:`magenta_excess` subtracts
+    the photograph's own share for that reason."""
+    C, h = chroma_hue(to_lab(shown(display_rgb), norm=None))
+    k = _keep(C.shape, keep)
+    n = int(k.sum())
+    if n == 0:
+        return 0.0
+    mag = (h >= hues[0]) & (h <= hues[1]) & (C > min_chroma) & k
+    return float(mag.sum()) / n
+
+
+def magenta_excess(out, scene_rgb, keep=None) -> dict:
+    """Magenta the operator adds: :func:`magenta_share` of ``out`` minus that of
+    :func:`hue_preserving_render` of the scene (the photograph's own magenta), over
+    the ``keep`` pixels. Returns ``{"excess", "share", "ref_share"}``; target:
+    excess <= 1%."""
+    share = magenta_share(out, keep)
+    ref = magenta_share(hue_preserving_render(scene_rgb), keep)
+    return {"excess": share - ref, "share": share, "ref_share": ref}
+
+
+def warm_to_cool(out, scene_rgb, keep=None, warm: float = 1.3, cool: float = 1.15) -> dict:
+    """Warm scene pixels shown cool: share of the ``keep`` pixels whose scene has
+    R > ``warm`` x B (1.3) and whose output (as shown) has B > ``cool`` x R (1.15).
+    Returns ``{"share"`` (of the kept pixels; target < 5% at >= 10 cd/m^2),
+    ``"of_warm"`` (of the kept warm pixels), ``"warm"`` (the warm pixels' share)}."""
+    s = np.maximum(np.asarray(scene_rgb, np.float64)[..., :3], 0.0)
+    o = shown(out)
+    k = _keep(s.shape[:-1], keep)
+    n = int(k.sum())
+    w = (s[..., 0] > warm * s[..., 2]) & k
+    turned = w & (o[..., 2] > cool * o[..., 0])
+    nw = int(w.sum())
+    return {"share": float(turned.sum()) / n if n else 0.0,
+            "of_warm": float(turned.sum()) / nw if nw else 0.0,
+            "warm": float(nw) / n if n else 0.0}
+
+
+def hue_shift_deg(out, scene_rgb, keep=None, min_in_chroma: float = 8.0,
+                  min_out_chroma: float = 4.0, pct: float = 99.0) -> float:
+    """Median CIELAB hue difference (degrees, wrapped to 0..180) between the output
+    (as shown, relative to display white) and the input scene scaled so that the
+    ``pct`` (99th) percentile of its luminance over the ``keep`` pixels is 1, over
+    the ``keep`` pixels with input C*ab > ``min_in_chroma`` (8) and output C*ab >
+    ``min_out_chroma`` (4). NaN when no pixel qualifies. Target: <= 15 degrees at
+    >= 100 cd/m^2."""
+    s = np.maximum(np.asarray(scene_rgb, np.float64)[..., :3], 0.0)
+    k = _keep(s.shape[:-1], keep)
+    Y = luminance(s)
+    top = float(np.percentile(Y[k], pct)) if k.any() else 0.0
+    if top > 0:
+        s = s / top
+    C_in, h_in = chroma_hue(to_lab(s, norm=None))
+    C_out, h_out = chroma_hue(to_lab(shown(out), norm=None))
+    m = k & (C_in > min_in_chroma) & (C_out > min_out_chroma)
+    if not m.any():
+        return float("nan")
+    return float(np.median(hue_delta(h_out[m], h_in[m])))

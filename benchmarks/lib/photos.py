@@ -1,11 +1,29 @@
-"""Real HDR photographs for the appearance benchmark, fetched from PyPI.
+"""Real HDR photographs for the appearance benchmark, fetched from PyPI and Debian.
 
-The wheel of ``viser==0.2.23`` ships ten Poly Haven HDRIs (CC0, 1024x512
-Radiance .hdr, linear Rec.709, *relative* radiance) at
-``viser/client/public/hdri/*.hdr``. :func:`fetch_photos` downloads the wheel
-once with pip, extracts only those .hdr files into a cache folder and returns
-their paths; later calls find them there and download nothing. :func:`load_photo`
-reads one at the size a benchmark needs.
+Two sources, both CC0 Poly Haven (HDRI Haven) HDRIs, 1024x512 equirectangular,
+linear Rec.709, *relative* radiance (calibrated to a level by the benchmark):
+
+* PyPI: the wheel of ``viser==0.2.23`` (about 29 MB) ships ten of them as
+  Radiance .hdr at ``viser/client/public/hdri/*.hdr`` (the drei presets: a park
+  by day, interiors, dawn, a sunset, a night ...).
+* Debian: the package ``blender-data`` (Blender's data files; 3.4.1+dfsg-2 in
+  bookworm, a 31 MB .deb) ships Blender's studio-light worlds at
+  ``usr/share/blender/datafiles/studiolights/world/*.exr`` (OpenEXR, float,
+  converted from the .hdr originals with oiiotool, no transfer function: linear).
+  Their ``license.txt`` there reads "All HDRIs are licenses [sic] as CC0. These
+  were created by Greg Zaal (HDRI Haven https://hdrihaven.com)". Two are used:
+  ``sunrise.exr`` (a field, the sun ~2 degrees up in the mist) and ``interior.exr``
+  (a hotel room lit by warm ceiling spots and a warm lamp, daylight through the
+  curtains: the tungsten-lit scene). Its ``sunset.exr`` is the same photograph as
+  viser's ``venice_sunset_1k.hdr`` (log-luminance correlation 0.999, same peak),
+  so the sunset of the set stays ``venice_sunset``.
+
+:func:`fetch_photos` downloads what is missing once (``pip download`` of the
+wheel; ``apt-get download`` of the .deb, unpacked with ``dpkg-deb``), extracts
+only the image files into a cache folder (the Debian ones renamed
+``blender_<name>.exr``, with the licence beside them) and returns their paths;
+later calls find them there and download nothing. :func:`load_photo` reads one
+at the size a benchmark needs.
 
 Cache folder: ``$OCLTM_PHOTOS``, else ``~/.cache/ocl-tonemap/photos/``.
 
@@ -15,9 +33,12 @@ One command (fetch and list):  python -m benchmarks.lib.photos [--cache DIR]
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
+import shutil
 import subprocess
 import sys
+import tarfile
 import tempfile
 import zipfile
 from pathlib import Path
@@ -27,9 +48,18 @@ import numpy as np
 WHEEL = "viser==0.2.23"
 HDRI_PREFIX = "viser/client/public/hdri/"
 
-#: The photographs the benchmark uses: name -> (what it shows, natural level cd/m^2).
+DEB = "blender-data"
+DEB_PREFIX = "usr/share/blender/datafiles/studiolights/world/"
+#: Debian photographs: cached stem -> file in :data:`DEB_PREFIX`.
+DEB_PHOTOS = {"blender_sunrise": "sunrise.exr", "blender_interior": "interior.exr"}
+DEB_LICENCE = "blender_studiolights_license.txt"     #: the package's license.txt, cached
+DEB_SOURCE = "blender_studiolights_source.txt"       #: which .deb they came from (name, sha256)
+
+#: The photographs the benchmark uses: stem -> (what it shows, natural level cd/m^2).
 #: The natural level is the log-average luminance a person would meet there
 #: (README "Calibration and colour": night 0.01, dusk 1, interior 30, daylight 5000).
+#: The sunrise: the sun ~2 degrees up gives the ground some 500-1000 lx (grass
+#: ~20-30 cd/m^2) under a sky of a few hundred cd/m^2: ~50.
 PHOTOS = {
     "rooitou_park_1k": ("daylight, sun", 5000.0),
     "st_fagans_interior_1k": ("interior", 30.0),
@@ -37,7 +67,16 @@ PHOTOS = {
     "kiara_1_dawn_1k": ("dawn/dusk", 1.0),
     "venice_sunset_1k": ("sunset", 10.0),
     "dikhololo_night_1k": ("night", 0.01),
+    "blender_sunrise": ("sunrise, sun just above the horizon", 50.0),
+    "blender_interior": ("interior, tungsten spots and lamp, window", 30.0),
 }
+
+
+def source_of(stem: str) -> str:
+    """Where a photograph comes from, in words (package, file, licence)."""
+    if stem in DEB_PHOTOS:
+        return (f"Poly Haven via Blender, CC0; Debian {DEB} {DEB_PREFIX}{DEB_PHOTOS[stem]}")
+    return f"Poly Haven {stem}.hdr, CC0; PyPI {WHEEL}"
 
 
 class PhotoFetchError(RuntimeError):
@@ -59,33 +98,76 @@ def _is_radiance(path: Path) -> bool:
 
 
 def cached_photos(cache_dir: str | os.PathLike | None = None) -> list[Path]:
-    """The .hdr files already in the cache folder (sorted; maybe empty)."""
+    """The Radiance .hdr files (the wheel's) already in the cache folder (sorted;
+    maybe empty)."""
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     if not d.is_dir():
         return []
     return sorted(p for p in d.glob("*.hdr") if _is_radiance(p))
 
 
+def _is_exr(path: Path) -> bool:
+    try:
+        with open(path, "rb") as f:
+            return f.read(4) == b"\x76\x2f\x31\x01"
+    except OSError:
+        return False
+
+
+def _present(d: Path) -> dict[str, Path]:
+    """stem -> path of every photograph of either source in ``d``."""
+    have = {p.stem: p for p in cached_photos(d)}
+    for stem in DEB_PHOTOS:
+        p = d / f"{stem}.exr"
+        if _is_exr(p):
+            have[stem] = p
+    return have
+
+
 def fetch_photos(cache_dir: str | os.PathLike | None = None, names=None,
                  timeout_s: float = 900.0) -> list[Path]:
-    """Paths of the HDR photographs, downloading the viser wheel when needed.
+    """Paths of the HDR photographs in the cache, downloading what is missing.
 
-    ``cache_dir``: where the .hdr files live (default :func:`default_cache_dir`).
+    ``cache_dir``: where the files live (default :func:`default_cache_dir`).
     ``names``: stems that must be present (default: those of :data:`PHOTOS`);
-    the download is skipped when they all are. Extracts every .hdr of the wheel
-    (ten files, ~16 MB). Raises :class:`PhotoFetchError` with a readable message
-    when pip cannot download the wheel or the wheel lacks the files.
+    a source is downloaded only when one of its wanted stems is missing: the
+    viser wheel (every .hdr of it is extracted: ten files, ~16 MB), the Debian
+    ``blender-data`` .deb (only :data:`DEB_PHOTOS` and the licence: ~0.5 MB).
+    Returns every photograph of either source found in the cache (sorted). Raises
+    :class:`PhotoFetchError` with a readable message when a download fails or the
+    package lacks the files.
     """
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     want = list(names) if names is not None else list(PHOTOS)
-    have = {p.stem: p for p in cached_photos(d)}
-    if all(n in have for n in want):
+    have = _present(d)
+    missing = [n for n in want if n not in have]
+    if not missing:
         return sorted(have.values())
     try:
         d.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise PhotoFetchError(f"cannot create the photo cache {d}: {e}; set $OCLTM_PHOTOS "
                               "to a writable folder") from None
+    if any(n not in DEB_PHOTOS for n in missing):
+        _fetch_wheel(d, [n for n in missing if n not in DEB_PHOTOS], timeout_s)
+    if any(n in DEB_PHOTOS for n in missing):
+        _fetch_deb(d, timeout_s)
+    have = _present(d)
+    missing = [n for n in want if n not in have]
+    if missing:
+        raise PhotoFetchError(f"the packages lack the photographs {', '.join(missing)}")
+    print(f"photos: {len(have)} photographs in {d}", file=sys.stderr)
+    return sorted(have.values())
+
+
+def _copy_member(src, target: Path) -> None:
+    part = target.with_name(target.name + ".part")
+    with open(part, "wb") as dst:
+        shutil.copyfileobj(src, dst, 1 << 20)
+    os.replace(part, target)
+
+
+def _fetch_wheel(d: Path, want, timeout_s: float) -> None:
     with tempfile.TemporaryDirectory(prefix="ocltm-photos-") as tmp:
         cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:",
                "--disable-pip-version-check", "-d", tmp, WHEEL]
@@ -115,24 +197,73 @@ def fetch_photos(cache_dir: str | os.PathLike | None = None, names=None,
                 if not members:
                     raise PhotoFetchError(f"{wheels[0].name} holds no {HDRI_PREFIX}*.hdr files")
                 for m in members:
-                    target = d / Path(m).name
-                    part = target.with_suffix(".hdr.part")
-                    with z.open(m) as src, open(part, "wb") as dst:
-                        while True:
-                            chunk = src.read(1 << 20)
-                            if not chunk:
-                                break
-                            dst.write(chunk)
-                    os.replace(part, target)
+                    with z.open(m) as src:
+                        _copy_member(src, d / Path(m).name)
         except zipfile.BadZipFile as e:
             raise PhotoFetchError(f"the downloaded wheel {wheels[0].name} is not a zip ({e})") \
                 from None
-    have = {p.stem: p for p in cached_photos(d)}
-    missing = [n for n in want if n not in have]
-    if missing:
-        raise PhotoFetchError(f"{WHEEL} lacks the photographs {', '.join(missing)}")
-    print(f"photos: {len(have)} .hdr files in {d}", file=sys.stderr)
-    return sorted(have.values())
+
+
+def _fetch_deb(d: Path, timeout_s: float) -> None:
+    """``apt-get download blender-data`` into a temporary folder, then stream its
+    data archive through ``dpkg-deb --fsys-tarfile`` and keep only the wanted
+    .exr files (renamed ``<stem>.exr``) and the licence."""
+    manual = (f"Alternatively copy {', '.join(DEB_PHOTOS.values())} from /{DEB_PREFIX} of "
+              f"an installed {DEB} package (or of its .deb) into {d} as "
+              + ", ".join(f"{k}.exr" for k in DEB_PHOTOS) + ".")
+    for tool in ("apt-get", "dpkg-deb"):
+        if shutil.which(tool) is None:
+            raise PhotoFetchError(f"the photographs {', '.join(DEB_PHOTOS)} come from the "
+                                  f"Debian package {DEB}, and this machine has no {tool}. "
+                                  + manual)
+    with tempfile.TemporaryDirectory(prefix="ocltm-photos-") as tmp:
+        print(f"photos: downloading the Debian package {DEB} (about 31 MB) for its HDR "
+              "photographs ...", file=sys.stderr)
+        try:
+            r = subprocess.run(["apt-get", "download", "-q", DEB], cwd=tmp, capture_output=True,
+                               text=True, timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            raise PhotoFetchError(f"apt-get download {DEB} took over {timeout_s:.0f} s") from None
+        if r.returncode != 0:
+            tail = "\n".join((r.stderr or r.stdout or "").strip().splitlines()[-6:])
+            raise PhotoFetchError(
+                f"apt-get could not download {DEB} (exit status {r.returncode}):\n{tail}\n"
+                "Needs Debian's package archive (run `apt-get update` first when apt says "
+                f"it cannot locate the package). " + manual)
+        debs = sorted(Path(tmp).glob(f"{DEB}_*.deb"))
+        if not debs:
+            raise PhotoFetchError(f"apt-get reported success but left no {DEB} .deb in {tmp}")
+        deb = debs[0]
+        wanted = {DEB_PREFIX + f: d / f"{stem}.exr" for stem, f in DEB_PHOTOS.items()}
+        wanted[DEB_PREFIX + "license.txt"] = d / DEB_LICENCE
+        p = subprocess.Popen(["dpkg-deb", "--fsys-tarfile", str(deb)], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE)
+        found = set()
+        try:
+            with tarfile.open(fileobj=p.stdout, mode="r|") as tar:
+                for m in tar:
+                    name = m.name[2:] if m.name.startswith("./") else m.name
+                    if m.isfile() and name in wanted:
+                        _copy_member(tar.extractfile(m), wanted[name])
+                        found.add(name)
+        except tarfile.TarError as e:
+            raise PhotoFetchError(f"cannot read the data of {deb.name}: {e}") from None
+        finally:
+            p.stdout.close()
+            err = p.stderr.read().decode(errors="replace")
+            p.stderr.close()
+            p.wait()
+        if p.returncode != 0 and len(found) < len(wanted):
+            raise PhotoFetchError(f"dpkg-deb --fsys-tarfile {deb.name} failed: {err.strip()}")
+        lost = sorted(set(wanted) - found)
+        if lost:
+            raise PhotoFetchError(f"{deb.name} lacks {', '.join(lost)}")
+        with open(deb, "rb") as fh:
+            sha = hashlib.sha256(fh.read()).hexdigest()
+        (d / DEB_SOURCE).write_text(
+            f"{deb.name} (Debian package {DEB}), sha256 {sha}\n"
+            + "".join(f"{DEB_PREFIX}{f} -> {stem}.exr\n" for stem, f in DEB_PHOTOS.items())
+            + f"{DEB_PREFIX}license.txt -> {DEB_LICENCE}\n")
 
 
 def load_photo(path, w: int, h: int | None = None) -> np.ndarray:
