@@ -186,3 +186,27 @@ __kernel void illuminant_partial(__global const float *rgb, __global const float
     }
     group_sum4(scratch, (float4)(s[0], s[1], s[2], s[3]), partial);
 }
+
+/* Block sums of the scene proxy (ocl_tonemap/mechanisms/analysis.py): one work-item
+ * per s x s block of the full frame that this band's rows reach, summing the
+ * band's working rgb in it: out[i] = (sum r, sum g, sum b, pixels). The host adds
+ * the bands' sums (a block cut by a band edge gets its rows from both). */
+__kernel void block_sums(__global const float *rgb, const int w, const int rows, const int y0,
+                         const int s, const int bw, const int by0, const int nb,
+                         __global float4 *out)
+{
+    const int i = get_global_id(0);
+    if (i >= nb * bw) return;
+    const int by = by0 + i / bw, bx = i % bw;
+    const int ya = max(by * s - y0, 0), yb = min((by + 1) * s - y0, rows);
+    const int xa = bx * s, xb = min(xa + s, w);
+    float4 acc = 0.0f;
+    for (int y = ya; y < yb; y++) {
+        const int row = y * w;
+        for (int x = xa; x < xb; x++) {
+            const int k = 3 * (row + x);
+            acc += (float4)(rgb[k], rgb[k + 1], rgb[k + 2], 1.0f);
+        }
+    }
+    out[i] = acc;
+}

@@ -122,7 +122,12 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
     p.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
     _add_operator_args(p)
-    g = p.add_argument_group("effects (every operator; default auto for durand00, else off)")
+    g = p.add_argument_group("mechanisms and effects (every operator)")
+    g.add_argument("--model", choices=["auto", "full", "none"],
+                   help="which mechanisms of vision a frame gets: auto (default) what the frame "
+                   "needs, within one JND (Delta E ITP p99) of full; full: every effect the "
+                   "operator can take; none: the operator alone. --mode paper implies none; "
+                   "an effect given on|off wins")
     for name, what in (("flare", "glare of light sources (Spencer et al. 1995)"),
                        ("acuity", "loss of acuity in the dark (Shaler 1937)"),
                        ("chromatic-adaptation", "von Kries adaptation to the illuminant, tau 5 s"),
@@ -214,7 +219,8 @@ def _effect_settings(a, tier=None):
                  flare_per_octave=a.flare_sampling)
     base = dict(tier.effects) if tier is not None else {}
     return EffectSettings.for_operator(
-        a.operator, **{**base, **{k: v for k, v in given.items() if v is not None}})
+        a.operator, a.model or "auto", paper=a.mode == "paper",
+        **{**base, **{k: v for k, v in given.items() if v is not None}})
 
 
 def _tier_options(a, tier) -> dict | None:

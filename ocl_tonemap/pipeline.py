@@ -26,6 +26,7 @@ from .alpha import restore_alpha, straight_colour
 from .backends import make_backend
 from .backends.plan import quality_tier
 from .effects import EffectSettings, Effects
+from .mechanisms import MechanismPlan
 from .models.display import DisplaySpec, display_for
 from .models.metering import MeteringSpec
 from .models.photometry import RepairCounts, Y_WEIGHTS
@@ -50,6 +51,8 @@ class FrameInfo:
     state: AdaptationState
     params: dict = field(default_factory=dict)
     effects: dict = field(default_factory=dict)
+    #: The frame's mechanism plan: weights (mechanism -> 0..1), predictions, analysis.
+    plan: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -98,6 +101,9 @@ class Tonemapper:
     quality : ``draft``, ``balanced`` (default) or ``reference``: the defaults of every
         speed/accuracy knob (``backends/plan.py`` ``QUALITY_TIERS``); the backend,
         options and effects given here win over the tier's.
+    model : ``auto`` (default): each frame gets the mechanisms it needs, within one
+        JND of ``full`` (``mechanisms/``); ``full``: every effect the operator can
+        take, on; ``none``: the operator alone. Used where ``effects`` is not given.
     """
 
     def __init__(self, operator: str = "pattanaik00", backend: str | None = None,
@@ -107,7 +113,7 @@ class Tonemapper:
                  state: AdaptationState | None = None, device: str | None = None,
                  max_band_pixels: int | None = None, options: dict | None = None,
                  effects: EffectSettings | None = None, plugin_effects=(),
-                 quality: str | None = None):
+                 quality: str | None = None, model: str = "auto"):
         self.operator_name = operator
         op_cls = get_operator(operator)
         tier = quality_tier(quality)
@@ -115,8 +121,11 @@ class Tonemapper:
         backend = backend or ("auto" if tier.backend == "opencl" and device is None
                               else tier.backend)
         options = {**tier.options_for(o.name for o in op_cls.options), **(options or {})}
+        self.model = model
         if effects is None:
-            effects = EffectSettings.for_operator(operator, **dict(tier.effects))
+            effects = EffectSettings.for_operator(operator, model,
+                                                  paper=options.get("mode") == "paper",
+                                                  **dict(tier.effects))
         self.backend = make_backend(backend, device, max_band_pixels)
         self.metering = metering if isinstance(metering, MeteringSpec) else MeteringSpec.parse(metering)
         self.display = display or display_for("sRGB - Display")
@@ -133,8 +142,8 @@ class Tonemapper:
         self.schedule = self.backend.schedule(self.op)
         self.schedule_set_pixels(self._state.pixels)
         self._state.pixels = None             # the schedule holds them now
-        self.effects = Effects(effects or EffectSettings.for_operator(operator), self.backend,
-                               tuple(plugin_effects))
+        self.effects = Effects(effects, self.backend, tuple(plugin_effects))
+        self.plan = MechanismPlan(self.op, self.effects.settings, self.display, self.metering)
         if "spectral" in self.op.inputs and self.effects.s.purkinje != "off":
             raise ValueError(f"{operator} models the Purkinje shift itself; leave --purkinje off")
         self.display_primaries = None
@@ -144,6 +153,8 @@ class Tonemapper:
         self.last_output: np.ndarray | None = None
         self.last_alpha = None
         self._said_fast = False
+        self._frame_plan: dict = {}          # this frame's plan record (FrameInfo.plan)
+        self._measure_only = False
         self.front_door = None           # the ImageBuf API's run setup, by its settings (job/imagebuf.py)
 
     # -- state -----------------------------------------------------------------
@@ -201,8 +212,34 @@ class Tonemapper:
     # -- the three phases -----------------------------------------------------------
     def measure(self, frame: Frame) -> FrameStats:
         """Per-frame statistics of ``frame`` (metering, the illuminant, local levels)."""
-        want = self.effects.s.chromatic_adaptation != "off"
-        return self.schedule.measure(frame, self.metering, want)
+        s = self.effects.s
+        want = s.chromatic_adaptation != "off" and (s.paper
+                                                    or not self.plan.active)
+        stats = self.schedule.measure(frame, self.metering, want)
+        est = self.effects.estimate
+        if est is not None and not s.paper:     # the scene analysis's bounded estimate
+            stats.illuminant = lambda e=np.asarray(est[0], np.float64): e
+        return stats
+
+    def advance_plan(self, predicted: dict, G_cone: float, dt: float, fresh: bool) -> dict:
+        """Advance the mechanism plan over a frame's stored predictions (the shot's
+        integrate pass; a serial run does it in the frame): the weights."""
+        return self.plan.advance(self._state.extra, predicted, G_cone, dt, fresh)[0]
+
+    def leave_out_unsplittable(self) -> list:
+        """Switch off the effects on ``auto`` that :meth:`check_measure_only` would
+        refuse (the shot's passes); returns their flags."""
+        s, fx = self.effects.settings, {}
+        if s.purkinje == "auto":
+            fx["purkinje"] = "off"
+        if not self.schedule.receptor_gains and s.chromatic_adaptation == "auto":
+            fx["chromatic_adaptation"] = "off"
+        if fx:
+            from dataclasses import replace
+            self.effects.settings = self.effects.s = replace(s, **fx)
+            self.plan = MechanismPlan(self.op, self.effects.settings, self.display,
+                                      self.metering)
+        return ["--" + k.replace("_", "-") for k in fx]
 
     def integrate(self, stats: FrameStats, time_s: float, frame_number: int | None = None,
                   dt: float = 0.0, fresh: bool = False, illuminant=None, eff: dict | None = None):
@@ -217,7 +254,7 @@ class Tonemapper:
         if self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off":
             goal, src = fx.illuminant_goal(illuminant, stats.illuminant)
             gains, eff["chromatic_adaptation"] = fx.chromatic(
-                st.extra, goal, src, dt, fresh, self.preadapt is not None)
+                st.extra, goal, src, dt, fresh, self.preadapt is not None, stats.G_cone)
         return params, gains
 
     def apply(self, frame: Frame, stats: FrameStats, params=None, gains=None, sink=None,
@@ -306,6 +343,7 @@ class Tonemapper:
         else:
             time_s, step_dt, fresh = self.frame_clock(dt, time_s)
         eff: dict = {}
+        self._measure_only = measure_only
         work, scale, pre_repairs = self._scene_effects(pix, luminance_scale, eff, step_dt, fresh,
                                                        illuminant)
         if measure_only:
@@ -313,6 +351,7 @@ class Tonemapper:
         res = self._run_frame(Frame(work, scale, None, self.display_primaries), time_s,
                               frame_number, step_dt, fresh, illuminant, eff, pre_repairs,
                               encoding)
+        res.info.plan = self._frame_plan
         if pix.shape[2] == 4 and alpha is not None:   # premultiplied again where it was
             res.output = restore_alpha(res.output, alpha)
         elif pix.shape[2] == 4:
@@ -344,6 +383,16 @@ class Tonemapper:
                          self.schedule.summary(stats, params), eff)
         return FrameResult(out, None, info, encoding is not None)
 
+    def _begin_plan(self, levels, get_rows, h: int, w: int, scale: float, dt: float,
+                    fresh: bool) -> None:
+        """The frame's mechanism plan (``mechanisms/``) from its metering pass
+        (``levels``), handed to the effects; the weights advance in the state's
+        ``extra`` (not in a measure-only pass). Its record: ``_frame_plan``."""
+        plan = self.plan.frame(levels, get_rows, h, w, scale,
+                               None if self._measure_only else self._state.extra, dt, fresh)
+        self.effects.begin_frame(plan.get("weights"), plan.get("estimate"))
+        self._frame_plan = plan.get("record", {})
+
     def frame_clock(self, dt, time_s):
         """(time of this frame, step since the last one, fresh observer?)."""
         st = self._state
@@ -367,7 +416,7 @@ class Tonemapper:
         Purkinje effect (its own time course) and chromatic adaptation applied to the
         scene (operators without receptor gains) change the pixels that are metered,
         so they are refused here."""
-        fx = self.effects.s
+        fx = self.effects.settings
         why = []
         if fx.purkinje != "off":
             why.append("--purkinje")
@@ -424,6 +473,7 @@ class Tonemapper:
         before = self._state.copy()
         self.last_output = self.last_alpha = None
         h, w = source.shape[:2]
+        self._measure_only = measure_only
         src, scale, pre_repairs, sweep = self._stream_scene_effects(
             source, luminance_scale, eff, step_dt, fresh, illuminant)
         frame = Frame(src, scale, None, self.display_primaries)
@@ -441,7 +491,7 @@ class Tonemapper:
         self.last = info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod,
                                      stats.G_cone, pre_repairs or stats.repairs,
                                      self._state.copy(), self.schedule.summary(stats, params),
-                                     eff)
+                                     eff, self._frame_plan)
         if start is not None:
             start(info)
         self.apply(frame, stats, params, gains, out)
@@ -458,14 +508,22 @@ class Tonemapper:
         scale, the repairs of the original or None, functions to call once the
         measure pass has swept the frame)."""
         fx = self.effects
+        fx.begin_frame(None)
+        self._frame_plan = {}
         own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
-        if fx.s.flare == "off" and fx.s.purkinje == "off" and not own_chroma:
+        if not self.plan.active and fx.s.flare == "off" and fx.s.purkinje == "off" \
+                and not own_chroma:
             return source, scale, None, []
         h, w, nc = source.shape
         be = self.backend
         band_px = self._band_pixels(h, w)
         # the unchanged frame's levels, as backend.working gives them to _scene_effects
-        levels = be.scene_levels(source, scale, self.metering, own_chroma)
+        levels = be.scene_levels(source, scale, self.metering, own_chroma,
+                                 self.plan.proxy_stride(h, w))
+        self._begin_plan(levels, lambda a, b: source[a:b], h, w, scale, dt, fresh)
+        own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
+        if fx.s.flare == "off" and fx.s.purkinje == "off" and not own_chroma:
+            return source, scale, None, []
         repairs, (G_rod, G_cone) = levels.repairs, levels.goal
         rows = WorkingRows(be, source, scale, max(1, band_px // max(w, 1)))
         flare, eff["flare"] = fx.flare_stream((h, w), G_rod, G_cone, rows.get, band_px,
@@ -480,7 +538,7 @@ class Tonemapper:
         if own_chroma:
             goal, src = fx.illuminant_goal(illuminant, lambda: np.asarray(levels.illuminant())[:3])
             gains, eff["chromatic_adaptation"] = fx.chromatic(
-                self._state.extra, goal, src, dt, fresh, self.preadapt is not None)
+                self._state.extra, goal, src, dt, fresh, self.preadapt is not None, G_cone)
         if flare is None and purk is None and gains is None:
             return source, scale, None, []
         sweep = []
@@ -505,10 +563,13 @@ class Tonemapper:
             which = [n for n, c in registry().items() if "spectral" in c.inputs]
             raise ValueError(f"operator {self.operator_name} takes RGB frames; spectral "
                              f"input needs --operator {' or '.join(which)}")
-        fx = self.effects.s
-        if fx.flare != "off" or fx.chromatic_adaptation != "off" or fx.purkinje != "off":
+        fx = self.effects.settings
+        if "on" in (fx.flare, fx.chromatic_adaptation, fx.purkinje):
             raise ValueError("flare, chromatic adaptation and the Purkinje effect need RGB "
                              "input; switch them off for spectral frames")
+        # on auto they are left out of spectral frames; acuity (display slot) runs
+        self.effects.begin_frame({"acuity": 1.0})
+        self._frame_plan = {}
         pix = np.ascontiguousarray(frame, np.float32)
         lam = np.asarray(wavelengths, np.float64)
         if pix.ndim != 3 or pix.shape[2] != len(lam) or len(lam) < 2:
@@ -534,16 +595,21 @@ class Tonemapper:
         where the schedule cannot put it on the cone signals. Returns the frame to tone
         map (cd/m^2 with scale 1 when changed) and the repairs of the original."""
         fx = self.effects
+        fx.begin_frame(None)
+        self._frame_plan = {}
         own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
         scene_plugins = fx.slot_plugins("scene")
-        if fx.s.flare == "off" and fx.s.purkinje == "off" and not own_chroma \
-                and not scene_plugins:
+        if not self.plan.active and fx.s.flare == "off" and fx.s.purkinje == "off" \
+                and not own_chroma and not scene_plugins:
             return pix, scale, None
         # the flare whole on the device: the working frame and the flared one stay there
         # (one upload, no round trip; the operator's colour stage copies it on the device)
-        on_dev = pix.shape[2] == 3 and fx.flare_on_device(*pix.shape[:2])
-        rgb, repairs, (G_rod, G_cone), estimate, _ = self.backend.working(
-            pix, scale, self.metering, own_chroma, on_device=on_dev)
+        h, w = pix.shape[:2]
+        on_dev = pix.shape[2] == 3 and fx.settings.flare != "off" and fx.flare_on_device(h, w)
+        levels = self.backend.working(pix, scale, self.metering, own_chroma, on_device=on_dev,
+                                      proxy_stride=self.plan.proxy_stride(h, w))
+        rgb, repairs, (G_rod, G_cone), estimate = levels[:4]
+        self._begin_plan(levels, lambda a, b: pix[a:b], h, w, scale, dt, fresh)
         changed = False
         new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)
         if new is not None:
@@ -562,7 +628,7 @@ class Tonemapper:
         if own_chroma:
             goal, src = fx.illuminant_goal(illuminant, estimate)
             gains, eff["chromatic_adaptation"] = fx.chromatic(
-                self._state.extra, goal, src, dt, fresh, self.preadapt is not None)
+                self._state.extra, goal, src, dt, fresh, self.preadapt is not None, G_cone)
             if gains is not None:
                 rgb, changed = (rgb * gains).astype(np.float32), True
         if not changed:

@@ -59,7 +59,8 @@ def dark_adaptation_thresholds(preadapt_seconds: float, times_s, operator: str =
     the switch from ``preadapt_cd`` (held ``preadapt_seconds``; E = L x t, Eq. 16)."""
     from ocl_tonemap.pipeline import Tonemapper
     scene = target_scene(background, targets)
-    tm = Tonemapper(operator, backend, preadapt=(preadapt_cd, preadapt_seconds), options=options)
+    tm = Tonemapper(operator, backend, preadapt=(preadapt_cd, preadapt_seconds), options=options,
+                    model="none")
     tm.process(scene, time_s=0.0)
     L_d = tm.op.settings.display_adapt_cd or 0.4 * tm.display.white_cd
     min_step = WEBER * L_d / tm.display.unit_cd

@@ -37,6 +37,7 @@ class Levels(NamedTuple):
     goal: tuple[float, float]          # (G_rod, G_cone), cd/m^2
     illuminant: Callable[[], np.ndarray] | None   # the grey-world estimate, made when called
     max_Y: float | None = None         # the largest working luminance, where known
+    proxy: np.ndarray | None = None    # s x s block means of rgb (float64), where asked
 
 
 class Schedule(Protocol):
@@ -86,12 +87,15 @@ class Backend(Protocol):
     def schedule(self, op) -> Schedule: ...
 
     def working(self, pixels: np.ndarray, scale: float, spec: MeteringSpec,
-                illuminant: bool = True, on_device: bool = False) -> Levels:
+                illuminant: bool = True, on_device: bool = False,
+                proxy_stride: int = 0) -> Levels:
         """Colour stage and metering of a whole frame (``on_device``: ``rgb`` may stay
-        on the device, for scene effects that run there)."""
+        on the device, for scene effects that run there; ``proxy_stride`` s > 0: the
+        means of the frame's s x s blocks, ``models.metering.block_means``, in the
+        same pass)."""
 
     def scene_levels(self, source, scale: float, spec: MeteringSpec,
-                     illuminant: bool) -> Levels:
+                     illuminant: bool, proxy_stride: int = 0) -> Levels:
         """Colour stage and metering of a band source (``source[y0:y1]``), without
         keeping its pixels: ``rgb`` is None."""
 

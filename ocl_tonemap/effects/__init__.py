@@ -21,11 +21,14 @@ Purkinje and chromatic gains: pointwise), acuity blurs the display bands on
 their way out (``acuity.BandedAcuity``); the values are the whole frame's
 (flare ``exact`` streams as ``fast``). Effect plugins see whole frames.
 
-Each takes ``on | off | auto``. ``auto`` runs an effect only where the frame
-needs it (light sources present; cut-off frequency below the pixel frequency;
-illuminant away from the working white by more than 1%; rods active), so its
-output equals ``on`` and frames that do not need it cost nothing. Which effects
-ran, and with what, is returned per frame for the metadata.
+Each takes ``on | off | auto``. ``auto`` leaves the choice to the frame's
+mechanism plan (``ocl_tonemap/mechanisms/``): flare, acuity and the Purkinje
+shift are skipped where their predicted effect, summed over what is skipped,
+stays within one JND (Delta E ITP) of running them, and blended in or out over a
+tenth of a second; chromatic adaptation applies its degree of adaptation. The
+defaults come from ``--model`` (:data:`MODEL_DEFAULTS`): ``auto`` (every effect
+the operator can take on ``auto``), ``full`` (all ``on``), ``none`` (the operator
+alone). Which effects ran, and with what, is returned per frame for the metadata.
 
 :data:`REGISTRY` lists them; a separately installed package may add effects in
 the ``ocl_tonemap.effects`` entry-point group (a module or object with ``NAME``,
@@ -51,6 +54,10 @@ from . import flare as _flare
 from . import purkinje as _purkinje
 
 MODES = ("on", "off", "auto")
+#: --model -> the mode of every effect the operator can take (a mode given wins).
+MODEL_DEFAULTS = {"auto": "auto", "full": "on", "none": "off"}
+#: The effects, by EffectSettings field.
+EFFECT_FIELDS = ("flare", "acuity", "chromatic_adaptation", "purkinje")
 SLOTS = ("scene", "receptor", "display")
 #: Default angular width of the image, degrees (the paper's 50-degree example, Sec. 8).
 DEFAULT_FOV = 50.0
@@ -84,9 +91,12 @@ class EffectSettings:
     flare_threshold: float = fl.DEFAULT_THRESHOLD
     flare_per_octave: int = 1
     illuminant: str | None = None
+    #: The papers' literal forms (``--mode paper``): complete chromatic adaptation to
+    #: the frame's grey world (Eq. 6), Shaler's table indexed by L_waR itself.
+    paper: bool = False
 
     def __post_init__(self):
-        for k in ("flare", "acuity", "chromatic_adaptation", "purkinje"):
+        for k in EFFECT_FIELDS:
             if getattr(self, k) not in MODES:
                 raise ValueError(f"--{k.replace('_', '-')} must be on, off or auto "
                                  f"(got {getattr(self, k)!r})")
@@ -102,18 +112,24 @@ class EffectSettings:
             parse_illuminant(self.illuminant)
 
     @classmethod
-    def for_operator(cls, operator: str, **given) -> "EffectSettings":
-        """Defaults: the operator's ``default_effects`` (durand00, whose paper they
-        come from, runs flare, acuity and chromatic adaptation on ``auto``); the
-        others leave them off unless asked."""
+    def for_operator(cls, operator: str, model: str = "auto", paper: bool = False,
+                     **given) -> "EffectSettings":
+        """Defaults of ``--model`` (:data:`MODEL_DEFAULTS`) for the effects the operator
+        can take (kirk11 models the Purkinje shift itself); ``paper`` (``--mode
+        paper``): the paper's operator alone, effects off, complete chromatic
+        adaptation when asked for. A value given wins."""
         from ..operators import get_operator
-        base = replace(cls(), **get_operator(operator).default_effects)
+        if model not in MODEL_DEFAULTS:
+            raise ValueError(f"--model must be one of {', '.join(MODEL_DEFAULTS)} (got {model!r})")
+        mode = "off" if paper else MODEL_DEFAULTS[model]
+        takes = [k for k in EFFECT_FIELDS if k not in get_operator(operator).own_effects]
+        base = replace(cls(), **{k: mode for k in takes},
+                       paper=paper)
         return replace(base, **{k: v for k, v in given.items() if v is not None})
 
     @property
     def any(self) -> bool:
-        return any(getattr(self, k) != "off"
-                   for k in ("flare", "acuity", "chromatic_adaptation", "purkinje"))
+        return any(getattr(self, k) != "off" for k in EFFECT_FIELDS)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -142,7 +158,12 @@ class Effects:
         return None if dev is None else dev.blur
 
     def __init__(self, settings: EffectSettings, backend, plugins=()):
-        self.s = settings
+        self.s = self.settings = settings
+        #: This frame's plan weights of the gated effects (field -> 0..1) and the
+        #: scene analysis's illuminant estimate (rgb, CCT, confidence), set by
+        #: :meth:`begin_frame`.
+        self.weights: dict = {}
+        self.estimate = None
         self.backend = backend
         self._blur_pixels = backend.max_band_pixels
         self.user_illuminant = parse_illuminant(settings.illuminant) if settings.illuminant else None
@@ -155,6 +176,26 @@ class Effects:
                              f"{', '.join(sorted(found)) or 'none'})")
         self.plugins = [found[p] for p in plugins]
 
+    def begin_frame(self, weights: dict | None, estimate=None) -> None:
+        """This frame's plan: ``weights`` (mechanism -> 0..1, ``mechanisms.planner``)
+        switch the gated effects on ``auto`` on or off for the frame and blend them
+        in; ``estimate``: the analysis's (illuminant rgb, CCT, confidence)."""
+        from ..mechanisms.planner import GATED
+        self.estimate = estimate
+        if not weights:
+            self.s, self.weights = self.settings, {}
+            return
+        modes, self.weights = {}, {}
+        for mech, field in GATED.items():
+            if getattr(self.settings, field) == "auto":
+                w = float(weights.get(mech, 0.0))
+                modes[field] = "on" if w > 0.0 else "off"
+                self.weights[field] = w
+        self.s = replace(self.settings, **modes)
+
+    def weight(self, field: str) -> float:
+        return self.weights.get(field, 1.0)
+
     def slot_plugins(self, slot: str):
         return [p for p in self.plugins if p.SLOT == slot]
 
@@ -162,7 +203,13 @@ class Effects:
         """(new rgb or None, info) for one frame in cd/m^2 (``rgb`` may be a device image
         where :meth:`flare_on_device`: the new one is then one too)."""
         self._make_flare_device()
-        return _flare.run(self.s, rgb, G_rod, G_cone, self._blur, self._flare_dev)
+        new, info = _flare.run(self.s, rgb, G_rod, G_cone, self._blur, self._flare_dev)
+        w = self.weight("flare")
+        if new is not None and w < 1.0:       # blended in or out (the plan's ramp)
+            old = np.asarray(rgb, np.float32)[..., :3]
+            new = (old + w * (np.asarray(new, np.float32) - old)).astype(np.float32)
+            info["weight"] = w
+        return new, info
 
     def _make_flare_device(self) -> None:
         if self.s.flare != "off" and self.s.flare_method == "fast" and \
@@ -179,23 +226,35 @@ class Effects:
                  dt: float = 0.0, fresh: bool = True, preadapt=None):
         self._make_purkinje_device()
         return _purkinje.run(self.s, rgb, G_rod, G_cone, extra, dt, fresh, preadapt,
-                             self._purkinje_dev)
+                             self._purkinje_dev, self.weight("purkinje"))
 
     def _make_purkinje_device(self) -> None:
         if self.s.purkinje != "off" and self._purkinje_dev is None:
             self._purkinje_dev = self.backend.purkinje_device()
 
     def illuminant_goal(self, frame_hint, estimate_fn):
-        """(normalised rgb, source): user value > frame metadata > estimate."""
-        return _chromatic.illuminant_goal(self.user_illuminant, frame_hint, estimate_fn)
+        """(normalised rgb, source): user value > frame metadata > estimate (the
+        scene analysis's bounded one; with ``paper``, the paper's: the backend's
+        grey world ``estimate_fn``)."""
+        est = estimate_fn
+        if self.estimate is not None and not self.s.paper:
+            est = lambda: self.estimate[0]                 # noqa: E731
+        return _chromatic.illuminant_goal(self.user_illuminant, frame_hint, est)
 
     def chromatic(self, extra: dict, goal, source: str, dt: float, fresh: bool,
-                  preadapted: bool):
-        """Advance the illuminant state; returns (gains or None, info)."""
-        return _chromatic.run(self.s, extra, goal, source, dt, fresh, preadapted)
+                  preadapted: bool, L_A: float | None = None):
+        """Advance the illuminant state; returns (gains or None, info). ``L_A``: the
+        adapting luminance (cd/m^2) of the degree of adaptation (an estimate comes
+        with its confidence applied: ``mechanisms.analysis``)."""
+        return _chromatic.run(self.s, extra, goal, source, dt, fresh, preadapted, L_A)
 
     def acuity(self, img: np.ndarray, G_rod: float):
-        return _acuity.run(self.s, img, G_rod, self._blur)
+        out, info = _acuity.run(self.s, img, G_rod, self._blur)
+        w = self.weight("acuity")
+        if info.get("ran") and w < 1.0:
+            out = (img + w * (np.asarray(out, np.float32) - img)).astype(np.float32)
+            info["weight"] = w
+        return out, info
 
     def acuity_needed(self, G_rod: float, width: int) -> bool:
         return _acuity.needed(self.s, G_rod, width)
@@ -209,18 +268,19 @@ class Effects:
                      max_Y: float | None = None, block_pixels: int | None = None):
         """(:class:`~.flare.BandedFlare` or None, info); see :func:`.flare.stream`."""
         return _flare.stream(self.s, shape, G_rod, G_cone, rgb_rows, max_pixels, self._blur,
-                             max_Y, block_pixels)
+                             max_Y, block_pixels, self.weight("flare"))
 
     def purkinje_stream(self, G_rod: float, G_cone: float, extra: dict | None, dt: float,
                         fresh: bool, preadapt, height: int):
         """(:class:`~.purkinje.BandedPurkinje` or None, info); levels advanced."""
         self._make_purkinje_device()
         return _purkinje.stream(self.s, G_rod, G_cone, extra, dt, fresh, preadapt,
-                                self._purkinje_dev, height)
+                                self._purkinje_dev, height, self.weight("purkinje"))
 
     def acuity_stream(self, sink, G_rod: float, shape, block_pixels: int | None = None):
         """(sink, info): ``sink`` behind a :class:`~.acuity.BandedAcuity` when it blurs."""
         dev = self._device_blur
         pas = None if dev is None else \
             (lambda im, taps, axis: dev.blur_axis(im, taps, EDGE_CLAMP, axis))
-        return _acuity.stream(self.s, sink, G_rod, shape, pas, block_pixels)
+        return _acuity.stream(self.s, sink, G_rod, shape, pas, block_pixels,
+                              self.weight("acuity"))

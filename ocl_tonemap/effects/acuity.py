@@ -18,17 +18,22 @@ NEEDS = ("scotopic level", "field of view", "blur")
 HELP = "loss of acuity in the dark (Shaler 1937)"
 
 
+def _mode(settings) -> str:
+    """Shaler's table read in Shlaer's photometric units, or literally (``paper``)."""
+    return "paper" if settings.paper else "default"
+
+
 def needed(settings, G_rod: float, width: int) -> bool:
     """Whether a frame of ``width`` pixels at ``G_rod`` gets any blur."""
     return settings.acuity != "off" and \
-        float(acuity_blend(acuity_a_px(G_rod, settings.fov_deg, width))) > 0
+        float(acuity_blend(acuity_a_px(G_rod, settings.fov_deg, width, mode=_mode(settings)))) > 0
 
 
 def report(settings, G_rod: float, width: int) -> dict:
     """What :func:`run` reports for a frame it does not blur (``needed`` False)."""
     if settings.acuity == "off":
         return {"ran": False}
-    info = acuity_info(G_rod, settings.fov_deg, width)
+    info = acuity_info(G_rod, settings.fov_deg, width, mode=_mode(settings))
     info["ran"] = info["blend"] > 0
     return info
 
@@ -37,7 +42,7 @@ def run(settings, img: np.ndarray, G_rod: float, blur=None):
     if settings.acuity == "off":
         return img, {"ran": False}
     dev = None if blur is None else (lambda im, taps: blur(im, taps, EDGE_CLAMP))
-    out, info = apply_acuity(img, G_rod, settings.fov_deg, dev)
+    out, info = apply_acuity(img, G_rod, settings.fov_deg, dev, mode=_mode(settings))
     info["ran"] = info["blend"] > 0
     return out, info
 
@@ -98,7 +103,8 @@ class BandedAcuity:
         return self.sent >= self.h
 
 
-def stream(settings, sink, G_rod: float, shape, blur_axis=None, block_pixels: int | None = None):
+def stream(settings, sink, G_rod: float, shape, blur_axis=None, block_pixels: int | None = None,
+           weight: float = 1.0):
     """(sink, info) for a frame in row bands: ``sink`` itself when nothing blurs,
     else a :class:`BandedAcuity` in front of it (``blur_axis(img, taps, axis)``:
     one pass of the device blur, clamped), sending rows on ``block_pixels`` at a
@@ -106,7 +112,7 @@ def stream(settings, sink, G_rod: float, shape, blur_axis=None, block_pixels: in
     their radius)."""
     if settings.acuity == "off":
         return sink, {"ran": False}
-    info = acuity_info(G_rod, settings.fov_deg, int(shape[1]))
+    info = acuity_info(G_rod, settings.fov_deg, int(shape[1]), mode=_mode(settings))
     info["ran"] = info["blend"] > 0
     if not info["ran"]:
         return sink, info
@@ -114,4 +120,4 @@ def stream(settings, sink, G_rod: float, shape, blur_axis=None, block_pixels: in
     R = len(taps) - 1
     band = int(block_pixels or 0) // max(1, int(shape[1]))
     rows = min(4 * R, max(band, min(2 * R, 2 * band)))
-    return BandedAcuity(sink, shape, taps, info["blend"], blur_axis, rows), info
+    return BandedAcuity(sink, shape, taps, info["blend"] * float(weight), blur_axis, rows), info

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.durand2000 import (chromatic_step, normalise_illuminant, plausible_illuminant,
+from ..models.durand2000 import (cct_duv, chromatic_step, degree_of_adaptation,
+                                 normalise_illuminant, partial_illuminant, plausible_illuminant,
                                  von_kries_gains)
 
 NAME = "chromatic_adaptation"
@@ -34,10 +35,20 @@ def illuminant_goal(user_illuminant, frame_hint, estimate_fn):
     return plausible_illuminant(estimate_fn()), "estimate"
 
 
-def run(settings, extra: dict, goal, source: str, dt: float, fresh: bool, preadapted: bool):
-    """Advance the illuminant state; returns (gains or None, info)."""
+def run(settings, extra: dict, goal, source: str, dt: float, fresh: bool, preadapted: bool,
+        L_A: float | None = None):
+    """Advance the illuminant state; returns (gains or None, info). The state is the
+    white the eye adapts to: the goal moved toward the working white by the degree
+    of adaptation D (``degree_of_adaptation``: CAM16's D at ``L_A`` cd/m^2, less for
+    warm light; 1 with
+    ``paper``, the paper's Eq. 6, or without ``L_A``)."""
     if settings.chromatic_adaptation == "off":
         return None, {"ran": False}
+    full = np.asarray(goal, np.float64)
+    D = 1.0
+    if not settings.paper and L_A is not None:
+        D = degree_of_adaptation(L_A, cct_duv(full)[0])
+    goal = partial_illuminant(full, D)
     prev = extra.get(STATE_KEY)
     if fresh or prev is None:
         illum = np.ones(3) if preadapted else np.asarray(goal, np.float64)
@@ -47,6 +58,7 @@ def run(settings, extra: dict, goal, source: str, dt: float, fresh: bool, preada
     g = von_kries_gains(illum)
     ran = settings.chromatic_adaptation == "on" or \
         float(np.max(np.abs(g - 1.0))) > CHROMA_AUTO_TOLERANCE
-    info = {"ran": ran, "source": source, "goal": [float(v) for v in goal],
+    info = {"ran": ran, "source": source, "estimate": [float(v) for v in full],
+            "degree": D, "goal": [float(v) for v in goal],
             "illuminant": extra[STATE_KEY], "gains": [float(v) for v in g]}
     return (g if ran else None), info

@@ -113,6 +113,7 @@ class BandedFlare:
         self.F_sum, self._swept = 0.0, 0
         self.block_rows = max(1, int(block_pixels or max_pixels) // max(w, 1))
         self._out, self._c0 = np.zeros((0, w, 3), np.float32), 0
+        self.weight = 1.0                           # the plan's weight (0..1]
 
     def _S(self, rgb):
         """The source part of working rows (float64), made a few rows at a time
@@ -170,8 +171,11 @@ class BandedFlare:
         if y0 <= self._swept < y1:                  # the first sweep: the energy kept
             self.F_sum += float(F[self._swept - y0:].sum())
             self._swept = y1
-        out -= S                                    # rgb - S + F, as apply_flare
-        out += F
+        if self.weight < 1.0:                       # the plan blends it in or out
+            out += self.weight * (F - S)
+        else:
+            out -= S                                # rgb - S + F, as apply_flare
+            out += F
         return out.astype(np.float32)
 
     def energy_in_frame(self) -> float | None:
@@ -182,7 +186,8 @@ class BandedFlare:
 
 
 def stream(settings, shape, G_rod: float, G_cone: float, rgb_rows, max_pixels: int,
-           blur=None, max_Y: float | None = None, block_pixels: int | None = None):
+           blur=None, max_Y: float | None = None, block_pixels: int | None = None,
+           weight: float = 1.0):
     """(:class:`BandedFlare` or None, info) for a frame in row bands: the info of
     :func:`run` (``energy_in_frame`` once the frame has been swept: see
     :meth:`BandedFlare.energy_in_frame`). ``max_Y``: the frame's largest luminance
@@ -193,6 +198,7 @@ def stream(settings, shape, G_rod: float, G_cone: float, rgb_rows, max_pixels: i
     if settings.flare == "auto" and max_Y is not None and max_Y <= lim * (1.0 - 1e-5):
         return None, {"ran": False, "reason": "no light sources"}
     bf = BandedFlare(settings, shape, G_rod, G_cone, rgb_rows, max_pixels, blur, block_pixels)
+    bf.weight = float(weight)
     bf.build()
     if settings.flare == "auto" and bf.sources == 0:
         return None, {"ran": False, "reason": "no light sources"}

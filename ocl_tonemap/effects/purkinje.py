@@ -75,14 +75,16 @@ def _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt):
 
 
 def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
-        dt: float = 0.0, fresh: bool = True, preadapt=None, device=None):
+        dt: float = 0.0, fresh: bool = True, preadapt=None, device=None, weight: float = 1.0):
     """(new rgb or None, info): the kirk11 shift applied to chromaticity only (each
     pixel keeps its Y), its strength from the shared receptor scheduler: the
     adapted scotopic level and the rods' dark adaptation (``extra`` keeps the
-    levels in the adaptation state; without it, steady state at the frame)."""
+    levels in the adaptation state; without it, steady state at the frame).
+    ``weight``: the plan's weight, scaling the rods' share (blending in or out)."""
     if settings.purkinje == "off":
         return None, {"ran": False}
     lv, sens = _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt)
+    sens *= float(weight)
     out, info = apply_purkinje(rgb, lv["A_rod"], lv["A_cone"], device, sens)
     info.update({"A_rod": lv["A_rod"], "rod_sensitivity": sens})
     if settings.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
@@ -114,13 +116,15 @@ class BandedPurkinje:
 
 
 def stream(settings, G_rod: float, G_cone: float, extra: dict | None = None, dt: float = 0.0,
-           fresh: bool = True, preadapt=None, device=None, height: int = 1):
+           fresh: bool = True, preadapt=None, device=None, height: int = 1,
+           weight: float = 1.0):
     """(:class:`BandedPurkinje` or None, info) for a frame in row bands: the levels
     advanced as :func:`run` advances them, the shift left to the bands (the info's
     ``fallback_fraction`` once every row has been shifted)."""
     if settings.purkinje == "off":
         return None, {"ran": False}
     lv, sens = _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt)
+    sens *= float(weight)
     k1, _, gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), lv["A_rod"])
     k1, gain = k1 * sens, gain * sens
     info = ({"rod_gain": 0.0, "fallback_fraction": 0.0} if gain <= 0.0 else

@@ -135,6 +135,10 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, fin: FrameInput, info,
         "ocltm:effects": json.dumps(info.effects, sort_keys=True, default=float),
         "ocltm:effects_ran": ",".join(k for k, v in info.effects.items() if v.get("ran")) or "none",
     }
+    if info.plan:
+        meta["ocltm:plan"] = json.dumps(info.plan["weights"], sort_keys=True)
+        meta["ocltm:plan_detail"] = json.dumps(
+            {k: v for k, v in info.plan.items() if k != "weights"}, sort_keys=True, default=float)
     if fr.channel_note:
         meta["ocltm:channels"] = fr.channel_note
     if alpha:

@@ -71,6 +71,7 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
     t_prev = tm.state.time_s
     n = len(jobs)
     rows_of: dict = {}
+    said: dict = {}                    # the last plan said (-v)
     if opts.cuts == "detect":
         raise ValueError("--cuts detect finds cuts in the shot's statistics: it needs the "
                          "measure and integrate passes (ocl-tonemap measure / integrate / "
@@ -121,6 +122,7 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
             if info.repairs.total:
                 log.warning("%s%s: repaired bad values (%s)", inp,
                             "" if f is None else f" frame {f}", info.repairs.summary())
+            _say_plan(info, f, inp, said)
             result.repairs += info.repairs
             result.frames.append(f)
             result.outputs.append(outp)
@@ -272,3 +274,16 @@ def _progress(done: int, total: int, elapsed: float) -> None:
     sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames "
                      f"{rate:5.1f} fps")
     sys.stderr.flush()
+
+
+def _say_plan(info, f, inp, said: dict) -> None:
+    """``-v``: the mechanism plan where it changes (the frame and the weights that
+    changed; ``said`` keeps the last one)."""
+    w = (info.plan or {}).get("weights")
+    if not w or said.get("w") == w:
+        return
+    prev = said.get("w") or {}
+    changed = {m: v for m, v in w.items() if prev.get(m) != v}
+    log.info("%s%s: plan %s", inp, "" if f is None else f" frame {f}",
+             ", ".join(f"{m} {v:g}" for m, v in changed.items()))
+    said["w"] = dict(w)

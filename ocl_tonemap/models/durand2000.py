@@ -272,6 +272,65 @@ def plausible_illuminant(rgb) -> np.ndarray:
     return xy_to_rgb(x, y)
 
 
+def cct_duv(rgb) -> tuple[float, float]:
+    """CCT (K) and Duv (Ohno 2013) of a working-RGB colour."""
+    from .planckian import uv_to_CCT_Duv
+    XYZ = RGB709_TO_XYZ @ np.asarray(rgb, np.float64)
+    if not (XYZ.sum() > 0):
+        return 6504.0, 0.0
+    x, y = XYZ[:2] / XYZ.sum()
+    d = -2.0 * x + 12.0 * y + 3.0                      # xy -> CIE 1960 (u, v)
+    cct, duv = uv_to_CCT_Duv((4.0 * x / d, 6.0 * y / d))
+    return float(cct), float(duv)
+
+
+def illuminant_estimate(rgb: np.ndarray, source_limit: float | None = None):
+    """The frame's illuminant, bounded (docs/models.md, "Chromatic adaptation"):
+    the luminance-weighted grey world of :func:`illuminant_estimate_reference` over
+    the pixels at most ``source_limit`` cd/m^2 (light sources left out: a setting
+    sun must not be taken for the light on the scene), held to the Planckian band
+    (:func:`plausible_illuminant`). Returns (normalised rgb, CCT in K, confidence):
+    the confidence falls as the unbounded estimate leaves the locus,
+    exp(-(Duv / ESTIMATE_DUV_MAX)^2 / 2), 1 on the locus, 0.61 at the band's edge."""
+    rgb = np.asarray(rgb, np.float64).reshape(-1, 3)
+    Y = rgb @ Y_WEIGHTS
+    keep = Y <= source_limit if source_limit is not None else np.ones(len(Y), bool)
+    if not keep.any() or not (Y[keep].sum() > 0):
+        keep = np.ones(len(Y), bool)
+    raw = illuminant_estimate_reference(rgb[keep])
+    est = plausible_illuminant(raw)
+    _, duv = cct_duv(raw)
+    cct, _ = cct_duv(est)
+    conf = math.exp(-0.5 * (duv / ESTIMATE_DUV_MAX) ** 2)
+    return est, cct, conf
+
+
+#: Incomplete adaptation to warm light: full at and above FULL_ADAPT_CCT, none at
+#: NO_ADAPT_CCT and below, linear in mired (1e6 / CCT) between (docs/models.md).
+FULL_ADAPT_CCT = 5000.0
+NO_ADAPT_CCT = 2000.0
+
+
+def degree_of_adaptation(L_A: float, cct: float, confidence: float = 1.0,
+                         surround_F: float = 1.0) -> float:
+    """How far the eye adapts to an illuminant, 0..1: CAM16's D (Li et al. 2017,
+    Eq. 5: F (1 - (1/3.6) exp((-L_A - 42) / 92)), L_A the adapting luminance in
+    cd/m^2, F = 1 for an average surround) times the share kept for a warm
+    illuminant (:data:`FULL_ADAPT_CCT`, :data:`NO_ADAPT_CCT`; Chen & Wei 2019 find
+    D lower at 2700 and 3500 K) times the estimate's confidence."""
+    D = surround_F * (1.0 - math.exp((-max(float(L_A), 0.0) - 42.0) / 92.0) / 3.6)
+    m, m_full, m_none = 1e6 / max(cct, 1.0), 1e6 / FULL_ADAPT_CCT, 1e6 / NO_ADAPT_CCT
+    warm = min(1.0, max(0.0, (m_none - m) / (m_none - m_full)))
+    return float(min(1.0, max(0.0, D * warm * confidence)))
+
+
+def partial_illuminant(illum, D: float) -> np.ndarray:
+    """The white the eye adapts to with degree ``D``: gains 1 / result are CAT16's
+    D / illum + (1 - D) (Li et al. 2017, Eq. 6), normalised."""
+    g = D / np.asarray(illum, np.float64) + (1.0 - D)
+    return normalise_illuminant(1.0 / g)
+
+
 def chromatic_step(illum, goal, dt: float) -> np.ndarray:
     """Exponential filter of (r_wa, g_wa, b_wa) toward the goal, tau = 5 s (exact)."""
     return normalise_illuminant([exponential_step(float(a), float(g), dt, TAU_CHROMA)

@@ -228,3 +228,30 @@ def reference_goal(Y: np.ndarray, Ys: np.ndarray, spec: MeteringSpec,
     if spec.mode == "percentile":
         return (float(np.percentile(Ys, spec.percentile)), float(np.percentile(Y, spec.percentile)))
     return reference_sums(Y, Ys, spec, w, h, 0, mask).goal(spec)
+
+
+def block_sums(rgb: np.ndarray, s: int, y0: int = 0) -> tuple[np.ndarray, int]:
+    """Sums of rgb and pixel counts over the s x s blocks of the full frame that rows
+    ``y0 ..`` of it reach (the reference of ``metering.cl:block_sums``): returns
+    (nb x bw x 4 array of (r, g, b, count), first block row)."""
+    rgb = np.asarray(rgb, np.float64)[..., :3]
+    rows, w = rgb.shape[:2]
+    by0, by1 = y0 // s, (y0 + rows - 1) // s + 1
+    bw = -(-w // s)
+    out = np.zeros((by1 - by0, bw, 4))
+    ys = (np.arange(rows) + y0) // s - by0
+    xs = np.arange(w) // s
+    col = np.zeros((rows, bw, 3))
+    np.add.at(col, (slice(None), xs), rgb)           # along x: rows x bw
+    cnt = np.bincount(xs, minlength=bw).astype(np.float64)
+    for k in range(by1 - by0):
+        sel = ys == k
+        out[k, :, :3] = col[sel].sum(axis=0)
+        out[k, :, 3] = cnt * int(sel.sum())
+    return out, by0
+
+
+def block_means(rgb: np.ndarray, s: int) -> np.ndarray:
+    """The frame's proxy: the means of its s x s blocks (the last ones partial)."""
+    sums, _ = block_sums(rgb, s)
+    return sums[..., :3] / np.maximum(sums[..., 3:], 1.0)

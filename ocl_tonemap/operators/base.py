@@ -153,8 +153,9 @@ class Operator:
     inputs = ("rgb",)
     #: "frame": metered with the run's --metering spec; "local": adapts per pixel.
     metering = "frame"
-    #: effect -> mode when the user gives none (durand00: its paper's effects on auto).
-    default_effects: dict = {}
+    #: effects this operator models itself (not offered as an effect: kirk11's
+    #: Purkinje shift).
+    own_effects: tuple = ()
     #: backend name -> "module:Class" of the schedule running this operator; the
     #: pointwise schedules are used where none is named.
     schedules: dict = {}

@@ -1,6 +1,6 @@
 """durand00: Durand & Dorsey 2000, Ferwerda's threshold operator made time-dependent,
 with the mesopic blue shift; its paper's effects (flare, acuity, chromatic
-adaptation) run on ``auto``.
+adaptation) are the effects every operator can take (``effects/``).
 
 The model is ``models/durand2000.py`` (with ``models/ferwerda1996.py``); this
 module declares the operator and packs the frame's scalars for
@@ -45,7 +45,6 @@ class Durand00(ModelOperator):
                type=int, default=0, metavar="N", check=_lut_check),
     )
     state = StateSpec(scalars=("inv_eps_rod", "inv_eps_cone", "L_waR", "L_wa"))
-    default_effects = {"flare": "auto", "acuity": "auto", "chromatic_adaptation": "auto"}
     stages = (
         COLOUR_STAGE, METER_STAGE,
         Stage("adapt", "state", "1/eps filtered with tau 0.4 s (rods), 0.1 s (cones), Sec. 3.3",

@@ -49,6 +49,7 @@ class Kirk11(Operator):
                    "bilateral range reduction, mesopic dimming")
     citation = ("Kirk & O'Brien, Perceptually Based Tone Mapping for Low-Light Conditions, "
                 "ACM TOG 30(4), SIGGRAPH 2011")
+    own_effects = ("purkinje",)
     options = (
         MODE_OPTION, *BILATERAL_OPTIONS,
         Option("kappa", "--kappa", "rod mixing: following the frame's mesopic level (default; "

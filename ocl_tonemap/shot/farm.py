@@ -153,8 +153,10 @@ def _check_splittable(opts) -> None:
     """Refuse, at submission, a run the passes cannot split (``Tonemapper.check_measure_only``),
     checked on the float64 reference backend (no OpenCL needed to submit)."""
     from ..pipeline import Tonemapper
-    Tonemapper(opts.operator, "reference", options=opts.operator_options,
-               effects=opts.effects, quality=opts.quality).check_measure_only()
+    tm = Tonemapper(opts.operator, "reference", options=opts.operator_options,
+                    effects=opts.effects, quality=opts.quality)
+    tm.leave_out_unsplittable()            # as the passes do (passes.split_options)
+    tm.check_measure_only()
 
 
 def write_template(fmt: str, opts, run_tokens: list[str], job_file: str,

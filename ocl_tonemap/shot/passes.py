@@ -26,7 +26,12 @@ that backend is within 1e-6 instead).
 Not split: effects that change the pixels before they are metered from their own
 time course (``--purkinje``, chromatic adaptation on the scene for operators
 without receptor gains) -- ``Tonemapper.check_measure_only`` refuses them with
-the serial alternative.
+the serial alternative when they are asked for (``on``); on ``auto`` (the
+default model) the passes leave them out (:func:`split_options`, said once).
+
+The mechanism plan (``mechanisms/``) is split as the state is: the measure pass
+stores each frame's predictions, the integrate pass advances the weights over
+them (``Tonemapper.advance_plan``) into the state, and apply starts from it.
 
 Scene cuts (``--cuts FILE`` or ``--cuts detect``): the observer starts afresh at
 each cut frame (``Tonemapper.reset_adaptation``), in the serial run as here.
@@ -190,12 +195,28 @@ def _shot_constants(opts, jobs, run, tm, store: ShotStore):
     return fps, auto
 
 
+def split_options(opts):
+    """``opts`` with the effects the passes cannot split switched off where they are on
+    ``auto`` (``Tonemapper.leave_out_unsplittable``); those asked for ``on`` stay, for
+    ``check_measure_only`` to refuse."""
+    from ..pipeline import Tonemapper
+    tm = Tonemapper(opts.operator, "reference", options=opts.operator_options,
+                    effects=opts.effects, quality=opts.quality)
+    left = tm.leave_out_unsplittable()
+    if not left:
+        return opts
+    log.info("shot passes: %s left out (their own time course changes the frame before "
+             "it is metered; a serial run has them)", ", ".join(left))
+    return dataclasses.replace(opts, effects=tm.effects.settings)
+
+
 def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
     """The measure pass over the frames of ``chunk`` (all: None): each frame's
     statistics into the store; frames already there are skipped unless ``redo``
     (a retried task does not measure them again) unless ``redo`` or the input file
     changed since (size, modification time); new statistics invalidate an earlier
     integrate. Returns the frames measured."""
+    opts = split_options(opts)
     jobs = shot_jobs(opts)
     todo = chunk_jobs(jobs, chunk)
     state = load_state_in(opts)
@@ -231,6 +252,10 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
             illum = stats.illuminant() if (want_illum and stats.illuminant) else None
             doc = stats_document(stats, illum, hint, t, held, inp)
             doc["input_stat"] = input_stat
+            plan = tm._frame_plan
+            if plan:
+                doc["plan"] = {"predicted": plan["predicted_dE_p99"],
+                               "G_cone": plan["analysis"]["G_cone"]}
             store.write_stats(f, doc, tm.schedule.stats_planes(stats))
         except FrameError:
             raise
@@ -265,6 +290,8 @@ def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None) -> None:
             tm.remember(AUTO_SCALE_KEY, float(auto))
         time_s, dt, fresh = tm.frame_clock(None, float(doc["time_s"]))
         tm.integrate(stats, time_s, f, dt, fresh, hint, {})
+        if doc.get("plan"):
+            tm.advance_plan(doc["plan"]["predicted"], doc["plan"]["G_cone"], dt, fresh)
         if after is not None:
             after(k, f)
 
@@ -273,6 +300,7 @@ def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
     """The integrate pass: the state after every frame of the shot into the store
     (local operators: per-pixel keyframes every ``keyframe_every`` frames and at
     the last). Needs every frame measured. Returns the integrate record."""
+    opts = split_options(opts)
     jobs = shot_jobs(opts)
     frames = [j[0] for j in jobs]
     store = ShotStore(store_path)
@@ -337,6 +365,7 @@ def start_state(opts, store: ShotStore, jobs, k0: int, integ: dict):
 def apply(opts, store_path: str, chunk=None):
     """The apply pass over ``chunk`` (all: None): the serial run over its frames
     from the integrated state. Returns the run's JobResult."""
+    opts = split_options(opts)
     jobs = shot_jobs(opts)
     frames = [j[0] for j in jobs]
     store = ShotStore(store_path)

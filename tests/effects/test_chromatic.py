@@ -17,8 +17,8 @@ NO_FX = EffectSettings()  # all effects off
 def test_chromatic_adaptation_tungsten_to_daylight_tau_5s(backend, rt):
     grey = np.full((6, 6, 3), 500.0, np.float32)        # photopic: k = 0, no rod term
     A, D65 = fx.parse_illuminant("A"), fx.parse_illuminant("D65")
-    tm = Tonemapper("durand00", backend,
-                    effects=EffectSettings(chromatic_adaptation="on"))
+    tm = Tonemapper("durand00", backend,            # Eq. 6 taken literally: complete
+                    effects=EffectSettings(chromatic_adaptation="on", paper=True))
     tm.process(grey * A.astype(np.float32), time_s=0.0, illuminant=A)
     g0 = np.array(tm.last.effects["chromatic_adaptation"]["illuminant"])
     np.testing.assert_allclose(g0, A)
@@ -39,7 +39,8 @@ def test_illuminant_priority_and_device_estimate(rt):
     img[5:8, 5:8] = np.array([800, 500, 200], np.float32)      # a warm lamp
     est_ref = fx.illuminant_estimate_reference(img.astype(np.float64))
     for be in ("reference", "opencl"):
-        tm = Tonemapper("durand00", be, effects=EffectSettings(chromatic_adaptation="on"))
+        tm = Tonemapper("durand00", be,
+                        effects=EffectSettings(chromatic_adaptation="on", paper=True))
         tm.process(img)
         info = tm.last.effects["chromatic_adaptation"]
         assert info["source"] == "estimate"
@@ -59,7 +60,59 @@ def test_chromatic_adaptation_leaves_rods_alone():
     img = np.full((4, 4, 3), 1e-4, np.float32)
     a = Tonemapper("durand00", "reference", effects=NO_FX).process(img)
     tm = Tonemapper("durand00", "reference", effects=EffectSettings(
-        chromatic_adaptation="on", illuminant="A"))
+        chromatic_adaptation="on", illuminant="A", paper=True))
     b = tm.process(img)
     assert tm.last.effects["chromatic_adaptation"]["gains"][2] > 2.5
     np.testing.assert_allclose(a, b, rtol=0.01)
+
+
+# --- the default: a bounded estimate and partial adaptation (docs/models.md) ----------
+
+def test_degree_of_adaptation_cam16_and_warm_light():
+    """CAM16's D (Li et al. 2017): 0.82 in the dark, ~1 at 1000 cd/m^2; less for warm
+    light (none at 2000 K), less for an estimate of low confidence."""
+    assert fx.degree_of_adaptation(0.0, 6500.0) == pytest.approx(1 - math.exp(-42 / 92) / 3.6)
+    assert fx.degree_of_adaptation(1000.0, 6500.0) > 0.99
+    tungsten = fx.degree_of_adaptation(1000.0, 2856.0)
+    assert 0.4 < tungsten < 0.6
+    assert fx.degree_of_adaptation(1000.0, 2000.0) == 0.0
+    assert fx.degree_of_adaptation(1000.0, 6500.0, confidence=0.5) == pytest.approx(0.5, abs=0.01)
+    Ds = [fx.degree_of_adaptation(L, 3000.0) for L in (0.01, 1, 10, 100, 1e4)]
+    assert all(b >= a for a, b in zip(Ds, Ds[1:]))
+
+
+def test_partial_adaptation_gains_are_cat16():
+    A = fx.parse_illuminant("A")
+    for D in (0.0, 0.4, 1.0):
+        g = 1.0 / fx.partial_illuminant(A, D)
+        want = D / A + (1 - D)
+        np.testing.assert_allclose(g / g[1], want / want[1], rtol=1e-12)
+
+
+def test_estimate_leaves_light_sources_out():
+    """A setting sun in a daylight-lit scene: the grey world of the whole frame takes
+    the sun's colour, the bounded estimate (sources left out) the scene's."""
+    rng = np.random.default_rng(3)
+    img = rng.uniform(0.2, 1, (40, 60, 3)) * 50.0
+    img[2:6, 2:8] = np.array([9e5, 3e5, 2e4])                     # the sun, orange
+    whole = fx.plausible_illuminant(fx.illuminant_estimate_reference(img))
+    est, cct, conf = fx.illuminant_estimate(img, 7.0 * 50.0)
+    assert fx.cct_duv(whole)[0] < 2500.0
+    assert cct > 4500.0 and conf > 0.3
+    assert est[2] > whole[2]
+
+
+@pytest.mark.parametrize("backend", ["reference", "opencl"])
+def test_warm_scene_stays_warm_by_default(backend, rt):
+    """A sunset-like frame, every pixel warm (R > 1.3 B), at 100 and 1000 cd/m^2 with
+    the defaults: under 5% of it is shown cool (B > 1.15 R), and the sky stays
+    warmer than blue (photopic levels: the rods' blue shift is the operator's)."""
+    rng = np.random.default_rng(4)
+    base = np.array([1.0, 0.55, 0.25]) * rng.uniform(0.3, 1.0, (48, 64, 1))
+    base[:8] = [4.0, 1.6, 0.4]                                      # the glowing sky
+    for L in (100.0, 1000.0):
+        tm = Tonemapper("durand00", backend)
+        out = tm.process((base * L).astype(np.float32))
+        cool = np.mean(out[..., 2] > 1.15 * out[..., 0])
+        assert cool < 0.05, (L, cool, tm.last.effects["chromatic_adaptation"])
+        assert np.median(out[:8, :, 0]) > np.median(out[:8, :, 2])

@@ -198,4 +198,9 @@ def test_effect_settings_validation():
     with pytest.raises(ValueError):
         EffectSettings(fov_deg=0)
     assert EffectSettings.for_operator("durand00").flare == "auto"
-    assert EffectSettings.for_operator("pattanaik00").flare == "off"
+    assert EffectSettings.for_operator("pattanaik00").flare == "auto"       # --model auto
+    assert EffectSettings.for_operator("pattanaik00", "full").acuity == "on"
+    assert EffectSettings.for_operator("pattanaik00", "none").flare == "off"
+    assert EffectSettings.for_operator("kirk11").purkinje == "off"          # its own shift
+    assert EffectSettings.for_operator("durand00", paper=True).acuity == "off"
+    assert EffectSettings.for_operator("durand00", paper=True, acuity="on").paper

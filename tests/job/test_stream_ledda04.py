@@ -57,7 +57,7 @@ def test_streamed_ledda04_sequence_carries_state_and_resumes(tmp_path):
     in a spilled file between frames); the checkpoint's planes are the whole run's;
     frames 1-2 then a resume from the checkpoint give frame 3 the same again."""
     src = _shot(tmp_path)
-    common = ["--operator", "ledda04", "-q", "--out-bits", "float", "--fps", "2"]
+    common = ["--operator", "ledda04", "-q", "--out-bits", "float", "--fps", "2", "--model", "none"]
     for d in "wsr":
         (tmp_path / d).mkdir()
     assert main(["run", src, str(tmp_path / "w" / "o.####.exr"), *common,

@@ -154,7 +154,7 @@ def test_metamers_differ_only_when_scotopic(rt):
     img = np.stack([np.tile(s1, (4, 4, 1)), np.tile(s2, (4, 4, 1))], axis=0).reshape(8, 4, -1)
     for exposure, kappa, same in ((3e3, "adaptive", True), (1e-3, "full", False)):
         for be in ("reference", "opencl"):
-            tm = Tonemapper("kirk11", be, options={"kappa": kappa, "sigma_spatial": 1.0})
+            tm = Tonemapper("kirk11", be, options={"kappa": kappa, "sigma_spatial": 1.0}, model="none")
             out = tm.process((img * exposure).astype(np.float32), wavelengths=lam)
             a, b = out[1, 1], out[6, 1]
             if same:
@@ -187,8 +187,8 @@ def _rgb_scene(h=24, w=36, seed=0):
 @pytest.mark.parametrize("exposure", [100.0, 1.0, 0.01, 1e-4])
 def test_opencl_matches_reference_rgb(exposure, rt):
     img = _rgb_scene() * np.float32(exposure)
-    a = Tonemapper("kirk11", "reference").process(img)
-    tm = Tonemapper("kirk11", "opencl", options={"bilateral": "exact"})
+    a = Tonemapper("kirk11", "reference", model="none").process(img)
+    tm = Tonemapper("kirk11", "opencl", options={"bilateral": "exact"}, model="none")
     b = tm.process(img)
     np.testing.assert_allclose(b, a, rtol=1e-4, atol=1e-5)
     assert b.min() >= 0 and 0 <= tm.last.params["fallback_fraction"] <= 1
@@ -197,8 +197,8 @@ def test_opencl_matches_reference_rgb(exposure, rt):
 def test_opencl_matches_reference_spectral(rt):
     lam, spectra, _ = spectral_patches("A", 0.05)
     img = np.repeat(np.repeat(spectra.reshape(4, 6, -1), 4, 0), 4, 1).astype(np.float32)
-    a = Tonemapper("kirk11", "reference").process(img, wavelengths=lam)
-    b = Tonemapper("kirk11", "opencl").process(img, wavelengths=lam)
+    a = Tonemapper("kirk11", "reference", model="none").process(img, wavelengths=lam)
+    b = Tonemapper("kirk11", "opencl", model="none").process(img, wavelengths=lam)
     np.testing.assert_allclose(b, a, rtol=1e-4, atol=1e-5)
 
 
@@ -216,7 +216,7 @@ def test_spectral_bad_values_repaired_and_counted_on_the_device(rt):
         img[k + 3, 2 * k + 1, 28 + k % 3] = v    # the tail
     outs = {}
     for be in ("reference", "opencl"):
-        tm = Tonemapper("kirk11", be)
+        tm = Tonemapper("kirk11", be, model="none")
         outs[be] = tm.process(img, wavelengths=lam)
         counts = tm.last.repairs
         assert np.isfinite(outs[be]).all() and outs[be].min() >= 0
@@ -229,7 +229,7 @@ def test_spectral_bad_values_repaired_and_counted_on_the_device(rt):
 
 def test_dark_scenes_look_dim_and_single_exposure_control(rt):
     img = _rgb_scene()
-    means = [Tonemapper("kirk11", "opencl").process(img * np.float32(e)).mean()
+    means = [Tonemapper("kirk11", "opencl", model="none").process(img * np.float32(e)).mean()
              for e in (1e3, 1.0, 1e-3)]
     # the display anchor (the scene's key) makes night dark; --night-dim only sets
     # the contrast of scotopic against photopic pixels within a frame. (0.26 with the
@@ -252,8 +252,8 @@ def test_one_pixel_does_not_set_the_frame_compression(backend, rt):
         keep[24:37, 34:47] = False                      # the outlier's neighbourhood
         for bp, same in (((1.0, 99.0), True), ((0.0, 100.0), False)):
             o = {**opts, "base_percentiles": bp}
-            a = Tonemapper("kirk11", backend, options=o).process(img)
-            b = Tonemapper("kirk11", backend, options=o).process(odd)
+            a = Tonemapper("kirk11", backend, options=o, model="none").process(img)
+            b = Tonemapper("kirk11", backend, options=o, model="none").process(odd)
             d = np.abs(a - b)[keep].max() / a[keep].max()
             assert (d < 0.01) == same, (outlier, bp, d)   # 0.2% (the log-average) vs 77-86%
 
@@ -262,20 +262,20 @@ def test_extremes(rt):
     img = np.array([[[np.nan, 1, 1], [np.inf, -np.inf, 1], [-5, 1e-42, 1e8]],
                     [[0, 0, 0], [1e-6, 1e-6, 1e-6], [3e38, 3e38, 3e38]]], np.float32)
     for be in ("reference", "opencl"):
-        tm = Tonemapper("kirk11", be)
+        tm = Tonemapper("kirk11", be, model="none")
         out = tm.process(img)
         assert np.isfinite(out).all() and out.min() >= 0 and tm.last.repairs.total > 0
-        one = Tonemapper("kirk11", be).process(np.zeros((1, 1, 3), np.float32))
+        one = Tonemapper("kirk11", be, model="none").process(np.zeros((1, 1, 3), np.float32))
         assert np.isfinite(one).all()
 
 
 def test_spectral_input_errors():
     lam = np.arange(400.0, 701.0, 50.0)
     with pytest.raises(ValueError, match="kirk11"):
-        Tonemapper("pattanaik00", "reference").process(np.ones((2, 2, 7), np.float32),
+        Tonemapper("pattanaik00", "reference", model="none").process(np.ones((2, 2, 7), np.float32),
                                                         wavelengths=lam)
     with pytest.raises(ValueError, match="x 7"):
-        Tonemapper("kirk11", "reference").process(np.ones((2, 2, 5), np.float32),
+        Tonemapper("kirk11", "reference", model="none").process(np.ones((2, 2, 5), np.float32),
                                                    wavelengths=lam)
     with pytest.raises(ValueError):
         ko.KirkSettings(kappa="sometimes")
@@ -315,15 +315,15 @@ def test_banded_frames_match_one_band(method, rt):
     the bilateral base banded, composition on the host) and give the same image."""
     img = _rgb_scene(40, 30) * np.float32(0.05)
     opts = {"bilateral": method, "sigma_spatial": 3.0}
-    one = Tonemapper("kirk11", "opencl", options=opts).process(img)
-    tm = Tonemapper("kirk11", "opencl", options=opts, max_band_pixels=30 * 7)
+    one = Tonemapper("kirk11", "opencl", options=opts, model="none").process(img)
+    tm = Tonemapper("kirk11", "opencl", options=opts, max_band_pixels=30 * 7, model="none")
     banded = tm.process(img)
     np.testing.assert_allclose(banded, one, rtol=2e-5, atol=2e-6)
     lam, spectra, _ = spectral_patches("A", 0.05)
     cube = np.repeat(np.repeat(spectra.reshape(4, 6, -1), 3, 0), 3, 1).astype(np.float32)
-    one = Tonemapper("kirk11", "opencl", options=opts).process(cube, wavelengths=lam)
+    one = Tonemapper("kirk11", "opencl", options=opts, model="none").process(cube, wavelengths=lam)
     banded = Tonemapper("kirk11", "opencl", options=opts,
-                        max_band_pixels=18 * 5).process(cube, wavelengths=lam)
+                        max_band_pixels=18 * 5, model="none").process(cube, wavelengths=lam)
     np.testing.assert_allclose(banded, one, rtol=2e-5, atol=2e-6)
 
 

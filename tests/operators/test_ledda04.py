@@ -96,17 +96,17 @@ def test_inverse_identity():
 
 
 def test_photopic_cone_only_scotopic_rod_only():
-    tm = Tonemapper("ledda04", "reference")
+    tm = Tonemapper("ledda04", "reference", model="none")
     bright = np.ones((12, 12, 3)) * np.array([150.0, 100.0, 60.0])   # warm, photopic
     out = tm.process(bright * 0.5)               # (below the highlight shoulder)
     # cones only: chromaticity kept (channel ratios of the input)
     assert np.allclose(out[6, 6] / out[6, 6, 1], [1.5, 1.0, 0.6], rtol=1e-6)
     dark = bright * 1e-5
-    out = Tonemapper("ledda04", "reference").process(dark)
+    out = Tonemapper("ledda04", "reference", model="none").process(dark)
     assert np.allclose(out[6, 6], out[6, 6, 0], rtol=1e-6)           # rods only: grey
     assert out[6, 6, 0] > 0
     meso = bright * 1e-3                                             # I_A ~ 0.1 cd/m^2
-    out = Tonemapper("ledda04", "reference").process(meso)
+    out = Tonemapper("ledda04", "reference", model="none").process(meso)
     r = out[6, 6] / out[6, 6, 1]
     assert 1.0 < r[0] < 1.5 and 0.6 < r[2] < 1.0                    # both: desaturated
 
@@ -117,7 +117,7 @@ def test_no_halo_across_a_step():
     img = np.repeat(lum[..., None], 3, axis=2)
     for method in ("exact", "fast"):
         out = Tonemapper("ledda04", "opencl", options={"bilateral": method,
-                                                       "sigma_spatial": 4.0}).process(img)
+                                                       "sigma_spatial": 4.0}, model="none").process(img)
         row = out[20, :, 1]
         assert np.all(np.diff(row) >= -1e-7), method          # monotonic, no reversal
 
@@ -127,8 +127,8 @@ def test_no_halo_across_a_step():
 def test_opencl_matches_reference_over_time(method):
     img = hdr_image(24, 36, seed=7, lo=-4, hi=4)
     opts = {"rods": "always", "sigma_spatial": 2.5}
-    a = Tonemapper("ledda04", "opencl", options=dict(opts, bilateral=method))
-    b = Tonemapper("ledda04", "reference", options=opts)
+    a = Tonemapper("ledda04", "opencl", options=dict(opts, bilateral=method), model="none")
+    b = Tonemapper("ledda04", "reference", options=opts, model="none")
     tol = TOL_OP if method == "exact" else 0.05
     for t, k in ((0, 1.0), (0.5, 1e-3), (3, 1e-3), (700, 1e-3), (4000, 1e-3), (4010, 10.0)):
         oa = a.process(img * k, time_s=t)
@@ -162,11 +162,11 @@ def test_light_curve_and_rod_lag():
 @pytest.mark.requires_opencl
 def test_long_dark_reaches_static_result():
     img = hdr_image(16, 20, seed=8, lo=-3, hi=1)
-    tm = Tonemapper("ledda04", "opencl", preadapt=(500.0, 60.0))
+    tm = Tonemapper("ledda04", "opencl", preadapt=(500.0, 60.0), model="none")
     tm.process(img, time_s=0)
     first = tm.last_output.copy()
     out = tm.process(img, time_s=3 * 3600.0)
-    static = Tonemapper("ledda04", "opencl").process(img)
+    static = Tonemapper("ledda04", "opencl", model="none").process(img)
     assert np.allclose(out, static, rtol=1e-5, atol=1e-7)
     assert first.mean() < 0.2 * static.mean()      # temporarily blind at the switch
 
@@ -174,7 +174,7 @@ def test_long_dark_reaches_static_result():
 @pytest.mark.requires_opencl
 def test_small_changes_continue_the_course():
     img = hdr_image(10, 10, seed=9, lo=0, hi=1)
-    tm = Tonemapper("ledda04", "opencl")
+    tm = Tonemapper("ledda04", "opencl", model="none")
     tm.process(img, time_s=0)
     tm.process(img * 1.1, time_s=0.1)              # 10%: below the restart threshold
     assert tm.last.params["restarted_fraction"] == 0.0
@@ -205,14 +205,14 @@ def test_extremes_never_nan(backend):
     img[2] = 1e8
     img[3] = 1e-6
     img[4] = 0.0
-    tm = Tonemapper("ledda04", backend)
+    tm = Tonemapper("ledda04", backend, model="none")
     for t in (0.0, 0.001, 0.002, 3600.0, 7200.0 + 0.001):
         out = tm.process(img, time_s=t)
         assert np.all(np.isfinite(out)) and out.min() >= 0
     assert tm.last.repairs.nan == 1
-    one = Tonemapper("ledda04", backend).process(np.full((1, 1, 3), 5.0))
+    one = Tonemapper("ledda04", backend, model="none").process(np.full((1, 1, 3), 5.0))
     assert np.all(np.isfinite(one)) and one.shape == (1, 1, 3)
-    zero = Tonemapper("ledda04", backend).process(np.zeros((4, 4, 3)))
+    zero = Tonemapper("ledda04", backend, model="none").process(np.zeros((4, 4, 3)))
     assert np.all(zero == 0)
 
 
@@ -221,8 +221,8 @@ def test_extremes_never_nan(backend):
 def test_bands_equal_one_pass(method):
     img = hdr_image(45, 50, seed=11, lo=-3, hi=3)
     opts = {"bilateral": method, "sigma_spatial": 3.0}
-    a = Tonemapper("ledda04", "opencl", options=opts)
-    b = Tonemapper("ledda04", "opencl", options=opts, max_band_pixels=50 * 11)
+    a = Tonemapper("ledda04", "opencl", options=opts, model="none")
+    b = Tonemapper("ledda04", "opencl", options=opts, max_band_pixels=50 * 11, model="none")
     for t, k in ((0, 1.0), (2, 0.01), (50, 0.01)):
         # equal but for the float32 order of the frame's global log-average sums
         np.testing.assert_allclose(a.process(img * k, time_s=t), b.process(img * k, time_s=t),
@@ -230,8 +230,8 @@ def test_bands_equal_one_pass(method):
         assert a.last.repairs.as_dict() == b.last.repairs.as_dict()
     # the paper's fully local mode has no global sum: bit for bit
     opts["mode"] = "paper"
-    a = Tonemapper("ledda04", "opencl", options=opts)
-    b = Tonemapper("ledda04", "opencl", options=opts, max_band_pixels=50 * 11)
+    a = Tonemapper("ledda04", "opencl", options=opts, model="none")
+    b = Tonemapper("ledda04", "opencl", options=opts, max_band_pixels=50 * 11, model="none")
     for t, k in ((0, 1.0), (2, 0.01), (50, 0.01)):
         assert np.array_equal(a.process(img * k, time_s=t), b.process(img * k, time_s=t))
 
@@ -239,7 +239,7 @@ def test_bands_equal_one_pass(method):
 @pytest.mark.requires_opencl
 def test_state_side_file_roundtrip(tmp_path):
     img = hdr_image(20, 30, seed=12)
-    one = Tonemapper("ledda04", "opencl")
+    one = Tonemapper("ledda04", "opencl", model="none")
     for t, k in ((0, 1.0), (1, 1e-3)):
         one.process(img * k, time_s=t)
     one.state.save(tmp_path / "s.json")
@@ -247,10 +247,10 @@ def test_state_side_file_roundtrip(tmp_path):
     final = one.process(img * 1e-3, time_s=30)
     st = AdaptationState.load(tmp_path / "s.json")
     assert set(st.pixels) == set(L.STATE_CHANNELS)
-    two = Tonemapper("ledda04", "opencl", state=st)
+    two = Tonemapper("ledda04", "opencl", state=st, model="none")
     assert np.array_equal(two.process(img * 1e-3, time_s=30), final)
     with pytest.raises(ValueError, match="one image size"):
-        Tonemapper("ledda04", "opencl", state=st).process(img[:10], time_s=31)
+        Tonemapper("ledda04", "opencl", state=st, model="none").process(img[:10], time_s=31)
 
 
 def test_grid_fits_device_memory_and_tiny_images(filt):
@@ -275,7 +275,7 @@ def test_map_float4_kernel_equals_scalar_kernel(mode, shape):
     img[:, : shape[1] // 2] *= 1e-3                      # half the frame mesopic/scotopic
     tms = []
     for vector in (True, False):
-        tm = Tonemapper("ledda04", options={"mode": mode, "bilateral": "exact"})
+        tm = Tonemapper("ledda04", options={"mode": mode, "bilateral": "exact"}, model="none")
         tm.schedule.set_map_kernel(vector=vector)
         tms.append(tm)
     for k, (scale, dt) in enumerate([(1.0, 0.0), (1e-4, 0.5), (1e-4, 20.0), (1e2, 0.2),
@@ -296,7 +296,7 @@ def test_step_float4_kernel_equals_scalar_kernel(mode, shape):
     img = hdr_image(*shape, seed=12, lo=-3, hi=5)
     tms = []
     for vector in (True, False):
-        tm = Tonemapper("ledda04", options={"mode": mode, "bilateral": "exact"})
+        tm = Tonemapper("ledda04", options={"mode": mode, "bilateral": "exact"}, model="none")
         tm.schedule.set_step_kernel(vector=vector)
         tms.append(tm)
     part = np.ones_like(img)

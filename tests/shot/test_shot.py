@@ -40,8 +40,9 @@ def _serial(d, pattern, op, name="serial", **kw):
     out = d / op / name / "o.####.exr"
     if not out.parent.exists():
         out.parent.mkdir(parents=True)
-        run_job(JobOptions(pattern, str(out), operator=op, checkpoint=False, out_bits="float",
-                           **kw))
+        # the effects the passes split (passes.split_options: Purkinje on auto left out)
+        run_job(passes.split_options(JobOptions(pattern, str(out), operator=op,
+                                                checkpoint=False, out_bits="float", **kw)))
     return out
 
 

@@ -34,6 +34,7 @@ class OpenCLBackend:
         self._colour = self.rt.kernel("colour.cl", "scene_to_working4")
         self._gains = self.rt.kernel("colour.cl", "apply_gains")
         self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
+        self._blocks = self.rt.kernel("metering.cl", "block_sums")
         if max_band_pixels is None:
             # Per pixel: src (<=4 floats), rgb 3, Y, Y', out 3 = 48 B; keep to 1/4
             # of global memory and under the largest single allocation.
@@ -183,16 +184,34 @@ class OpenCLBackend:
     def bands(self, h: int, w: int, halo: int = 0):
         return row_bands(h, w, self.max_band_pixels, halo)
 
-    def meter_pass(self, pixels, scale, spec, illuminant: bool, keep_rgb: np.ndarray | None):
+    def _block_sums(self, w: int, nr: int, y0: int, s: int, into: np.ndarray) -> None:
+        """Add the band's block sums (``metering.cl:block_sums``) into ``into``
+        (block rows x block columns x 4, float64)."""
+        import pyopencl as cl
+        bw = into.shape[1]
+        by0, by1 = y0 // s, (y0 + nr - 1) // s + 1
+        n = (by1 - by0) * bw
+        out = self.buffer("blocks", n * 16)
+        self._blocks(self.rt.queue, (round_up(n, 64),), None, self.bufs["rgb"], np.int32(w),
+                     np.int32(nr), np.int32(y0), np.int32(s), np.int32(bw), np.int32(by0),
+                     np.int32(by1 - by0), out)
+        part = np.empty((by1 - by0, bw, 4), np.float32)
+        cl.enqueue_copy(self.rt.queue, part, out)
+        into[by0:by1] += part
+
+    def meter_pass(self, pixels, scale, spec, illuminant: bool, keep_rgb: np.ndarray | None,
+                   proxy_stride: int = 0):
         """Colour stage + metering over the bands (+ illuminant sums, + the working
-        rgb copied to ``keep_rgb``): (bands, repairs, (G_rod, G_cone), illuminant sums,
-        the largest working luminance)."""
+        rgb copied to ``keep_rgb``, + block sums of ``proxy_stride``): (bands, repairs,
+        (G_rod, G_cone), illuminant sums, the largest working luminance, the proxy)."""
         import pyopencl as cl
         h, w, _ = pixels.shape
         bands = self.bands(h, w)
         repairs = RepairCounts()
         sums = None
         illum = np.zeros(4)
+        stride = int(proxy_stride)
+        blocks = np.zeros((-(-h // stride), -(-w // stride), 4)) if stride else None
         for y0, nr in bands:
             repairs += self.to_working(pixels[y0:y0 + nr], scale, count=True)
             b = self.bufs
@@ -203,15 +222,20 @@ class OpenCLBackend:
                 sums.add(s)
             if illuminant:
                 illum += self._illuminant_sums(nr * w)
+            if stride:
+                self._block_sums(w, nr, y0, stride, blocks)
             if keep_rgb is not None:
                 cl.enqueue_copy(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
-        return bands, repairs, sums.goal(spec), illum, float(sums.sums[5])
+        proxy = None if blocks is None else blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)
+        return bands, repairs, sums.goal(spec), illum, float(sums.sums[5]), proxy
 
     def scene_levels(self, source, scale: float, spec: met.MeteringSpec,
-                     illuminant: bool) -> Levels:
+                     illuminant: bool, proxy_stride: int = 0) -> Levels:
         """:meth:`meter_pass` over a band source (nothing kept)."""
-        _, repairs, G, illum, max_Y = self.meter_pass(source, scale, spec, illuminant, None)
-        return Levels(None, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y)
+        _, repairs, G, illum, max_Y, proxy = self.meter_pass(source, scale, spec, illuminant,
+                                                             None, proxy_stride)
+        return Levels(None, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y,
+                      proxy)
 
     def working_rows(self, pixels: np.ndarray, scale: float) -> np.ndarray:
         """The colour stage of some rows, brought back: working RGB in cd/m^2."""
@@ -222,7 +246,8 @@ class OpenCLBackend:
         return out
 
     def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec,
-                illuminant: bool = True, on_device: bool = False) -> Levels:
+                illuminant: bool = True, on_device: bool = False,
+                proxy_stride: int = 0) -> Levels:
         """Colour stage and metering only: rgb cd/m^2, repairs, (G_rod, G_cone), the
         illuminant estimate (``illuminant`` False: no illuminant sums, None). ``on_device``: rgb is a
         :class:`~.image.DeviceImage` (for scene effects that run on the device) where the
@@ -231,10 +256,12 @@ class OpenCLBackend:
         h, w, _ = pixels.shape
         one_band = len(self.bands(h, w)) == 1
         rgb = None if (on_device and one_band) else np.empty((h, w, 3), np.float32)
-        _, repairs, G, illum, max_Y = self.meter_pass(pixels, scale, spec, illuminant, rgb)
+        _, repairs, G, illum, max_Y, proxy = self.meter_pass(pixels, scale, spec, illuminant,
+                                                             rgb, proxy_stride)
         if rgb is None:           # the colour stage's own buffer, until its next frame
             rgb = DeviceImage(self.rt, self.bufs["rgb"], (h, w, 3))
-        return Levels(rgb, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y)
+        return Levels(rgb, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y,
+                      proxy)
 
     # -- per-pixel kernels ---------------------------------------------------------------------
     def run_pointwise(self, call, rgb, Y, Ys, out, n: int) -> None:
@@ -261,7 +288,7 @@ class PointwiseSchedule(NoPixelState):
     def measure(self, frame, spec: met.MeteringSpec, want_illuminant: bool = False) -> FrameStats:
         be = self.backend
         h, w, _ = frame.pixels.shape
-        bands, repairs, (G_rod, G_cone), illum, _ = be.meter_pass(frame.pixels, frame.scale,
+        bands, repairs, (G_rod, G_cone), illum, _, _ = be.meter_pass(frame.pixels, frame.scale,
                                                                   spec, want_illuminant, None)
         # one band stays resident in the backend's buffers until the next frame
         return FrameStats(w, h, G_rod, G_cone, repairs, lambda: illum[:3],

@@ -35,21 +35,26 @@ class ReferenceBackend(HostBackend):
         return PointwiseSchedule(self, op)
 
     def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec,
-                illuminant: bool = True, on_device: bool = False) -> Levels:
+                illuminant: bool = True, on_device: bool = False,
+                proxy_stride: int = 0) -> Levels:
         """Colour stage and metering: rgb in cd/m^2 (float64), repairs, (G_rod, G_cone),
-        the illuminant estimate (made when called: ``illuminant`` changes nothing here)."""
+        the illuminant estimate (made when called: ``illuminant`` changes nothing here),
+        the largest luminance, the block means of ``proxy_stride`` (0: none)."""
         rgb, repairs = sanitize(pixels[..., :3], scale)
         h, w = rgb.shape[:2]
-        G = met.reference_goal(photopic_luminance(rgb), scotopic_luminance(rgb), spec,
-                               _mask(spec, w, h))
-        return Levels(rgb, repairs, G, lambda: durand2000.illuminant_estimate_reference(rgb))
+        Y = photopic_luminance(rgb)
+        G = met.reference_goal(Y, scotopic_luminance(rgb), spec, _mask(spec, w, h))
+        proxy = met.block_means(rgb, proxy_stride) if proxy_stride else None
+        return Levels(rgb, repairs, G, lambda: durand2000.illuminant_estimate_reference(rgb),
+                      float(Y.max(initial=0.0)), proxy)
 
     def scene_levels(self, source, scale: float, spec: met.MeteringSpec,
-                     illuminant: bool) -> Levels:
+                     illuminant: bool, proxy_stride: int = 0) -> Levels:
         """:meth:`working` of a band source, read whole (the reference has no bands)."""
-        lv = self.working(source[0:source.shape[0]], scale, spec)
+        lv = self.working(source[0:source.shape[0]], scale, spec, proxy_stride=proxy_stride)
         illum = lv.illuminant() if illuminant else None
-        return Levels(None, lv.repairs, lv.goal, None if illum is None else (lambda: illum))
+        return Levels(None, lv.repairs, lv.goal, None if illum is None else (lambda: illum),
+                      lv.max_Y, lv.proxy)
 
     def working_rows(self, pixels: np.ndarray, scale: float) -> np.ndarray:
         rgb, _ = sanitize(pixels[..., :3], scale)

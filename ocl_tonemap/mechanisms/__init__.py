@@ -1,0 +1,68 @@
+"""Model only what a scene requires: the per-frame mechanism plan.
+
+``analysis.py``  the frame reduced to a proxy and scene statistics (levels,
+                 percentiles, light sources, dynamic range, illuminant);
+``predict.py``   each mechanism's predicted effect, p99 Delta E ITP;
+``planner.py``   the weights: the one-JND budget, hysteresis, ramps, state.
+
+:class:`MechanismPlan` is what a :class:`~ocl_tonemap.pipeline.Tonemapper` runs
+per frame; docs/models.md ("The mechanism plan") has the rules and their sources.
+"""
+
+from __future__ import annotations
+
+import math
+
+from . import planner
+from .analysis import analyse, block_stride, patches_of
+
+
+class MechanismPlan:
+    """The plan of one run: what the operator and the effects offer, and per frame
+    the analysis, the predictions and the weights."""
+
+    def __init__(self, operator, settings, display, metering):
+        self.op, self.settings, self.display, self.metering = operator, settings, display, metering
+        self.offer = planner.offered(operator, settings)
+        self.gated = [m for m, mode in self.offer.items() if mode == "auto"]
+        #: An analysis is made where an effect may run (its illuminant estimate too).
+        self.active = settings.any
+
+    def proxy_stride(self, h: int, w: int) -> int:
+        """The block size of the frame's proxy (0: no plan for this run)."""
+        return block_stride(h, w) if self.active else 0
+
+    def frame(self, levels, get_rows, h: int, w: int, scale: float, extra: dict | None,
+              dt: float, fresh: bool) -> dict:
+        """{"weights", "estimate", "record"} of one frame: ``levels`` its backend's
+        :class:`~ocl_tonemap.backends.base.Levels` with the proxy; ``get_rows(a, b)`` its
+        working-space rows (full-resolution patches, for acuity); ``extra``: the state's,
+        where the weights advance (None: a measure-only pass, targets only)."""
+        if not self.active or levels.proxy is None:
+            return {}
+        G_rod, G_cone = levels.goal
+        patches = patches_of(get_rows, h, w, scale) if "acuity" in self.gated else []
+        an = analyse(levels.proxy, G_rod, G_cone, w, h, self.display, patches)
+        prev = (extra or {}).get(planner.STATE_KEY) or {}
+        if prev.get("G_cone") and dt > 0:
+            an.adapting = abs(math.log10(max(an.G_cone, 1e-12) / max(prev["G_cone"], 1e-12))) / dt
+        predicted = planner.predictions(an, self.op, self.display, self.settings, self.gated) \
+            if self.gated else {}
+        predicted = {k: round(float(v), 6) for k, v in predicted.items()}
+        weights, target = self.advance(extra, predicted, an.G_cone, dt, fresh or extra is None)
+        record = {"weights": weights, "target": target, "predicted_dE_p99": predicted,
+                  "analysis": an.as_dict()}
+        return {"weights": weights, "record": record,
+                "estimate": (an.illuminant, an.illuminant_cct, an.illuminant_confidence)}
+
+    def advance(self, extra: dict | None, predicted: dict, G_cone: float, dt: float,
+                fresh: bool) -> tuple[dict, dict]:
+        """The weights of a frame from its predictions and the last frame's weights in
+        ``extra`` (advanced there): the serial run's step, also the shot's integrate
+        pass over the predictions its measure pass stored. Returns (weights, targets)."""
+        prev = (extra or {}).get(planner.STATE_KEY) or {}
+        target = planner.targets(self.offer, predicted, prev.get("weights"))
+        weights = planner.step(prev.get("weights"), target, dt, fresh)
+        if extra is not None:
+            extra[planner.STATE_KEY] = {"weights": weights, "G_cone": float(G_cone)}
+        return weights, target

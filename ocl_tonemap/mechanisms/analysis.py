@@ -1,0 +1,108 @@
+"""Scene analysis of one frame: what the mechanism plan decides from.
+
+The frame is reduced to a *proxy* in the backend's metering pass (on the device
+for OpenCL: ``metering.cl:block_sums``): the means of s x s blocks of the working
+frame in cd/m^2 (energy kept, so small lamps still carry their flux), at most
+:data:`PROXY_SIDE` blocks along its longer side.
+From it: the adaptation goals with the run's metering, photopic and scotopic
+percentiles, the light sources (pixels above the flare threshold x the
+adaptation level: count, area, share of the energy), the scene's dynamic range
+against the display's, the illuminant estimate with its confidence
+(``models/durand2000.py``) and how fast adaptation is moving (goal against the
+adapted state). A few full-resolution patches are kept for the mechanisms that
+act on fine detail (acuity).
+
+The analysis itself is host float64 on a few thousand values.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ..models import durand2000 as dd
+from ..models.photometry import Y_WEIGHTS, sanitize, scotopic_luminance
+
+#: Blocks along the proxy's longer side.
+PROXY_SIDE = 128
+#: Full-resolution patches kept (a grid of PATCH_GRID x PATCH_GRID), and their side.
+PATCH_GRID = 3
+PATCH_SIDE = 48
+#: Light sources: photopic luminance above this many times the adaptation level
+#: (the flare threshold of Spencer et al. 1995's default, ``spencer1995.DEFAULT_THRESHOLD``).
+SOURCE_FACTOR = 7.0
+
+
+def block_stride(h: int, w: int, side: int = PROXY_SIDE) -> int:
+    return max(1, -(-max(h, w) // side))
+
+
+def patches_of(get_rows, h: int, w: int, scale: float, side: int = PATCH_SIDE,
+               grid: int = PATCH_GRID) -> list:
+    """Full-resolution patches on a grid (cd/m^2, float64), for fine detail."""
+    ph, pw = min(side, h), min(side, w)
+    ys = np.linspace(0, h - ph, grid).round().astype(int)
+    xs = np.linspace(0, w - pw, grid).round().astype(int)
+    out = []
+    for y in sorted(set(ys.tolist())):
+        rows = np.asarray(get_rows(y, y + ph))[..., :3]
+        for x in sorted(set(xs.tolist())):
+            out.append(sanitize(rows[:, x:x + pw], scale)[0])
+    return out
+
+
+@dataclass
+class SceneAnalysis:
+    """What the plan knows of a frame (JSON-able through :meth:`as_dict`)."""
+
+    width: int
+    height: int
+    G_rod: float                     # metering goals of the frame, scotopic / photopic cd/m^2
+    G_cone: float
+    Y_p: tuple                       # photopic percentiles 1, 50, 99 (cd/m^2)
+    Ys_p: tuple                      # scotopic percentiles 1, 50, 99
+    sources: dict                    # area (share of pixels), energy (share of light), count
+    dynamic_range: float             # log10 p99 / p1 of the scene ...
+    display_range: float             # ... and of the display (white / black)
+    illuminant: tuple                # normalised working RGB: on the Planckian band, moved
+                                     # toward the working white by (1 - confidence)
+    illuminant_cct: float
+    illuminant_confidence: float
+    adapting: float                  # decades per second the cones' goal moves (0: still)
+    proxy: np.ndarray = field(repr=False, default=None)
+    patches: list = field(repr=False, default_factory=list)
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d.pop("proxy"), d.pop("patches")
+        return d
+
+
+def percentiles(a: np.ndarray) -> tuple:
+    return tuple(float(v) for v in np.percentile(a, (1, 50, 99)))
+
+
+def analyse(proxy: np.ndarray, G_rod: float, G_cone: float, width: int, height: int, display,
+            patches: list = ()) -> SceneAnalysis:
+    """The analysis of one frame: its proxy (block means, cd/m^2, from the backend's
+    metering pass), its metering goals, the full-resolution ``patches``."""
+    P = np.asarray(proxy, np.float64)
+    Y = P @ Y_WEIGHTS
+    Ys = scotopic_luminance(P)
+    lim = SOURCE_FACTOR * max(G_cone, 1e-12)
+    src = Y > lim
+    total = float(Y.sum())
+    s = block_stride(height, width)
+    sources = {"area": float(src.mean()), "energy": float(Y[src].sum() / total) if total > 0 else 0.0,
+               "pixels": int(round(float(src.sum()) * s * s))}
+    Yp = percentiles(Y)
+    est, cct, conf = dd.illuminant_estimate(P, lim)
+    est = dd.partial_illuminant(est, conf)      # an uncertain estimate counts for less
+    black = max(display.white_cd / 1000.0, 1e-6)
+    dr = math.log10(max(Yp[2], 1e-9) / max(Yp[0], 1e-9))
+    return SceneAnalysis(width, height, float(G_rod), float(G_cone), Yp, percentiles(Ys), sources,
+                         dr, math.log10(display.white_cd / black),
+                         tuple(float(v) for v in est), float(cct), float(conf), 0.0, P,
+                         list(patches))

@@ -1,0 +1,112 @@
+"""The per-frame mechanism plan: which mechanisms of vision a frame gets, and how much.
+
+Every mechanism an operator offers has a weight in [0, 1] per frame (0 skipped,
+1 fully applied, between: blended in or out). With ``--model auto`` the gated
+mechanisms on ``auto`` (flare, acuity, the Purkinje shift: the ones whose
+skipping saves time) are skipped where their predicted effect is small: the
+predicted p99 Delta E ITP of each (``predict.py``, x :data:`SAFETY`) is summed
+over the skipped ones, smallest first, up to one budget of :data:`BUDGET` JND for
+the whole frame against ``--model full``. The mechanisms that cost nothing to run
+(rods, chromatic adaptation, time integration, ledda04's local adaptation, whose
+bilateral filter every frame of it needs) keep weight 1 where offered: skipping
+them could only add error. docs/models.md, "The mechanism plan".
+
+Over time the plan is filtered so that it never flickers: a mechanism that runs
+is kept until its prediction falls below :data:`HYSTERESIS` of what switched it
+on, and a weight moves by at most dt / :data:`RAMP_S` a frame (1/3 at 30 fps); a
+fresh observer (the first frame, a cut) takes the targets at once. The weights
+are kept in the adaptation state (``extra["plan"]``) and so resume with it.
+"""
+
+from __future__ import annotations
+
+import math
+
+from . import predict
+
+#: The mechanisms, in the order the plan lists them (``ocltm:plan``).
+MECHANISMS = ("rods", "purkinje", "acuity", "flare", "chromatic-adaptation", "local",
+              "temporal")
+#: Gated mechanisms -> their effect (``EffectSettings`` field).
+GATED = {"purkinje": "purkinje", "acuity": "acuity", "flare": "flare"}
+#: ``--model``: the plan (auto), every mechanism on (full), the operator alone (none).
+MODELS = ("auto", "full", "none")
+#: Delta E ITP budget of everything skipped on a frame (1 JND, BT.2124).
+BUDGET = 1.0
+#: Predictions are multiplied by this before they are counted (their error on
+#: the test scenes: tests/mechanisms/test_plan_bound.py).
+SAFETY = 2.0
+#: A running mechanism is skipped again only below this share of the budget it
+#: would take (switching off needs a clearly smaller prediction than on).
+HYSTERESIS = 0.7
+#: Seconds for a weight to go from 0 to 1.
+RAMP_S = 0.1
+STATE_KEY = "plan"
+
+
+def offered(operator, settings) -> dict:
+    """mechanism -> "auto" | "on" for the mechanisms this run can apply (absent: not
+    offered or switched off). ``settings``: the run's ``EffectSettings``."""
+    out = {"rods": "on", "temporal": "on"}
+    for mech, field in GATED.items():
+        mode = getattr(settings, field)
+        if mode != "off":
+            out[mech] = mode
+    if operator.name == "kirk11":
+        out["purkinje"] = "on"              # its own model of the shift (rods in LMSR)
+    if settings.chromatic_adaptation != "off":
+        out["chromatic-adaptation"] = "on"
+    if operator.metering == "local":
+        out["local"] = "on"
+    return {m: out[m] for m in MECHANISMS if m in out}
+
+
+def predictions(an, operator, display, settings, gated) -> dict:
+    """Predicted p99 Delta E ITP of each gated mechanism (full against none)."""
+    resp = predict.DisplayResponse(operator, display, an.G_rod, an.G_cone)
+    out = {}
+    levels = None
+    if "flare" in gated or settings.flare == "on":
+        d, flared = predict.flare(an, resp, settings.fov_deg, settings.flare_threshold)
+        if "flare" in gated:
+            out["flare"] = d
+        # the flare runs for sure (on, or beyond the whole budget): the others are
+        # predicted at the levels it leaves (its veil raises them)
+        if flared is not None and (settings.flare == "on" or SAFETY * d > BUDGET):
+            levels = predict.flared_levels(an, flared)
+            resp = predict.DisplayResponse(operator, display, *levels)
+    if "purkinje" in gated:
+        out["purkinje"] = predict.purkinje(an, resp, levels)
+    if "acuity" in gated:
+        out["acuity"] = predict.acuity(an, resp, settings.fov_deg, settings.paper,
+                                       None if levels is None else levels[0])
+    return out
+
+
+def targets(offer: dict, predicted: dict, running: dict | None = None) -> dict:
+    """mechanism -> target weight 0 or 1: the ``auto`` ones skipped smallest
+    prediction first while SAFETY x their sum stays within BUDGET (a running one
+    counts 1 / HYSTERESIS times its prediction)."""
+    running = running or {}
+    out = {m: 1.0 for m in offer}
+    cost = {m: SAFETY * predicted.get(m, 0.0) / (HYSTERESIS if running.get(m, 0.0) > 0 else 1.0)
+            for m, mode in offer.items() if mode == "auto"}
+    spent = 0.0
+    for m in sorted(cost, key=lambda k: (cost[k], MECHANISMS.index(k))):
+        if spent + cost[m] <= BUDGET:
+            spent += cost[m]
+            out[m] = 0.0
+    return out
+
+
+def step(prev: dict | None, target: dict, dt: float, fresh: bool) -> dict:
+    """The weights after a frame ``dt`` s after the last: toward ``target`` by at most
+    dt / RAMP_S each (at once when ``fresh`` or there is no last plan)."""
+    if fresh or not prev:
+        return dict(target)
+    r = 1.0 if not math.isfinite(dt) else min(1.0, max(0.0, dt) / RAMP_S)
+    out = {}
+    for m, t in target.items():
+        w = float(prev.get(m, t))
+        out[m] = round(min(1.0, max(0.0, w + max(-r, min(r, t - w)))), 6)
+    return out
