@@ -45,7 +45,12 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
     t = np.array([i.time_s for i in infos])
     val = lambda k: np.array([i.state.values[k] for i in infos])  # noqa: E731
     lg = lambda x: np.log10(np.maximum(x, 1e-7))  # noqa: E731
-    fig, axes = plt.subplots(3, 1, figsize=(9, 10), gridspec_kw={"height_ratios": [2, 1, 2]})
+    plans = [i.plan.get("weights") for i in infos if i.plan]
+    n = 4 if plans else 3
+    fig, axes = plt.subplots(n, 1, figsize=(9, 10 + 2 * (n - 3)),
+                             gridspec_kw={"height_ratios": [2, 1, 2, 1][:n]})
+    if plans:
+        _plot_plan(axes[3], infos)
     ax = axes[0]
     ax.plot(t, lg([i.G_cone for i in infos]), "k:", label="G_cone (goal)")
     ax.plot(t, lg([i.G_rod for i in infos]), "b:", label="G_rod (goal, scotopic)")
@@ -99,3 +104,21 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _plot_plan(ax, infos) -> None:
+    """The mechanism plan's weights over time (``mechanisms/``), one line each,
+    offset a little so that lines on top of each other stay visible."""
+    from .mechanisms.planner import MECHANISMS
+    rows = [(i.time_s, i.plan["weights"]) for i in infos if i.plan]
+    t = np.array([r[0] for r in rows])
+    present = [m for m in MECHANISMS if any(m in w for _, w in rows)]
+    for k, m in enumerate(present):
+        w = np.array([r[1].get(m, np.nan) for r in rows])
+        ax.step(t, w + 0.02 * k, where="post", label=m)
+    ax.set_ylim(-0.1, 1.25)
+    ax.set_ylabel("weight")
+    ax.set_xlabel("time (s)")
+    ax.set_title("mechanism plan (--model auto): 0 skipped, 1 applied")
+    ax.legend(loc="center right", fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
