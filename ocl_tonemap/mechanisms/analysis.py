@@ -33,6 +33,10 @@ PATCH_SIDE = 48
 #: Light sources: photopic luminance above this many times the adaptation level
 #: (the flare threshold of Spencer et al. 1995's default, ``spencer1995.DEFAULT_THRESHOLD``).
 SOURCE_FACTOR = 7.0
+#: The illuminant estimate leaves out pixels above this many times the adaptation
+#: level: the lamps and the sun themselves (a bright sky or a lit wall, a few times
+#: the level, is what the scene's light looks like and stays in).
+ILLUMINANT_SOURCE_FACTOR = 30.0
 
 
 def block_stride(h: int, w: int, side: int = PROXY_SIDE) -> int:
@@ -98,7 +102,7 @@ def analyse(proxy: np.ndarray, G_rod: float, G_cone: float, width: int, height: 
     sources = {"area": float(src.mean()), "energy": float(Y[src].sum() / total) if total > 0 else 0.0,
                "pixels": int(round(float(src.sum()) * s * s))}
     Yp = percentiles(Y)
-    est, cct, conf = dd.illuminant_estimate(P, lim)
+    est, cct, conf = dd.illuminant_estimate(P, ILLUMINANT_SOURCE_FACTOR * max(G_cone, 1e-12))
     est = dd.partial_illuminant(est, conf)      # an uncertain estimate counts for less
     black = max(display.white_cd / 1000.0, 1e-6)
     dr = math.log10(max(Yp[2], 1e-9) / max(Yp[0], 1e-9))
