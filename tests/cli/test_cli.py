@@ -288,3 +288,43 @@ def test_sample_spectral_and_exposure_control(tmp_path):
     r_share = [p[0] / max(p.sum(), 1e-12) for p in red]
     assert r_share[0] > 0.6 and r_share[0] > r_share[1] > r_share[2]
     assert outs["9"].mean() > outs["5"].mean() > outs["0"].mean()
+
+
+def test_model_plan_in_metadata_verbose_and_plot(sample_dir, tmp_path, caplog):
+    """--model auto (default): every output carries its plan (ocltm:plan, weights in
+    0..1 for the operator's mechanisms), -v says where it changes, --plot draws it;
+    --model none records no plan and runs no effect; --model full runs them all;
+    the plan resumes with the state (chunks equal one run)."""
+    import logging
+    pattern, frames = sample_dir
+    a, b = frames[0], frames[-1]
+    mid = (a + b) // 2
+    one, two = str(tmp_path / "one.####.exr"), str(tmp_path / "two.####.exr")
+    st, plot = str(tmp_path / "s.json"), str(tmp_path / "p.png")
+    common = ["--operator", "durand00", "--out-bits", "float", "--fov", "10"]
+    with caplog.at_level(logging.INFO, logger="ocl_tonemap"):
+        assert main(["run", pattern, one, *common, "--plot", plot]) == 0
+    said = [r.getMessage() for r in caplog.records if ": plan " in r.getMessage()]
+    assert said and f"frame {a}" in said[0]
+    assert os.path.getsize(plot) > 10000
+    weights = [json.loads(oiio.ImageBuf(frame_path(one, f)).spec().getattribute("ocltm:plan"))
+               for f in frames]
+    assert set(weights[0]) == {"rods", "purkinje", "acuity", "flare", "chromatic-adaptation",
+                               "temporal"}
+    assert all(0.0 <= w <= 1.0 for ws in weights for w in ws.values())
+    assert len(said) == 1 + sum(1 for x, y in zip(weights, weights[1:]) if x != y)
+    assert main(["run", pattern, two, "--frames", f"{a}-{mid}", "--state-out", st, "-q",
+                 *common]) == 0
+    assert main(["run", pattern, two, "--frames", f"{mid + 1}-{b}", "--state-in", st, "-q",
+                 *common]) == 0
+    for f in frames:
+        np.testing.assert_array_equal(pixels(frame_path(one, f)), pixels(frame_path(two, f)))
+    none = str(tmp_path / "none.exr")
+    assert main(["run", frame_path(pattern, b), none, *common, "--model", "none", "-q"]) == 0
+    spec = oiio.ImageBuf(none).spec()
+    assert spec.getattribute("ocltm:plan") is None
+    assert spec.getattribute("ocltm:effects_ran") == "none"
+    full = str(tmp_path / "full.exr")
+    assert main(["run", frame_path(pattern, b), full, *common, "--model", "full", "-q"]) == 0
+    spec = oiio.ImageBuf(full).spec()
+    assert set(json.loads(spec.getattribute("ocltm:plan")).values()) == {1.0}
