@@ -187,9 +187,6 @@ class Colour:
         self.display = display_for(cp.display)
         self._inv = cfg.getProcessor(cp.working, cp.display, cp.view,
                                      ocio.TRANSFORM_DIR_INVERSE).getDefaultCPUProcessor()
-        col = colour_science()
-        self._M = col.matrix_RGB_to_RGB(col.RGB_COLOURSPACES["ITU-R BT.709"],
-                                        col.RGB_COLOURSPACES["ITU-R BT.2020"])
 
     def resolve(self, mode: str, backend: str) -> str:
         if mode == "auto":
@@ -208,22 +205,24 @@ class Colour:
         return self.ictcp_cd(self.display.from_signal(c))
 
     def ictcp_cd(self, rgb709_cd) -> np.ndarray:
-        rgb2020 = np.asarray(rgb709_cd, np.float64) @ self._M.T
-        return colour_science().RGB_to_ICtCp(np.maximum(rgb2020, 0.0))
+        """ICtCp of display light (cd/m^2, BT.709): the package's ``models/ictcp.py``,
+        the measure the mechanism plan bounds (equal to colour-science's, tested)."""
+        from ocl_tonemap.models.ictcp import rgb709_to_ictcp
+        return rgb709_to_ictcp(rgb709_cd)
 
     def sanity(self) -> dict:
         """Delta E ITP of a 1% step of a grey at 100 cd/m^2, and of one 8-bit / 10-bit code
         step of a mid-grey code value of this display."""
-        col = colour_science()
+        from ocl_tonemap.models.ictcp import delta_e_itp
         g = lambda L: self.ictcp_cd(np.array([[L, L, L]], np.float64))  # noqa: E731
-        one_pct = float(col.delta_E(g(100.0), g(101.0), method="ITP")[0])
+        one_pct = float(delta_e_itp(g(100.0), g(101.0))[0])
         steps = {}
         for bits in (8, 10):
             n = 2 ** bits - 1
             c = np.full((1, 2, 3), 128 / 255, np.float32)
             c[0, 1] += 1.0 / n
             I = self.ictcp(c)
-            steps[bits] = float(col.delta_E(I[0, 0], I[0, 1], method="ITP"))
+            steps[bits] = float(delta_e_itp(I[0, 0], I[0, 1]))
         return {"one_pct_100cd": one_pct, "code_step": steps}
 
 
@@ -235,7 +234,8 @@ def colour_science():
 
 
 def delta_e(I, I_ref) -> tuple[float, float, float]:
-    d = colour_science().delta_E(I, I_ref, method="ITP").ravel()
+    from ocl_tonemap.models.ictcp import delta_e_itp
+    d = delta_e_itp(I, I_ref).ravel()
     d = d[np.isfinite(d)]
     return float(np.median(d)), float(np.percentile(d, 99)), float(d.max())
 
@@ -1210,10 +1210,9 @@ def main(argv=None) -> int:
               "-> display-linear BT.709 -> cd/m^2 with the display model "
               f"(`DisplaySpec.from_signal`: 1.0 -> white {col.display.white_cd:g} cd/m^2, "
               f"black {col.display.black_cd:g} cd/m^2 added as the display shows it) -> "
-              "BT.2020 -> `colour.RGB_to_ICtCp`. colour-science "
-              f"{colour_science().__version__}'s `RGB_to_ICtCp` takes **absolute cd/m^2** "
-              "(its ST 2084 inverse EOTF divides by L_p = 10000 itself; neither /100 nor "
-              "/10000 beforehand). Sanity check: a grey at 100 cd/m^2 against 101 cd/m^2 (1%) "
+              "BT.2020 -> ICtCp (`ocl_tonemap/models/ictcp.py`, BT.2100 PQ on absolute "
+              "cd/m^2 / 10000; equal to colour-science's `RGB_to_ICtCp`, tested; the "
+              "same measure the mechanism plan bounds). Sanity check: a grey at 100 cd/m^2 against 101 cd/m^2 (1%) "
               f"gives ΔE ITP **{sanity['one_pct_100cd']:.2f}** (order 1, as a JND should); "
               f"one 8-bit code step of code value 128/255 gives {sanity['code_step'][8]:.2f}, "
               f"one 10-bit step {sanity['code_step'][10]:.2f}.",
