@@ -451,7 +451,11 @@ def summarise(results: dict, ops, sizes) -> dict:
                             if t["switches"] > 1 or t["max_step"] > MAX_STEP + 1e-9]
                     if badw:
                         fails["fade_smooth"].append(f"@ {s}: " + "; ".join(badw))
-            rows[size] = {"stills_auto_s": ta, "stills_full_s": tf,
+            plan_a = [r["auto"]["parts"].get("plan", 0.0) for _, _, r in st]
+            plan_f = [r["full"]["parts"].get("plan", 0.0) for _, _, r in st]
+            rows[size] = {"plan_auto_ms": 1e3 * statistics.median(plan_a) if plan_a else None,
+                          "plan_full_ms": 1e3 * statistics.median(plan_f) if plan_f else None,
+                          "stills_auto_s": ta, "stills_full_s": tf,
                           "stills_ratio": ta / tf if tf else None,
                           "seq_auto_s": qa, "seq_full_s": qf, "seq_ratio": qa / qf if qf else None,
                           "total_ratio": (ta + qa) / (tf + qf) if tf + qf else None,
@@ -479,12 +483,14 @@ def verdict(row: dict, key: str) -> str:
 
 def report(results: dict, meta: dict, stills: Stills, ops, sizes) -> str:
     summ = results["summary"]
-    L = [f"# Scene-driven modelling: `--model auto` against `--model full`", "",
+    L = ["# Scene-driven modelling: `--model auto` against `--model full`", "",
          f"- device: {meta['device']}",
          f"- host: {meta['host']}",
          f"- date: {meta['date']}",
          f"- code: {meta['commit']}",
-         f"- command: `{meta['command']}`",
+         f"- command: `{meta['command']}`"
+         + (f" (this report re-rendered from the .json by {meta['rendered_by']})"
+            if meta.get("rendered_by") else ""),
          f"- took {meta['minutes']:.1f} min",
          "- **machines are noisy (2 CPU cores shared by the host and PoCL's threads): compare "
          "the ratios auto/full, not absolute times.**", ""]
@@ -501,10 +507,16 @@ def report(results: dict, meta: dict, stills: Stills, ops, sizes) -> str:
                          f"{r['stills_ratio']:.3f}" if r["stills_ratio"] else "—",
                          f"{r['seq_auto_s']:.1f}", f"{r['seq_full_s']:.1f}",
                          f"{r['seq_ratio']:.3f}" if r["seq_ratio"] else "—",
-                         fmt_de(r["worst_de"]), r["worst_de_where"] or "—"))
+                         fmt_de(r["worst_de"]), r["worst_de_where"] or "—",
+                         "—" if r.get("plan_auto_ms") is None else
+                         f"{r['plan_auto_ms']:.1f} / {r['plan_full_ms']:.1f}"))
     L += [table(("operator", "size", "stills auto s", "stills full s", "auto/full",
-                 "sequences auto s", "sequences full s", "auto/full", "worst p99 ΔE", "where"),
-                rows), ""]
+                 "sequences auto s", "sequences full s", "auto/full", "worst p99 ΔE", "where",
+                 "plan ms/frame auto / full"), rows), ""]
+    L += ["*plan ms/frame*: the median over the stills of the host time in "
+          "`MechanismPlan.frame` (auto: the analysis and the predictions; full: the analysis "
+          "only, which it makes too), the price auto pays on every frame for what it may "
+          "skip.", ""]
     L += ["### Targets", ""]
     rows = []
     for op in ops:
@@ -682,6 +694,27 @@ def jsonable(o):
     return o
 
 
+class _Stored:
+    """The stills of a stored run (``--render``): their descriptions only."""
+
+    def __init__(self, scenes_meta: dict, note: str = ""):
+        self.items, self.note = scenes_meta, note
+
+
+def render(json_path: str, out: str) -> int:
+    with open(json_path) as f:
+        results = json.load(f)
+    meta = results["meta"]
+    ops, sizes = meta["operators"], meta["sizes"]
+    results["summary"] = summarise(results, ops, sizes)
+    meta = dict(meta, json=json_path, rendered_by=provenance())
+    md = report(results, meta, _Stored(meta["scenes"], meta.get("note", "")), ops, sizes)
+    with open(out, "w") as f:
+        f.write(md + "\n")
+    log(f"wrote {out}")
+    return 0
+
+
 def main(argv=None) -> int:
     from ocl_tonemap.operators import registry
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -699,7 +732,11 @@ def main(argv=None) -> int:
     ap.add_argument("--photos", help="photo cache folder (default $OCLTM_PHOTOS or "
                     "~/.cache/ocl-tonemap/photos)")
     ap.add_argument("--out", default=DEFAULT_OUT)
+    ap.add_argument("--render", metavar="JSON",
+                    help="only write the report again from a run's .json (to --out)")
     a = ap.parse_args(argv)
+    if a.render:
+        return render(a.render, a.out)
     t_start = time.perf_counter()
     sizes = parse_sizes(a.sizes) if a.sizes else (["640x360"] if a.quick else
                                                   ["640x360", "1920x1080"])
@@ -776,7 +813,7 @@ def main(argv=None) -> int:
             "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
             "commit": provenance(), "command": cmdline,
             "minutes": (time.perf_counter() - t_start) / 60, "json": json_path,
-            "sizes": sizes, "operators": ops,
+            "sizes": sizes, "operators": ops, "note": stills.note,
             "scenes": {n: {k: v for k, v in it.items() if k != "make"}
                        for n, it in stills.items.items()}}
     results["meta"].update(meta)
