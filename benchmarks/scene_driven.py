@@ -689,8 +689,10 @@ def jsonable(o):
         return {str(k): jsonable(v) for k, v in o.items()}
     if isinstance(o, (list, tuple)):
         return [jsonable(v) for v in o]
-    if isinstance(o, (np.floating, np.integer)):
+    if isinstance(o, np.integer):
         return o.item()
+    if isinstance(o, (float, np.floating)):
+        return float(f"{float(o):.5g}") if math.isfinite(o) else None   # 5 digits: enough
     return o
 
 
@@ -822,7 +824,7 @@ def main(argv=None) -> int:
     with open(a.out, "w") as f:
         f.write(md + "\n")
     with open(json_path, "w") as f:
-        json.dump(jsonable(results), f, indent=1)
+        json.dump(jsonable(results), f, separators=(",", ":"))
     log(f"wrote {a.out} and {json_path}")
     print(md.split("## Stills")[0])
     return 0
