@@ -117,7 +117,12 @@ QUICK_GENERATED = ("daylight_sky_sun", "interior_patches", "dusk_sky_gradient",
 QUICK_PHOTOS = ("rooitou_park_1k", "blender_interior", "dikhololo_night_1k")
 
 
-def class_of_level(L: float) -> str:
+def class_of(what: str, L: float) -> str:
+    """A photograph's class from its description in PHOTOS (else its level)."""
+    for word, cls in (("night", "night"), ("sunrise", "sunrise"), ("sunset", "dusk"),
+                      ("dawn", "dusk"), ("interior", "interior"), ("daylight", "daylight")):
+        if word in what:
+            return cls
     return "daylight" if L >= 1000 else "night" if L <= 0.1 else \
         "interior" if L >= 20 else "dusk"
 
@@ -159,7 +164,7 @@ class Stills:
                 continue
             what, L = ph.PHOTOS[stem]
             self.items[stem] = dict(
-                cls=class_of_level(L), level=L, kind="photo: " + what, source=ph.source_of(stem),
+                cls=class_of(what, L), level=L, kind="photo: " + what, source=ph.source_of(stem),
                 make=(lambda w, h, p=paths[stem], L=L: at_level(ph.load_photo(p, w, h), L)))
         if only:
             self.items = {k: v for k, v in self.items.items() if k in only}
