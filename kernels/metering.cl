@@ -190,10 +190,12 @@ __kernel void illuminant_partial(__global const float *rgb, __global const float
 /* Block sums of the scene proxy (ocl_tonemap/mechanisms/analysis.py): one work-item
  * per s x s block of the full frame that this band's rows reach, summing the
  * band's working rgb in it: out[i] = (sum r, sum g, sum b, pixels). The host adds
- * the bands' sums (a block cut by a band edge gets its rows from both). */
+ * the bands' sums (a block cut by a band edge gets its rows from both). With
+ * lim > 0, the sums of the flare's source part rgb max(0, 1 - lim / Y) instead
+ * (spencer1995.source_part: lamps smaller than a block keep their flux). */
 __kernel void block_sums(__global const float *rgb, const int w, const int rows, const int y0,
                          const int s, const int bw, const int by0, const int nb,
-                         __global float4 *out)
+                         const float lim, __global float4 *out)
 {
     const int i = get_global_id(0);
     if (i >= nb * bw) return;
@@ -205,7 +207,12 @@ __kernel void block_sums(__global const float *rgb, const int w, const int rows,
         const int row = y * w;
         for (int x = xa; x < xb; x++) {
             const int k = 3 * (row + x);
-            acc += (float4)(rgb[k], rgb[k + 1], rgb[k + 2], 1.0f);
+            float f = 1.0f;
+            if (lim > 0.0f) {
+                const float Y = M_YR * rgb[k] + M_YG * rgb[k + 1] + M_YB * rgb[k + 2];
+                f = Y > lim ? 1.0f - lim / Y : 0.0f;
+            }
+            acc += (float4)(rgb[k] * f, rgb[k + 1] * f, rgb[k + 2] * f, 1.0f);
         }
     }
     out[i] = acc;

@@ -143,7 +143,8 @@ class Tonemapper:
         self.schedule_set_pixels(self._state.pixels)
         self._state.pixels = None             # the schedule holds them now
         self.effects = Effects(effects, self.backend, tuple(plugin_effects))
-        self.plan = MechanismPlan(self.op, self.effects.settings, self.display, self.metering)
+        self.plan = MechanismPlan(self.op, self.effects.settings, self.display, self.metering,
+                                  self.backend)
         if "spectral" in self.op.inputs and self.effects.s.purkinje != "off":
             raise ValueError(f"{operator} models the Purkinje shift itself; leave --purkinje off")
         self.display_primaries = None
@@ -238,7 +239,7 @@ class Tonemapper:
             from dataclasses import replace
             self.effects.settings = self.effects.s = replace(s, **fx)
             self.plan = MechanismPlan(self.op, self.effects.settings, self.display,
-                                      self.metering)
+                                      self.metering, self.backend)
         return ["--" + k.replace("_", "-") for k in fx]
 
     def integrate(self, stats: FrameStats, time_s: float, frame_number: int | None = None,

@@ -94,6 +94,11 @@ class Backend(Protocol):
         means of the frame's s x s blocks, ``models.metering.block_means``, in the
         same pass)."""
 
+    def source_proxy(self, shape, stride: int, lim: float) -> np.ndarray | None:
+        """Block means (``stride``) of the flare's source part, rgb max(0, 1 - lim / Y),
+        of the frame the last :meth:`working` made, where the backend still holds it
+        whole; else None (the plan then predicts from the proxy itself)."""
+
     def scene_levels(self, source, scale: float, spec: MeteringSpec,
                      illuminant: bool, proxy_stride: int = 0) -> Levels:
         """Colour stage and metering of a band source (``source[y0:y1]``), without

@@ -224,9 +224,14 @@ class Effects:
 
     def purkinje(self, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
                  dt: float = 0.0, fresh: bool = True, preadapt=None):
+        if self._purkinje_skipped():          # the plan skips it: its levels go on
+            return _purkinje.follow(self.settings, G_rod, G_cone, extra, dt, fresh, preadapt)
         self._make_purkinje_device()
         return _purkinje.run(self.s, rgb, G_rod, G_cone, extra, dt, fresh, preadapt,
                              self._purkinje_dev, self.weight("purkinje"))
+
+    def _purkinje_skipped(self) -> bool:
+        return self.settings.purkinje != "off" and self.s.purkinje == "off"
 
     def _make_purkinje_device(self) -> None:
         if self.s.purkinje != "off" and self._purkinje_dev is None:
@@ -273,6 +278,8 @@ class Effects:
     def purkinje_stream(self, G_rod: float, G_cone: float, extra: dict | None, dt: float,
                         fresh: bool, preadapt, height: int):
         """(:class:`~.purkinje.BandedPurkinje` or None, info); levels advanced."""
+        if self._purkinje_skipped():
+            return _purkinje.follow(self.settings, G_rod, G_cone, extra, dt, fresh, preadapt)
         self._make_purkinje_device()
         return _purkinje.stream(self.s, G_rod, G_cone, extra, dt, fresh, preadapt,
                                 self._purkinje_dev, height, self.weight("purkinje"))

@@ -93,6 +93,15 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | No
     return out, info
 
 
+def follow(settings, G_rod: float, G_cone: float, extra: dict | None = None, dt: float = 0.0,
+           fresh: bool = True, preadapt=None):
+    """(None, info) for a frame the mechanism plan skips: the receptor levels still
+    advance (a few numbers), so that the shift comes back where a run that never
+    skipped it would have it."""
+    lv, sens = _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt)
+    return None, {"ran": False, "reason": "plan", "A_rod": lv["A_rod"], "rod_sensitivity": sens}
+
+
 class BandedPurkinje:
     """The shift of a frame in row bands (``Tonemapper.process_stream``): pointwise
     once the frame's levels are known, so each band is shifted as the whole frame

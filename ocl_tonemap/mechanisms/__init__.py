@@ -21,12 +21,19 @@ class MechanismPlan:
     """The plan of one run: what the operator and the effects offer, and per frame
     the analysis, the predictions and the weights."""
 
-    def __init__(self, operator, settings, display, metering):
+    def __init__(self, operator, settings, display, metering, backend=None):
         self.op, self.settings, self.display, self.metering = operator, settings, display, metering
+        self.backend = backend
         self.offer = planner.offered(operator, settings)
         self.gated = [m for m, mode in self.offer.items() if mode == "auto"]
         #: An analysis is made where an effect may run (its illuminant estimate too).
         self.active = settings.any
+
+    def backend_sources(self, h: int, w: int, lim: float):
+        """The source part's block means from the backend (None where it cannot)."""
+        if self.backend is None:
+            return None
+        return self.backend.source_proxy((h, w), block_stride(h, w), lim)
 
     def proxy_stride(self, h: int, w: int) -> int:
         """The block size of the frame's proxy (0: no plan for this run)."""
@@ -41,14 +48,17 @@ class MechanismPlan:
         if not self.active or levels.proxy is None:
             return {}
         G_rod, G_cone = levels.goal
-        patches = patches_of(get_rows, h, w, scale) if "acuity" in self.gated else []
+        patches = patches_of(get_rows, h, w, scale) if self.gated else []
         an = analyse(levels.proxy, G_rod, G_cone, w, h, self.display, patches)
+        if "flare" in self.gated or self.settings.flare == "on":
+            an.flare_limit = self.settings.flare_threshold * G_cone
+            an.sources_proxy = self.backend_sources(h, w, an.flare_limit)
         prev = (extra or {}).get(planner.STATE_KEY) or {}
         if prev.get("G_cone") and dt > 0:
             an.adapting = abs(math.log10(max(an.G_cone, 1e-12) / max(prev["G_cone"], 1e-12))) / dt
         predicted = planner.predictions(an, self.op, self.display, self.settings, self.gated) \
             if self.gated else {}
-        predicted = {k: round(float(v), 6) for k, v in predicted.items()}
+        predicted = {k: round(min(float(v), 1e9), 6) for k, v in predicted.items()}   # JSON: no inf
         weights, target = self.advance(extra, predicted, an.G_cone, dt, fresh or extra is None)
         record = {"weights": weights, "target": target, "predicted_dE_p99": predicted,
                   "analysis": an.as_dict()}

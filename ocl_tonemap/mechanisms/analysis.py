@@ -45,7 +45,8 @@ def block_stride(h: int, w: int, side: int = PROXY_SIDE) -> int:
 
 def patches_of(get_rows, h: int, w: int, scale: float, side: int = PATCH_SIDE,
                grid: int = PATCH_GRID) -> list:
-    """Full-resolution patches on a grid (cd/m^2, float64), for fine detail."""
+    """Full-resolution patches on a grid (cd/m^2, float64), for fine detail and as
+    a sample of single pixels: [(y, x, patch)]."""
     ph, pw = min(side, h), min(side, w)
     ys = np.linspace(0, h - ph, grid).round().astype(int)
     xs = np.linspace(0, w - pw, grid).round().astype(int)
@@ -53,7 +54,7 @@ def patches_of(get_rows, h: int, w: int, scale: float, side: int = PATCH_SIDE,
     for y in sorted(set(ys.tolist())):
         rows = np.asarray(get_rows(y, y + ph))[..., :3]
         for x in sorted(set(xs.tolist())):
-            out.append(sanitize(rows[:, x:x + pw], scale)[0])
+            out.append((y, x, sanitize(rows[:, x:x + pw], scale)[0]))
     return out
 
 
@@ -77,10 +78,12 @@ class SceneAnalysis:
     adapting: float                  # decades per second the cones' goal moves (0: still)
     proxy: np.ndarray = field(repr=False, default=None)
     patches: list = field(repr=False, default_factory=list)
+    sources_proxy: np.ndarray | None = field(repr=False, default=None)
+    flare_limit: float = 0.0         # the flare's source threshold, cd/m^2 (where it runs)
 
     def as_dict(self) -> dict:
         d = asdict(self)
-        d.pop("proxy"), d.pop("patches")
+        d.pop("proxy"), d.pop("patches"), d.pop("sources_proxy")
         return d
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..models import spencer1995 as fl
 from ..models.convolution import EDGE_CLAMP, blur_reference, gaussian_taps
 from ..models.ictcp import delta_e_itp, rgb709_to_ictcp
 from ..models.photometry import Y_WEIGHTS, scotopic_luminance
@@ -32,14 +33,19 @@ class DisplayResponse:
     def __init__(self, op, display, G_rod: float, G_cone: float):
         from ..operators import get_operator
         from ..operators.base import ModelOperator
-        self.op = op if isinstance(op, ModelOperator) else \
-            get_operator("pattanaik00")({}, display)
+        #: the operator's own response (else a stand-in: its predictions are less sure)
+        self.own = isinstance(op, ModelOperator)
+        self.op = op if self.own else get_operator("pattanaik00")({}, display)
         self.display = display
         stats = FrameStats(1, 1, float(G_rod), float(G_cone))
 
         class _State:
             values = self.op.steady_state(stats)
         self.params = self.op.params(_State, stats)
+
+    def at(self, G_rod: float, G_cone: float) -> "DisplayResponse":
+        """The same response adapted to other levels."""
+        return DisplayResponse(self.op, self.display, G_rod, G_cone)
 
     def display_linear(self, rgb_cd: np.ndarray) -> np.ndarray:
         rgb = np.asarray(rgb_cd, np.float64).reshape(-1, 3)
@@ -56,37 +62,84 @@ def p99(a, b) -> float:
     return float(np.percentile(d, QUANTILE)) if len(d) else 0.0
 
 
-def purkinje(an, resp: DisplayResponse, levels=None) -> float:
-    """The Purkinje shift at the frame's scotopic level (``levels``: (G_rod, G_cone)
-    where the flare moves them), rods fully sensitive."""
+def purkinje(an, resp: DisplayResponse, levels=None, pixels=None) -> float:
+    """The Purkinje shift at the frame's scotopic level, rods fully sensitive, as the
+    run makes it: its strength from the levels metered before the flare, on the
+    flared pixels where the flare runs (``pixels``, the flared proxy), shown at the
+    levels the operator then meters (``resp``, at ``levels``)."""
     from ..effects.purkinje import apply_purkinje
-    P = an.proxy.reshape(-1, 3)
+    P = (an.proxy if pixels is None else pixels).reshape(-1, 3)
+    sample = [P]
+    if an.patches:           # single pixels too: block means hide a texture's darks
+        sample.append(patch_pixels(an, None if pixels is None else pixels))
+    P = np.concatenate(sample)
     G_rod, G_cone = levels or (an.G_rod, an.G_cone)
-    shifted, info = apply_purkinje(P, G_rod, G_cone)
+    shifted, info = apply_purkinje(P, an.G_rod, an.G_cone)
     if info["rod_gain"] <= 0.0:
         return 0.0
-    return p99(resp.ictcp(P), resp.ictcp(np.asarray(shifted, np.float64)))
+    shifted = np.asarray(shifted, np.float64)
+    # the operator meters the shifted frame: its scotopic level moves with the shift
+    moved = resp.at(G_rod * _gm(scotopic_luminance(shifted)) / _gm(scotopic_luminance(P)),
+                    G_cone * _gm(shifted @ Y_WEIGHTS) / _gm(P @ Y_WEIGHTS))
+    return p99(resp.ictcp(P), moved.ictcp(shifted))
+
+
+def _gm(a) -> float:
+    return float(np.exp(np.mean(np.log(np.maximum(a, 1e-12)))))
+
+
+def patch_pixels(an, flared=None) -> np.ndarray:
+    """The patches' pixels (N x 3); with ``flared`` (the flared proxy), as the flare
+    leaves them: each pixel less its own source part, plus its block's flare
+    (flared - proxy + the block's source part)."""
+    out = []
+    from .analysis import block_stride
+    s = block_stride(an.height, an.width)
+    for y, x, patch in an.patches:
+        px = np.asarray(patch, np.float64)
+        if flared is not None:
+            h, w = px.shape[:2]
+            by = np.minimum((y + np.arange(h)) // s, an.proxy.shape[0] - 1)
+            bx = np.minimum((x + np.arange(w)) // s, an.proxy.shape[1] - 1)
+            S_blk = an.sources_proxy if an.sources_proxy is not None else 0.0
+            F = (flared - an.proxy + S_blk)[by][:, bx]
+            px = px - fl.source_part(px, 1.0, an.flare_limit) + F
+        out.append(px.reshape(-1, 3))
+    return np.concatenate(out)
 
 
 def flare(an, resp: DisplayResponse, fov_deg: float, threshold: float):
-    """The flare of the proxy's sources (exact method on the proxy, its pixel's angle):
-    (p99 Delta E, the flared proxy or None)."""
-    from ..backends.flare_exec import apply_flare
+    """The flare of the frame's sources, exact method at the proxy's pixel angle:
+    (p99 Delta E, the flared proxy or None). The sources are the block means of each
+    pixel's source part where the backend made them (``an.sources_proxy``: a lamp
+    smaller than a block keeps its flux), else the source part of the proxy
+    (``Backend.source_proxy``: frames in bands)."""
+    from ..backends.flare_exec import apply_flare, convolve_exact
     P = an.proxy
-    if not (float((P @ Y_WEIGHTS).max(initial=0.0)) > threshold * an.G_cone):
-        return 0.0, None
-    out, _ = apply_flare(P, an.G_cone, an.G_rod, fov_deg, "exact", threshold)
+    S = an.sources_proxy
+    if S is None:
+        if not (float((P @ Y_WEIGHTS).max(initial=0.0)) > threshold * an.G_cone):
+            return 0.0, None
+        out, _ = apply_flare(P, an.G_cone, an.G_rod, fov_deg, "exact", threshold)
+    else:
+        if not np.any(S > 0):
+            return 0.0, None
+        D = float(fl.pupil_diameter(0.5 * (an.G_cone + an.G_rod)))
+        out = P - S + convolve_exact(S, fov_deg / P.shape[1], D)
     return p99(resp.ictcp(P), resp.ictcp(out)), out
 
 
 def flared_levels(an, flared: np.ndarray) -> tuple[float, float]:
     """(G_rod, G_cone) after the flare: the metering goals scaled by the change of the
-    proxy's log-averages (the veil raises the level the eye adapts to)."""
-    def gm(a):
-        return float(np.exp(np.mean(np.log(np.maximum(a, 1e-12)))))
-    P = an.proxy
-    k_cone = gm(flared @ Y_WEIGHTS) / gm(P @ Y_WEIGHTS)
-    k_rod = gm(scotopic_luminance(flared)) / gm(scotopic_luminance(P))
+    log-averages (the veil raises the level the eye adapts to) of single pixels where
+    there are patches (a block mean hides the dark pixels the veil fills, which rule
+    a log-average), else of the proxy."""
+    if an.patches:
+        P, flared = patch_pixels(an), patch_pixels(an, flared)
+    else:
+        P = an.proxy
+    k_cone = _gm(flared @ Y_WEIGHTS) / _gm(P @ Y_WEIGHTS)
+    k_rod = _gm(scotopic_luminance(flared)) / _gm(scotopic_luminance(P))
     return an.G_rod * k_rod, an.G_cone * k_cone
 
 
@@ -102,7 +155,7 @@ def acuity(an, resp: DisplayResponse, fov_deg: float, paper: bool = False,
     taps = gaussian_taps(info["sigma_px"])
     R = len(taps) - 1
     a, b = [], []
-    for patch in an.patches:
+    for _, _, patch in an.patches:
         h, w = patch.shape[:2]
         img = resp.display_linear(patch).reshape(h, w, 3)
         blurred = blur_reference(img, taps, EDGE_CLAMP) * info["blend"] + \

@@ -174,3 +174,36 @@ def test_opencl_plan_equals_reference_plan():
     assert a.plan["weights"] == b.plan["weights"]
     for m, v in a.plan["predicted_dE_p99"].items():
         assert b.plan["predicted_dE_p99"][m] == pytest.approx(v, rel=1e-3, abs=1e-3)
+
+
+def test_skipped_purkinje_levels_follow_the_run():
+    """While the plan skips the Purkinje shift its receptor levels still advance, so
+    that a fade into the dark brings it back where ``full`` has it (same A_rod), and
+    the frames with settled weights stay within one JND of full."""
+    base = _scene("patches", 1.0)
+    tms = {m: Tonemapper("pattanaik00", model=m) for m in ("auto", "full")}
+    n = 45
+    for i in range(n):
+        L = np.float32(1e4 * 1e-6 ** (i / (n - 1)))
+        r = {m: t.process_frame(base * L, dt=None if i == 0 else 1 / 30) for m, t in tms.items()}
+        pa, pf = r["auto"].info.effects["purkinje"], r["full"].info.effects["purkinje"]
+        assert pa["A_rod"] == pytest.approx(pf["A_rod"], rel=1e-9), i
+        w = r["auto"].info.plan["weights"]
+        if all(v in (0.0, 1.0) for v in w.values()):
+            assert frame_delta_e(r["auto"].output, r["full"].output,
+                                 tms["auto"].display) <= 1.0, (i, w)
+
+
+def test_lamps_smaller_than_a_proxy_block_are_seen():
+    """Lamps of 2 x 2 pixels (the proxy's blocks are 4 x 4 here) in a dark street:
+    the source part is summed per pixel (metering.cl:block_sums with the threshold),
+    so their flux reaches the prediction and the flare runs."""
+    rgb = np.full((H, W, 3), 0.02, np.float32)
+    rng = np.random.default_rng(1)
+    for y, x in rng.integers(8, [H - 8, W - 8], (12, 2)):
+        rgb[y:y + 2, x:x + 2] = 5e4
+    for backend in ("opencl", "reference"):
+        out, info, tm = _still("pattanaik00", rgb, backend=backend)
+        assert info.plan["weights"]["flare"] == 1.0, info.plan["predicted_dE_p99"]
+        full, _, _ = _still("pattanaik00", rgb, backend=backend, model="full")
+        assert frame_delta_e(out, full, tm.display) <= 1.0

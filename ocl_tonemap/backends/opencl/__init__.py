@@ -35,6 +35,7 @@ class OpenCLBackend:
         self._gains = self.rt.kernel("colour.cl", "apply_gains")
         self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
         self._blocks = self.rt.kernel("metering.cl", "block_sums")
+        self._resident = None          # (h, w) of the working frame whole in bufs["rgb"]
         if max_band_pixels is None:
             # Per pixel: src (<=4 floats), rgb 3, Y, Y', out 3 = 48 B; keep to 1/4
             # of global memory and under the largest single allocation.
@@ -184,9 +185,10 @@ class OpenCLBackend:
     def bands(self, h: int, w: int, halo: int = 0):
         return row_bands(h, w, self.max_band_pixels, halo)
 
-    def _block_sums(self, w: int, nr: int, y0: int, s: int, into: np.ndarray) -> None:
-        """Add the band's block sums (``metering.cl:block_sums``) into ``into``
-        (block rows x block columns x 4, float64)."""
+    def _block_sums(self, w: int, nr: int, y0: int, s: int, into: np.ndarray,
+                    lim: float = 0.0) -> None:
+        """Add the band's block sums (``metering.cl:block_sums``; ``lim`` > 0: of the
+        source part) into ``into`` (block rows x block columns x 4, float64)."""
         import pyopencl as cl
         bw = into.shape[1]
         by0, by1 = y0 // s, (y0 + nr - 1) // s + 1
@@ -194,7 +196,7 @@ class OpenCLBackend:
         out = self.buffer("blocks", n * 16)
         self._blocks(self.rt.queue, (round_up(n, 64),), None, self.bufs["rgb"], np.int32(w),
                      np.int32(nr), np.int32(y0), np.int32(s), np.int32(bw), np.int32(by0),
-                     np.int32(by1 - by0), out)
+                     np.int32(by1 - by0), np.float32(lim), out)
         part = np.empty((by1 - by0, bw, 4), np.float32)
         cl.enqueue_copy(self.rt.queue, part, out)
         into[by0:by1] += part
@@ -210,6 +212,7 @@ class OpenCLBackend:
         repairs = RepairCounts()
         sums = None
         illum = np.zeros(4)
+        self._resident = None
         stride = int(proxy_stride)
         blocks = np.zeros((-(-h // stride), -(-w // stride), 4)) if stride else None
         for y0, nr in bands:
@@ -228,6 +231,16 @@ class OpenCLBackend:
                 cl.enqueue_copy(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
         proxy = None if blocks is None else blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)
         return bands, repairs, sums.goal(spec), illum, float(sums.sums[5]), proxy
+
+    def source_proxy(self, shape, stride: int, lim: float) -> np.ndarray | None:
+        """Block means of the flare's source part of the frame the last :meth:`working`
+        made, where it is still whole on the device (one band); else None."""
+        h, w = int(shape[0]), int(shape[1])
+        if self._resident != (h, w):
+            return None
+        blocks = np.zeros((-(-h // stride), -(-w // stride), 4))
+        self._block_sums(w, h, 0, int(stride), blocks, float(lim))
+        return blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)
 
     def scene_levels(self, source, scale: float, spec: met.MeteringSpec,
                      illuminant: bool, proxy_stride: int = 0) -> Levels:
@@ -256,8 +269,9 @@ class OpenCLBackend:
         h, w, _ = pixels.shape
         one_band = len(self.bands(h, w)) == 1
         rgb = None if (on_device and one_band) else np.empty((h, w, 3), np.float32)
-        _, repairs, G, illum, max_Y, proxy = self.meter_pass(pixels, scale, spec, illuminant,
-                                                             rgb, proxy_stride)
+        bands, repairs, G, illum, max_Y, proxy = self.meter_pass(pixels, scale, spec,
+                                                                 illuminant, rgb, proxy_stride)
+        self._resident = (h, w) if len(bands) == 1 else None
         if rgb is None:           # the colour stage's own buffer, until its next frame
             rgb = DeviceImage(self.rt, self.bufs["rgb"], (h, w, 3))
         return Levels(rgb, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y,

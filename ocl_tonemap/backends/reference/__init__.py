@@ -19,6 +19,7 @@ def _mask(spec: met.MeteringSpec, w: int, h: int):
 
 
 class ReferenceBackend(HostBackend):
+    _last_rgb = None            # the last working frame (source_proxy)
     """Float64 NumPy, straight from the equations; the ground truth. Frames are done
     whole, on the host (:class:`~ocl_tonemap.backends.base.HostBackend`)."""
 
@@ -45,8 +46,17 @@ class ReferenceBackend(HostBackend):
         Y = photopic_luminance(rgb)
         G = met.reference_goal(Y, scotopic_luminance(rgb), spec, _mask(spec, w, h))
         proxy = met.block_means(rgb, proxy_stride) if proxy_stride else None
+        self._last_rgb = rgb
         return Levels(rgb, repairs, G, lambda: durand2000.illuminant_estimate_reference(rgb),
                       float(Y.max(initial=0.0)), proxy)
+
+    def source_proxy(self, shape, stride: int, lim: float) -> np.ndarray | None:
+        """Block means of the flare's source part of the last :meth:`working` frame."""
+        rgb = self._last_rgb
+        if rgb is None or rgb.shape[:2] != tuple(shape[:2]):
+            return None
+        from ...models.spencer1995 import source_part
+        return met.block_means(source_part(rgb, 1.0, lim), int(stride))
 
     def scene_levels(self, source, scale: float, spec: met.MeteringSpec,
                      illuminant: bool, proxy_stride: int = 0) -> Levels:
