@@ -59,6 +59,27 @@ def ring_kernel_fft(shape: tuple[int, int], deg_per_px: float, ch: int) -> np.nd
                         _fft_shape(h, w))
 
 
+@functools.lru_cache(maxsize=16)
+def basis_fft(name: str, shape: tuple[int, int], deg_per_px: float) -> np.ndarray:
+    """FFT of one normalised basis kernel at a frame size (kept: the mechanism plan
+    convolves its proxy, the same size every frame, with a new pupil each time)."""
+    return np.fft.rfft2(fl.basis_kernel(name, shape, deg_per_px), _fft_shape(*shape))
+
+
+def convolve_exact_cached(src: np.ndarray, deg_per_px: float, D: float) -> np.ndarray:
+    """:func:`convolve_exact` from the cached basis FFTs (the PSF is linear in them:
+    the same result to rounding)."""
+    h, w, _ = src.shape
+    wts = fl.flare_weights(D)
+    shared = sum(wi * basis_fft(b, (h, w), deg_per_px)
+                 for wi, b in zip(wts[:3], fl.channel_bases(0)))
+    out = []
+    for c in range(3):
+        KF = shared + wts[3] * basis_fft(fl.channel_bases(c)[3], (h, w), deg_per_px)
+        out.append(np.maximum(fftconvolve_same(src[..., c], None, KF), 0.0))
+    return np.stack(out, axis=-1)
+
+
 def convolve_exact(src: np.ndarray, deg_per_px: float, D: float) -> np.ndarray:
     """PSF * src, float64, exact (FFT of the full-support kernel)."""
     h, w, _ = src.shape

@@ -114,7 +114,7 @@ def flare(an, resp: DisplayResponse, fov_deg: float, threshold: float):
     pixel's source part where the backend made them (``an.sources_proxy``: a lamp
     smaller than a block keeps its flux), else the source part of the proxy
     (``Backend.source_proxy``: frames in bands)."""
-    from ..backends.flare_exec import apply_flare, convolve_exact
+    from ..backends.flare_exec import apply_flare, convolve_exact_cached
     P = an.proxy
     S = an.sources_proxy
     if S is None:
@@ -125,7 +125,7 @@ def flare(an, resp: DisplayResponse, fov_deg: float, threshold: float):
         if not np.any(S > 0):
             return 0.0, None
         D = float(fl.pupil_diameter(0.5 * (an.G_cone + an.G_rod)))
-        out = P - S + convolve_exact(S, fov_deg / P.shape[1], D)
+        out = P - S + convolve_exact_cached(S, fov_deg / P.shape[1], D)
     return p99(resp.ictcp(P), resp.ictcp(out)), out
 
 
@@ -155,9 +155,12 @@ def acuity(an, resp: DisplayResponse, fov_deg: float, paper: bool = False,
     taps = gaussian_taps(info["sigma_px"])
     R = len(taps) - 1
     a, b = [], []
+    shown = resp.display_linear(np.concatenate([p.reshape(-1, 3) for _, _, p in an.patches]))
+    k = 0
     for _, _, patch in an.patches:
         h, w = patch.shape[:2]
-        img = resp.display_linear(patch).reshape(h, w, 3)
+        img = shown[k:k + h * w].reshape(h, w, 3)
+        k += h * w
         blurred = blur_reference(img, taps, EDGE_CLAMP) * info["blend"] + \
             img * (1.0 - info["blend"])
         m = min(R, max(0, (min(h, w) - 4) // 2))
