@@ -103,7 +103,7 @@ def patch_pixels(an, flared=None) -> np.ndarray:
             bx = np.minimum((x + np.arange(w)) // s, an.proxy.shape[1] - 1)
             S_blk = an.sources_proxy if an.sources_proxy is not None else 0.0
             F = (flared - an.proxy + S_blk)[by][:, bx]
-            px = px - fl.source_part(px, 1.0, an.flare_limit) + F
+            px = np.maximum(px - fl.source_part(px, 1.0, an.flare_limit) + F, 0.0)
         out.append(px.reshape(-1, 3))
     return np.concatenate(out)
 
@@ -125,7 +125,8 @@ def flare(an, resp: DisplayResponse, fov_deg: float, threshold: float):
         if not np.any(S > 0):
             return 0.0, None
         D = float(fl.pupil_diameter(0.5 * (an.G_cone + an.G_rod)))
-        out = P - S + convolve_exact_cached(S, fov_deg / P.shape[1], D)
+        # (>= 0: the device's float32 block sums of S can pass the proxy's by a rounding)
+        out = np.maximum(P - S + convolve_exact_cached(S, fov_deg / P.shape[1], D), 0.0)
     return p99(resp.ictcp(P), resp.ictcp(out)), out
 
 
