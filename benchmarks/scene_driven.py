@@ -59,6 +59,7 @@ from collections import defaultdict
 
 import numpy as np
 
+from benchmarks.lib.report import fmt_de, fmt_ms
 from benchmarks.lib import photos as ph
 from benchmarks.lib import scenes
 from benchmarks.lib.timing import table
@@ -337,22 +338,6 @@ def tunnel_frames(w: int, h: int, n: int, t0: float):
 
 
 # --- report -----------------------------------------------------------------------------
-
-def fmt_ms(s) -> str:
-    if s is None:
-        return "—"
-    ms = s * 1e3
-    return f"{ms:.0f}" if ms >= 100 else f"{ms:.1f}" if ms >= 10 else f"{ms:.2f}"
-
-
-def fmt_de(v) -> str:
-    if v is None or not np.isfinite(v):
-        return "—"
-    if v == 0:
-        return "0"
-    return f"{v:.1e}" if v < 0.01 else f"{v:.3f}" if v < 0.1 else f"{v:.2f}" if v < 10 else \
-        f"{v:.1f}"
-
 
 def fmt_level(L) -> str:
     return "as made" if L is None else f"{L:g}"

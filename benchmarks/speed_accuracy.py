@@ -69,6 +69,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from benchmarks.lib.report import fmt_de, fmt_ms
 from benchmarks.lib.photos import load_photo
 from benchmarks.lib.scenes import tunnel
 from benchmarks.lib.timing import table
@@ -97,22 +98,6 @@ REP_BUDGET_S = 4.0
 
 def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
-
-
-def fmt_ms(s) -> str:
-    if s is None:
-        return "—"
-    ms = s * 1e3
-    return f"{ms:.0f}" if ms >= 100 else f"{ms:.1f}" if ms >= 10 else f"{ms:.2f}"
-
-
-def fmt_de(v) -> str:
-    if v is None or not np.isfinite(v):
-        return "—"
-    if v == 0:
-        return "0"
-    return f"{v:.1e}" if v < 0.01 else f"{v:.3f}" if v < 0.1 else f"{v:.2f}" if v < 10 else \
-        f"{v:.1f}"
 
 
 # --- scenes -------------------------------------------------------------------------------
