@@ -72,7 +72,7 @@ class MechanismPlan:
         pass over the predictions its measure pass stored. Returns (weights, targets)."""
         prev = (extra or {}).get(planner.STATE_KEY) or {}
         target = planner.targets(self.offer, predicted, prev.get("weights"))
-        weights = planner.step(prev.get("weights"), target, dt, fresh)
+        weights = planner.step(prev.get("weights"), target, dt, fresh, predicted)
         if extra is not None:
             extra[planner.STATE_KEY] = {"weights": weights, "G_cone": float(G_cone)}
         return weights, target

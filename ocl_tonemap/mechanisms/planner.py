@@ -45,6 +45,11 @@ HYSTERESIS = 0.7
 #: the bound is not kept while a mechanism comes in).
 RAMP_S = 0.1
 RAMP_IN_S = 1.0 / 15.0
+#: A mechanism whose predicted effect (x SAFETY) is beyond this many JND comes in
+#: at once: its effect arrives with the scene (a lamp switched on, a tunnel's
+#: mouth in view), ``full`` shows it in that frame too, and a ramp would only add
+#: frames beyond the bound (and, for ledda04, a memory of them in its state).
+JUMP_JND = 10.0
 STATE_KEY = "plan"
 
 
@@ -109,7 +114,8 @@ def targets(offer: dict, predicted: dict, running: dict | None = None) -> dict:
     return out
 
 
-def step(prev: dict | None, target: dict, dt: float, fresh: bool) -> dict:
+def step(prev: dict | None, target: dict, dt: float, fresh: bool,
+         predicted: dict | None = None) -> dict:
     """The weights after a frame ``dt`` s after the last: toward ``target`` by at most
     dt / RAMP_IN_S up and dt / RAMP_S down (at once when ``fresh`` or there is no
     last plan)."""
@@ -120,5 +126,8 @@ def step(prev: dict | None, target: dict, dt: float, fresh: bool) -> dict:
     out = {}
     for m, t in target.items():
         w = float(prev.get(m, t))
+        if t > w and SAFETY * (predicted or {}).get(m, 0.0) > JUMP_JND:
+            out[m] = float(t)               # arrives with the scene: at once
+            continue
         out[m] = round(min(1.0, max(0.0, w + max(-down, min(up, t - w)))), 6)
     return out

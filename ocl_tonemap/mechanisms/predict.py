@@ -127,7 +127,14 @@ def flare(an, resp: DisplayResponse, fov_deg: float, threshold: float):
         D = float(fl.pupil_diameter(0.5 * (an.G_cone + an.G_rod)))
         # (>= 0: the device's float32 block sums of S can pass the proxy's by a rounding)
         out = np.maximum(P - S + convolve_exact_cached(S, fov_deg / P.shape[1], D), 0.0)
-    return p99(resp.ictcp(P), resp.ictcp(out)), out
+    # shown at the levels the operator meters on the flared frame (a veil over a
+    # dark texture moves them by orders of magnitude), single pixels included
+    after = resp.at(*flared_levels(an, out))
+    a, b = [P.reshape(-1, 3)], [out.reshape(-1, 3)]
+    if an.patches:
+        a.append(patch_pixels(an))
+        b.append(patch_pixels(an, out))
+    return p99(resp.ictcp(np.concatenate(a)), after.ictcp(np.concatenate(b))), out
 
 
 def flared_levels(an, flared: np.ndarray) -> tuple[float, float]:

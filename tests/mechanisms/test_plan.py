@@ -107,6 +107,10 @@ def test_step_ramps_and_resets():
     prev = {"flare": 0.0}
     w = planner.step(prev, {"flare": 1.0}, 1 / 30, fresh=False)
     assert 0.0 < w["flare"] <= 0.5
+    assert planner.step({"flare": 1.0}, {"flare": 0.0}, 1 / 30, fresh=False)["flare"] >= 0.5
+    # an effect far beyond the budget arrives with the scene: at once
+    big = {"flare": 2 * planner.JUMP_JND / planner.SAFETY}
+    assert planner.step(prev, {"flare": 1.0}, 1 / 30, False, big)["flare"] == 1.0
     assert planner.step(prev, {"flare": 1.0}, 1 / 30, fresh=True)["flare"] == 1.0
     assert planner.step(prev, {"flare": 1.0}, 3600.0, fresh=False)["flare"] == 1.0
 
