@@ -214,13 +214,17 @@ class Tonemapper:
     def measure(self, frame: Frame) -> FrameStats:
         """Per-frame statistics of ``frame`` (metering, the illuminant, local levels)."""
         s = self.effects.s
-        want = s.chromatic_adaptation != "off" and (s.paper
-                                                    or not self.plan.active)
-        stats = self.schedule.measure(frame, self.metering, want)
+        stats = self.schedule.measure(frame, self.metering,
+                                      s.chromatic_adaptation != "off" and self._grey_world())
         est = self.effects.estimate
         if est is not None and not s.paper:     # the scene analysis's bounded estimate
             stats.illuminant = lambda e=np.asarray(est[0], np.float64): e
         return stats
+
+    def _grey_world(self) -> bool:
+        """Whether chromatic adaptation takes the backend's grey-world sums (the paper's
+        estimate, or no scene analysis); else the analysis's bounded estimate."""
+        return self.effects.s.paper or not self.plan.active
 
     def advance_plan(self, predicted: dict, G_cone: float, dt: float, fresh: bool) -> dict:
         """Advance the mechanism plan over a frame's stored predictions (the shot's
@@ -519,10 +523,9 @@ class Tonemapper:
         be = self.backend
         band_px = self._band_pixels(h, w)
         # the unchanged frame's levels, as backend.working gives them to _scene_effects
-        levels = be.scene_levels(source, scale, self.metering, own_chroma,
+        levels = be.scene_levels(source, scale, self.metering, own_chroma and self._grey_world(),
                                  self.plan.proxy_stride(h, w))
         self._begin_plan(levels, lambda a, b: source[a:b], h, w, scale, dt, fresh)
-        own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
         if fx.s.flare == "off" and fx.s.purkinje == "off" and not own_chroma:
             return source, scale, None, []
         repairs, (G_rod, G_cone) = levels.repairs, levels.goal
@@ -607,8 +610,8 @@ class Tonemapper:
         # (one upload, no round trip; the operator's colour stage copies it on the device)
         h, w = pix.shape[:2]
         on_dev = pix.shape[2] == 3 and fx.settings.flare != "off" and fx.flare_on_device(h, w)
-        levels = self.backend.working(pix, scale, self.metering, own_chroma, on_device=on_dev,
-                                      proxy_stride=self.plan.proxy_stride(h, w))
+        levels = self.backend.working(pix, scale, self.metering, own_chroma and self._grey_world(),
+                                      on_device=on_dev, proxy_stride=self.plan.proxy_stride(h, w))
         rgb, repairs, (G_rod, G_cone), estimate = levels[:4]
         self._begin_plan(levels, lambda a, b: pix[a:b], h, w, scale, dt, fresh)
         changed = False

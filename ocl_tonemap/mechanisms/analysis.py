@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..models import durand2000 as dd
+from ..models import spencer1995 as fl
 from ..models.photometry import Y_WEIGHTS, sanitize, scotopic_luminance
 
 #: Blocks along the proxy's longer side.
@@ -32,7 +33,7 @@ PATCH_GRID = 3
 PATCH_SIDE = 48
 #: Light sources: photopic luminance above this many times the adaptation level
 #: (the flare threshold of Spencer et al. 1995's default, ``spencer1995.DEFAULT_THRESHOLD``).
-SOURCE_FACTOR = 7.0
+SOURCE_FACTOR = fl.DEFAULT_THRESHOLD
 #: The illuminant estimate leaves out pixels above this many times the adaptation
 #: level: the lamps and the sun themselves (a bright sky or a lit wall, a few times
 #: the level, is what the scene's light looks like and stays in).

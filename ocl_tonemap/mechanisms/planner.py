@@ -61,8 +61,8 @@ def offered(operator, settings) -> dict:
         mode = getattr(settings, field)
         if mode != "off":
             out[mech] = mode
-    if operator.name == "kirk11":
-        out["purkinje"] = "on"              # its own model of the shift (rods in LMSR)
+    if "purkinje" in operator.own_effects:
+        out["purkinje"] = "on"              # its own model of the shift (kirk11: LMSR)
     if settings.chromatic_adaptation != "off":
         out["chromatic-adaptation"] = "on"
     if operator.metering == "local":

@@ -257,14 +257,11 @@ def plausible_illuminant(rgb) -> np.ndarray:
     """An illuminant estimate (working RGB) moved onto the band of real light
     sources around the Planckian locus (:data:`ESTIMATE_DUV_MAX`), normalised.
     CCT and Duv as Ohno 2013 defines them (:mod:`.planckian`)."""
-    from .planckian import CCT_Duv_to_uv, uv_to_CCT_Duv
+    from .planckian import CCT_Duv_to_uv
     v = normalise_illuminant(rgb)
-    XYZ = RGB709_TO_XYZ @ v
-    if not (XYZ.sum() > 0):
+    if not ((RGB709_TO_XYZ @ v).sum() > 0):
         return v
-    x, y = XYZ[:2] / XYZ.sum()
-    d = -2.0 * x + 12.0 * y + 3.0                      # xy -> CIE 1960 (u, v)
-    cct, duv = uv_to_CCT_Duv((4.0 * x / d, 6.0 * y / d))
+    cct, duv = cct_duv(v)
     cct = float(np.clip(cct, *ESTIMATE_CCT_RANGE))
     duv = float(np.clip(duv, -ESTIMATE_DUV_MAX, ESTIMATE_DUV_MAX))
     u, w = CCT_Duv_to_uv(cct, duv)
