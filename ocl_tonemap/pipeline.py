@@ -226,10 +226,11 @@ class Tonemapper:
         estimate, or no scene analysis); else the analysis's bounded estimate."""
         return self.effects.s.paper or not self.plan.active
 
-    def advance_plan(self, predicted: dict, G_cone: float, dt: float, fresh: bool) -> dict:
-        """Advance the mechanism plan over a frame's stored predictions (the shot's
-        integrate pass; a serial run does it in the frame): the weights."""
-        return self.plan.advance(self._state.extra, predicted, G_cone, dt, fresh)[0]
+    def advance_plan(self, predicted: dict, G_cone: float, dt: float, fresh: bool,
+                     sig: list | None = None) -> dict:
+        """Advance the mechanism plan over a frame's stored predictions and signature
+        (the shot's integrate pass; a serial run does it in the frame): the weights."""
+        return self.plan.advance(self._state.extra, predicted, G_cone, dt, fresh, sig)[0]
 
     def leave_out_unsplittable(self) -> list:
         """Switch off the effects on ``auto`` that :meth:`check_measure_only` would

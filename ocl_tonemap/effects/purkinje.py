@@ -89,6 +89,8 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | No
     info.update({"A_rod": lv["A_rod"], "rod_sensitivity": sens})
     if settings.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
         return None, {"ran": False, "reason": "photopic", **info}
+    if info["rod_gain"] <= 0.0:              # on, but no rod signal: nothing to shift
+        return None, {"ran": False, "reason": "no rod signal", **info}
     info["ran"] = True
     return out, info
 
@@ -141,7 +143,7 @@ def stream(settings, G_rod: float, G_cone: float, extra: dict | None = None, dt:
     info.update({"A_rod": lv["A_rod"], "rod_sensitivity": sens})
     if settings.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
         return None, {"ran": False, "reason": "photopic", **info}
+    if gain <= 0.0:                          # on, but no rod signal: nothing to shift
+        return None, {"ran": False, "reason": "no rod signal", **info}
     info["ran"] = True
-    if gain <= 0.0:
-        return None, info
     return BandedPurkinje(lv, sens, device, height), info

@@ -138,7 +138,8 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, fin: FrameInput, info,
     if info.plan:
         meta["ocltm:plan"] = json.dumps(info.plan["weights"], sort_keys=True)
         meta["ocltm:plan_detail"] = json.dumps(
-            {k: v for k, v in info.plan.items() if k != "weights"}, sort_keys=True, default=float)
+            {k: v for k, v in info.plan.items() if k not in ("weights", "sig")}, sort_keys=True,
+            default=float)
     if fr.channel_note:
         meta["ocltm:channels"] = fr.channel_note
     if alpha:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 from . import planner
-from .analysis import analyse, block_stride, patches_of
+from .analysis import analyse, block_stride, patches_of, signature
 
 
 class MechanismPlan:
@@ -52,27 +52,44 @@ class MechanismPlan:
         an = analyse(levels.proxy, G_rod, G_cone, w, h, self.display, patches)
         if "flare" in self.gated or self.settings.flare == "on":
             an.flare_limit = self.settings.flare_threshold * G_cone
-            an.sources_proxy = self.backend_sources(h, w, an.flare_limit)
         prev = (extra or {}).get(planner.STATE_KEY) or {}
         if prev.get("G_cone") and dt > 0:
             an.adapting = abs(math.log10(max(an.G_cone, 1e-12) / max(prev["G_cone"], 1e-12))) / dt
-        predicted = planner.predictions(an, self.op, self.display, self.settings, self.gated) \
-            if self.gated else {}
-        predicted = {k: round(min(float(v), 1e9), 6) for k, v in predicted.items()}   # JSON: no inf
-        weights, target = self.advance(extra, predicted, an.G_cone, dt, fresh or extra is None)
+        sig = signature(an) if self.gated else None
+
+        def predict() -> dict:
+            if an.flare_limit > 0:
+                an.sources_proxy = self.backend_sources(h, w, an.flare_limit)
+            p = planner.predictions(an, self.op, self.display, self.settings, self.gated)
+            return {k: round(min(float(v), 1e9), 6) for k, v in p.items()}   # JSON: no inf
+
+        weights, target, predicted, reused = self.advance(
+            extra, predict if self.gated else {}, an.G_cone, dt, fresh or extra is None, sig)
         record = {"weights": weights, "target": target, "predicted_dE_p99": predicted,
-                  "analysis": an.as_dict()}
+                  "reused": reused, "sig": sig, "analysis": an.as_dict()}
         return {"weights": weights, "record": record,
                 "estimate": (an.illuminant, an.illuminant_cct, an.illuminant_confidence)}
 
-    def advance(self, extra: dict | None, predicted: dict, G_cone: float, dt: float,
-                fresh: bool) -> tuple[dict, dict]:
+    def advance(self, extra: dict | None, predicted, G_cone: float, dt: float,
+                fresh: bool, sig: list | None = None) -> tuple[dict, dict, dict, bool]:
         """The weights of a frame from its predictions and the last frame's weights in
         ``extra`` (advanced there): the serial run's step, also the shot's integrate
-        pass over the predictions its measure pass stored. Returns (weights, targets)."""
+        pass over the predictions its measure pass stored. ``predicted``: the frame's
+        predictions, or a function that makes them (called only where the state's
+        reference cannot be reused: ``planner.reusable``); ``sig``: the frame's
+        signature. Returns (weights, targets, the predictions used, reused)."""
         prev = (extra or {}).get(planner.STATE_KEY) or {}
+        ref = prev.get("ref")
+        reused = not fresh and planner.reusable(ref, sig, self.gated)
+        if reused:
+            predicted = dict(ref["predicted"])
+        else:
+            predicted = predicted() if callable(predicted) else dict(predicted)
+            ref = {"sig": sig, "predicted": predicted} if sig is not None else None
         target = planner.targets(self.offer, predicted, prev.get("weights"))
         weights = planner.step(prev.get("weights"), target, dt, fresh, predicted)
         if extra is not None:
             extra[planner.STATE_KEY] = {"weights": weights, "G_cone": float(G_cone)}
-        return weights, target
+            if ref is not None:
+                extra[planner.STATE_KEY]["ref"] = ref
+        return weights, target, predicted, reused

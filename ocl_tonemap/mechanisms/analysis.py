@@ -40,6 +40,13 @@ SOURCE_FACTOR = fl.DEFAULT_THRESHOLD
 ILLUMINANT_SOURCE_FACTOR = 30.0
 
 
+#: The frame's signature (:func:`signature`): a coarse grid of the proxy's log10 block
+#: means, each channel, quantised to SIGNATURE_STEP decades; with the patches' log
+#: mean and log spread (fine detail) and the metering goals.
+SIGNATURE_GRID = 12
+SIGNATURE_STEP = 0.01
+
+
 def block_stride(h: int, w: int, side: int = PROXY_SIDE) -> int:
     return max(1, -(-max(h, w) // side))
 
@@ -81,11 +88,38 @@ class SceneAnalysis:
     patches: list = field(repr=False, default_factory=list)
     sources_proxy: np.ndarray | None = field(repr=False, default=None)
     flare_limit: float = 0.0         # the flare's source threshold, cd/m^2 (where it runs)
+    pixel_memo: list = field(repr=False, default_factory=list)   # predict.patch_pixels'
 
     def as_dict(self) -> dict:
         d = asdict(self)
-        d.pop("proxy"), d.pop("patches"), d.pop("sources_proxy")
+        for k in ("proxy", "patches", "sources_proxy", "pixel_memo"):
+            d.pop(k)
         return d
+
+
+def _log_q(a) -> np.ndarray:
+    return np.round(np.log10(np.maximum(np.asarray(a, np.float64), 1e-9)) / SIGNATURE_STEP)
+
+
+def signature(an: "SceneAnalysis") -> list:
+    """What the predictions depend on, coarsely: a SIGNATURE_GRID^2 grid of the proxy's
+    cell means per channel, each patch's per-channel mean and standard deviation (its
+    fine detail: what the blur of acuity removes) and the metering goals, as integers
+    of SIGNATURE_STEP decades. Two frames whose signatures differ by at most
+    ``planner.REUSE_STEPS`` in every entry have the same predictions within a few per
+    cent (``planner`` reuses them: a held shot, a still, a slow pan)."""
+    P = np.asarray(an.proxy, np.float64)
+    gh, gw = min(SIGNATURE_GRID, P.shape[0]), min(SIGNATURE_GRID, P.shape[1])
+    ey = np.linspace(0, P.shape[0], gh + 1).astype(int)
+    ex = np.linspace(0, P.shape[1], gw + 1).astype(int)
+    sums = np.add.reduceat(np.add.reduceat(P, ey[:-1], axis=0), ex[:-1], axis=1)
+    cells = sums / (np.diff(ey)[:, None, None] * np.diff(ex)[None, :, None])
+    parts = [_log_q(cells).ravel(), _log_q([an.G_rod, an.G_cone])]
+    for _, _, patch in an.patches:
+        p = np.asarray(patch, np.float64).reshape(-1, 3)
+        parts.append(_log_q(p.mean(axis=0)))
+        parts.append(_log_q(p.std(axis=0) + 1e-6 * np.maximum(p.mean(axis=0), 1e-9)))
+    return [int(v) for v in np.concatenate(parts)]
 
 
 def percentiles(a: np.ndarray) -> tuple:

@@ -51,6 +51,26 @@ RAMP_IN_S = 1.0 / 15.0
 #: frames beyond the bound (and, for ledda04, a memory of them in its state).
 JUMP_JND = 10.0
 STATE_KEY = "plan"
+#: Acuity is also predicted at this share of the frame's rod level: 0.1 decade, one
+#: frame at 30 fps of a fall of 3 decades a second (the benchmark's day-to-night
+#: fade falls 0.083 decade a frame; dusk falls far slower).
+ACUITY_AHEAD = 10.0 ** -0.1
+#: Predictions are reused while the frame's signature (``analysis.signature``)
+#: stays within this many SIGNATURE_STEPs (0.01 decade) of the one they were made
+#: on, in every entry: a held shot or a still costs the analysis alone. The
+#: reference (signature and predictions) is kept in the state, so a resumed or
+#: split run reuses where the serial run did.
+REUSE_STEPS = 2
+
+
+def reusable(ref: dict | None, sig: list | None, gated) -> bool:
+    """Whether the predictions in ``ref`` hold for a frame of signature ``sig``."""
+    if not ref or sig is None or ref.get("sig") is None:
+        return False
+    old = ref["sig"]
+    if len(old) != len(sig) or set(ref.get("predicted", {})) != set(gated):
+        return False
+    return max((abs(a - b) for a, b in zip(old, sig)), default=0) <= REUSE_STEPS
 
 
 def offered(operator, settings) -> dict:
@@ -71,7 +91,13 @@ def offered(operator, settings) -> dict:
 
 
 def predictions(an, operator, display, settings, gated) -> dict:
-    """Predicted p99 Delta E ITP of each gated mechanism (full against none)."""
+    """Predicted p99 Delta E ITP of each gated mechanism (full against none).
+    Acuity, whose effect starts steeply (its blend goes from 0 to 1 within ~0.3
+    decade of L_waR as the cutoff passes the display's Nyquist: 0 to 2.3 JND in one
+    frame of a fast fade), is predicted at the larger of the frame's rod level and
+    :data:`ACUITY_AHEAD` times it, so that its ramp starts a frame before ``full``
+    shows it rather than a frame after (the frame itself, no state: the shot's
+    measure pass predicts what the serial run does)."""
     resp = predict.DisplayResponse(operator, display, an.G_rod, an.G_cone)
     out = {}
     levels = flared = None
@@ -93,8 +119,10 @@ def predictions(an, operator, display, settings, gated) -> dict:
         out["purkinje"] = predict.purkinje(an, resp, levels,
                                            None if levels is None else flared)
     if "acuity" in gated:
-        out["acuity"] = predict.acuity(an, resp, settings.fov_deg, settings.paper,
-                                       None if levels is None else levels[0])
+        G = an.G_rod if levels is None else levels[0]
+        out["acuity"] = predict.acuity(an, resp, settings.fov_deg, settings.paper, G)
+        out["acuity"] = max(out["acuity"], predict.acuity(
+            an, resp, settings.fov_deg, settings.paper, G * ACUITY_AHEAD))
     return out
 
 

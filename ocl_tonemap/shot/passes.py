@@ -255,7 +255,7 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
             plan = tm._frame_plan
             if plan:
                 doc["plan"] = {"predicted": plan["predicted_dE_p99"],
-                               "G_cone": plan["analysis"]["G_cone"]}
+                               "G_cone": plan["analysis"]["G_cone"], "sig": plan.get("sig")}
             store.write_stats(f, doc, tm.schedule.stats_planes(stats))
         except FrameError:
             raise
@@ -291,7 +291,8 @@ def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None) -> None:
         time_s, dt, fresh = tm.frame_clock(None, float(doc["time_s"]))
         tm.integrate(stats, time_s, f, dt, fresh, hint, {})
         if doc.get("plan"):
-            tm.advance_plan(doc["plan"]["predicted"], doc["plan"]["G_cone"], dt, fresh)
+            tm.advance_plan(doc["plan"]["predicted"], doc["plan"]["G_cone"], dt, fresh,
+                            doc["plan"].get("sig"))
         if after is not None:
             after(k, f)
 

@@ -211,3 +211,42 @@ def test_lamps_smaller_than_a_proxy_block_are_seen():
         assert info.plan["weights"]["flare"] == 1.0, info.plan["predicted_dE_p99"]
         full, _, _ = _still("pattanaik00", rgb, backend=backend, model="full")
         assert frame_delta_e(out, full, tm.display) <= 1.0
+
+
+def test_predictions_reused_on_a_held_frame_and_made_again_when_it_changes():
+    """A held frame reuses the last predictions (the analysis alone); a lamp in a
+    dark corner, or fine texture that leaves the block means as they were, makes
+    them again (``planner.reusable``, ``analysis.signature``)."""
+    rgb = _scene("lamps", 0.03)
+    tm = Tonemapper("pattanaik00")
+    first = tm.process_frame(rgb)
+    held = tm.process_frame(rgb, dt=1 / 30)
+    assert not first.info.plan["reused"] and held.info.plan["reused"]
+    assert held.info.plan["predicted_dE_p99"] == first.info.plan["predicted_dE_p99"]
+    assert held.info.plan["weights"] == first.info.plan["weights"]
+    grain = rgb * np.float32(1.001)                           # within the signature's step
+    assert tm.process_frame(grain, dt=1 / 30).info.plan["reused"]
+    lamp = rgb.copy()
+    lamp[4:7, 4:7] = 3e4
+    assert not tm.process_frame(lamp, dt=1 / 30).info.plan["reused"]
+    tm.process_frame(rgb, dt=1 / 30)
+    texture = rgb.copy()
+    yy, xx = np.mgrid[0:48, 0:48]
+    texture[:48, :48] *= (1.0 + 0.8 * ((yy + xx) % 2 * 2 - 1))[..., None].astype(np.float32)
+    assert not tm.process_frame(texture, dt=1 / 30).info.plan["reused"]
+
+
+def test_fade_bound_holds_on_every_frame_kirk11():
+    """The day-to-night fade of the benchmark (0.083 decade a frame at 30 fps)
+    through kirk11: auto within 1 JND (p99 Delta E ITP) of full on every frame, the
+    frames where acuity comes in included (its prediction is taken a step ahead)."""
+    rgb = np.asarray(scenes.patches(640, 360), np.float64)[..., :3]    # as the benchmark
+    base = (rgb / np.exp(np.mean(np.log(np.maximum(rgb @ Y_WEIGHTS, 1e-9))))).astype(np.float32)
+    tms = {m: Tonemapper("kirk11", model=m) for m in ("auto", "full")}
+    worst = 0.0
+    for k in range(90):
+        L = np.float32(10 ** (4.0 - 7.0 * k / 89))
+        outs = {m: tm.process_frame(base * L, dt=1 / 30 if k else None).output
+                for m, tm in tms.items()}
+        worst = max(worst, frame_delta_e(outs["auto"], outs["full"], tms["auto"].display))
+    assert worst <= 1.0
