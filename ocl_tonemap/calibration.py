@@ -70,8 +70,9 @@ class CalibrationRequest:
                                  f"in cd/m^2 or one of {', '.join(NAMED_LEVELS)}")
             if lvl in NAMED_LEVELS:
                 return cls(auto_level=NAMED_LEVELS[lvl], auto_name=lvl)
-            return cls(auto_level=_positive(_float(lvl, "--luminance-scale auto:"),
-                                            "--luminance-scale auto:"))
+            from .job.options import check_luminance
+            return cls(auto_level=check_luminance(_float(lvl, "--luminance-scale auto:"),
+                                                  "--luminance-scale auto:", zero_ok=False))
         return cls(scale=_positive(_float(t, "--luminance-scale"), "--luminance-scale"))
 
 
@@ -184,10 +185,10 @@ class Calibrator:
             return Calibration(r.scale, "--luminance-scale")
         wl = _attr_number(spec, "whiteLuminance") if spec is not None else None
         if wl is not None:
-            return Calibration(wl, "whiteLuminance attribute")
+            return self._over_auto(Calibration(wl, "whiteLuminance attribute"))
         cam = camera_scale(spec)
         if cam is not None:
-            return Calibration(cam[0], cam[1])
+            return self._over_auto(Calibration(cam[0], cam[1]))
         if r.auto_level is not None:
             if self.auto_scale is None:
                 la = log_average(working_rgb_fn())
@@ -204,6 +205,26 @@ class Calibrator:
             return Calibration(RADIANCE_EFFICACY / e, "Radiance efficacy 179 lm/W (the .hdr "
                                "format's units; photographs are seldom absolute)", assumed=True)
         return Calibration(1.0, "assumed: pixel values are cd/m^2", assumed=True)
+
+    def _over_auto(self, cal: "Calibration") -> "Calibration":
+        """An absolute calibration of the file wins over ``auto:LEVEL``: said once."""
+        r = self.request
+        if r.auto_level is not None:
+            _say_once((id(self), cal.source), "--luminance-scale auto:%s is not used: the "
+                      "file's %s (1.0 = %g cd/m^2) comes first, being absolute; give "
+                      "--luminance-scale S to set the scale yourself",
+                      r.auto_name or f"{r.auto_level:g}", cal.source, cal.scale)
+        return cal
+
+
+_said_over_auto = set()
+
+
+def _say_once(key, msg, *args) -> None:
+    if key not in _said_over_auto:
+        _said_over_auto.add(key)
+        import logging
+        logging.getLogger("ocl_tonemap").warning(msg, *args)
 
 
 ASSUMED_HELP = ("set --luminance-scale S (1.0 = S cd/m^2) or --luminance-scale auto:LEVEL "

@@ -22,8 +22,8 @@ def registry() -> dict:
 def _add_run_args(p: argparse.ArgumentParser) -> None:
     from .backends.plan import QUALITY_NAMES
     p.add_argument("--frames", help="frame range for sequence patterns: A-B, A-BxSTEP, or a list")
-    p.add_argument("--fps", type=float, help="frames per second (default: FramesPerSecond "
-                   "metadata, else 24)")
+    p.add_argument("--fps", type=float, help="frames per second, up to 1e6 (default: "
+                   "FramesPerSecond metadata, else 24)")
     ops = registry()
     p.add_argument("--operator", default="pattanaik00", choices=sorted(ops),
                    help="the model (default pattanaik00): " + "; ".join(
@@ -32,15 +32,18 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    help="default: the operator as it looks right on photographs; paper: its "
                    "paper taken literally (docs/models.md says where they differ)")
     p.add_argument("--metering", default="logmean",
-                   help="logmean (default) | mean | max | centre[:mean] | spot:X,Y[,SIGMA] | "
-                   "percentile:P | mask:WEIGHTS.exr")
+                   help="logmean (default) | mean | max | centre[:mean] | spot:X,Y[,SIGMA] "
+                   "(X, Y: fractions 0..1 of the width and height from the top left; SIGMA: "
+                   "fraction of the width, default 0.02) | percentile:P (0..100) | "
+                   "mask:WEIGHTS.exr")
     p.add_argument("--luminance-scale", metavar="S|auto:LEVEL",
                    help="cd/m^2 of pixel value 1.0, or auto:LEVEL to put the first frame's "
                    "log-average at LEVEL cd/m^2 (a number, or night 0.01, dusk 1, interior 30, "
-                   "overcast 500, daylight 5000) for files that carry no calibration "
+                   "overcast 500, daylight 5000; 1e-6..1e8) for files that carry no calibration "
                    "(default: whiteLuminance, else camera EXIF exposure, else 179 for "
                    "Radiance .hdr, else 1 with a warning)")
-    p.add_argument("--exposure", type=float, default=0.0, help="extra scale in stops (EV)")
+    p.add_argument("--exposure", type=float, default=0.0, help="extra scale in stops (EV), "
+                   "-100..100")
     p.add_argument("--colorconfig", help="OCIO config: file, ocio:// URI or 'ocl-tonemap' "
                    "(default: $OCIO, else ocio://default)")
     p.add_argument("--iscolorspace", help="input colourspace (default: file metadata, file "
@@ -71,7 +74,8 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    "or auto (default: the table with the OpenCL backend when it is within one "
                    "10-bit code value of OCIO, else ocio)")
     p.add_argument("--preadapt", help="initial adaptation: CD_M2 (fully adapted) or "
-                   "CD_M2:SECONDS (exposed that long from dark)")
+                   "CD_M2:SECONDS (exposed that long from dark); CD_M2 0 (darkness) or "
+                   "1e-6..1e8, SECONDS 0..1e7 (an m suffix: minutes)")
     p.add_argument("--state-in", help="start from this adaptation state: a state JSON, or an "
                    "output frame of ocl-tonemap (its ocltm:state; global operators)")
     p.add_argument("--state-out", help="write the adaptation state here, after every frame and "
@@ -134,7 +138,8 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                        ("purkinje", "rod colour shift of kirk11 on the scene's colours "
                         "(Kirk & O'Brien 2011)")):
         g.add_argument(f"--{name}", choices=["on", "off", "auto"], help=what)
-    g.add_argument("--fov", type=float, help="angular width of the image, degrees (default 50)")
+    g.add_argument("--fov", type=float, help="angular width of the image, degrees, 0..180 "
+                   "(default 50)")
     g.add_argument("--illuminant", help="illuminant for chromatic adaptation: x,y or a name "
                    "(D65, D50, A, F2, F11, LED-B3 ...); default: EXR adoptedNeutral, else "
                    "estimated from the frame")
@@ -193,15 +198,21 @@ def parse_cuts(text: str | None):
         return None
     if text.strip().lower() == "detect":
         return "detect"
+    from .imageio import MAX_FRAME
+    from .safeio import read_text
+    raw = read_text(text, "--cuts", CUTS_CAP)
+    body = " ".join(line.split("#", 1)[0] for line in raw.splitlines())
     try:
-        with open(text) as fh:
-            body = " ".join(line.split("#", 1)[0] for line in fh)
-    except OSError as exc:
-        raise ValueError(f"--cuts: cannot read {text}: {exc.strerror or exc}") from None
-    try:
-        return sorted({int(v) for v in body.replace(",", " ").split()})
+        cuts = sorted({int(v) for v in body.replace(",", " ").split()})
     except ValueError:
         raise ValueError(f"--cuts {text}: the file must hold frame numbers") from None
+    if any(abs(c) > MAX_FRAME for c in cuts):
+        raise ValueError(f"--cuts {text}: frame numbers are within +-{MAX_FRAME}")
+    return cuts
+
+
+#: Largest --cuts file (a list of frame numbers), bytes.
+CUTS_CAP = 1 << 20
 
 
 def _effects(a, tier=None):
@@ -321,7 +332,7 @@ def _add_shot_args(g, chunk: bool = False, chunk_frames: bool = False,
 #: from the command lines it writes): flag -> takes a value.
 SHOT_ONLY_FLAGS = {"--format": True, "-o": True, "--job-file": True, "--name": True,
                    "--command": True, "--chunk-frames": True, "--store": True,
-                   "--scheduler": True, "--workers": True}
+                   "--scheduler": True, "--workers": True, "--scheduler-security": True}
 
 
 def run_option_tokens(argv: list[str], a) -> list[str]:
@@ -357,22 +368,29 @@ def _command_of(argv) -> str | None:
 ALL_COMMANDS = "*"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors in one line (``ocl-tonemap ERROR: ...``), exit 2."""
+
+    def error(self, message):
+        self.exit(2, f"ocl-tonemap ERROR: {message} (see {self.prog} --help)\n")
+
+
 def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
     """The whole parser; with ``command``, that sub-command's options only (the others
     keep their name and help; None: no sub-command's, as for ``--version`` or the
     top-level ``--help``): the run options of seven sub-commands take ~15 ms to build,
     and the operators they list import NumPy."""
-    ap = argparse.ArgumentParser(prog="ocl-tonemap", description=(
+    ap = _Parser(prog="ocl-tonemap", description=(
         "Show an HDR scene or shot as a human observer would see it (time-dependent "
         "visual adaptation on OpenCL, OIIO/OCIO pipelines)."))
     ap.add_argument("--version", action="version", version=f"ocl-tonemap {__version__}")
     ap.add_argument("-v", "--verbose", action="count", default=0)
     ap.add_argument("-q", "--quiet", action="store_true")
     # -v/-q also after the sub-command (ocl-tonemap run ... -v)
-    common = argparse.ArgumentParser(add_help=False)
+    common = _Parser(add_help=False)
     common.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS)
     common.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS)
-    sub = ap.add_subparsers(dest="cmd", required=True)
+    sub = ap.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     _sub = sub.add_parser
 
     def add_parser(name, **kw):
@@ -391,6 +409,10 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
                    help="run the three passes on Dask: dask starts a local cluster of "
                    "--workers processes, an address uses a running one (default: serial)")
     g.add_argument("--workers", type=int, default=2, help="local cluster size (default 2)")
+    g.add_argument("--scheduler-security", metavar="FILE",
+                   help="TLS for a tls:// scheduler: a YAML or JSON file with ca, cert and key "
+                   "(PEM paths, relative to the file), Dask's Security; without it, Dask's own "
+                   "configuration (distributed.comm.tls.*, DASK_DISTRIBUTED__COMM__TLS__*)")
     _add_shot_args(g, chunk_frames=True)
     for name, what in (("measure", "pass 1: each frame's statistics into the shot store "
                         "(parallel over chunks)"),
@@ -516,6 +538,18 @@ def _devices(check: bool = False) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line: 0 done, 2 bad input or a failure named in one ERROR line
+    (never a traceback; ``-vv`` logs it), 130 / 143 interrupted (SIGINT / SIGTERM)."""
+    from .interrupts import Terminated, exit_code, install
+    install()
+    try:
+        return _main(argv)
+    except (KeyboardInterrupt, Terminated) as exc:
+        print("ocl-tonemap: interrupted; the frame in flight was discarded", file=sys.stderr)
+        return exit_code(exc)
+
+
+def _main(argv: list[str] | None = None) -> int:
     a = build_parser(_command_of(sys.argv[1:] if argv is None else argv)).parse_args(argv)
     level = logging.WARNING if a.quiet else (logging.INFO if a.verbose else logging.WARNING)
     if a.verbose > 1:
@@ -523,7 +557,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=level, format="ocl-tonemap %(levelname)s: %(message)s")
     if a.quiet:
         logging.getLogger("ocl_tonemap").setLevel(logging.ERROR)
-    from .imageio import FrameError
+    from .imageio import FrameError, one_line
     try:
         if a.cmd == "devices":
             return _devices(a.check)
@@ -564,8 +598,8 @@ def main(argv: list[str] | None = None) -> int:
             from .job.options import parse_times
             from .job.simulate import run_simulate
             res = run_simulate(_options(a, a.input, a.output), parse_times(a.at))
-            if not a.quiet:
-                for t, o in zip(parse_times(a.at), res.outputs):
+            if not a.quiet:                   # (rendered in time order)
+                for t, o in zip(sorted(parse_times(a.at)), res.outputs):
                     print(f"t = {t:g} s -> {o}")
             return 0
         if a.cmd in ("measure", "integrate", "apply", "farm-template"):
@@ -575,7 +609,8 @@ def main(argv: list[str] | None = None) -> int:
             opts = _options(a, a.input, a.output)
             res = run_distributed(opts, a.scheduler, a.workers, a.chunk_frames, a.store,
                                   progress=opts.progress,
-                                  pocl_threads=max(1, (os.cpu_count() or 1) // a.workers))
+                                  pocl_threads=max(1, (os.cpu_count() or 1) // max(1, a.workers)),
+                                  security=a.scheduler_security)
             if not a.quiet:
                 times = ", ".join(f"{k} {v:.2f} s" for k, v in res.passes.items())
                 print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s ({times})")
@@ -604,9 +639,16 @@ def main(argv: list[str] | None = None) -> int:
         where = e.path if e.frame is None else f"{e.path} frame {e.frame}"
         print(f"ocl-tonemap ERROR: {where}: {e.why}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("ocl-tonemap: interrupted; the frame in flight was discarded", file=sys.stderr)
-        return 130
     except (ValueError, RuntimeError, OSError) as e:
-        print(f"ocl-tonemap ERROR: {e}", file=sys.stderr)
+        print(f"ocl-tonemap ERROR: {one_line(e)}", file=sys.stderr)
+        log.debug("traceback", exc_info=True)
+        return 2
+    except MemoryError:
+        print("ocl-tonemap ERROR: out of memory; give --max-memory MIB to process frames in "
+              "row bands", file=sys.stderr)
+        return 2
+    except Exception as e:                                    # noqa: BLE001
+        # what no check above names (a library's own exception: OCIO's, Dask's ...)
+        print(f"ocl-tonemap ERROR: {one_line(e, True)}", file=sys.stderr)
+        log.debug("traceback", exc_info=True)
         return 2

@@ -1,26 +1,23 @@
-"""Image I/O through OpenImageIO: frames, sequences, atomic writes.
+"""Image reads through OpenImageIO: frames, sequences, the formats' tables.
 
 Sequence patterns follow oiiotool: a lone ``#`` is four digits of padding,
 ``@`` one digit each, printf ``%04d``; a run of several ``#`` is one digit
-each (Nuke style, so ``####`` is also four). Outputs are written to a
-temporary file beside the target and renamed over it, so a failed or
-interrupted write never leaves a partial frame, and an input is never
-overwritten.
+each (Nuke style, so ``####`` is also four). Only the channels a frame uses are
+read. Writes (temporary file, read back, fsync, rename): ``imagewrite.py``.
 """
 
 from __future__ import annotations
 
 import functools
 import glob
-import json
 import math
 import os
 import re
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
+
 
 _PAT = re.compile(r"(#+|@+|%0?(\d*)d)")
 
@@ -55,6 +52,18 @@ class FrameError(RuntimeError):
         return (type(self), (self.path, self.frame, self.why))
 
 
+def one_line(e: BaseException, kind: bool = False) -> str:
+    """An exception as one line (a library's message can span several)."""
+    text = " ".join(str(e).split()) or type(e).__name__
+    if len(text) > 600:
+        text = text[:600] + " ..."
+    name = type(e).__name__
+    if kind and name not in text:
+        mod = type(e).__module__
+        text = f"{'' if mod in ('builtins', None) else mod.split('.')[0] + ' '}{name}: {text}"
+    return text
+
+
 def is_sequence(pattern: str) -> bool:
     return bool(_PAT.search(os.path.basename(pattern)))
 
@@ -65,13 +74,26 @@ def without_frame_token(name: str) -> str:
     return re.sub(r"[._-]?" + _PAT.pattern, "", name)
 
 
+#: Frame numbers are within +-MAX_FRAME, padded to at most MAX_PAD digits, and a
+#: run renders at most MAX_FRAMES of them (a day at 30 fps is 2.6 M; bounded so
+#: that a typo cannot take the memory or the time of the machine).
+MAX_FRAME = 999_999_999
+MAX_PAD = 16
+MAX_FRAMES = 1_000_000
+
+
 def _digits(tok: str) -> int:
     if tok[0] == "#":
-        return 4 if len(tok) == 1 else len(tok)
-    if tok[0] == "@":
-        return len(tok)
-    m = re.fullmatch(r"%0?(\d*)d", tok)
-    return int(m.group(1)) if m and m.group(1) else 0
+        n = 4 if len(tok) == 1 else len(tok)
+    elif tok[0] == "@":
+        n = len(tok)
+    else:
+        m = re.fullmatch(r"%0?(\d*)d", tok)
+        n = int(m.group(1)) if m and m.group(1) and len(m.group(1)) < 6 else \
+            (MAX_PAD + 1 if m and m.group(1) else 0)
+    if n > MAX_PAD:
+        raise ValueError(f"frame pattern {tok[:12]!r}: at most {MAX_PAD} digits of padding")
+    return n
 
 
 def frame_path(pattern: str, frame: int) -> str:
@@ -113,16 +135,23 @@ def find_frames(pattern: str) -> list[int]:
 def parse_frames(text: str) -> list[int]:
     """``"1001-1100"``, ``"1-10x2"`` or ``"1,5,9-12"`` -> frame numbers."""
     out: list[int] = []
+    if len(text) > 100_000:
+        raise ValueError("--frames: more than 100 000 characters")
     for part in text.split(","):
         part = part.strip()
-        m = re.fullmatch(r"(-?\d+)(?:-(-?\d+)(?:x(\d+))?)?", part)
+        m = re.fullmatch(r"(-?\d{1,10})(?:-(-?\d{1,10})(?:x(\d{1,10}))?)?", part)
         if not m:
-            raise ValueError(f"bad --frames {text!r} (use A-B, A-BxSTEP or a comma list)")
+            raise ValueError(f"bad --frames {text[:80]!r} (use A-B, A-BxSTEP or a comma list)")
         a = int(m.group(1))
         b = int(m.group(2)) if m.group(2) is not None else a
         step = int(m.group(3) or 1)
         if b < a or step < 1:
             raise ValueError(f"bad --frames range {part!r}")
+        if max(abs(a), abs(b)) > MAX_FRAME:
+            raise ValueError(f"--frames {part}: frame numbers are within +-{MAX_FRAME}")
+        if len(out) + (b - a) // step + 1 > MAX_FRAMES:
+            raise ValueError(f"--frames {text[:80]}: more than {MAX_FRAMES} frames in one run; "
+                             "split the shot")
         out.extend(range(a, b + 1, step))
     return out
 
@@ -168,7 +197,7 @@ def _fps(spec) -> float | None:
         return None
 
 
-def _oiio_error(text: str) -> str:
+def oiio_error(text: str) -> str:
     """OIIO's error text without its repeated lines, on one line."""
     seen = []
     for line in (text or "").splitlines():
@@ -244,15 +273,47 @@ def read_frame(path: str, frame: int | None = None, channels: list[str] | None =
     # premultiplied and divided again on the way through (8-bit rounding).
     hint = oiio.ImageSpec()
     hint.attribute("oiio:UnassociatedAlpha", 1)
+    many = _extra_channels(path)
+    if many:                       # read the channels used, not a thousand AOVs beside them
+        r = BandReader(path, frame, channels)
+        try:
+            h, w, n = r.shape
+            need = float(h) * w * n * 4
+            if need > max_frame_bytes():
+                raise FrameError(path, frame, f"{w}x{h}x{n} would take {need / 2**30:.1f} GiB "
+                                 "as float32, more than this machine can hold")
+            fr = r.header
+            fr.pixels = r.read(0, h)
+            return fr
+        finally:
+            r.close()
     buf = oiio.ImageBuf(path, 0, 0, hint)
     return frame_from_imagebuf(buf, path, frame, channels)
+
+
+def _extra_channels(path: str) -> bool:
+    """Whether a file holds channels beyond what a frame uses (not a spectral image,
+    whose channels are all used): then only R, G, B (and alpha) are read."""
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        oiio.geterror()
+        return False
+    try:
+        s = inp.spec()
+        if s.nchannels <= 4 or s.depth > 1:
+            return False
+        short = [n.split(".")[-1].upper() for n in s.channelnames]
+        return all(c in short for c in "RGB") or \
+            len(spectral_channels(s.channelnames)) < MIN_SPECTRAL_CHANNELS
+    finally:
+        inp.close()
 
 
 def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
                         channels: list[str] | None = None) -> Frame:
     """A :class:`Frame` from an OIIO ImageBuf (the file's or the caller's)."""
     if buf.has_error:
-        raise FrameError(path, frame, f"cannot read: {_oiio_error(buf.geterror())}")
+        raise FrameError(path, frame, f"cannot read: {oiio_error(buf.geterror())}")
     try:
         spec = buf.spec()
     except Exception as exc:  # noqa: BLE001 -- an ImageBuf of a file that is not there
@@ -270,7 +331,7 @@ def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
                          "split the image")
     pix = buf.get_pixels(oiio.FLOAT)
     if buf.has_error or pix is None:
-        raise FrameError(path, frame, f"cannot read pixels: {_oiio_error(buf.geterror())}")
+        raise FrameError(path, frame, f"cannot read pixels: {oiio_error(buf.geterror())}")
     pix = np.asarray(pix, np.float32)
     if pix.ndim == 4:  # volume images: take the first slice
         pix = pix[0]
@@ -340,110 +401,15 @@ def same_file(a: str, b: str) -> bool:
         return os.path.abspath(a) == os.path.abspath(b)
 
 
-def output_bits(path: str, bits: str | None = None) -> str:
-    """The bit depth a file of this name is written with (``bits`` or the format's default)."""
-    return bits or DEFAULT_BITS.get(Path(path).suffix.lower(), "float")
-
-
-def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
-                metadata: dict, bits: str | None = None, frame: int | None = None,
-                chromaticities: tuple | None = None, white_luminance: float | None = None,
-                straight_alpha: bool = False, png_level: int = PNG_LEVEL,
-                png_filter: str = PNG_FILTER) -> None:
-    """Write pixels atomically, keeping the input's windows and metadata.
-
-    ``colorspace`` and ``chromaticities`` say what the pixels hold (the input's
-    own tags are replaced); ``white_luminance``: cd/m^2 of 1.0 for outputs in
-    absolute light (EXR ``whiteLuminance``), else the attribute is dropped.
-    ``straight_alpha``: the colour is not premultiplied by alpha; formats that
-    store premultiplied colour (EXR) get it premultiplied, the others are told
-    (``oiio:UnassociatedAlpha``) so that OIIO writes it as it is.
-    """
-    ext = Path(path).suffix.lower()
-    bits = output_bits(path, bits)
-    if bits not in BITS_TYPES:
-        raise FrameError(path, frame, f"unknown output bit depth {bits!r} (8, 16, half, float)")
-    if pixels.dtype == np.uint8 and bits != "8":
-        raise FrameError(path, frame, f"8-bit code values given for a {bits}-bit output")
-    pix, straight_alpha = _alpha_for_format(pixels, ext, straight_alpha, path)
-    nch = pix.shape[2]
-    spec = _output_spec(in_spec, pix.shape[1], pix.shape[0], nch, ext, bits, colorspace,
-                        metadata, chromaticities, white_luminance, straight_alpha, png_level,
-                        png_filter)
-    d = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(d):
-        raise FrameError(path, frame, f"output folder {d} does not exist")
-    tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{ext}")
-    try:
-        # straight to the format's writer: an ImageBuf's set_pixels costs ~30 ms a 1080p
-        # frame before the writer even starts (benchmarks/results/speed_accuracy.md)
-        out = oiio.ImageOutput.create(tmp)
-        if out is None:
-            raise FrameError(path, frame, f"cannot write: {_oiio_error(oiio.geterror())}")
-        if spec.tile_width and not out.supports("tiles"):
-            spec.tile_width = spec.tile_height = spec.tile_depth = 0
-        ok = bool(out.open(tmp, spec)) and bool(out.write_image(pix))
-        err = "" if ok else out.geterror()
-        ok = bool(out.close()) and ok
-        if not ok:
-            raise FrameError(path, frame,
-                             f"cannot write: {_oiio_error(err or out.geterror()) or 'failed'}")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
-def format_supports_alpha(path: str) -> bool:
-    """Whether OIIO's writer for this file name stores alpha (JPEG, Radiance do not)."""
-    out = oiio.ImageOutput.create(path)
-    if out is None:
-        return True
-    return bool(out.supports("alpha"))
-
-
-def _alpha_for_format(pixels, ext: str, straight_alpha: bool, path: str = ""):
-    """(pixels as the format stores them, still straight?): formats without alpha
-    (JPEG, Radiance) drop it; premultiplied formats (EXR) get straight colour
-    premultiplied; 8-bit code values stay as they are."""
-    pix = pixels if pixels.dtype == np.uint8 else np.ascontiguousarray(pixels, np.float32)
-    if pix.shape[2] == 4 and (ext in (".jpg", ".jpeg") or
-                              (path and not format_supports_alpha(path))):
-        pix = np.ascontiguousarray(pix[..., :3])
-    if pix.shape[2] == 4 and straight_alpha and ext in PREMULTIPLIED_FORMATS:
-        pix = pix.copy()
-        pix[..., :3] *= pix[..., 3:4]
-        straight_alpha = False
-    return pix, straight_alpha
-
-
-def _output_spec(in_spec, width, height, nch, ext, bits, colorspace, metadata,
-                 chromaticities, white_luminance, straight_alpha, png_level,
-                 png_filter=PNG_FILTER):
-    """The output's ImageSpec: the input's windows and metadata, the output's tags."""
-    spec = oiio.ImageSpec(in_spec) if in_spec is not None else \
-        oiio.ImageSpec(width, height, nch, oiio.FLOAT)
-    spec.nchannels = nch
-    spec.channelnames = ("R", "G", "B", "A")[:nch]
-    spec.alpha_channel = 3 if nch == 4 else -1
-    spec.set_format(BITS_TYPES[bits])
-    for k in ("whiteLuminance", "ocltm:timestamp", "chromaticities", "oiio:UnassociatedAlpha",
-              "adoptedNeutral"):
-        spec.erase_attribute(k)
-    if nch == 4 and straight_alpha:
-        spec.attribute("oiio:UnassociatedAlpha", 1)
-    spec.attribute("oiio:ColorSpace", colorspace)
-    if chromaticities is not None:
-        spec.attribute("chromaticities", oiio.TypeDesc("float[8]"),
-                       tuple(float(v) for v in chromaticities))
-    if white_luminance is not None:
-        spec.attribute("whiteLuminance", float(white_luminance))
-    if ext == ".png":
-        spec.attribute("png:compressionLevel", int(png_level))
-        spec.attribute("png:filter", PNG_FILTERS[png_filter])
-    for k, v in metadata.items():
-        spec.attribute(k, v if isinstance(v, (str, int, float)) else json.dumps(v, sort_keys=True))
-    return spec
+def channel_runs(idx) -> list[tuple[int, int]]:
+    """[chbegin, chend) runs of adjacent channels covering ``idx``."""
+    runs: list[list[int]] = []
+    for c in sorted(set(int(i) for i in idx)):
+        if runs and c == runs[-1][1]:
+            runs[-1][1] = c + 1
+        else:
+            runs.append([c, c + 1])
+    return [(a, b) for a, b in runs]
 
 
 class BandReader:
@@ -459,7 +425,7 @@ class BandReader:
         self.path, self.frame = path, frame
         self.inp = oiio.ImageInput.open(path, hint)
         if self.inp is None:
-            raise FrameError(path, frame, f"cannot read: {_oiio_error(oiio.geterror())}")
+            raise FrameError(path, frame, f"cannot read: {oiio_error(oiio.geterror())}")
         spec = self.inp.spec()
         if spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
             raise FrameError(path, frame, "empty image")
@@ -492,92 +458,37 @@ class BandReader:
             a = (y0 // th) * th
             b = min(s.height, -(-y1 // th) * th)
             xe = s.x + -(-s.width // s.tile_width) * s.tile_width
-            data = self.inp.read_tiles(0, 0, s.x, min(xe, s.x + s.width), s.y + a, s.y + b,
-                                       s.z, s.z + max(s.depth, 1), 0, s.nchannels, oiio.FLOAT)
+
+
+            def part(cb, ce):
+                return self.inp.read_tiles(0, 0, s.x, min(xe, s.x + s.width), s.y + a, s.y + b,
+                                           s.z, s.z + max(s.depth, 1), cb, ce, oiio.FLOAT)
+            data = self._channels(part, b - a, y0, y1)
+            return np.ascontiguousarray(data[y0 - a:y1 - a])
+        return self._channels(lambda cb, ce: self.inp.read_scanlines(
+            0, 0, s.y + y0, s.y + y1, 0, cb, ce, oiio.FLOAT), y1 - y0, y0, y1)
+
+    def _channels(self, read, rows: int, y0: int, y1: int) -> np.ndarray:
+        """The selected channels of ``rows`` rows, read as runs of adjacent channels
+        (``read(cb, ce)``): a file's other channels (a thousand AOVs) are never read
+        into memory."""
+        s = self.spec
+        out = np.empty((rows, s.width, len(self.idx)), np.float32)
+        for cb, ce in channel_runs(self.idx):
+            data = read(cb, ce)
             if data is None:
                 raise FrameError(self.path, self.frame, f"cannot read rows {y0}-{y1}: "
-                                 f"{_oiio_error(self.inp.geterror())}")
-            data = np.asarray(data, np.float32).reshape(b - a, s.width, s.nchannels)
-            return np.ascontiguousarray(data[y0 - a:y1 - a][..., self.idx])
-        data = self.inp.read_scanlines(0, 0, s.y + y0, s.y + y1, 0, 0, s.nchannels, oiio.FLOAT)
-        if data is None:
-            raise FrameError(self.path, self.frame,
-                             f"cannot read rows {y0}-{y1}: {_oiio_error(self.inp.geterror())}")
-        data = np.asarray(data, np.float32).reshape(y1 - y0, s.width, s.nchannels)
-        return np.ascontiguousarray(data[..., self.idx])
+                                 f"{oiio_error(self.inp.geterror())}")
+            data = np.asarray(data, np.float32).reshape(rows, s.width, ce - cb)
+            for k, c in enumerate(self.idx):
+                if cb <= c < ce:
+                    out[..., k] = data[..., c - cb]
+        return out
 
     def close(self) -> None:
         if self.inp is not None:
             self.inp.close()
             self.inp = None
-
-
-class BandWriter:
-    """An output written in row bands (OIIO scanline writes) to a temporary file,
-    renamed over the target by :meth:`commit` (nothing partial is ever left)."""
-
-    def __init__(self, path: str, in_spec, nch: int, colorspace: str, metadata: dict,
-                 bits: str | None = None, frame: int | None = None,
-                 chromaticities: tuple | None = None, white_luminance: float | None = None,
-                 straight_alpha: bool = False, png_level: int = PNG_LEVEL,
-                 png_filter: str = PNG_FILTER):
-        self.path, self.frame = path, frame
-        self.ext = Path(path).suffix.lower()
-        bits = output_bits(path, bits)
-        if bits not in BITS_TYPES:
-            raise FrameError(path, frame, f"unknown output bit depth {bits!r} (8, 16, half, float)")
-        if self.ext in (".jpg", ".jpeg"):
-            nch = min(nch, 3)
-        self.straight = straight_alpha and not (nch == 4 and self.ext in PREMULTIPLIED_FORMATS)
-        self.premultiply = nch == 4 and straight_alpha and self.ext in PREMULTIPLIED_FORMATS
-        self.nch = nch
-        if nch == 4 and not format_supports_alpha(path):
-            nch = 3
-            self.straight = self.premultiply = False
-        self.nch = nch
-        self.spec = _output_spec(in_spec, in_spec.width, in_spec.height, nch, self.ext, bits,
-                                 colorspace, metadata, chromaticities, white_luminance,
-                                 self.straight, png_level, png_filter)
-        self.spec.tile_width = self.spec.tile_height = self.spec.tile_depth = 0
-        d = os.path.dirname(os.path.abspath(path))
-        if not os.path.isdir(d):
-            raise FrameError(path, frame, f"output folder {d} does not exist")
-        self.tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{self.ext}")
-        self.out = oiio.ImageOutput.create(self.tmp)
-        if self.out is None or not self.out.open(self.tmp, self.spec):
-            err = _oiio_error(oiio.geterror() if self.out is None else self.out.geterror())
-            self.abort()
-            raise FrameError(path, frame, f"cannot write: {err}")
-        self.spec = self.out.spec()          # the origin the format keeps (JPEG, TIFF: 0)
-
-    def write(self, y0: int, pixels: np.ndarray) -> None:
-        pix = np.ascontiguousarray(pixels[..., :self.nch], np.float32)
-        if self.premultiply:
-            pix = pix.copy()
-            pix[..., :3] *= pix[..., 3:4]
-        s = self.spec
-        if not self.out.write_scanlines(s.y + y0, s.y + y0 + pix.shape[0], 0, pix):
-            err = _oiio_error(self.out.geterror())
-            self.abort()
-            raise FrameError(self.path, self.frame, f"cannot write rows from {y0}: {err}")
-
-    def commit(self) -> None:
-        ok = self.out.close()
-        self.out = None
-        if not ok:
-            self.abort()
-            raise FrameError(self.path, self.frame, "cannot finish writing")
-        os.replace(self.tmp, self.path)
-
-    def abort(self) -> None:
-        if getattr(self, "out", None) is not None:
-            try:
-                self.out.close()
-            except Exception:  # noqa: BLE001
-                pass
-            self.out = None
-        if os.path.exists(self.tmp):
-            os.unlink(self.tmp)
 
 
 @functools.lru_cache(maxsize=8)

@@ -8,6 +8,8 @@ reference of the operator with each frame's state.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 
@@ -102,8 +104,16 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
         ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    from . import safeio
+    tmp = safeio.temp_path(path)
+    try:
+        fig.savefig(tmp, dpi=110, format=os.path.splitext(path)[1][1:].lower() or "png")
+        safeio.commit(tmp, path)
+    except OSError as exc:
+        raise safeio.WriteFailed(path, safeio.reason(exc), exc.errno) from None
+    finally:
+        safeio.remove(tmp)
+        plt.close(fig)
 
 
 def _plot_plan(ax, infos) -> None:

@@ -21,6 +21,41 @@ STATE_FORMAT = "ocl-tonemap.adaptation-state/1"
 AUTO_SCALE_KEY = "luminance_scale_auto"
 
 
+def _num(v, lo=-math.inf, hi=math.inf) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) \
+        and lo <= v <= hi
+
+
+def _num_dict(d, lo=-math.inf, hi=math.inf) -> bool:
+    return isinstance(d, dict) and all(isinstance(k, str) and _num(v, lo, hi)
+                                       for k, v in d.items())
+
+
+def plan_state_ok(p) -> bool:
+    if not isinstance(p, dict) or not _num_dict(p.get("weights", {}), 0.0, 1.0):
+        return False
+    if "G_cone" in p and not _num(p["G_cone"], 0.0):
+        return False
+    ref = p.get("ref")
+    if ref is None:
+        return True
+    return isinstance(ref, dict) and _num_dict(ref.get("predicted", {}), 0.0) and (
+        ref.get("sig") is None or (isinstance(ref["sig"], list) and all(
+            isinstance(x, int) and not isinstance(x, bool) for x in ref["sig"])))
+
+
+#: The ``extra`` entries the run reads back, checked on load (a hand-edited or
+#: damaged state is refused in one line rather than failing inside a frame).
+_EXTRA_CHECKS = {
+    "run": lambda v: isinstance(v, dict),
+    "luminance_scale_auto": lambda v: _num(v, 1e-30),
+    "illuminant_rgb": lambda v: isinstance(v, list) and len(v) == 3 and all(_num(x, 0.0) for x in v),
+    "purkinje_levels": lambda v: _num_dict(v),
+    "plan": plan_state_ok,
+    "pixel_state": lambda v: isinstance(v, str),
+}
+
+
 @dataclass
 class AdaptationState:
     """Serialisable adaptation state of one observer.
@@ -78,6 +113,10 @@ class AdaptationState:
                 raise ValueError(f"state value {k} is not finite ({v})")
         if t is not None and not math.isfinite(t):
             raise ValueError(f"state time {t} is not finite")
+        for key, check in _EXTRA_CHECKS.items():
+            if key in extra and not check(extra[key]):
+                raise ValueError(f"malformed adaptation state (extra {key!r}: "
+                                 f"{str(extra[key])[:60]})")
         return cls(op, vals, t, frame, extra)
 
     def save(self, path: str | os.PathLike, checkpoint: bool = False,
@@ -102,9 +141,8 @@ class AdaptationState:
                 side = path.with_name(stem + ".pixels.exr")
             write_planes(side, self.pixels, compression)
             doc["extra"] = dict(doc["extra"], pixel_state=side.name)
-        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-        tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
-        os.replace(tmp, path)
+        from .safeio import write_text
+        write_text(path, json.dumps(doc, indent=2, sort_keys=True) + "\n")
         keep = doc["extra"].get("pixel_state")
         for old in path.parent.glob(f"{glob_escape(stem)}.pixels.*.exr"):
             if old.name != keep:
@@ -117,22 +155,48 @@ class AdaptationState:
     def load(cls, path: str | os.PathLike) -> "AdaptationState":
         """From a state JSON (with its per-pixel side file), or from an output frame
         of ocl-tonemap, whose ``ocltm:state`` attribute holds the scalar state."""
+        from . import safeio
         p = Path(path)
+        what = "adaptation state"
+        safeio.regular_file(p, what)            # (a FIFO is refused, not waited on)
         try:
-            raw = p.read_bytes()
+            with open(p, "rb") as fh:
+                head = fh.read(64).lstrip()
         except OSError as exc:
-            raise ValueError(f"cannot read adaptation state {path}: {exc.strerror or exc}") from None
-        try:
-            doc = json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError):
+            raise ValueError(f"cannot read {what} {path}: {safeio.reason(exc)}") from None
+        if head.startswith(b"{"):
+            try:
+                doc = json.loads(safeio.read_text(p, what))
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"{path} is not an ocl-tonemap adaptation state (JSON: "
+                                 f"{exc.msg} at line {exc.lineno})") from None
+        else:
             doc = _state_from_image(p)
         if not isinstance(doc, dict):
             raise ValueError(f"{path} is not an ocl-tonemap adaptation state")
-        st = cls.from_json(doc)
+        try:
+            st = cls.from_json(doc)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
         side = st.extra.pop("pixel_state", None)    # (it names a file beside *this* JSON)
-        if side:
-            st.pixels = read_planes(p.with_name(side))
+        if side is not None:
+            st.pixels = read_planes(side_file(p, side, what))
         return st
+
+
+def side_file(doc_path: Path, name, what: str) -> Path:
+    """A file a JSON document names beside itself: a plain name (no folder, no
+    ``..``), a regular file in the JSON's own folder; anything else is refused."""
+    from . import safeio
+    if not isinstance(name, str) or not name or name != Path(name).name or \
+            name in (".", "..") or "\x00" in name:
+        raise ValueError(f"{doc_path}: {what} names {name!r} as its side file; a file "
+                         "name beside it is needed")
+    p = doc_path.with_name(name)
+    safeio.regular_file(p, f"{what} side file")
+    if p.resolve().parent != doc_path.resolve().parent:       # a link out of the folder
+        raise ValueError(f"{doc_path}: its side file {name} leads out of its folder")
+    return p
 
 
 def glob_escape(text: str) -> str:
@@ -147,7 +211,8 @@ def _state_from_image(path: Path) -> dict:
     if inp is None:
         raise ValueError(f"{path} is neither a state JSON nor an image with ocltm:state")
     try:
-        v = inp.spec().getattribute("ocltm:state")
+        from .imagewrite import ocltm_metadata
+        v = ocltm_metadata(inp.spec()).get("ocltm:state")
     finally:
         inp.close()
     if not v:
@@ -181,6 +246,7 @@ def write_planes(path: Path, planes, compression: str = "none") -> None:
     out = oiio.ImageOutput.create(str(tmp))
     if out is None or not out.open(str(tmp), spec):
         raise OSError(f"cannot write per-pixel state {path}: {oiio.geterror()}")
+    from . import safeio
     rows = max(1, _BAND_BYTES // max(1, 4 * w * len(names)))
     ok = True
     try:
@@ -188,15 +254,28 @@ def write_planes(path: Path, planes, compression: str = "none") -> None:
             y1 = min(h, y0 + rows)
             band = np.ascontiguousarray(np.moveaxis(read_rows(planes, names, y0, y1), 0, -1))
             ok = ok and out.write_scanlines(y0, y1, 0, band)
+        ok = bool(out.close()) and ok
+        if ok:                            # read back: the last row (the last chunk)
+            inp = oiio.ImageInput.open(str(tmp))
+            ok = inp is not None and inp.read_scanlines(0, 0, h - 1, h, 0, 0, len(names),
+                                                       oiio.FLOAT) is not None
+            if inp is not None:
+                inp.close()
+            oiio.geterror()
+        if not ok:
+            raise safeio.WriteFailed(path, safeio.reason(OSError(28, "")) if _disk_full(tmp)
+                                     else f"per-pixel state: {out.geterror() or 'failed'}")
+        safeio.commit(tmp, path)
     finally:
-        out.close()
-    if not ok:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
-        raise OSError(f"cannot write per-pixel state {path}: {out.geterror()}")
-    os.replace(tmp, path)
+        safeio.remove(tmp)
+
+
+def _disk_full(tmp: Path) -> bool:
+    try:
+        st = os.statvfs(tmp.parent)
+        return st.f_bavail * st.f_frsize < (1 << 16)
+    except OSError:
+        return False
 
 
 class PlaneFile:

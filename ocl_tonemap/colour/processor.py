@@ -16,7 +16,14 @@ from .table import DISPLAY_ENCODE_MODES, DisplayTable, cached_display_table
 class ColourPipeline:
     """OCIO processors for one run: input -> working, working -> display."""
 
-    def __init__(self, cfg: ocio.Config, display: str | None = None, view: str | None = None):
+    def __init__(self, cfg: "ocio.Config | str | None", display: str | None = None,
+                 view: str | None = None):
+        """``cfg``: an OCIO Config, or what ``--colorconfig`` takes (a file, an
+        ``ocio://`` URI, ``ocl-tonemap``; None: ``$OCIO``, else ``ocio://default``)."""
+        if cfg is None or isinstance(cfg, (str, bytes)) or hasattr(cfg, "__fspath__"):
+            from .config import load_config
+            cfg = load_config(None if cfg is None else str(cfg if not isinstance(cfg, bytes)
+                                                               else cfg.decode()))
         self.cfg = cfg
         self.working = working_space(cfg)
         displays = list(cfg.getDisplays())

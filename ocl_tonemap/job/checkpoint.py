@@ -13,6 +13,65 @@ from .options import RUN_KEY, JobOptions, run_fingerprint
 
 log = logging.getLogger("ocl_tonemap")
 
+
+class RunLock:
+    """An advisory lock (``flock``) held for a whole run on ``.<state file>.lock``
+    beside its checkpoint: a second run on the same outputs and state is refused
+    in one line rather than overwriting the first one's frames and state. Removed
+    when the run ends (a lock left by a killed run is free: the system released it)."""
+
+    def __init__(self, state_path: str):
+        d, name = os.path.split(os.path.abspath(state_path))
+        self.state_path = state_path
+        self.path = os.path.join(d, f".{name}.lock")
+        self.fd = None
+
+    def __enter__(self):
+        try:
+            import fcntl
+        except ImportError:                   # pragma: no cover -- not POSIX
+            return self
+        d = os.path.dirname(self.path)
+        try:
+            os.makedirs(d, exist_ok=True)
+        except OSError as exc:
+            raise FrameError(self.state_path, None, "cannot make the "
+                             f"state's folder {d}: {exc.strerror or exc}") from None
+        for _ in range(10):
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                try:
+                    who = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
+                finally:
+                    os.close(fd)
+                raise FrameError(self.path, None, "another ocl-tonemap run"
+                                 + (f" (pid {who})" if who.isdigit() else "")
+                                 + " is writing these outputs and this state; wait for it, "
+                                 "or give another OUTPUT or --state-out") from None
+            try:                               # the file we locked is still the lock's name
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, str(os.getpid()).encode(), 0)
+                self.fd = fd
+                return self
+            os.close(fd)                        # removed by the run that just ended: again
+        raise FrameError(self.path, None, "cannot take the run's lock")
+
+    def __exit__(self, *exc):
+        if self.fd is not None:
+            try:
+                os.unlink(self.path)
+            except OSError:
+                pass
+            os.close(self.fd)
+            self.fd = None
+        return False
+
 def checkpoint_path(opts: JobOptions) -> str:
     """Where the state is checkpointed after every frame: ``--state-out``, else the
     output name without its frame number + ``.state.json``
@@ -73,17 +132,28 @@ def checkpoint_state(tm, fingerprint: dict) -> AdaptationState:
     return st
 
 
-def check_state_paths(jobs, paths) -> None:
-    """The state files must not be an input or an output, and their folder must exist."""
+def check_state_paths(jobs, paths, plot: str | None = None, inputs=()) -> None:
+    """The state files must not be an input or an output (their folder is made
+    where missing); ``--plot`` must be none of the run's inputs, outputs, state
+    files or other files it reads (``inputs``: --state-in, --cuts ...)."""
     files = {p for _, i, o, _ in jobs for p in (i, o)}
     for p in paths:
         d = os.path.dirname(os.path.abspath(p))
         if not os.path.isdir(d):
-            raise FrameError(p, None, f"the state's folder {d} does not exist")
+            try:
+                os.makedirs(d, exist_ok=True)
+            except OSError as exc:
+                raise FrameError(p, None, f"cannot make the state's folder {d}: "
+                                 f"{exc.strerror or exc}") from None
         for q in files:
             if same_file(p, q):
                 raise FrameError(p, None, "the state file would overwrite an input or output "
                                  "frame; choose another --state-out")
+    if plot:
+        for q in list(files) + [p for p in paths if p] + [p for p in inputs if p]:
+            if same_file(plot, q):
+                raise FrameError(plot, None, f"--plot would overwrite {q}, a file of this "
+                                 "run; choose another name")
 
 
 def remove_stale_temps(jobs, state_paths=()) -> None:

@@ -27,7 +27,15 @@ def _sequence_frames(opts: JobOptions) -> tuple[list[int], list[int]]:
             step = math.gcd(step, b - a)
         step = step or 1
         frames = list(range(have[0], have[-1] + 1, step))
-    missing = [f for f in frames if f not in present and not os.path.exists(frame_path(opts.input, f))]
+    missing = [f for f in frames if f not in present]
+    if opts.missing == "error" and len(missing) > 1000 and len(missing) > len(frames) // 2:
+        # a range far beyond the files (--frames 1-100000000): said at once, not looked up
+        # frame by frame
+        have = sorted(present)
+        raise FrameError(opts.input, None, f"--frames asks for {len(frames)} frames; "
+                         f"{len(missing)} of them are not on disk (found "
+                         + (f"{len(have)}: {have[0]}-{have[-1]}" if have else "none") + ")")
+    missing = [f for f in missing if not os.path.exists(frame_path(opts.input, f))]
     return frames, missing
 
 

@@ -114,6 +114,27 @@ class JobResult:
     seconds: float = 0.0
 
 
+#: The physical ranges of what a user gives (``--help`` states them): adaptation
+#: luminance, cd/m^2 (0: darkness; starlight is ~1e-4, the sun's disc ~1e9 but no
+#: eye adapts to it), and durations, seconds (115 days).
+ADAPT_LUMINANCE = (1e-6, 1e8)
+SECONDS_MAX = 1e7
+
+
+def check_luminance(L: float, flag: str, zero_ok: bool = True) -> float:
+    lo, hi = ADAPT_LUMINANCE
+    if not (math.isfinite(L) and ((zero_ok and L == 0) or lo <= L <= hi)):
+        raise ValueError(f"{flag} {L:g} cd/m^2 is outside {lo:g}..{hi:g} cd/m^2"
+                         + (" (or 0: darkness)" if zero_ok else ""))
+    return L
+
+
+def check_seconds(s: float, flag: str) -> float:
+    if not (math.isfinite(s) and 0 <= s <= SECONDS_MAX):
+        raise ValueError(f"{flag} {s:g} s is outside 0..{SECONDS_MAX:g} s")
+    return s
+
+
 def parse_preadapt(text: str) -> tuple[float, float | None]:
     """``L`` or ``L:SECONDS`` (``m`` suffix: minutes)."""
     lum, _, sec = text.partition(":")
@@ -124,8 +145,9 @@ def parse_preadapt(text: str) -> tuple[float, float | None]:
             s = float(sec[:-1]) * 60.0 if sec.endswith("m") else float(sec)
     except ValueError:
         raise ValueError(f"bad --preadapt {text!r}: use CD_M2 or CD_M2:SECONDS") from None
-    if not (L >= 0 and math.isfinite(L)) or (s is not None and not (s >= 0 and math.isfinite(s))):
-        raise ValueError(f"bad --preadapt {text!r}: luminance and seconds must be >= 0")
+    check_luminance(L, "--preadapt")
+    if s is not None:
+        check_seconds(s, "--preadapt")
     return L, s
 
 
@@ -138,9 +160,7 @@ def parse_times(text: str) -> list[float]:
             v = float(item[:-1]) * 60.0 if item.endswith("m") else float(item.rstrip("s"))
         except ValueError:
             raise ValueError(f"bad --at value {item!r}: use seconds or minutes (e.g. 30,2m)") from None
-        if not (v >= 0 and math.isfinite(v)):
-            raise ValueError(f"bad --at value {item!r}: times must be >= 0")
-        out.append(v)
+        out.append(check_seconds(v, "--at"))
     if not out:
         raise ValueError("--at needs at least one time")
     return out

@@ -12,12 +12,14 @@ import os
 import sys
 import time
 
+from .. import safeio
 from ..colour import ColourPipeline
-from ..imageio import FrameError, output_bits, read_frame, write_frame
+from ..imageio import FrameError, is_sequence, read_frame
+from ..imagewrite import output_bits, write_frame
 from ..pipeline import Tonemapper
 from ..state import AdaptationState
-from .checkpoint import (check_state_paths, checkpoint_path, checkpoint_state, load_state_in,
-                         remove_stale_temps, resume_point)
+from .checkpoint import (RunLock, check_state_paths, checkpoint_path, checkpoint_state,
+                         load_state_in, remove_stale_temps, resume_point)
 from .frame import encode_pixels, frame_input, map_frame, output_metadata
 from .frames import frame_jobs, frame_time
 from .options import RUN_KEY, Interrupted, JobOptions, JobResult, output_is_linear, run_fingerprint
@@ -52,17 +54,33 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
     ``jobs`` (a slice of ``frame_jobs(opts)``) and ``state`` (to start from, over
     ``--state-in``): one chunk of a shot (``shot/passes.py`` apply)."""
     t_start = time.perf_counter()
+    whole = jobs is None
     jobs = frame_jobs(opts) if jobs is None else list(jobs)
-    ckpt = checkpoint_path(opts) if (opts.checkpoint or opts.resume) else None
-    remove_stale_temps(jobs, [p for p in {ckpt, opts.state_out} if p])
-    check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p])
+    # a still keeps its state in its own metadata (ocltm:state): no side file unless
+    # asked for (--state-out); a sequence checkpoints it beside its frames
+    still = not is_sequence(opts.input) and len(jobs) == 1 and not opts.resume
+    ckpt = checkpoint_path(opts) if ((opts.checkpoint and not still) or opts.resume) else None
+    if not whole:                    # a chunk of a shot's apply pass: the chunks run together
+        return _run_job(opts, jobs, state, ckpt, t_start)
+    with RunLock(ckpt or opts.state_out or checkpoint_path(opts)):
+        return _run_job(opts, jobs, state, ckpt, t_start)
+
+
+def _run_job(opts: JobOptions, jobs, state, ckpt, t_start) -> JobResult:
+    # (the default checkpoint's too: a still that writes none cleans a killed run's)
+    remove_stale_temps(jobs, [p for p in {ckpt, opts.state_out, checkpoint_path(opts)} if p])
+    check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p], opts.plot,
+                      [opts.state_in, opts.colorconfig])
     if state is None:
         state = load_state_in(opts)
     else:
         state.extra.pop(RUN_KEY, None)
+    done_before: list = []
     if opts.resume:
+        all_jobs = jobs
         st, jobs = resume_point(opts, jobs, ckpt, opts.operator)
         state = st if st is not None else state
+        done_before = [j for j in all_jobs if j not in jobs]
     run, tm = setup_run(opts, state)
     check_output_depth(opts, run.disp, jobs)
     fingerprint = run_fingerprint(opts)
@@ -116,8 +134,8 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
                     try:
                         snap.save(ckpt, checkpoint=True)
                     except Exception as exc:                      # noqa: BLE001
-                        raise FrameError(ckpt, f, f"cannot write the checkpoint: {exc}") \
-                            from exc
+                        raise FrameError(ckpt, f, "cannot write the checkpoint: "
+                                         f"{safeio.reason(exc)}") from None
             io.write(write, after)
             if info.repairs.total:
                 log.warning("%s%s: repaired bad values (%s)", inp,
@@ -139,12 +157,53 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
     if opts.progress and n:
         sys.stderr.write("\n")
     if opts.state_out:
-        tm.state.save(opts.state_out)
+        # with the run's settings, as every checkpoint: --resume from it checks them
+        checkpoint_state(tm, fingerprint).save(opts.state_out)
     if opts.plot:
         from ..plot import plot_adaptation
-        plot_adaptation(opts.plot, result.infos, tm, opts.plot_frames)
+        # a resumed run's plot covers the whole shot: the frames before the resume
+        # from their outputs' own records (ocltm:*)
+        before = infos_from_outputs(done_before) if done_before else []
+        plot_adaptation(opts.plot, before + result.infos, tm, opts.plot_frames)
     result.seconds = time.perf_counter() - t_start
     return result
+
+
+def infos_from_outputs(jobs) -> list:
+    """FrameInfo of frames already written, from their ``ocltm:*`` records (headers
+    only); frames whose record cannot be read are left out (with a warning)."""
+    import json
+
+    import OpenImageIO as oiio
+
+    from ..imagewrite import ocltm_metadata
+    from ..models.photometry import RepairCounts
+    from ..pipeline import FrameInfo
+    out = []
+    for f, _, outp, _ in jobs:
+        inp = oiio.ImageInput.open(outp)
+        if inp is None:
+            oiio.geterror()
+            log.warning("%s: cannot read its record for --plot; left out", outp)
+            continue
+        try:
+            m = ocltm_metadata(inp.spec())
+        finally:
+            inp.close()
+        try:
+            goal = json.loads(m["ocltm:goal"])
+            plan = {}
+            if m.get("ocltm:plan"):
+                plan = {"weights": json.loads(m["ocltm:plan"])}
+            out.append(FrameInfo(f, float(m["ocltm:time_s"]), 0.0, float(goal["G_rod"]),
+                                 float(goal["G_cone"]),
+                                 RepairCounts(**json.loads(m.get("ocltm:repairs", "{}"))),
+                                 AdaptationState.from_json(json.loads(m["ocltm:state"])),
+                                 json.loads(m.get("ocltm:params", "{}")),
+                                 json.loads(m.get("ocltm:effects", "{}")), plan))
+        except (KeyError, TypeError, ValueError) as exc:
+            log.warning("%s: its record is incomplete for --plot (%s); left out", outp, exc)
+    return out
 
 
 def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_prev):
@@ -249,7 +308,8 @@ class _StopSignals:
 
     def _handler(self, signum, frame):
         if self.signum is not None:
-            raise KeyboardInterrupt
+            from ..interrupts import Terminated
+            raise Terminated(signum)
         self.signum = signum
 
     def __enter__(self):

@@ -72,10 +72,17 @@ def _colour(cfg, opts: JobOptions) -> ColourPipeline:
 def check_output_depth(opts: JobOptions, disp, jobs) -> None:
     """An HDR (PQ/HLG) encoding in 8 bits bands visibly: say so."""
     from pathlib import Path
-    from ..imageio import DEFAULT_BITS
-    if not jobs or not disp.hdr:
+    from ..imageio import DEFAULT_BITS, FrameError
+    if not jobs:
         return
     out = jobs[0][2]
+    ext = Path(out).suffix.lower()
+    if opts.out_bits in ("8", "16") and ext in (".exr", ".sxr", ".mxr", ".hdr"):
+        raise FrameError(out, None, f"--out-bits {opts.out_bits}: {ext[1:].upper()} stores "
+                         "floating point only (half or float for EXR, float for .hdr); use "
+                         "PNG or TIFF for integer code values")
+    if not disp.hdr:
+        return
     bits = opts.out_bits or DEFAULT_BITS.get(Path(out).suffix.lower(), "float")
     if bits == "8" and not output_is_linear(opts, out):
         log.warning("%s: an HDR display encoding (%s) in 8 bits bands in smooth gradients; "

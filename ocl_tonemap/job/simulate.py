@@ -7,7 +7,8 @@ import logging
 import time
 from typing import TYPE_CHECKING
 
-from ..imageio import FrameError, is_sequence, read_frame, same_file, write_frame
+from ..imageio import FrameError, is_sequence, read_frame, same_file
+from ..imagewrite import write_frame
 from ..state import AdaptationState
 from .frame import frame_input, map_frame, render_output
 from .frames import simulate_outputs
@@ -41,6 +42,11 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
     for _, o in outs:
         if same_file(o, opts.input):
             raise FrameError(o, None, "output would overwrite the input file; choose another OUTPUT")
+        if opts.plot and same_file(opts.plot, o):
+            raise FrameError(opts.plot, None, f"--plot would overwrite {o}, a file of this run")
+    if opts.plot and any(same_file(opts.plot, q) for q in (opts.input, opts.state_in,
+                                                           opts.state_out) if q):
+        raise FrameError(opts.plot, None, "--plot would overwrite a file of this run")
     state = AdaptationState.load(opts.state_in) if opts.state_in else None
     run, tm = setup_run(opts, state)
     fr = read_frame(opts.input, None, opts.channels)
@@ -71,5 +77,8 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
         raise FrameError(opts.input, None, exc) from exc
     if opts.state_out:
         tm.state.save(opts.state_out)
+    if opts.plot:                       # the observer's course over the times asked for
+        from ..plot import plot_adaptation
+        plot_adaptation(opts.plot, result.infos, tm, opts.plot_frames)
     result.seconds = time.perf_counter() - t_start
     return result

@@ -10,7 +10,8 @@ import numpy as np
 
 from ..alpha import restore_alpha, straight_colour
 from ..calibration import LogAverage
-from ..imageio import BandReader, BandWriter, FrameError, illuminant_from_metadata
+from ..imageio import BandReader, FrameError, illuminant_from_metadata
+from ..imagewrite import BandWriter
 from .frame import FrameInput, output_metadata, remember_auto
 from .frames import frame_time
 from .options import JobOptions, output_is_linear

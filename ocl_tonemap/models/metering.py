@@ -84,7 +84,7 @@ class MeteringSpec:
                     raise ValueError
                 x, y = float(fields[0]), float(fields[1])
                 s = float(fields[2]) if len(fields) == 3 else 0.02
-                if not (s > 0):
+                if not (0.0 <= x <= 1.0 and 0.0 <= y <= 1.0 and 0.0 < s <= 10.0):
                     raise ValueError
                 return cls("spot", stat, x, y, s)
             if head == "percentile" and len(fields) == 1:

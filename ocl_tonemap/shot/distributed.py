@@ -58,26 +58,93 @@ class OpenCLWorker(_WorkerPlugin):
 
 def _worker_logging() -> None:
     logging.getLogger("ocl_tonemap").setLevel(logging.WARNING)
+    # a failed task is reported once, by the client, in one line: not as the worker's
+    # own "Compute Failed" record with its traceback
+    for name in ("distributed.worker", "distributed.core", "distributed.utils"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
+def _worker_name() -> str:
+    try:
+        from distributed import get_worker
+        return str(get_worker().address)
+    except Exception:  # noqa: BLE001 - not in a worker
+        return "?"
+
+
+def _task(what: str, chunk, fn):
+    """Run one task's pass; what fails comes back as one FrameError naming the pass,
+    the frames and the worker (a FrameError of the pass keeps its file and frame)."""
+    from ..imageio import FrameError
+    _worker_logging()
+    try:
+        return fn()
+    except FrameError as exc:
+        raise FrameError(exc.path, exc.frame, f"{exc.why} ({what} on worker "
+                         f"{_worker_name()})") from None
+    except Exception as exc:  # noqa: BLE001 - the client shows it in one line
+        from ..imageio import one_line
+        span = f"frames {chunk[0]}-{chunk[1]}" if chunk else "the shot"
+        raise FrameError(f"{what} of {span}", None, f"{one_line(exc, True)} (on worker "
+                         f"{_worker_name()})") from None
 
 
 def _measure_task(opts, store, chunk):
-    _worker_logging()
-    return passes.measure(opts, store, chunk)
+    return _task("measure", chunk, lambda: passes.measure(opts, store, chunk))
 
 
 def _integrate_task(opts, store, keyframe_every):
-    _worker_logging()
-    return passes.integrate(opts, store, keyframe_every)
+    return _task("integrate", None, lambda: passes.integrate(opts, store, keyframe_every))
 
 
 def _apply_task(opts, store, chunk):
-    _worker_logging()
-    res = passes.apply(opts, store, chunk)
-    return res.frames, res.outputs, res.repairs.as_dict()
+    def go():
+        res = passes.apply(opts, store, chunk)
+        return res.frames, res.outputs, res.repairs.as_dict()
+    return _task("apply", chunk, go)
 
 
-def _client(scheduler: str | None, workers: int, pocl_threads: int | None):
-    """(Client, cluster we started or None)."""
+def load_security(path: str):
+    """Dask's ``Security`` from ``--scheduler-security FILE``: YAML or JSON with
+    ``ca``, ``cert`` and ``key`` (PEM files; relative paths from the file's folder)."""
+    import json
+
+    from .. import safeio
+    text = safeio.read_text(path, "--scheduler-security", 1 << 20)
+    try:
+        import yaml
+        doc = yaml.safe_load(text)
+    except ImportError:                    # pragma: no cover -- PyYAML comes with Dask
+        doc = json.loads(text)
+    except Exception as exc:  # noqa: BLE001 - yaml's own errors
+        raise ValueError(f"--scheduler-security {path}: not YAML or JSON ({exc})") from None
+    if not isinstance(doc, dict) or not all(isinstance(doc.get(k), str) for k in ("ca", "cert")):
+        raise ValueError(f"--scheduler-security {path}: needs ca and cert (and key, unless "
+                         "the cert file holds it): paths of PEM files")
+    base = os.path.dirname(os.path.abspath(path))
+    files = {}
+    for k in ("ca", "cert", "key"):
+        v = doc.get(k)
+        if v is None:
+            continue
+        if not isinstance(v, str):
+            raise ValueError(f"--scheduler-security {path}: {k} must be a path")
+        p = v if os.path.isabs(v) else os.path.join(base, v)
+        safeio.regular_file(p, f"--scheduler-security {k}")
+        files[k] = p
+    from distributed.security import Security
+    return Security(tls_ca_file=files["ca"], tls_client_cert=files["cert"],
+                    tls_client_key=files.get("key"), require_encryption=True)
+
+
+def _tls_configured() -> bool:
+    import dask
+    return bool(dask.config.get("distributed.comm.tls.ca-file", None))
+
+
+def _client(scheduler: str | None, workers: int, pocl_threads: int | None,
+            security: str | None = None):
+    """(Client, cluster we started or None). ``security``: ``--scheduler-security``."""
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -85,15 +152,25 @@ def _client(scheduler: str | None, workers: int, pocl_threads: int | None):
                            "(dask[distributed])") from None
     for name in ("distributed", "dask"):          # their INFO lines are not ours
         logging.getLogger(name).setLevel(max(logging.WARNING, logging.getLogger(name).level))
+    import warnings                               # (nor a dashboard's port moved aside)
+    warnings.filterwarnings("ignore", category=UserWarning, module=r"distributed(\..*)?$")
     if scheduler in (None, "dask", "local"):
         env = {"POCL_MAX_PTHREAD_COUNT": str(pocl_threads)} if pocl_threads else {}
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR, env=env)
+                               dashboard_address=None, silence_logs=logging.CRITICAL, env=env)
         return Client(cluster), cluster
     if not str(scheduler).startswith(("tcp://", "tls://", "inproc://", "ucx://", "ws://")):
         raise ValueError(f"--scheduler must be dask (a local cluster) or a scheduler address "
                          f"such as tcp://HOST:8786 (got {scheduler!r})")
-    return Client(scheduler), None
+    sec = load_security(security) if security else None
+    if sec is None and str(scheduler).startswith("tls://") and not _tls_configured():
+        raise ValueError(f"--scheduler {scheduler}: a TLS scheduler needs certificates: "
+                         "--scheduler-security FILE (ca, cert, key), or Dask's "
+                         "distributed.comm.tls configuration")
+    try:
+        return Client(scheduler, security=sec, timeout="20s"), None
+    except (OSError, TimeoutError) as exc:
+        raise RuntimeError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
 
 
 def _gather(futures, what: str, progress: bool, t0: float):
@@ -103,7 +180,14 @@ def _gather(futures, what: str, progress: bool, t0: float):
     out, n = {}, len(futures)
     try:
         for k, fut in enumerate(as_completed(futures), 1):
-            out[fut.key] = fut.result()
+            try:
+                out[fut.key] = fut.result()
+            except Exception as exc:  # noqa: BLE001 - our tasks raise FrameError already
+                from ..imageio import FrameError
+                if isinstance(exc, FrameError):
+                    raise
+                from ..imageio import one_line
+                raise RuntimeError(f"task {fut.key}: {one_line(exc, True)}") from None
             if progress:
                 sys.stderr.write(f"\r{what}: {k}/{n} task(s), {time.perf_counter() - t0:6.1f} s")
                 sys.stderr.flush()
@@ -119,7 +203,8 @@ def _gather(futures, what: str, progress: bool, t0: float):
 
 def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
                     chunk: int | None = None, store: str | None = None,
-                    retries: int = 2, progress: bool = False, pocl_threads: int | None = None):
+                    retries: int = 2, progress: bool = False, pocl_threads: int | None = None,
+                    security: str | None = None):
     """The shot on Dask: measure -> integrate -> apply. Returns a
     :class:`~ocl_tonemap.job.options.JobResult` (frames, outputs, repairs, seconds)
     with the seconds of each pass in ``passes``."""
@@ -139,7 +224,7 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
     store = store or passes.default_store(opts)
     size = chunk or max(1, math.ceil(len(frames) / (4 * workers)))
     parts = passes.chunks(frames, size)
-    client, cluster = _client(scheduler, workers, pocl_threads)
+    client, cluster = _client(scheduler, workers, pocl_threads, security)
     timing = {}
     try:
         if opts.backend == "opencl":

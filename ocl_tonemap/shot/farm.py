@@ -187,9 +187,6 @@ def write_template(fmt: str, opts, run_tokens: list[str], job_file: str,
         text = opencue_spec(opts, run_tokens, store, chunk, name, command)
     else:
         raise ValueError(f"unknown job format {fmt!r} (openjd | opencue)")
-    d = os.path.dirname(os.path.abspath(job_file))
-    tmp = os.path.join(d, f".{os.path.basename(job_file)}.tmp{os.getpid()}")
-    with open(tmp, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, job_file)
+    from .. import safeio
+    safeio.write_text(job_file, text)
     return job_file

@@ -160,7 +160,16 @@ def stats_document(stats: FrameStats, illuminant, hint, t: float, held: bool, in
 
 
 def stats_from_document(doc: dict, planes, schedule) -> tuple[FrameStats, object]:
-    """(FrameStats ready for ``Tonemapper.integrate``, the frame's illuminant hint)."""
+    """(FrameStats ready for ``Tonemapper.integrate``, the frame's illuminant hint);
+    a document whose parts do not decode is refused (ValueError)."""
+    try:
+        return _stats_from_document(doc, planes, schedule)
+    except (KeyError, TypeError, AttributeError, IndexError) as exc:
+        raise ValueError(f"frame {doc.get('frame')}'s statistics are damaged ({exc!r}); "
+                         "measure it again") from None
+
+
+def _stats_from_document(doc: dict, planes, schedule) -> tuple[FrameStats, object]:
     illum = _dec(doc.get("illuminant"))
     stats = FrameStats(int(doc["width"]), int(doc["height"]), float(doc["G_rod"]),
                        float(doc["G_cone"]), RepairCounts(**doc.get("repairs", {})),

@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
-from ..state import AdaptationState, read_planes, write_planes
+from .. import __version__, safeio
+from ..state import AdaptationState, plan_state_ok, read_planes, side_file, write_planes
 
 STORE_FORMAT = "ocl-tonemap.shot-store/1"
 STATS_FORMAT = "ocl-tonemap.frame-stats/1"
@@ -40,9 +40,7 @@ PLANES_COMPRESSION = "zip"
 
 
 def _atomic_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    safeio.write_text(path, text)
 
 
 def fingerprint_diff(was: dict, now: dict) -> list[str]:
@@ -79,13 +77,18 @@ class ShotStore:
                "luminance_scale_auto": None if auto_scale is None else float(auto_scale)}
         if not self.manifest_path.exists():
             tmp = self.path / f".manifest.json.tmp{os.getpid()}"
-            tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
             try:
+                tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
+                safeio.fsync_path(tmp)
                 os.link(tmp, self.manifest_path)          # fails if another worker won
+                safeio.fsync_path(self.path, folder=True)
             except FileExistsError:
                 pass
+            except OSError as exc:
+                raise safeio.WriteFailed(self.manifest_path, safeio.reason(exc),
+                                         exc.errno) from None
             finally:
-                tmp.unlink()
+                safeio.remove(tmp)
         have = self.manifest()
         self.check(have, run, frames)
         return have
@@ -142,8 +145,12 @@ class ShotStore:
             name = f"{frame:08d}.planes.npz"              # the float64 reference: exact
             path = self.stats_dir / name
             tmp = self.stats_dir / f".{name}.tmp{os.getpid()}.npz"
-            np.savez(tmp, **{k: np.asarray(v) for k, v in planes.items()})
-            os.replace(tmp, path)
+            try:
+                np.savez(tmp, **{k: np.asarray(v) for k, v in planes.items()})
+            except OSError as exc:
+                safeio.remove(tmp)
+                raise safeio.WriteFailed(path, safeio.reason(exc), exc.errno) from None
+            safeio.commit(tmp, path)
             return name
         name = f"{frame:08d}.planes.exr"
         write_planes(self.stats_dir / name, planes, PLANES_COMPRESSION)
@@ -155,7 +162,8 @@ class ShotStore:
                         f"no statistics for frame {frame} in {self.path}: measure it first")
         planes = None
         if doc.get("planes"):
-            pp = self.stats_dir / doc["planes"]
+            # a name beside the document, inside the store: never a path elsewhere
+            pp = side_file(self.stats_path(frame), doc["planes"], "frame statistics")
             if pp.suffix == ".npz":
                 with np.load(pp) as z:
                     planes = {k: z[k] for k in z.files}
@@ -201,18 +209,74 @@ class ShotStore:
         return out
 
 
+_NUM = (int, float)
+_INTS = ("ints",)
+_NUMS = ("numbers",)
+#: The keys of each kind of document the passes read, and their types (a tuple:
+#: any of; None: may be null; "ints" / "numbers": a list of them); the optional
+#: ones are checked where present. A hand-edited or damaged file is refused in one
+#: line naming it and the key, before any of it is used.
+_SCHEMAS = {
+    STORE_FORMAT: ({"run": dict, "frames": _INTS, "fps": _NUM},
+                   {"luminance_scale_auto": (int, float, None)}),
+    STATS_FORMAT: ({"time_s": _NUM, "width": int, "height": int, "G_rod": _NUM, "G_cone": _NUM},
+                   {"held": bool, "repairs": dict, "values": dict, "planes": str,
+                    "plan": dict, "input_stat": list, "illuminant": (dict, list, str, None),
+                    "illuminant_hint": (dict, list, str, None)}),
+    INTEGRATED_FORMAT: ({"frames": _INTS, "keyframes": _INTS, "cuts": _INTS}, {}),
+}
+
+
+def _type_ok(v, t) -> bool:
+    if t == _INTS:
+        return isinstance(v, list) and all(isinstance(x, int) and not isinstance(x, bool)
+                                           and abs(x) < 10 ** 12 for x in v)
+    if t == _NUMS:
+        return isinstance(v, list) and all(isinstance(x, _NUM) for x in v)
+    ts = t if isinstance(t, tuple) else (t,)
+    if v is None:
+        return None in ts
+    if isinstance(v, bool) and bool not in ts:
+        return False
+    return isinstance(v, tuple(x for x in ts if isinstance(x, type)))
+
+
+def _check_doc(path: Path, doc: dict, fmt: str) -> None:
+    need, may = _SCHEMAS.get(fmt, ({}, {}))
+    for key, t in list(need.items()) + list(may.items()):
+        if key not in doc:
+            if key in need:
+                raise ValueError(f"{path}: damaged (no {key!r}); measure the frame again, or "
+                                 "use a new --store")
+            continue
+        if not _type_ok(doc[key], t):
+            raise ValueError(f"{path}: damaged ({key!r} is {type(doc[key]).__name__} "
+                             f"{str(doc[key])[:40]!r}); measure the frame again, or use a new "
+                             "--store")
+    if fmt == STATS_FORMAT:
+        if not (doc["width"] > 0 and doc["height"] > 0):
+            raise ValueError(f"{path}: damaged (size {doc['width']}x{doc['height']})")
+        plan = doc.get("plan")
+        if plan is not None and not plan_state_ok({"G_cone": plan.get("G_cone", -1.0),
+                                              "ref": {"predicted": plan.get("predicted"),
+                                                      "sig": plan.get("sig")}}):
+            raise ValueError(f"{path}: damaged ('plan': its predictions or signature)")
+
+
 def _read_doc(path: Path, fmt: str, what: str, missing: str) -> dict:
-    """A JSON document of the store, checked to be of ``fmt``; ``missing``: the
-    error when there is none."""
+    """A JSON document of the store, checked to be of ``fmt`` and to hold the keys
+    the passes read (:data:`_SCHEMAS`); ``missing``: the error when there is none.
+    A regular file of at most ``safeio.TEXT_CAP`` bytes (a FIFO is refused)."""
+    if not os.path.lexists(path):
+        raise ValueError(missing)
     try:
-        doc = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(missing) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"cannot read {path}: {exc}") from None
+        doc = json.loads(safeio.read_text(path, what))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"cannot read {path}: {exc.msg} at line {exc.lineno}") from None
     have = doc.get("format") if isinstance(doc, dict) else None
     if have != fmt:
-        raise ValueError(f"{path}: not {what} (format {have!r}, expected {fmt!r})")
+        raise ValueError(f"{path}: not {what} (format {str(have)[:40]!r}, expected {fmt!r})")
+    _check_doc(path, doc, fmt)
     return doc
 
 

@@ -142,7 +142,7 @@ def test_8bit_code_values_are_the_bytes_oiio_writes(rt, tmp_path, src, display, 
     H100 machine's Xeon): there the device's byte is the even one, as documented,
     and OIIO's either neighbour."""
     import OpenImageIO as oiio
-    from ocl_tonemap.imageio import write_frame
+    from ocl_tonemap.imagewrite import write_frame
     t = pipeline(src, display, view).display_table()
     dev = DeviceDisplayTable(t, runtime=rt)
     edges = ((np.arange(-2, 258) + 0.5) / 255.0).astype(np.float32)

@@ -8,7 +8,8 @@ import PyOpenColorIO as ocio
 import pytest
 
 from ocl_tonemap import colour
-from ocl_tonemap.imageio import FrameError, find_frames, frame_path, read_frame, write_frame
+from ocl_tonemap.imageio import FrameError, find_frames, frame_path, read_frame
+from ocl_tonemap.imagewrite import write_frame
 
 
 def _write(path, pix, **attrs):
@@ -65,9 +66,11 @@ def test_write_formats(tmp_path, ext, bits, dtype):
 
 
 def test_failed_write_leaves_nothing_and_names_the_file(tmp_path):
-    with pytest.raises(FrameError, match="does not exist"):
-        write_frame(str(tmp_path / "missing" / "o.exr"), np.zeros((2, 2, 3), np.float32), None,
+    (tmp_path / "afile").write_text("x")             # a missing folder is made; under a file
+    with pytest.raises(FrameError, match="cannot make the output folder"):   # it cannot be
+        write_frame(str(tmp_path / "afile" / "o.exr"), np.zeros((2, 2, 3), np.float32), None,
                     "x", {}, None, 4)
+    assert os.listdir(tmp_path) == ["afile"]
 
 
 def test_read_errors_name_file_and_frame(tmp_path):

@@ -108,3 +108,97 @@ def test_fuzzed_inputs(inputs, tmp_path_factory, capsys, ext, cut, flips, big):
         rc = e.code
     _check(rc, capsys.readouterr().err, str(work), "o.exr")
     assert src.read_bytes() == bytes(data)      # the input is never touched
+
+
+# --- state files and shot-store documents ------------------------------------------------
+
+JSON_LEAF = st.one_of(st.none(), st.booleans(), st.integers(-10 ** 12, 10 ** 12),
+                      st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=12),
+                      st.sampled_from(["../x.exr", "/etc/passwd", "nan", "1e308", ""]))
+JSON = st.recursive(JSON_LEAF, lambda kids: st.one_of(
+    st.lists(kids, max_size=4), st.dictionaries(st.text(max_size=8), kids, max_size=4)),
+    max_leaves=12)
+
+
+def _mutate(doc, edits):
+    """Apply (path into the document, new value or a deletion) edits to a JSON tree."""
+    import copy
+    doc = copy.deepcopy(doc)
+    for keys, value, delete in edits:
+        node = doc
+        for k in keys[:-1]:
+            if isinstance(node, dict) and node:
+                node = node[sorted(node)[k % len(node)]]
+            elif isinstance(node, list) and node:
+                node = node[k % len(node)]
+        if isinstance(node, dict) and node:
+            key = sorted(node)[keys[-1] % len(node)]
+            if delete:
+                node.pop(key)
+            else:
+                node[key] = value
+        elif isinstance(node, list) and node:
+            node[keys[-1] % len(node)] = value
+    return doc
+
+
+EDITS = st.lists(st.tuples(st.lists(st.integers(0, 30), min_size=1, max_size=4), JSON,
+                           st.booleans()), min_size=1, max_size=4)
+
+
+@pytest.fixture(scope="module")
+def seq_state(tmp_path_factory):
+    """A 6-frame sequence, the state after it, and a measured shot store."""
+    import json
+
+    from ocl_tonemap.sample import write_tunnel_sequence
+    d = tmp_path_factory.mktemp("fuzzstate")
+    pattern, frames = write_tunnel_sequence(str(d / "scene"), 16, 9, 30.0, 0.2)
+    assert main(["run", pattern, str(d / "o.####.png"), "-q", "--operator", "ledda04",
+                 "--state-out", str(d / "state.json")]) == 0
+    assert main(["measure", pattern, str(d / "m.####.png"), "-q", "--operator", "ledda04",
+                 "--store", str(d / "store")]) == 0
+    stats = json.loads((d / "store" / "stats" / f"{frames[1]:08d}.json").read_text())
+    return d, pattern, json.loads((d / "state.json").read_text()), stats, frames
+
+
+@FUZZ
+@given(edits=EDITS)
+def test_fuzzed_state_files(seq_state, tmp_path_factory, capsys, edits):
+    import json
+    import shutil
+    from ocl_tonemap.imageio import frame_path
+    d, pattern, state, _, frames = seq_state
+    work = tmp_path_factory.mktemp("s")
+    side = state["extra"].get("pixel_state")
+    if side:
+        shutil.copy(d / side, work / side)
+    (work / "state.json").write_text(json.dumps(_mutate(state, edits)))
+    try:
+        rc = main(["run", pattern, str(work / "o.####.png"), "-q", "--operator", "ledda04",
+                   "--state-in", str(work / "state.json")])
+    except SystemExit as e:
+        rc = e.code
+    _check(rc, capsys.readouterr().err, str(work),
+           os.path.basename(frame_path(str(work / "o.####.png"), frames[0])))
+
+
+@FUZZ
+@given(edits=EDITS)
+def test_fuzzed_store_documents(seq_state, tmp_path_factory, capsys, edits):
+    import json
+    import shutil
+    d, pattern, _, stats, frames = seq_state
+    work = tmp_path_factory.mktemp("st")
+    shutil.copytree(d / "store", work / "store")
+    p = work / "store" / "stats" / f"{frames[1]:08d}.json"
+    p.write_text(json.dumps(_mutate(stats, edits)))
+    try:
+        rc = main(["integrate", pattern, str(work / "m.####.png"), "-q", "--operator",
+                   "ledda04", "--store", str(work / "store")])
+    except SystemExit as e:
+        rc = e.code
+    err = capsys.readouterr().err
+    assert rc in (0, 2), err
+    assert "Traceback" not in err
+    assert not [n for n in os.listdir(work / "store") if ".tmp" in n]

@@ -446,9 +446,13 @@ def test_state_files_never_overwrite_frames(shot, tmp_path, capsys):
     assert "state file would overwrite" in capsys.readouterr().err
     assert victim.read_bytes() == before
     assert main(["run", str(victim), str(tmp_path / "o2.png"), "--state-out",
-                 str(tmp_path / "nope" / "s.json"), "-q"]) == 2
-    assert "does not exist" in capsys.readouterr().err
-    assert not (tmp_path / "o2.png").exists()
+                 str(tmp_path / "new" / "s.json"), "-q"]) == 0     # its folder is made
+    assert (tmp_path / "new" / "s.json").exists() and (tmp_path / "o2.png").exists()
+    (tmp_path / "afile").write_text("x")                            # ... where it can be
+    assert main(["run", str(victim), str(tmp_path / "o3.png"), "--state-out",
+                 str(tmp_path / "afile" / "s.json"), "-q"]) == 2
+    assert "cannot make the state's folder" in capsys.readouterr().err
+    assert not (tmp_path / "o3.png").exists()
 
 
 def test_resume_refuses_other_settings_and_outputs_keep_their_own_checkpoints(shot, tmp_path,

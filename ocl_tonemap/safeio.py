@@ -1,0 +1,180 @@
+"""Files that are never lost or left half-written, and reads of a user's path
+that are always bounded.
+
+Writes go to a temporary file beside the target (``.<name>.tmp<pid><ext>``),
+are flushed to the disk (``fsync`` of the file), renamed over the target and the
+folder is synced (so the rename itself survives a crash); any failure removes
+the temporary file and raises :class:`WriteFailed` naming the file, with the
+system's reason ("no space left on device"). Nothing counts as written before
+that. Image writes are also read back (``imageio``) before the rename.
+
+Reads of files named by the user (``--cuts``, ``--state-in``, a shot store's
+JSON) accept regular files only, opened without blocking (a FIFO is refused,
+never waited on), and at most a stated size (``/dev/zero`` is refused, not read).
+
+For tests without a small file system: ``OCL_TONEMAP_FAIL_WRITE=N`` makes the
+N-th commit of this process (1-based) fail as a full disk would (ENOSPC), after
+its data was written to the temporary file. docs/reliability.md.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+from pathlib import Path
+
+#: Largest text file read from a user's path (cuts lists, state JSON, a store's
+#: JSON documents): 64 MiB (a state JSON is a few KiB; a shot's cut list a few).
+TEXT_CAP = 64 << 20
+
+_commits = 0
+
+
+class WriteFailed(OSError):
+    """A write that did not complete; nothing was put in place."""
+
+    def __init__(self, path, why: str, err: int | None = None):
+        super().__init__(err or errno.EIO, why)
+        self.path, self.why = str(path), why
+
+    def __str__(self) -> str:
+        return f"cannot write {self.path}: {self.why}"
+
+
+def reason(exc: BaseException) -> str:
+    """An OSError in words ("no space left on device"), else its text."""
+    if isinstance(exc, WriteFailed):
+        return exc.why
+    if isinstance(exc, OSError) and exc.errno is not None:
+        return os.strerror(exc.errno).lower()
+    return str(exc) or type(exc).__name__
+
+
+def temp_path(path, ext: str | None = None) -> str:
+    """The temporary name of ``path``'s write: beside it, hidden, with this process's
+    id (``checkpoint.remove_stale_temps`` removes those of dead processes)."""
+    p = Path(path)
+    ext = p.suffix if ext is None else ext
+    stem = p.name[:-len(p.suffix)] if p.suffix and ext == p.suffix else p.name
+    return str(p.with_name(f".{stem}.tmp{os.getpid()}{ext}"))
+
+
+def remove(path) -> None:
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+def fsync_path(path, folder: bool = False) -> None:
+    """Flush a file (or a folder's entries) to the disk."""
+    fd = os.open(path, os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if folder else 0))
+    try:
+        os.fsync(fd)
+    except OSError as exc:
+        if not folder or exc.errno not in (errno.EINVAL, errno.ENOTSUP, errno.EBADF):
+            raise                      # some file systems cannot sync a folder: not an error
+    finally:
+        os.close(fd)
+
+
+def _injected_fault(path) -> None:
+    global _commits
+    n = os.environ.get("OCL_TONEMAP_FAIL_WRITE")
+    if not n:
+        return
+    _commits += 1
+    if str(_commits) == n.strip():
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+
+def commit(tmp, path, sync: bool = True) -> None:
+    """Put a completely written temporary file in place: fsync it, rename it over
+    ``path``, fsync the folder. On failure the temporary file is removed and
+    :class:`WriteFailed` raised; ``path`` is as it was."""
+    try:
+        _injected_fault(path)
+        if sync:
+            fsync_path(tmp)
+        os.replace(tmp, path)
+    except OSError as exc:
+        remove(tmp)
+        raise WriteFailed(path, reason(exc), exc.errno) from None
+    if sync:
+        try:
+            fsync_path(os.path.dirname(os.path.abspath(path)) or ".", folder=True)
+        except OSError as exc:
+            raise WriteFailed(path, f"written, but its folder could not be synced: "
+                              f"{reason(exc)}", exc.errno) from None
+
+
+def write_bytes(path, data: bytes, sync: bool = True) -> None:
+    """``data`` to ``path``, whole or not at all."""
+    tmp = temp_path(path, "")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+    except OSError as exc:
+        remove(tmp)
+        raise WriteFailed(path, reason(exc), exc.errno) from None
+    except BaseException:
+        remove(tmp)
+        raise
+    commit(tmp, path, sync)
+
+
+def write_text(path, text: str, sync: bool = True) -> None:
+    write_bytes(path, text.encode("utf-8"), sync)
+
+
+def read_bytes(path, what: str, cap: int = TEXT_CAP) -> bytes:
+    """A user's file, read whole: a regular file of at most ``cap`` bytes (a FIFO,
+    a device or a folder is refused at once, never waited on). ``what`` names it in
+    the error (``--cuts``)."""
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: {reason(exc)}") from None
+    _check_regular(st, path, what)
+    if st.st_size > cap:
+        raise ValueError(f"{what} {path} is {st.st_size} bytes, more than the {cap} "
+                         "bytes such a file can be")
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: {reason(exc)}") from None
+    try:
+        with os.fdopen(fd, "rb") as f:
+            data = f.read(cap + 1)
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: {reason(exc)}") from None
+    if len(data) > cap:                  # it grew while read
+        raise ValueError(f"{what} {path} is more than the {cap} bytes such a file can be")
+    return data
+
+
+def read_text(path, what: str, cap: int = TEXT_CAP) -> str:
+    data = read_bytes(path, what, cap)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ValueError(f"{what} {path} is not text (UTF-8)") from None
+
+
+def _check_regular(st, path, what: str) -> None:
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a folder" if stat.S_ISDIR(st.st_mode)
+                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
+                else "not a regular file")
+        raise ValueError(f"{what} {path} is {kind}; a regular file is needed")
+
+
+def regular_file(path, what: str) -> None:
+    """Refuse a path that is not a regular file (a FIFO would hang a reader)."""
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: {reason(exc)}") from None
+    _check_regular(st, path, what)
