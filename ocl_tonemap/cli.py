@@ -635,20 +635,19 @@ def _main(argv: list[str] | None = None) -> int:
             rep = f"; repaired values: {res.repairs.summary()}" if res.repairs.total else ""
             print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s{rep}")
         return 0
-    except FrameError as e:
-        where = e.path if e.frame is None else f"{e.path} frame {e.frame}"
-        print(f"ocl-tonemap ERROR: {where}: {e.why}", file=sys.stderr)
-        return 2
-    except (ValueError, RuntimeError, OSError) as e:
-        print(f"ocl-tonemap ERROR: {one_line(e)}", file=sys.stderr)
-        log.debug("traceback", exc_info=True)
-        return 2
-    except MemoryError:
-        print("ocl-tonemap ERROR: out of memory; give --max-memory MIB to process frames in "
-              "row bands", file=sys.stderr)
-        return 2
     except Exception as e:                                    # noqa: BLE001
-        # what no check above names (a library's own exception: OCIO's, Dask's ...)
-        print(f"ocl-tonemap ERROR: {one_line(e, True)}", file=sys.stderr)
+        from . import interrupts
+        if interrupts.received:          # a signal a library turned into its own error
+            print("ocl-tonemap: interrupted", file=sys.stderr)   # (an import: ImportError)
+            return interrupts.exit_code()
         log.debug("traceback", exc_info=True)
+        if isinstance(e, FrameError):
+            where = e.path if e.frame is None else f"{e.path} frame {e.frame}"
+            print(f"ocl-tonemap ERROR: {where}: {e.why}", file=sys.stderr)
+        elif isinstance(e, MemoryError):
+            print("ocl-tonemap ERROR: out of memory; give --max-memory MIB to process frames "
+                  "in row bands", file=sys.stderr)
+        else:   # ours say what and where; a library's own (OCIO's, Dask's ...) says its kind
+            known = isinstance(e, (ValueError, RuntimeError, OSError))
+            print(f"ocl-tonemap ERROR: {one_line(e, not known)}", file=sys.stderr)
         return 2

@@ -16,19 +16,49 @@ class Terminated(BaseException):
         self.signum = int(signum)
 
 
+#: The signal received, if any (0: none): an interrupt that a library turned into its
+#: own error (a C extension's import fails with "initialization failed") is still
+#: an interrupt.
+received = 0
+
+
 def _terminate(signum, frame):
+    global received
+    received = signum
     raise Terminated(signum)
 
 
+def _interrupt(signum, frame):
+    global received
+    received = signum
+    raise KeyboardInterrupt
+
+
+def _unraisable(info) -> None:
+    """A finalizer's error (``Exception ignored in ...``: a library object that a
+    signal cut short while it was made, then collected): logged (``-vv``), not printed
+    as a traceback."""
+    import logging
+    logging.getLogger("ocl_tonemap").debug("ignored in %r: %r", info.object, info.exc_value)
+
+
 def install() -> None:
-    """SIGTERM -> :class:`Terminated` (SIGINT is Python's KeyboardInterrupt already)."""
+    """SIGINT -> KeyboardInterrupt, SIGTERM -> :class:`Terminated`, each remembered in
+    :data:`received`; finalizers' errors to the log (the command line only)."""
+    import sys
+    sys.unraisablehook = _unraisable
     try:
         signal.signal(signal.SIGTERM, _terminate)
-        if signal.getsignal(signal.SIGINT) in (signal.SIG_DFL, signal.SIG_IGN, None):
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+        if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+            signal.signal(signal.SIGINT, _interrupt)
     except ValueError:               # not the main thread (an embedding): leave them be
         pass
 
 
-def exit_code(exc: BaseException) -> int:
-    return 128 + exc.signum if isinstance(exc, Terminated) else 130
+def exit_code(exc: BaseException | None = None) -> int:
+    """128 + the signal: of ``exc``, else the one :data:`received`."""
+    if isinstance(exc, Terminated):
+        return 128 + exc.signum
+    if isinstance(exc, KeyboardInterrupt) or not received:
+        return 130
+    return 128 + received
