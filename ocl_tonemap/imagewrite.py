@@ -54,6 +54,7 @@ def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
                         png_filter)
     d = output_folder(path, frame)
     tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{ext}")
+    room_for(path, frame, ext, pix.shape[1], pix.shape[0], nch)
     try:
         # straight to the format's writer: an ImageBuf's set_pixels costs ~30 ms a 1080p
         # frame before the writer even starts (benchmarks/results/speed_accuracy.md)
@@ -74,6 +75,28 @@ def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
         raise FrameError(path, frame, f"cannot write: {exc.why}") from None
     finally:
         safeio.remove(tmp)
+
+
+#: Formats whose library ends the process on a failed write (libjpeg's stdio
+#: destination: "Output file write error --- out of disk space?", exit 1, its
+#: temporary left): they are written only where the disk has room for the
+#: uncompressed pixels, checked first (a disk filled by another process between the
+#: check and the write is the one case left).
+EXITS_ON_WRITE_ERROR = (".jpg", ".jpeg")
+
+
+def room_for(path: str, frame, ext: str, width: int, height: int, nch: int) -> None:
+    if ext not in EXITS_ON_WRITE_ERROR:
+        return
+    need = int(width) * int(height) * max(1, min(int(nch), 3)) + (1 << 16)
+    try:
+        st = os.statvfs(os.path.dirname(os.path.abspath(path)))
+    except OSError:
+        return
+    if st.f_bavail * st.f_frsize < need:
+        raise FrameError(path, frame, f"cannot write: no space left on device (a {ext[1:].upper()} "
+                         f"of {width}x{height} needs up to {need} bytes; "
+                         f"{st.f_bavail * st.f_frsize} free)")
 
 
 def output_folder(path: str, frame: int | None = None) -> str:
@@ -268,6 +291,7 @@ class BandWriter:
         self.spec.tile_width = self.spec.tile_height = self.spec.tile_depth = 0
         d = output_folder(path, frame)
         self.tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{self.ext}")
+        room_for(path, frame, self.ext, in_spec.width, in_spec.height, nch)
         self.out = oiio.ImageOutput.create(self.tmp)
         if self.out is None or not self.out.open(self.tmp, self.spec):
             err = oiio_error(oiio.geterror() if self.out is None else self.out.geterror())

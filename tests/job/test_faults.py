@@ -100,6 +100,22 @@ def test_full_disk_during_a_png_sequence_then_resume(seq, tmp_path):
         subprocess.run(["umount", "-l", str(full)])
 
 
+def test_a_jpeg_on_a_full_disk_is_one_line_not_libjpegs_exit(seq, tmp_path):
+    """libjpeg ends the process on a failed write (exit 1, its temporary left, its own
+    message): a JPEG is written only where the disk has room for its pixels."""
+    pattern, _ = seq
+    full = tmp_path / "full"
+    if not _mount_tmpfs(full, "64k"):
+        pytest.skip("no tmpfs here (not root)")
+    try:
+        rc, err = _cli(["run", pattern, str(full / "o.####.jpg"), "-q", "--no-checkpoint"])
+        _one_error(rc, err, "no space left on device", "frame")
+        assert "Output file write error" not in err
+        assert not _temps(full)
+    finally:
+        subprocess.run(["umount", "-l", str(full)])
+
+
 @pytest.mark.parametrize("ext,n", [(".png", 3), (".exr", 2), (".png", 4)])
 def test_a_failed_write_is_named_cleaned_up_and_resumed(seq, tmp_path, ext, n):
     """The writer hook (``OCL_TONEMAP_FAIL_WRITE=N``: the N-th commit of the process
