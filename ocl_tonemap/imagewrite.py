@@ -99,14 +99,15 @@ def room_for(path: str, frame, ext: str, width: int, height: int, nch: int) -> N
                          f"{st.f_bavail * st.f_frsize} free)")
 
 
-def output_folder(path: str, frame: int | None = None) -> str:
-    """The output's folder, made where missing (as oiiotool and Nuke's Write do)."""
+def output_folder(path: str, frame: int | None = None, what: str = "output") -> str:
+    """The folder of a file to write, made where missing (as oiiotool and Nuke's
+    Write do); ``what`` names the file in the error (output, state)."""
     d = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(d):
         try:
             os.makedirs(d, exist_ok=True)
         except OSError as exc:
-            raise FrameError(path, frame, f"cannot make the output folder {d}: "
+            raise FrameError(path, frame, f"cannot make the {what} folder {d}: "
                              f"{safeio.reason(exc)}") from None
     return d
 

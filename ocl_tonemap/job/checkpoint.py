@@ -8,6 +8,7 @@ import os
 import re
 
 from ..imageio import FrameError, same_file, without_frame_token
+from ..imagewrite import output_folder
 from ..state import AdaptationState
 from .options import RUN_KEY, JobOptions, run_fingerprint
 
@@ -31,12 +32,7 @@ class RunLock:
             import fcntl
         except ImportError:                   # pragma: no cover -- not POSIX
             return self
-        d = os.path.dirname(self.path)
-        try:
-            os.makedirs(d, exist_ok=True)
-        except OSError as exc:
-            raise FrameError(self.state_path, None, "cannot make the "
-                             f"state's folder {d}: {exc.strerror or exc}") from None
+        output_folder(self.state_path, None, "state's")
         for _ in range(10):
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
             try:
@@ -138,13 +134,7 @@ def check_state_paths(jobs, paths, plot: str | None = None, inputs=()) -> None:
     files or other files it reads (``inputs``: --state-in, --cuts ...)."""
     files = {p for _, i, o, _ in jobs for p in (i, o)}
     for p in paths:
-        d = os.path.dirname(os.path.abspath(p))
-        if not os.path.isdir(d):
-            try:
-                os.makedirs(d, exist_ok=True)
-            except OSError as exc:
-                raise FrameError(p, None, f"cannot make the state's folder {d}: "
-                                 f"{exc.strerror or exc}") from None
+        output_folder(p, None, "state's")
         for q in files:
             if same_file(p, q):
                 raise FrameError(p, None, "the state file would overwrite an input or output "
