@@ -766,8 +766,13 @@ for i, p in enumerate(ins):
         sys.exit(out.geterror())
 """
 
-CMD_RUNS = (("pattanaik00", "draft"), ("pattanaik00", "balanced"), ("durand00", "draft"),
-            ("durand00", "balanced"), ("ledda04", "balanced"))
+#: (operator, --quality, --model) of the whole-command runs: the defaults (--model auto:
+#: the mechanisms the frame needs, glare of the tunnel's sun included) and, like for like
+#: with pfstmo (the operator alone), --model none.
+CMD_RUNS = (("pattanaik00", "draft", "auto"), ("pattanaik00", "balanced", "auto"),
+            ("pattanaik00", "balanced", "none"), ("durand00", "draft", "auto"),
+            ("durand00", "balanced", "auto"), ("durand00", "balanced", "none"),
+            ("ledda04", "balanced", "auto"), ("ledda04", "balanced", "none"))
 
 
 def sample_sequence(w: int, h: int) -> tuple[str, list[int]]:
@@ -823,7 +828,7 @@ def whole_command(sizes, repeat: int) -> list[str]:
     lines = ["## 4. Whole command: the tunnel sample, 60 frames (30 fps EXR) -> 8-bit PNG", "",
              f"Wall time of the whole command (median of {repeat}), process start-up included. "
              f"Ours: `{' '.join(os.path.basename(c) for c in cli)} run IN.####.exr "
-             f"OUT.####.png --operator X --quality Q -q` (its default OCIO display encoding and "
+             f"OUT.####.png --operator X --quality Q --model M -q` (its default OCIO display encoding and "
              f"PNG zlib level {PNG_LEVEL}, row filter {PNG_FILTER}). Read + write only: a Python "
              f"loop in one process, OIIO with one thread: read each EXR, write an 8-bit PNG "
              f"through OIIO's ImageOutput at zlib level {PNG_LEVEL}, filter {PNG_FILTER} (what "
@@ -839,10 +844,10 @@ def whole_command(sizes, repeat: int) -> list[str]:
     # the 640x360 rows had paid it), which is not the per-frame cost being measured.
     pattern, frames = sample_sequence(*sizes[0])
     with tempfile.TemporaryDirectory(prefix="ocltm-sa-") as out:
-        for op, q in CMD_RUNS:
+        for op, q, m in CMD_RUNS:
             subprocess.run(cli + ["run", pattern, os.path.join(out, "warm.####.png"), "--frames",
                                   f"{frames[0]}-{frames[0]}", "--operator", op, "--quality", q,
-                                  "-q"], capture_output=True)
+                                  "--model", m, "-q"], capture_output=True)
     for w, h in sizes:
         pattern, frames = sample_sequence(w, h)
         src = os.path.dirname(pattern)
@@ -853,11 +858,11 @@ def whole_command(sizes, repeat: int) -> list[str]:
                          f"{frames[0]}-{frames[0]}", "-q"]
             res["startup"] = timed(cmd, repeat, out)
             log(f"  {w}x{h} ours, one frame (start-up): {res['startup'][0]}")
-            for op, q in CMD_RUNS:
-                cmd = cli + ["run", pattern, os.path.join(out, f"{op}_{q}.####.png"),
-                             "--operator", op, "--quality", q, "-q"]
-                res[(op, q)] = timed(cmd, repeat, out)
-                log(f"  {w}x{h} ours {op} {q}: {res[(op, q)][0]}")
+            for op, q, m in CMD_RUNS:
+                cmd = cli + ["run", pattern, os.path.join(out, f"{op}_{q}_{m}.####.png"),
+                             "--operator", op, "--quality", q, "--model", m, "-q"]
+                res[(op, q, m)] = timed(cmd, repeat, out)
+                log(f"  {w}x{h} ours {op} {q} {m}: {res[(op, q, m)][0]}")
             ins = [os.path.join(src, f"tunnel.{f:04d}.exr") for f in frames]
             res["rw"] = timed([sys.executable, "-c", RW_CODE, str(PNG_LEVEL),
                                str(PNG_FILTERS[PNG_FILTER]), os.path.join(out, "rw.%04d.png")]
@@ -880,14 +885,14 @@ def whole_command(sizes, repeat: int) -> list[str]:
         def cell(key):
             t, err = res[key]
             return (f"{t:.2f}", f"{t / n * 1e3:.0f}", f"{n / t:.1f}") if t else (err or "—", "", "")
-        for op, q in CMD_RUNS:
-            t = res[(op, q)][0]
+        for op, q, m in CMD_RUNS:
+            t = res[(op, q, m)][0]
             vs_pp = f"{t_pp / t:.1f}x" if t and t_pp else "—"
             vs_pd = f"{t_pd / t:.1f}x" if t and t_pd else "—"
             vs_rw = f"{t_rw / t:.0%}" if t and t_rw else "—"
-            rows.append((f"{w}x{h}", f"ours {op} --quality {q}", *cell((op, q)), vs_pp, vs_pd,
-                         vs_rw))
-            if not t:
+            rows.append((f"{w}x{h}", f"ours {op} --quality {q} --model {m}", *cell((op, q, m)),
+                         vs_pp, vs_pd, vs_rw))
+            if not t or m != "none":          # the targets: like for like (the operator alone)
                 continue
             if op in ("pattanaik00", "durand00"):
                 if t_pp:
