@@ -176,6 +176,7 @@ class Calibrator:
     def __init__(self, request: CalibrationRequest, auto_scale: float | None = None):
         self.request = request
         self.auto_scale = auto_scale
+        self._said_over_auto: set = set()     # calibration sources said to overrule auto
 
     def frame(self, spec, format_name: str, working_rgb_fn) -> Calibration:
         """The calibration of one frame. ``working_rgb_fn()`` returns its working RGB
@@ -209,22 +210,14 @@ class Calibrator:
     def _over_auto(self, cal: "Calibration") -> "Calibration":
         """An absolute calibration of the file wins over ``auto:LEVEL``: said once."""
         r = self.request
-        if r.auto_level is not None:
-            _say_once((id(self), cal.source), "--luminance-scale auto:%s is not used: the "
-                      "file's %s (1.0 = %g cd/m^2) comes first, being absolute; give "
-                      "--luminance-scale S to set the scale yourself",
-                      r.auto_name or f"{r.auto_level:g}", cal.source, cal.scale)
+        if r.auto_level is not None and cal.source not in self._said_over_auto:
+            self._said_over_auto.add(cal.source)
+            import logging
+            logging.getLogger("ocl_tonemap").warning(
+                "--luminance-scale auto:%s is not used: the file's %s (1.0 = %g cd/m^2) "
+                "comes first, being absolute; give --luminance-scale S to set the scale "
+                "yourself", r.auto_name or f"{r.auto_level:g}", cal.source, cal.scale)
         return cal
-
-
-_said_over_auto = set()
-
-
-def _say_once(key, msg, *args) -> None:
-    if key not in _said_over_auto:
-        _said_over_auto.add(key)
-        import logging
-        logging.getLogger("ocl_tonemap").warning(msg, *args)
 
 
 ASSUMED_HELP = ("set --luminance-scale S (1.0 = S cd/m^2) or --luminance-scale auto:LEVEL "

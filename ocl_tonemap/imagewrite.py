@@ -88,15 +88,11 @@ EXITS_ON_WRITE_ERROR = (".jpg", ".jpeg")
 def room_for(path: str, frame, ext: str, width: int, height: int, nch: int) -> None:
     if ext not in EXITS_ON_WRITE_ERROR:
         return
-    need = int(width) * int(height) * max(1, min(int(nch), 3)) + (1 << 16)
-    try:
-        st = os.statvfs(os.path.dirname(os.path.abspath(path)))
-    except OSError:
-        return
-    if st.f_bavail * st.f_frsize < need:
+    need = int(width) * int(height) * max(1, min(int(nch), 3)) + safeio.FULL_BELOW
+    free = safeio.free_bytes(path)
+    if free is not None and free < need:
         raise FrameError(path, frame, f"cannot write: no space left on device (a {ext[1:].upper()} "
-                         f"of {width}x{height} needs up to {need} bytes; "
-                         f"{st.f_bavail * st.f_frsize} free)")
+                         f"of {width}x{height} needs up to {need} bytes; {free} free)")
 
 
 def output_folder(path: str, frame: int | None = None, what: str = "output") -> str:
@@ -115,12 +111,8 @@ def output_folder(path: str, frame: int | None = None, what: str = "output") -> 
 def _write_error(tmp: str, text: str) -> str:
     """A writer's error in words: the disk's state where it is full (the library's
     own message is about its buffers)."""
-    try:
-        st = os.statvfs(os.path.dirname(os.path.abspath(tmp)))
-        if st.f_bavail * st.f_frsize < (1 << 16):
-            return "no space left on device"
-    except OSError:
-        pass
+    if safeio.disk_full(tmp):
+        return "no space left on device"
     return oiio_error(text) if text else "failed"
 
 

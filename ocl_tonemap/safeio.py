@@ -51,6 +51,25 @@ def reason(exc: BaseException) -> str:
     return str(exc) or type(exc).__name__
 
 
+#: A folder with less free space than this is full (a writer's failure there is a
+#: full disk, whatever its library says).
+FULL_BELOW = 1 << 16
+
+
+def free_bytes(path) -> int | None:
+    """Free bytes of the file system holding ``path``'s folder (None: unknown)."""
+    try:
+        st = os.statvfs(os.path.dirname(os.path.abspath(path)) or ".")
+    except OSError:
+        return None
+    return st.f_bavail * st.f_frsize
+
+
+def disk_full(path) -> bool:
+    free = free_bytes(path)
+    return free is not None and free < FULL_BELOW
+
+
 def temp_path(path, ext: str | None = None) -> str:
     """The temporary name of ``path``'s write: beside it, hidden, with this process's
     id (``checkpoint.remove_stale_temps`` removes those of dead processes)."""

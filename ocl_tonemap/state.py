@@ -263,19 +263,11 @@ def write_planes(path: Path, planes, compression: str = "none") -> None:
                 inp.close()
             oiio.geterror()
         if not ok:
-            raise safeio.WriteFailed(path, safeio.reason(OSError(28, "")) if _disk_full(tmp)
+            raise safeio.WriteFailed(path, "no space left on device" if safeio.disk_full(tmp)
                                      else f"per-pixel state: {out.geterror() or 'failed'}")
         safeio.commit(tmp, path)
     finally:
         safeio.remove(tmp)
-
-
-def _disk_full(tmp: Path) -> bool:
-    try:
-        st = os.statvfs(tmp.parent)
-        return st.f_bavail * st.f_frsize < (1 << 16)
-    except OSError:
-        return False
 
 
 class PlaneFile:
