@@ -807,17 +807,33 @@ def ensure_pfstools() -> str | None:
     return f"not installed ({', '.join(missing)})" if missing else None
 
 
-def timed(cmd, repeat: int, cwd: str, shell: bool = False) -> tuple[float | None, str]:
-    ts, err = [], ""
+#: GNU time: runs the command from a small process, so that a child's peak resident set
+#: does not start at this benchmark's own size (a fork copies the parent's high-water mark).
+GNU_TIME = "/usr/bin/time"
+
+
+def timed(cmd, repeat: int, cwd: str, shell: bool = False):
+    """(median wall s, error or "", peak RSS MiB or None) of a command run ``repeat``
+    times. The peak is GNU time's %M: the largest resident set of the command's
+    processes (for a pipeline, its largest stage), the largest over the repeats; None
+    where GNU time is not installed."""
+    import tempfile as _tf
+    ts, peak = [], None
+    argv = ["/bin/bash", "-c", cmd] if shell else list(cmd)
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        r = subprocess.run(cmd, cwd=cwd, shell=shell, capture_output=True, text=True,
-                           executable="/bin/bash" if shell else None)
-        ts.append(time.perf_counter() - t0)
-        if r.returncode != 0:
-            err = (r.stderr or r.stdout).strip().splitlines()[-1:] or ["failed"]
-            return None, f"exit {r.returncode}: {err[0][:120]}"
-    return statistics.median(ts), err
+        with _tf.NamedTemporaryFile("r", suffix=".rss") as rss:
+            run = ([GNU_TIME, "-f", "%M", "-o", rss.name] + argv) if os.path.exists(GNU_TIME) \
+                else argv
+            t0 = time.perf_counter()
+            r = subprocess.run(run, cwd=cwd, capture_output=True, text=True)
+            ts.append(time.perf_counter() - t0)
+            if r.returncode != 0:
+                err = (r.stderr or r.stdout).strip().splitlines()[-1:] or ["failed"]
+                return None, f"exit {r.returncode}: {err[0][:120]}", None
+            got = rss.read().strip().splitlines()
+            if got and got[-1].isdigit():
+                peak = max(peak or 0.0, int(got[-1]) / 1024.0)
+    return statistics.median(ts), "", peak
 
 
 def whole_command(sizes, repeat: int) -> list[str]:
@@ -826,7 +842,9 @@ def whole_command(sizes, repeat: int) -> list[str]:
     cli = [cli] if os.path.exists(cli) else [sys.executable, "-m", "ocl_tonemap"]
     pfs_missing = ensure_pfstools()
     lines = ["## 4. Whole command: the tunnel sample, 60 frames (30 fps EXR) -> 8-bit PNG", "",
-             f"Wall time of the whole command (median of {repeat}), process start-up included. "
+             f"Wall time of the whole command (median of {repeat}), process start-up included; "
+             f"peak RSS: the largest resident set of its processes (GNU time's %M; a "
+             f"pipeline's largest stage). "
              f"Ours: `{' '.join(os.path.basename(c) for c in cli)} run IN.####.exr "
              f"OUT.####.png --operator X --quality Q --model M -q` (its default OCIO display encoding and "
              f"PNG zlib level {PNG_LEVEL}, row filter {PNG_FILTER}). Read + write only: a Python "
@@ -876,15 +894,16 @@ def whole_command(sizes, repeat: int) -> list[str]:
                       "pfs_rw": f"{pin} | pfsout rw_pfs.%04d.png"}
             for k, c in chains.items():
                 if pfs_missing:
-                    res[k] = (None, pfs_missing)
+                    res[k] = (None, pfs_missing, None)
                 else:
                     res[k] = timed("set -o pipefail; " + c, repeat, out, shell=True)
                 log(f"  {w}x{h} {k}: {res[k][0]}")
         t_rw, t_pp, t_pd = res["rw"][0], res["pfs_pattanaik00"][0], res["pfs_durand02"][0]
 
         def cell(key):
-            t, err = res[key]
-            return (f"{t:.2f}", f"{t / n * 1e3:.0f}", f"{n / t:.1f}") if t else (err or "—", "", "")
+            t, err, peak = res[key]
+            return (f"{t:.2f}", f"{t / n * 1e3:.0f}", f"{n / t:.1f}",
+                    "—" if peak is None else f"{peak:.0f}") if t else (err or "—", "", "", "")
         for op, q, m in CMD_RUNS:
             t = res[(op, q, m)][0]
             vs_pp = f"{t_pp / t:.1f}x" if t and t_pp else "—"
@@ -907,13 +926,15 @@ def whole_command(sizes, repeat: int) -> list[str]:
                                "chain", f"{t_pd / t:.1f}x", "PASS" if t_pd / t >= 5 else "FAIL"))
         t1 = res["startup"][0]
         rows.append((f"{w}x{h}", "ours pattanaik00 balanced, 1 frame (start-up)",
-                     f"{t1:.2f}" if t1 else res["startup"][1], "", "", "", "", ""))
+                     f"{t1:.2f}" if t1 else res["startup"][1], "", "",
+                     f"{res['startup'][2]:.0f}" if t1 and res["startup"][2] else "", "", "",
+                     ""))
         for key, label in (("rw", "OIIO read + PNG write only (1 thread)"),
                            ("pfs_pattanaik00", "pfstools + pfstmo_pattanaik00 -t"),
                            ("pfs_durand02", "pfstools + pfstmo_durand02"),
                            ("pfs_rw", "pfsin \\| pfsout only")):
             rows.append((f"{w}x{h}", label, *cell(key), "", "", ""))
-    lines.append(table(("size", "command", "wall s", "ms/frame", "frames/s",
+    lines.append(table(("size", "command", "wall s", "ms/frame", "frames/s", "peak RSS MiB",
                         "speed vs pfstmo_pattanaik00", "speed vs pfstmo_durand02",
                         "of read+write throughput"), rows))
     lines += ["", "Targets (printed, not enforced):", ""]
