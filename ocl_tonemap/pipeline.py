@@ -390,21 +390,14 @@ class Tonemapper:
                          self.schedule.summary(stats, params), eff)
         return FrameResult(out, None, info, encoding is not None)
 
-    def map_like_last(self, pixels: np.ndarray, luminance_scale: float) -> np.ndarray:
-        """Working-space ``pixels`` (N x 3, or H x W x 3; x ``luminance_scale`` = cd/m^2)
-        through the last frame's per-pixel mapping as it was (its state, scalars and
-        receptor gains; nothing metered, nothing advanced): display-linear. The frozen
-        per-frame function an OCIO export samples (``colour/export.py``); spatial and
-        scene-slot effects are not part of it."""
+    def last_mapping(self):
+        """(operator, frame scalars, receptor gains or None) of the last frame mapped:
+        its per-pixel mapping, frozen (``colour/export.py`` samples it for an OCIO
+        export; spatial and scene-slot effects are not part of it)."""
         if getattr(self, "_frozen", None) is None:
             raise ValueError("no frame has been mapped yet")
-        stats, params, gains = self._frozen
-        pix = np.asarray(pixels, np.float32)
-        shape = pix.shape
-        img = np.ascontiguousarray(pix.reshape(1, -1, 3) if pix.ndim == 2 else pix)
-        out = self.apply(Frame(img, float(luminance_scale), None, self.display_primaries),
-                         stats, params, gains)
-        return np.asarray(out, np.float32).reshape(shape)
+        _, params, gains = self._frozen
+        return self.op, params, gains
 
     def _begin_plan(self, levels, get_rows, h: int, w: int, scale: float, dt: float,
                     fresh: bool) -> None:

@@ -79,6 +79,22 @@ class ColourPipeline:
         apply_processor(proc, pixels)
         return pixels
 
+    def input_transform(self, ic: InputColour):
+        """The conversion :meth:`convert_input` makes, as an OCIO GroupTransform (None:
+        the input is the working space)."""
+        if ic.kind == "working":
+            return None
+        g = ocio.GroupTransform()
+        if ic.kind == "matrix":
+            m = np.eye(4)
+            m[:3, :3] = np.asarray(ic.matrix, np.float64)
+            g.appendTransform(ocio.MatrixTransform(matrix=[float(v) for v in m.reshape(-1)]))
+            return g
+        if not ic.builtin and self.cfg.getColorSpace(ic.colorspace).getName() == self.working:
+            return None
+        cfg = builtin_config() if ic.builtin else self.cfg
+        return cfg.getProcessor(ic.colorspace, working_space(cfg)).createGroupTransform()
+
     def _matrix_from_working(self, cs: str) -> np.ndarray | None:
         """The 3x3 matrix working -> ``cs`` when OCIO's transform is linear, else None."""
         try:

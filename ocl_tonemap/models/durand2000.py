@@ -126,6 +126,7 @@ class FrameParams:
     mode: str = "default"
     shoulder_knee: float = SHOULDER_KNEE   # 0: hard clip at display white (paper)
     white_signal: float = 1.0              # display-linear value of display white
+    raw: bool = False                      # the smooth part alone (see map_reference)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -173,6 +174,8 @@ def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams
     rod = np.asarray(Ys, np.float64)[..., None] * p.rod_rgb
     if p.lut:
         cone, rod = _lut_reference(rgb, Ys, p)
+    if p.raw:                  # before the shoulder and the clip (colour/export.py)
+        return cone + rod
     out = apply_shoulder(np.minimum(cone + rod, SIGNAL_CEILING), p.white_signal,
                          p.shoulder_knee)
     return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)

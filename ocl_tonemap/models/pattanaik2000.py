@@ -307,6 +307,7 @@ class FrameParams:
     shoulder_knee: float = SHOULDER_KNEE   # 0: hard clip at display white (paper)
     white_signal: float = 1.0              # display-linear value of display white
     chroma: float | None = None            # default mode's chroma scale; None: Eq. 3
+    raw: bool = False                      # the smooth part alone (see map_reference)
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -338,6 +339,11 @@ def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams
 
     rgb: (..., 3) working-space cd/m^2 (already sanitised); Y, Ys: photopic and
     scotopic luminance. Returns (..., 3) display-linear (1.0 = display unit).
+    ``p.raw``: the smooth function whose positive part this is, before the
+    highlight shoulder and the clip (what an OCIO export samples on a lattice, then
+    clamps at 0: ``colour/export.py``): no floor on the display signal or the
+    colour ratios, and where the signal is below display black the product is kept
+    negative, so that max(raw, 0) is exactly the clamped output.
     """
     xc = saturation(Y, p.sigma_cone)
     R_lum = p.B_rod * saturation(Ys, p.sigma_rod) + p.B_cone * xc      # Eq. 2, R_rod + R_cone
@@ -352,8 +358,14 @@ def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams
         c_disp = np.maximum(ratio, RATIO_FLOOR) ** (s_color / p.display.S_d)[..., None]
     else:                      # default: CIECAM02 colourfulness, hue kept (docs/models.md)
         c_disp = np.maximum(1.0 + p.chroma * (ratio - 1.0), 0.0)
+    if p.raw and p.chroma is not None:
+        c_raw = 1.0 + p.chroma * (ratio - 1.0)
+        L_raw = (L_disp - p.display.signal_offset) * p.display.gain
+        return L_raw[..., None] * np.where(L_raw[..., None] < 0.0, np.abs(c_raw), c_raw)
     L_sig = np.minimum(np.maximum(L_disp - p.display.signal_offset, 0.0) * p.display.gain,
                        SIGNAL_CEILING)
+    if p.raw:                  # the paper's colour: no shoulder (its knee is 0 there)
+        return L_sig[..., None] * c_disp
     out = apply_shoulder(L_sig[..., None] * c_disp, p.white_signal, p.shoulder_knee)
     return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
 

@@ -159,6 +159,9 @@ class Operator:
     #: backend name -> "module:Class" of the schedule running this operator; the
     #: pointwise schedules are used where none is named.
     schedules: dict = {}
+    #: Why a frame's mapping is not one function of the pixel's RGB (what keeps it out
+    #: of an OCIO export, ``colour/export.py``); None where it is.
+    export_blocker: str | None = "its mapping is not declared per-pixel"
 
     def __init__(self, options: dict | None = None, display=None, preadapt=None):
         self.display = display
@@ -269,6 +272,15 @@ class ModelOperator(Operator):
 
     def map_reference(self, rgb, Y, Ys, p):
         return self.model.map_reference(rgb, Y, Ys, p)
+
+    #: The per-pixel map's smooth part is ``map_reference`` with ``raw=True``
+    #: (``colour/export.py`` samples it for an OCIO export).
+    export_blocker = None
+
+    def colour_axes(self, p) -> np.ndarray:
+        """The 3x3 matrix M of the axes v = M rgb (working cd/m^2) along which the raw
+        map's output channels cross zero (``colour/lattice.py``); identity here."""
+        return np.eye(3)
 
 
 @dataclass(frozen=True)

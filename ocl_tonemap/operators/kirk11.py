@@ -50,6 +50,8 @@ class Kirk11(Operator):
     citation = ("Kirk & O'Brien, Perceptually Based Tone Mapping for Low-Light Conditions, "
                 "ACM TOG 30(4), SIGGRAPH 2011")
     own_effects = ("purkinje",)
+    export_blocker = ("its bilateral base layer (range reduction by each pixel's "
+                      "neighbourhood)")
     options = (
         MODE_OPTION, *BILATERAL_OPTIONS,
         Option("kappa", "--kappa", "rod mixing: following the frame's mesopic level (default; "

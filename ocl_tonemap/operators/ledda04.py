@@ -105,6 +105,7 @@ class Ledda04(Operator):
     description = "Ledda, Santos & Chalmers 2004: local (bilateral) adaptation, dark/light time course"
     citation = ("Ledda, Santos & Chalmers, A Local Model of Eye Adaptation for High Dynamic "
                 "Range Images, Afrigraph 2004")
+    export_blocker = "local adaptation (each pixel adapts to its bilateral neighbourhood)"
     options = (
         MODE_OPTION, *BILATERAL_OPTIONS,
         Option("rods", "--rods", "auto: skip the rod filter on all-photopic frames",

@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ..models import pattanaik2000 as model
+from ..models.photometry import Y_WEIGHTS
 from .base import COLOUR_STAGE, METER_STAGE, KernelCall, ModelOperator, Option, Stage, StateSpec
 
 MODE_OPTION = Option("mode", "--mode", "default: the operator as it looks right on photographs; "
@@ -41,6 +44,13 @@ class Pattanaik00(ModelOperator):
         Stage("map", "pointwise", "Eqs. 2-3 responses, Sec. 4.3 inverse appearance and display",
               "models.pattanaik2000.map_reference", "pattanaik00.cl:pattanaik00_map8"),
     )
+
+    def colour_axes(self, p):
+        """The default colour's v_i = (1 - c) Y + c rgb_i: channel i of the display colour
+        is v_i / Y, clamped at 0 where the chroma scale c pushes it below."""
+        if p.chroma is None:
+            return np.eye(3)
+        return (1.0 - p.chroma) * np.outer(np.ones(3), Y_WEIGHTS) + p.chroma * np.eye(3)
 
     def kernel_call(self, p, vector: bool = True):
         d = p.display
