@@ -124,6 +124,14 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    "R, G, B channels by name")
     p.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
     p.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
+    p.add_argument("--ocio-export", metavar="DIR",
+                   help="also write the observer as an OCIO view: DIR/<name>.ocio (OCIO 2.1 and "
+                   "later) and one CLF per frame, replayed by OCIO's tools, oiiotool and Nuke "
+                   "with the context variable FRAME (global operators, --flare off --acuity "
+                   "off; docs/ocio_export.md)")
+    p.add_argument("--ocio-export-size", type=int, default=33, metavar="N",
+                   help="nodes per axis of the exported LUTs: 17, 25, 33 (default), 49 or 65; "
+                   "larger comes closer to the run and takes more space (33: ~2.7 MB a frame)")
     p.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
     _add_operator_args(p)
     g = p.add_argument_group("mechanisms and effects (every operator)")
@@ -167,7 +175,8 @@ def _options(a, input_, output):
         preadapt=parse_preadapt(a.preadapt) if a.preadapt else None,
         state_in=a.state_in, state_out=a.state_out, backend=_backend(a, tier),
         device=a.device, quality=tier.name,
-        out_bits=a.out_bits, plot=a.plot,
+        out_bits=a.out_bits, plot=a.plot, ocio_export=a.ocio_export,
+        ocio_export_size=a.ocio_export_size,
         plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
         max_band_pixels=a.max_band_pixels, operator_options=_tier_options(a, tier),
         effects=_effects(a, tier), missing=a.missing, resume=a.resume, checkpoint=a.checkpoint,
@@ -634,6 +643,8 @@ def _main(argv: list[str] | None = None) -> int:
         if not a.quiet:
             rep = f"; repaired values: {res.repairs.summary()}" if res.repairs.total else ""
             print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s{rep}")
+            if res.export:
+                print(res.export)
         return 0
     except Exception as e:                                    # noqa: BLE001
         from . import interrupts

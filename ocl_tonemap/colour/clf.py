@@ -16,8 +16,6 @@ cameraLinToLog / cameraLogToLin, LUT1D, LUT3D).
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
 import PyOpenColorIO as ocio
 
@@ -26,10 +24,10 @@ NAMESPACE = "urn:AMPAS:CLF:v3.0"
 
 
 def _values(a: np.ndarray, per_line: int) -> str:
+    """Rows of ``per_line`` float32 values (9 significant digits: float32 round-trips)."""
     a = np.asarray(a, np.float32).reshape(-1, per_line)
-    buf = io.StringIO()
-    np.savetxt(buf, a, fmt="%.8g")
-    return buf.getvalue()
+    line = " ".join(["%.9g"] * per_line) + "\n"
+    return (line * a.shape[0]) % tuple(a.astype(np.float64).ravel().tolist())
 
 
 def _matrix_text(M, offset) -> str:

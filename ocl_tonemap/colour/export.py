@@ -58,15 +58,20 @@ def export_blocker(tm) -> str | None:
     """Why the run's mapping cannot be a per-pixel OCIO transform (one line), or None."""
     op = tm.op
     if op.export_blocker:
-        return f"{tm.operator_name}: {op.export_blocker}"
+        return (f"{tm.operator_name}'s {op.export_blocker} is not a per-pixel transform, and "
+                "an OCIO view is one (pattanaik00 and durand00 export)")
     if op.options.get("lut"):
         return (f"{tm.operator_name} --lut: its Sec. 5 tables are nearest-entry steps; "
                 "export without --lut")
     fx = tm.effects.settings
-    for name, what in (("flare", "veiling glare (--flare) spreads light across the frame"),
-                       ("acuity", "loss of acuity (--acuity) blurs the frame")):
-        if getattr(fx, name) != "off":
-            return f"{what}: spatial, not per-pixel; run with --{name} off"
+    spatial = [(name, what) for name, what in
+               (("flare", "veiling glare"), ("acuity", "loss of acuity"))
+               if getattr(fx, name) != "off"]
+    if spatial:
+        names = " and ".join(f"{what} (--{name} {getattr(fx, name)})" for name, what in spatial)
+        return (f"{names} {'are' if len(spatial) > 1 else 'is'} spatial (light spread across "
+                "the frame), not per-pixel; run with "
+                + " ".join(f"--{name} off" for name, _ in spatial))
     plugins = [p.NAME for p in tm.effects.plugins]
     if plugins:
         return f"effect plugins ({', '.join(plugins)}) are not known to be per-pixel"
@@ -135,10 +140,11 @@ def reference_codes(tm, effects: dict, pixels: np.ndarray, scale: float, encode)
 
 def code_errors(got: np.ndarray, ref: np.ndarray) -> dict:
     """Differences of code values (display-encoded, [0, 1] clipped as files hold them):
-    8-bit and 10-bit codes at the 99th percentile and the maximum; float: the maximum
-    difference of the unclipped values, in units of a half float's step at the value."""
+    8-bit and 10-bit codes at the 99th percentile and the maximum; half float: the
+    difference of the unclipped values in steps of a half float at the value (its
+    11-bit significand; below one 10-bit code the step of one 10-bit code's value)."""
     d = np.abs(np.clip(got, 0, 1) - np.clip(ref, 0, 1)).reshape(-1)
-    half_ulp = np.maximum(np.abs(ref.reshape(-1)), 2.0 ** -14) * 2.0 ** -10
+    half_ulp = np.maximum(np.abs(ref.reshape(-1)), 1.0 / 1023.0) * 2.0 ** -10
     with np.errstate(invalid="ignore"):
         f = np.nan_to_num(np.abs(got - ref).reshape(-1) / half_ulp, nan=np.inf)
     out = {}

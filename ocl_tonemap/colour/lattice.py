@@ -21,13 +21,14 @@ of its luminance added to each channel, then (mean, r - g, b - g). Along the fir
 axis a colour changes intensity alone (a map homogeneous in intensity is linear
 there); the chroma axes stay bounded. The LUT's output is written in the same kind
 of coordinates and decoded after it, so that power-law and log-like outputs
-interpolate well; stage B's output shares its input's coordinates, so that the
-identity below the knee is exact. Per axis a piecewise-linear LUT1D puts the nodes
+interpolate well; stage B's output shares its input's coordinates (a cell wholly
+below the knee reproduces the identity exactly). Per axis a piecewise-linear LUT1D puts the nodes
 where the frame needs them: at quantiles of the frame's coordinates, evenly over
 their range, evenly in the output's lightness along the neutral axis, and (stage
 B) at the most common highlight colours. Stage B can also be an RGB lattice
-(:func:`stage_b_rgb`: exact at 0 and below the knee, better on flat synthetic
-colours); the export keeps whichever measures better on the frame.
+(:func:`stage_b_rgb`: exact at 0 and in the cube below the knee, and exact on the
+flat colours of a rendered frame, whose channel values become its nodes); the
+export keeps whichever measures better on the frame.
 """
 
 from __future__ import annotations
@@ -382,7 +383,8 @@ def stage_b_rgb(white: float, knee: float, values: np.ndarray, shoulder, n: int 
         q = ax.index(camera_log_forward(np.minimum(hot, top), P))
         colours, counts = np.unique(q, axis=0, return_counts=True)
         for c in colours[np.argsort(-counts, kind="stable")]:
-            new = np.setdiff1d(c[c > k_j], idx)
+            new = np.setdiff1d(c, idx)        # all three: a bright colour's dark
+            # channels are on the shoulder too (desaturated toward white)
             if idx.size + new.size > n:
                 break
             idx = np.union1d(idx, new)

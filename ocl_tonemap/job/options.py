@@ -57,6 +57,8 @@ class JobOptions:
     out_bits: str | None = None
     plot: str | None = None
     plot_frames: list[int] | None = None
+    ocio_export: str | None = None      # a folder: the observer as an OCIO view (colour/export.py)
+    ocio_export_size: int = 33
     max_band_pixels: int | None = None
     progress: bool = False
     operator_options: dict | None = None
@@ -112,6 +114,7 @@ class JobResult:
     infos: list = field(default_factory=list)
     repairs: RepairCounts = field(default_factory=RepairCounts)
     seconds: float = 0.0
+    export: str = ""                # the OCIO export's summary (--ocio-export)
 
 
 #: The physical ranges of what a user gives (``--help`` states them): adaptation

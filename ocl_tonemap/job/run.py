@@ -83,6 +83,11 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start) -> JobResult:
         done_before = [j for j in all_jobs if j not in jobs]
     run, tm = setup_run(opts, state)
     check_output_depth(opts, run.disp, jobs)
+    exporter = None
+    if opts.ocio_export:
+        from ..colour.export import OcioExport
+        first = (done_before or jobs or [(None,)])[0][0]
+        exporter = OcioExport(opts.ocio_export, run.colour, tm, first, opts.ocio_export_size)
     fingerprint = run_fingerprint(opts)
     result = JobResult([], [])
     fps = opts.fps
@@ -112,6 +117,9 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start) -> JobResult:
                 if f in cuts and tm.adapted:     # a scene cut: the eyes start afresh
                     tm.reset_adaptation()
                     log.info("frame %s: scene cut, adaptation reset", f)
+                if rows(k) and exporter is not None:
+                    raise FrameError(inp, f, "--ocio-export needs whole frames; this one "
+                                     "would stream in row bands (--max-memory): give more")
                 if rows(k):
                     io.drain()                        # a streamed frame writes in bands
                     t, info, fps = stream_frame(run, tm, inp, outp, f, held, rows(k), fps,
@@ -120,7 +128,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start) -> JobResult:
                 else:
                     fr = io.read(k, lambda: read_frame(inp, f, opts.channels))
                     t, info, fps, write = _whole_frame(run, tm, fr, inp, outp, f, held, fps,
-                                                       t_prev)
+                                                       t_prev, exporter)
             except BaseException:
                 io.drain()                 # the frames before this one are complete
                 raise
@@ -165,6 +173,8 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start) -> JobResult:
         # from their outputs' own records (ocltm:*)
         before = infos_from_outputs(done_before) if done_before else []
         plot_adaptation(opts.plot, before + result.infos, tm, opts.plot_frames)
+    if exporter is not None:
+        result.export = exporter.summary()
     result.seconds = time.perf_counter() - t_start
     return result
 
@@ -206,10 +216,12 @@ def infos_from_outputs(jobs) -> list:
     return out
 
 
-def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_prev):
+def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_prev,
+                 exporter=None):
     """One frame (read whole) mapped; returns (time, info, fps, write): ``write()``
     encodes it for the display and writes it (on the writer thread when the I/O
-    overlaps), from what this frame left, whatever the next frame does."""
+    overlaps), from what this frame left, whatever the next frame does. ``exporter``:
+    the frame also goes to the OCIO export (``colour/export.py``)."""
     try:
         t, fps = frame_time(fr, f, held, fps, t_prev)
         fin = frame_input(run, tm, fr, inp)
@@ -220,6 +232,9 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
         enc = None if linear else run.colour.device_output_encoding(
             u8, tm.backend.device_runtime())
         res = map_frame(tm, fin, t, f, encoding=enc)
+        if exporter is not None and fin.wavelengths is None:
+            exporter.add_frame(f, res.info.effects, fin.pixels, fin.scale,
+                               run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,
                                res.output.shape[2] == 4)
