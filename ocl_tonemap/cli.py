@@ -428,7 +428,10 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
                        ("integrate", "pass 2: the adaptation state through the whole shot "
                         "from the statistics (serial)"),
                        ("apply", "pass 3: tone map a chunk of frames from the integrated "
-                        "state (parallel over chunks)")):
+                        "state (parallel over chunks)"),
+                       ("export", "pass 3 without pixels: the observer as an OCIO view "
+                        "(--ocio-export DIR) from the integrated state; frames are read, "
+                        "none mapped or written (parallel over chunks)")):
         p = sub.add_parser(name, help=what)
         p.add_argument("input", help="the shot's sequence pattern")
         p.add_argument("output", help="the output pattern (the store defaults to beside it)")
@@ -492,7 +495,7 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def _shot_command(a, argv: list[str]) -> int:
-    """``measure`` / ``integrate`` / ``apply`` / ``farm-template``."""
+    """``measure`` / ``integrate`` / ``apply`` / ``export`` / ``farm-template``."""
     from .shot import passes
     opts = _options(a, a.input, a.output)
     store = a.store or passes.default_store(opts)
@@ -509,6 +512,15 @@ def _shot_command(a, argv: list[str]) -> int:
         res = passes.apply(opts, store, passes.parse_chunk(a.chunk))
         if not a.quiet:
             print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s")
+            if res.export:
+                print(res.export)
+    elif a.cmd == "export":
+        if not opts.ocio_export:
+            raise ValueError("export: say where, --ocio-export DIR")
+        ex, read_s, export_s = passes.export(opts, store, passes.parse_chunk(a.chunk))
+        if not a.quiet:
+            print(f"{ex.summary()}; per frame {1e3 * export_s:.0f} ms exporting, "
+                  f"{1e3 * read_s:.0f} ms reading")
     else:
         from .shot.farm import write_template
         path = write_template(a.format, opts, run_option_tokens(argv, a), a.job_file,
@@ -611,7 +623,7 @@ def _main(argv: list[str] | None = None) -> int:
                 for t, o in zip(sorted(parse_times(a.at)), res.outputs):
                     print(f"t = {t:g} s -> {o}")
             return 0
-        if a.cmd in ("measure", "integrate", "apply", "farm-template"):
+        if a.cmd in ("measure", "integrate", "apply", "export", "farm-template"):
             return _shot_command(a, argv if argv is not None else sys.argv[1:])
         if a.scheduler:
             from .shot.distributed import run_distributed

@@ -390,6 +390,11 @@ class Tonemapper:
                          self.schedule.summary(stats, params), eff)
         return FrameResult(out, None, info, encoding is not None)
 
+    def freeze_mapping(self, stats, params, gains) -> None:
+        """Make (``stats``, ``params``, ``gains``) of :meth:`integrate` the last mapping
+        without mapping pixels (the shot's export pass, ``shot/passes.export``)."""
+        self._frozen = (stats, params, gains)
+
     def last_mapping(self):
         """(operator, frame scalars, receptor gains or None) of the last frame mapped:
         its per-pixel mapping, frozen (``colour/export.py`` samples it for an OCIO

@@ -61,12 +61,12 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
     still = not is_sequence(opts.input) and len(jobs) == 1 and not opts.resume
     ckpt = checkpoint_path(opts) if ((opts.checkpoint and not still) or opts.resume) else None
     if not whole:                    # a chunk of a shot's apply pass: the chunks run together
-        return _run_job(opts, jobs, state, ckpt, t_start)
+        return _run_job(opts, jobs, state, ckpt, t_start, chunk=True)
     with RunLock(ckpt or opts.state_out or checkpoint_path(opts)):
         return _run_job(opts, jobs, state, ckpt, t_start)
 
 
-def _run_job(opts: JobOptions, jobs, state, ckpt, t_start) -> JobResult:
+def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) -> JobResult:
     # (the default checkpoint's too: a still that writes none cleans a killed run's)
     remove_stale_temps(jobs, [p for p in {ckpt, opts.state_out, checkpoint_path(opts)} if p])
     check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p], opts.plot,
@@ -86,7 +86,8 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start) -> JobResult:
     exporter = None
     if opts.ocio_export:
         from ..colour.export import OcioExport
-        first = (done_before or jobs or [(None,)])[0][0]
+        # the shot's first frame (a chunk of a shot's apply pass: the whole shot's)
+        first = (done_before or (frame_jobs(opts) if chunk else jobs) or [(None,)])[0][0]
         exporter = OcioExport(opts.ocio_export, run.colour, tm, first, opts.ocio_export_size)
     fingerprint = run_fingerprint(opts)
     result = JobResult([], [])

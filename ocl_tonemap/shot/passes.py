@@ -288,7 +288,8 @@ def detect_cuts(docs: list[dict], frames: list[int]) -> list[int]:
 
 def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None) -> None:
     """The serial run's state step over stored statistics, frame by frame;
-    ``after(k, frame)`` once each frame's state is final."""
+    ``after(k, frame)`` once each frame's state is final (its mapping frozen in ``tm``:
+    ``Tonemapper.last_mapping``)."""
     cuts = set(cuts or ())
     for k, (f, _inp, _outp, _held) in enumerate(jobs):
         doc, planes = store.read_stats(f)
@@ -298,7 +299,7 @@ def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None) -> None:
         if auto is not None:
             tm.remember(AUTO_SCALE_KEY, float(auto))
         time_s, dt, fresh = tm.frame_clock(None, float(doc["time_s"]))
-        tm.integrate(stats, time_s, f, dt, fresh, hint, {})
+        tm.freeze_mapping(stats, *tm.integrate(stats, time_s, f, dt, fresh, hint, {}))
         if doc.get("plan"):
             tm.advance_plan(doc["plan"]["predicted"], doc["plan"]["G_cone"], dt, fresh,
                             doc["plan"].get("sig"))
@@ -372,9 +373,9 @@ def start_state(opts, store: ShotStore, jobs, k0: int, integ: dict):
     return tm.state
 
 
-def apply(opts, store_path: str, chunk=None):
-    """The apply pass over ``chunk`` (all: None): the serial run over its frames
-    from the integrated state. Returns the run's JobResult."""
+def _integrated(opts, store_path: str):
+    """(options, jobs, store, manifest, integrate record) of a shot whose integrate
+    pass is done over the same frames."""
     opts = split_options(opts)
     jobs = shot_jobs(opts)
     frames = [j[0] for j in jobs]
@@ -385,6 +386,43 @@ def apply(opts, store_path: str, chunk=None):
     if integ.get("frames") != frames:
         raise ValueError(f"the shot store {store.path} was integrated over other frames: "
                          "run the integrate pass again")
+    return opts, jobs, store, man, integ
+
+
+def export(opts, store_path: str, chunk=None) -> tuple:
+    """The export pass (``--ocio-export DIR``): the observer as an OCIO view from the
+    integrated store, no frame mapped or written. Each frame of ``chunk`` is read (for
+    its lattices' nodes and the check of its CLF), its mapping frozen from the stored
+    state and statistics, and exported. Returns (OcioExport, seconds per frame spent
+    reading, seconds per frame exporting)."""
+    import time
+    from ..colour.export import OcioExport
+    opts, jobs, store, man, integ = _integrated(opts, store_path)
+    todo = chunk_jobs(jobs, chunk)
+    k0 = jobs.index(todo[0])
+    o = dataclasses.replace(opts, fps=man["fps"], cuts=integ["cuts"])
+    run, tm = setup_run(o, start_state(opts, store, jobs, k0, integ))
+    ex = OcioExport(opts.ocio_export, run.colour, tm, jobs[0][0], opts.ocio_export_size)
+    spent = {"read": 0.0, "export": 0.0}
+
+    def after(k, f):
+        _, inp, _, _ = todo[k]
+        t0 = time.perf_counter()
+        fr = read_frame(inp, f, opts.channels)
+        fin = frame_input(run, tm, fr, inp)
+        t1 = time.perf_counter()
+        ex.add_frame(f, {}, fin.pixels, fin.scale, run.input_colour(fr, inp))
+        spent["read"] += t1 - t0
+        spent["export"] += time.perf_counter() - t1
+    _advance(tm, store, todo, integ["cuts"], man.get("luminance_scale_auto"), after)
+    n = max(len(todo), 1)
+    return ex, spent["read"] / n, spent["export"] / n
+
+
+def apply(opts, store_path: str, chunk=None):
+    """The apply pass over ``chunk`` (all: None): the serial run over its frames
+    from the integrated state. Returns the run's JobResult."""
+    opts, jobs, store, man, integ = _integrated(opts, store_path)
     todo = chunk_jobs(jobs, chunk)
     k0 = jobs.index(todo[0])
     state = start_state(opts, store, jobs, k0, integ)

@@ -217,3 +217,29 @@ def test_an_input_colour_space_goes_into_input_clf(tunnel, tmp_path):
                        env={**os.environ, "OCIO": str(exp / "ocl-tonemap_pattanaik00.ocio")})
     assert r.returncode == 0, r.stdout + r.stderr
     _assert_within_bound(_png(tmp_path / "r.png"), _png(tmp_path / "o.png"), "ACEScg input")
+
+
+def test_the_shot_export_pass_writes_what_apply_writes(tunnel, tmp_path):
+    """measure -> integrate -> export (frames read, none mapped) gives the same CLF
+    files as the apply pass exporting while it renders: a farm makes the view without
+    rendering pixels. A chunk of the export pass writes its frames alone."""
+    seq, out = str(tunnel / "s" / "tunnel.####.exr"), str(tmp_path / "o" / "o.####.png")
+    common = ["--flare", "off", "--acuity", "off", "--backend", "reference"]
+    for cmd in ("measure", "integrate"):
+        r = _cli(cmd, seq, out, *common)
+        assert r.returncode == 0, r.stderr
+    r = _cli("export", seq, out, *common, "--ocio-export", str(tmp_path / "x"))
+    assert r.returncode == 0, r.stderr
+    assert "OCIO export: 5 frame(s)" in r.stdout and "ms exporting" in r.stdout
+    r = _cli("apply", seq, out, *common, "--ocio-export", str(tmp_path / "y"))
+    assert r.returncode == 0, r.stderr
+    for n in range(1, 6):
+        assert (tmp_path / "x" / "frames" / f"{n}.clf").read_bytes() == \
+            (tmp_path / "y" / "frames" / f"{n}.clf").read_bytes(), n
+    r = _cli("export", seq, out, *common, "--ocio-export", str(tmp_path / "z"), "--chunk", "3-4")
+    assert r.returncode == 0, r.stderr
+    assert sorted(os.listdir(tmp_path / "z" / "frames")) == ["3.clf", "4.clf"]
+    assert (tmp_path / "z" / "frames" / "4.clf").read_bytes() == \
+        (tmp_path / "x" / "frames" / "4.clf").read_bytes()
+    cfg = ocio.Config.CreateFromFile(str(tmp_path / "z" / "ocl-tonemap_pattanaik00.ocio"))
+    assert cfg.getCurrentContext().resolveStringVar("$FRAME") == "1"   # the shot's first
