@@ -129,9 +129,10 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    "later) and one CLF per frame, replayed by OCIO's tools, oiiotool and Nuke "
                    "with the context variable FRAME (global operators, --flare off --acuity "
                    "off; docs/ocio_export.md)")
-    p.add_argument("--ocio-export-size", type=int, default=33, metavar="N",
-                   help="nodes per axis of the exported LUTs: 17, 25, 33 (default), 49 or 65; "
-                   "larger comes closer to the run and takes more space (33: ~2.7 MB a frame)")
+    p.add_argument("--ocio-export-size", default="auto", metavar="N|auto",
+                   help="nodes per axis of the exported LUTs: 17, 25, 33, 49 or 65 (33: ~3 MB "
+                   "of CLF a frame, 65: ~20 MB), or auto (default): 33, else 49, else 65 "
+                   "where a frame is not within 1 8-bit code (p99) and 3 (max) of the run")
     p.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
     _add_operator_args(p)
     g = p.add_argument_group("mechanisms and effects (every operator)")
@@ -176,7 +177,7 @@ def _options(a, input_, output):
         state_in=a.state_in, state_out=a.state_out, backend=_backend(a, tier),
         device=a.device, quality=tier.name,
         out_bits=a.out_bits, plot=a.plot, ocio_export=a.ocio_export,
-        ocio_export_size=a.ocio_export_size,
+        ocio_export_size=_export_size(a.ocio_export_size),
         plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
         max_band_pixels=a.max_band_pixels, operator_options=_tier_options(a, tier),
         effects=_effects(a, tier), missing=a.missing, resume=a.resume, checkpoint=a.checkpoint,
@@ -187,6 +188,15 @@ def _options(a, input_, output):
         cuts=parse_cuts(a.cuts),
         display_encode=a.display_encode or tier.display_encode,
         progress=(not a.quiet) and (a.verbose > 0 or sys.stderr.isatty()))
+
+
+def _export_size(text: str):
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError(f"--ocio-export-size must be auto or a number (got {text!r})") from None
 
 
 def _backend(a, tier) -> str:

@@ -47,6 +47,9 @@ log = logging.getLogger("ocl_tonemap")
 BOUND_P99, BOUND_MAX = 1.0, 3.0
 #: Lattice sizes offered (``--ocio-export-size``).
 SIZES = (17, 25, 33, 49, 65)
+#: ``--ocio-export-size auto`` (the default): these in turn, until a frame is within
+#: the bound (measured on the frame), else the closest.
+AUTO_SIZES = (33, 49, 65)
 REPORT = "report.json"
 
 
@@ -183,18 +186,19 @@ class OcioExport:
     ``colour``: the run's :class:`~ocl_tonemap.colour.ColourPipeline`; ``tm``: its
     Tonemapper (refused here, in one line, when its mapping is not per-pixel);
     ``first_frame``: the shot's first frame number (the config's default FRAME);
-    ``size``: lattice nodes per axis (``lattice.LATTICE``)."""
+    ``size``: lattice nodes per axis, or "auto" (:data:`AUTO_SIZES`)."""
 
     def __init__(self, folder: str, colour, tm, first_frame: int | None = None,
-                 size: int = lattice.LATTICE, name: str | None = None):
+                 size: int | str = "auto", name: str | None = None):
         why = export_blocker(tm)
         if why:
             raise ExportError(f"--ocio-export: {why}")
-        if size not in SIZES:
-            raise ExportError(f"--ocio-export-size must be one of {', '.join(map(str, SIZES))}"
-                              f" (got {size})")
+        if size != "auto" and size not in SIZES:
+            raise ExportError(f"--ocio-export-size must be auto or one of "
+                              f"{', '.join(map(str, SIZES))} (got {size})")
+        self.sizes = AUTO_SIZES if size == "auto" else (int(size),)
         self.folder = os.path.abspath(folder)
-        self.colour, self.tm, self.size = colour, tm, size
+        self.colour, self.tm = colour, tm
         self.first = 1 if first_frame is None else int(first_frame)
         self.name = name or f"ocl-tonemap_{tm.operator_name}"
         self.view = f"{tm.operator_name} observer"
@@ -258,7 +262,8 @@ class OcioExport:
             raise ExportError(f"{self.config_path}: the written config does not load: "
                               f"{exc}") from None
         self._cfg = cfg
-        self.report.update({"operator": self.tm.operator_name, "lattice": self.size,
+        self.report.update({"operator": self.tm.operator_name,
+                            "lattice": "auto" if len(self.sizes) > 1 else self.sizes[0],
                             "config": os.path.basename(self.config_path),
                             "display": cp.display, "view": self.view,
                             "input_colorspace": self.input_cs,
@@ -320,7 +325,16 @@ class OcioExport:
         px = lattice.sample_rows(np.asarray(pixels, np.float64)[..., :3].reshape(-1, 3))
         px = np.where(np.isfinite(px), px, 0.0)
         ref = reference_codes(self.tm, effects, px, scale, self.encode)
-        ops, info = frame_ops(self.tm, effects, px, scale, self.size, self._judge(px, ref))
+        judge = self._judge(px, ref)
+        best = None
+        for size in self.sizes:                  # smallest first, until within the bound
+            ops, info = frame_ops(self.tm, effects, px, scale, size, judge)
+            err = judge(ops)
+            if best is None or err < best[0]:
+                best = (err, ops, {**info, "lattice": size})
+            if err[0] <= BOUND_MAX and err[1] <= BOUND_P99:
+                break
+        _, ops, info = best
         t1 = time.perf_counter()
         path = os.path.join(self.folder, "frames", f"{n}.clf")
         text = clf.to_text(ops, f"frame {n}", f"{self.tm.operator_name}, frame {n}: "
@@ -333,11 +347,13 @@ class OcioExport:
                "ms_verify": round(1e3 * (time.perf_counter() - t2), 1)}
         rec["within_bound"] = rec["p99_8bit"] <= BOUND_P99 and rec["max_8bit"] <= BOUND_MAX
         if not rec["within_bound"]:
+            larger = [str(v) for v in SIZES if v > max(self.sizes)]
             log.warning("frame %s: the exported view is %.2f 8-bit codes off at the 99th "
-                        "percentile, %.2f at most (bound %g, %g); a larger "
-                        "--ocio-export-size (%s) comes closer", n, rec["p99_8bit"],
-                        rec["max_8bit"], BOUND_P99, BOUND_MAX,
-                        ", ".join(str(v) for v in SIZES if v > self.size) or "none larger")
+                        "percentile, %.2f at most (bound %g, %g) at %d^3; %s", n,
+                        rec["p99_8bit"], rec["max_8bit"], BOUND_P99, BOUND_MAX,
+                        info["lattice"], f"--ocio-export-size {' or '.join(larger)} comes "
+                        "closer" if larger else "the largest lattice (docs/ocio_export.md "
+                        "says where a LUT falls short)")
         self.report["frames"][str(n)] = rec
         safeio.write_text(os.path.join(self.folder, REPORT),
                           json.dumps(self.report, indent=1, sort_keys=True))

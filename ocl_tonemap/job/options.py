@@ -58,7 +58,7 @@ class JobOptions:
     plot: str | None = None
     plot_frames: list[int] | None = None
     ocio_export: str | None = None      # a folder: the observer as an OCIO view (colour/export.py)
-    ocio_export_size: int = 33
+    ocio_export_size: int | str = "auto"    # lattice nodes per axis, or auto
     max_band_pixels: int | None = None
     progress: bool = False
     operator_options: dict | None = None
