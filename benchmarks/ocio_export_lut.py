@@ -69,7 +69,7 @@ def export_scene(op: str, frames, dt: float, size: int) -> dict:
         recs = []
         for k, img in enumerate(frames):
             r = tm.process_frame(img, dt=None if k == 0 else dt)
-            recs.append(ex.add_frame(k + 1, r.info.effects, img, 1.0, None))
+            recs.append(ex.add_frame(k + 1, img, 1.0, r.info.effects))
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     return {"p99": max(r["p99_8bit"] for r in recs), "max": max(r["max_8bit"] for r in recs),

@@ -11,10 +11,11 @@ __version__ = "0.1.0"
 #: The public names, imported on first use (``import ocl_tonemap`` stays cheap for the
 #: command line's quick paths: ``--version``, ``devices``).
 _LAZY = {"Tonemapper": ".pipeline", "AdaptationState": ".state", "DisplaySpec": ".models.display",
-         "EffectSettings": ".effects", "MeteringSpec": ".models.metering"}
+         "EffectSettings": ".effects", "MeteringSpec": ".models.metering",
+         "OcioExport": ".colour.export"}
 
 __all__ = ["Tonemapper", "AdaptationState", "DisplaySpec", "EffectSettings", "MeteringSpec",
-           "__version__"]
+           "OcioExport", "__version__"]
 
 
 def __getattr__(name: str):

@@ -307,13 +307,16 @@ class OcioExport:
         return "\n".join(L)
 
     # -- frames --------------------------------------------------------------------------
-    def add_frame(self, number: int | None, effects: dict, pixels: np.ndarray, scale: float,
-                  input_colour=None) -> dict:
+    def add_frame(self, number: int | None, pixels: np.ndarray, scale: float = 1.0,
+                  effects: dict | None = None, input_colour=None) -> dict:
         """Export the frame ``tm`` has just mapped: ``pixels`` its working-space RGB (file
-        values; x ``scale`` = cd/m^2), ``effects`` its ``FrameInfo.effects``,
-        ``input_colour`` its :class:`~ocl_tonemap.colour.InputColour`. Writes
-        frames/<number>.clf, reads it back through the config and returns its record
-        (errors against the frame's own mapping, sizes, times)."""
+        values; x ``scale`` = cd/m^2), ``effects`` its ``FrameInfo.effects`` (default:
+        ``tm.last``'s), ``input_colour`` its :class:`~ocl_tonemap.colour.InputColour`
+        (None: the working space). Writes frames/<number>.clf, reads it back through the
+        config and returns its record (errors against the frame's own mapping, sizes,
+        times)."""
+        if effects is None:
+            effects = self.tm.last.effects if self.tm.last is not None else {}
         n = self.first if number is None else int(number)
         if self._cfg is None:
             self._start(input_colour)

@@ -234,7 +234,7 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
             u8, tm.backend.device_runtime())
         res = map_frame(tm, fin, t, f, encoding=enc)
         if exporter is not None and fin.wavelengths is None:
-            exporter.add_frame(f, res.info.effects, fin.pixels, fin.scale,
+            exporter.add_frame(f, fin.pixels, fin.scale, res.info.effects,
                                run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,

@@ -411,7 +411,7 @@ def export(opts, store_path: str, chunk=None) -> tuple:
         fr = read_frame(inp, f, opts.channels)
         fin = frame_input(run, tm, fr, inp)
         t1 = time.perf_counter()
-        ex.add_frame(f, {}, fin.pixels, fin.scale, run.input_colour(fr, inp))
+        ex.add_frame(f, fin.pixels, fin.scale, {}, run.input_colour(fr, inp))
         spent["read"] += t1 - t0
         spent["export"] += time.perf_counter() - t1
     _advance(tm, store, todo, integ["cuts"], man.get("luminance_scale_auto"), after)

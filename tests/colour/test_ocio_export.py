@@ -244,3 +244,26 @@ def test_the_shot_export_pass_writes_what_apply_writes(tunnel, tmp_path):
         (tmp_path / "x" / "frames" / "4.clf").read_bytes()
     cfg = ocio.Config.CreateFromFile(str(tmp_path / "z" / "ocl-tonemap_pattanaik00.ocio"))
     assert cfg.getCurrentContext().resolveStringVar("$FRAME") == "1"   # the shot's first
+
+
+@pytest.mark.parametrize("backend", ["reference",
+                                     pytest.param("opencl", marks=pytest.mark.requires_opencl)])
+def test_the_api_export_replays_the_run_on_either_backend(tmp_path, backend):
+    """From the API: OcioExport beside Tonemapper.process; the view read back by OCIO
+    against the frames the run itself returned (OpenCL: float32 kernels), within the
+    bound."""
+    from ocl_tonemap import EffectSettings, OcioExport, Tonemapper
+    from ocl_tonemap.colour import ColourPipeline
+    from ocl_tonemap.sample import render_frame
+    colour = ColourPipeline("ocl-tonemap")
+    tm = Tonemapper("durand00", backend=backend,
+                    effects=EffectSettings(chromatic_adaptation="auto", purkinje="auto"))
+    view = OcioExport(str(tmp_path / "v"), colour, tm, first_frame=1)
+    for n, t in enumerate((0.0, 3.0, 6.0), 1):
+        frame = np.ascontiguousarray(render_frame(t, 96, 54, 8.0)[..., :3], np.float32)
+        out = tm.process(frame, dt=None if n == 1 else 1.5, luminance_scale=2.0)
+        rec = view.add_frame(n, frame, 2.0)
+        assert rec["within_bound"], rec
+        run = np.rint(np.clip(colour.encode(out), 0, 1).reshape(-1, 3) * 255)
+        got = np.rint(np.clip(view.replay(n, frame.reshape(-1, 3)), 0, 1) * 255)
+        _assert_within_bound(got, run, f"{backend} frame {n}")
