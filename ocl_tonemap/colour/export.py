@@ -113,7 +113,7 @@ def frame_ops(tm, effects: dict, pixels: np.ndarray, scale: float,
     """The last frame ``tm`` mapped as colour operations (``clf.py``) from working-space
     file values (x ``scale`` = cd/m^2) to display-linear, and what they are made of.
     ``effects``: the frame's ``FrameInfo.effects``; ``pixels``: its working-space
-    pixels (file values). ``judge(ops) -> (p99, max)``: the two stage-B lattices are
+    pixels (file values). ``judge(ops) -> (max, p99)``: the two stage-B lattices are
     both made and the better kept (else the log-opponent one)."""
     op, params, gains = tm.last_mapping()
     raw = frozen_raw(op, params, gains, effects.get("purkinje"))
