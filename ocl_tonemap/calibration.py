@@ -14,7 +14,9 @@ The models need absolute luminance: the same picture is a daylight scene at
    luminance of the first frame of the run at LEVEL cd/m^2 (a number or a
    named level, :data:`NAMED_LEVELS`); one constant for the whole sequence;
 5. Radiance ``.hdr``: 179 lm/W, the format's definition of its radiance
-   units (photographs saved as .hdr are seldom absolute: reported);
+   units, after its EXPOSURE is divided out (``radiance.py``): a rendering (a
+   Radiance renderer in its header) is absolute; photographs saved as .hdr are
+   seldom absolute (reported);
 6. 1 cd/m^2 per unit, with a warning naming the assumption and the flags.
 
 Absolute sources (2, 3) are read per frame: they describe each frame (a
@@ -178,9 +180,10 @@ class Calibrator:
         self.auto_scale = auto_scale
         self._said_over_auto: set = set()     # calibration sources said to overrule auto
 
-    def frame(self, spec, format_name: str, working_rgb_fn) -> Calibration:
+    def frame(self, spec, format_name: str, working_rgb_fn, radiance=None) -> Calibration:
         """The calibration of one frame. ``working_rgb_fn()`` returns its working RGB
-        (only called for ``auto`` on the first frame)."""
+        (only called for ``auto`` on the first frame); ``radiance``: a Radiance
+        picture's header (``radiance.py``; its EXPOSURE is already divided out)."""
         r = self.request
         if r.scale is not None:
             return Calibration(r.scale, "--luminance-scale")
@@ -200,11 +203,19 @@ class Calibrator:
             name = f" ({r.auto_name})" if r.auto_name else ""
             return Calibration(self.auto_scale, f"auto: first frame's log-average = "
                                f"{r.auto_level:g} cd/m^2{name}")
-        if format_name == "hdr":
-            exp = spec.getattribute("Exposure") if spec is not None else None
-            e = float(exp) if isinstance(exp, (int, float)) and exp > 0 else 1.0
-            return Calibration(RADIANCE_EFFICACY / e, "Radiance efficacy 179 lm/W (the .hdr "
-                               "format's units; photographs are seldom absolute)", assumed=True)
+        if radiance is not None and radiance.xyze:     # Y is luminance, cd/m^2 (ra_xyze)
+            return Calibration(1.0, "Radiance XYZE: Y in cd/m^2" + (
+                f" (a rendering: {radiance.renderer})" if radiance.absolute
+                else " (no Radiance renderer in its header)"), assumed=not radiance.absolute)
+        if radiance is not None and radiance.absolute:
+            return Calibration(RADIANCE_EFFICACY, f"Radiance rendering ({radiance.renderer}): "
+                               "179 lm/W, Radiance's absolute units")
+        if format_name == "hdr" or radiance is not None:
+            what = "a photograph (hdrgen)" if radiance is not None and radiance.photographic \
+                else "no Radiance renderer in its header"
+            return Calibration(RADIANCE_EFFICACY, f"Radiance efficacy 179 lm/W (the .hdr "
+                               f"format's units; {what}: photographs are seldom absolute)",
+                               assumed=True)
         return Calibration(1.0, "assumed: pixel values are cd/m^2", assumed=True)
 
     def _over_auto(self, cal: "Calibration") -> "Calibration":

@@ -147,8 +147,8 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                        ("purkinje", "rod colour shift of kirk11 on the scene's colours "
                         "(Kirk & O'Brien 2011)")):
         g.add_argument(f"--{name}", choices=["on", "off", "auto"], help=what)
-    g.add_argument("--fov", type=float, help="angular width of the image, degrees, 0..180 "
-                   "(default 50)")
+    g.add_argument("--fov", type=float, help="angular width of the image, degrees, 0..360 "
+                   "(default: a Radiance picture's VIEW, else 50)")
     g.add_argument("--illuminant", help="illuminant for chromatic adaptation: x,y or a name "
                    "(D65, D50, A, F2, F11, LED-B3 ...); default: EXR adoptedNeutral, else "
                    "estimated from the frame")
@@ -176,7 +176,7 @@ def _options(a, input_, output):
         preadapt=parse_preadapt(a.preadapt) if a.preadapt else None,
         state_in=a.state_in, state_out=a.state_out, backend=_backend(a, tier),
         device=a.device, quality=tier.name,
-        out_bits=a.out_bits, plot=a.plot, ocio_export=a.ocio_export,
+        out_bits=a.out_bits, plot=a.plot, ocio_export=a.ocio_export, fov_given=a.fov is not None,
         ocio_export_size=_export_size(a.ocio_export_size),
         plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
         max_band_pixels=a.max_band_pixels, operator_options=_tier_options(a, tier),

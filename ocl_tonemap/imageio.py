@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 import OpenImageIO as oiio
 
+from . import safeio
+
 
 _PAT = re.compile(r"(#+|@+|%0?(\d*)d)")
 
@@ -175,6 +177,7 @@ class Frame:
     chromaticities: tuple | None = None     # EXR chromaticities (rx ry gx gy bx by wx wy)
     unassociated_alpha: bool = False        # the alpha is straight (oiio:UnassociatedAlpha)
     channel_note: str | None = None         # what select_channels assumed, if anything
+    radiance: object = None                 # a Radiance picture's header (radiance.py)
 
     @property
     def has_alpha(self) -> bool:
@@ -287,8 +290,52 @@ def read_frame(path: str, frame: int | None = None, channels: list[str] | None =
             return fr
         finally:
             r.close()
-    buf = oiio.ImageBuf(path, 0, 0, hint)
-    return frame_from_imagebuf(buf, path, frame, channels)
+    rad, src = radiance_source(path, frame)
+    try:
+        buf = oiio.ImageBuf(src, 0, 0, hint)
+        fr = frame_from_imagebuf(buf, path, frame, channels)
+    finally:
+        if src != path:
+            safeio.remove(src)
+    return as_radiance(fr, rad)
+
+
+def radiance_source(path: str, frame: int | None):
+    """(header or None, the file OIIO reads) of a picture: a Radiance picture's header
+    (``radiance.py``); an XYZE picture is read from a copy that says rgbe."""
+    from . import radiance
+    if not radiance.is_radiance(path):
+        return None, path
+    try:
+        rad = radiance.read_header(path)
+    except (radiance.HeaderError, OSError) as exc:
+        raise FrameError(path, frame, f"cannot read its Radiance header: {exc}") from None
+    return rad, (radiance.rgbe_copy(path) if rad.xyze else path)
+
+
+def as_radiance(fr: Frame, rad) -> Frame:
+    """A Radiance picture's frame as Radiance's tools read it: divided by its EXPOSURE
+    and COLORCORR, its chromaticities from PRIMARIES (or XYZ, or Radiance's standard
+    primaries for a rendering) in place of OIIO's Rec.709 tag."""
+    if rad is None:
+        return fr
+    fr.radiance = rad
+    if fr.pixels.size:
+        fr.pixels = radiance_values(fr.pixels, rad)
+    chrom = rad.chromaticities
+    if chrom is not None:
+        fr.chromaticities, fr.colorspace = tuple(float(v) for v in chrom), None
+    return fr
+
+
+def radiance_values(pixels: np.ndarray, rad) -> np.ndarray:
+    """RGB (+alpha) of a Radiance picture divided by its EXPOSURE and COLORCORR."""
+    div = np.asarray(rad.colorcorr, np.float64) * rad.exposure
+    if np.all(div == 1.0):
+        return pixels
+    out = np.array(pixels, np.float32, copy=True)
+    out[..., :3] = (out[..., :3] / div).astype(np.float32)
+    return out
 
 
 def _extra_channels(path: str) -> bool:
@@ -423,8 +470,10 @@ class BandReader:
         hint = oiio.ImageSpec()
         hint.attribute("oiio:UnassociatedAlpha", 1)
         self.path, self.frame = path, frame
-        self.inp = oiio.ImageInput.open(path, hint)
+        self.rad, self._src = radiance_source(path, frame)
+        self.inp = oiio.ImageInput.open(self._src, hint)
         if self.inp is None:
+            self._drop_copy()
             raise FrameError(path, frame, f"cannot read: {oiio_error(oiio.geterror())}")
         spec = self.inp.spec()
         if spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
@@ -446,6 +495,7 @@ class BandReader:
                             tuple(float(v) for v in chrom)
                             if isinstance(chrom, (tuple, list)) and len(chrom) == 8 else None,
                             bool(spec.getattribute("oiio:UnassociatedAlpha") or 0), note)
+        as_radiance(self.header, self.rad)
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -464,9 +514,17 @@ class BandReader:
                 return self.inp.read_tiles(0, 0, s.x, min(xe, s.x + s.width), s.y + a, s.y + b,
                                            s.z, s.z + max(s.depth, 1), cb, ce, oiio.FLOAT)
             data = self._channels(part, b - a, y0, y1)
-            return np.ascontiguousarray(data[y0 - a:y1 - a])
-        return self._channels(lambda cb, ce: self.inp.read_scanlines(
-            0, 0, s.y + y0, s.y + y1, 0, cb, ce, oiio.FLOAT), y1 - y0, y0, y1)
+            return self._radiance(np.ascontiguousarray(data[y0 - a:y1 - a]))
+        return self._radiance(self._channels(lambda cb, ce: self.inp.read_scanlines(
+            0, 0, s.y + y0, s.y + y1, 0, cb, ce, oiio.FLOAT), y1 - y0, y0, y1))
+
+    def _radiance(self, rows: np.ndarray) -> np.ndarray:
+        return rows if self.rad is None else radiance_values(rows, self.rad)
+
+    def _drop_copy(self) -> None:
+        if getattr(self, "_src", self.path) != self.path:
+            safeio.remove(self._src)
+            self._src = self.path
 
     def _channels(self, read, rows: int, y0: int, y1: int) -> np.ndarray:
         """The selected channels of ``rows`` rows, read as runs of adjacent channels
@@ -489,6 +547,7 @@ class BandReader:
         if self.inp is not None:
             self.inp.close()
             self.inp = None
+        self._drop_copy()
 
 
 @functools.lru_cache(maxsize=8)

@@ -134,6 +134,8 @@ def chromaticities_to_xyz(chrom) -> np.ndarray:
     if len(c) != 8 or not all(np.isfinite(c)):
         raise ColourError(f"chromaticities need 8 finite numbers (got {chrom!r})")
     xy = np.array(c).reshape(4, 2)
+    if c[:6] == [1.0, 0.0, 0.0, 1.0, 0.0, 0.0] and xy[3, 1] > 0:
+        return np.eye(3)          # the RGB is CIE XYZ (a Radiance XYZE picture); white E
     if np.any(xy[:3, 1] == 0) or xy[3, 1] <= 0:       # (AP0's blue primary has y < 0)
         raise ColourError(f"chromaticities with y = 0 or a white with y <= 0: {chrom!r}")
     XYZ = np.stack([xy[:, 0] / xy[:, 1], np.ones(4), (1.0 - xy.sum(axis=1)) / xy[:, 1]], axis=1)
@@ -197,8 +199,10 @@ def builtin_config() -> ocio.Config:
 
 def resolve_input(cfg: ocio.Config, path: str | None, file_cs: str | None,
                   override: str | None, chromaticities=None,
-                  rules_from_user_config: bool = True) -> InputColour:
-    """The input colour of one file, by the precedence in the module doc."""
+                  rules_from_user_config: bool = True,
+                  chromaticities_from: str = "EXR chromaticities") -> InputColour:
+    """The input colour of one file, by the precedence in the module doc
+    (``chromaticities_from``: what the chromaticities are, for the record)."""
     work = working_space(cfg)
     if override:
         if not _has_cs(cfg, override):
@@ -218,13 +222,13 @@ def resolve_input(cfg: ocio.Config, path: str | None, file_cs: str | None,
     if chromaticities is not None:
         try:
             if is_rec709(chromaticities):
-                return InputColour("working", work, unknown + "EXR chromaticities: Rec.709/D65")
+                return InputColour("working", work, f"{unknown}{chromaticities_from}: Rec.709/D65")
             M = chromaticities_to_working(chromaticities)
         except ColourError as exc:
             unknown += f"ignored bad chromaticities ({exc}); "
         else:
             return InputColour("matrix", "RGB with chromaticities " + ",".join(
-                f"{v:.4g}" for v in chromaticities), unknown + "EXR chromaticities",
+                f"{v:.4g}" for v in chromaticities), unknown + chromaticities_from,
                 matrix=tuple(map(tuple, M)))
     if path and rules_from_user_config and not cfg.filepathOnlyMatchesDefaultRule(path):
         cs = cfg.getColorSpaceFromFilepath(path)

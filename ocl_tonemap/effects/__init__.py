@@ -100,8 +100,9 @@ class EffectSettings:
             if getattr(self, k) not in MODES:
                 raise ValueError(f"--{k.replace('_', '-')} must be on, off or auto "
                                  f"(got {getattr(self, k)!r})")
-        if not (0 < self.fov_deg < 180):
-            raise ValueError(f"--fov must be between 0 and 180 degrees (got {self.fov_deg})")
+        if not (0 < self.fov_deg <= 360):
+            raise ValueError(f"--fov must be above 0 and at most 360 degrees (a fisheye's "
+                             f"width; got {self.fov_deg})")
         if self.flare_method not in ("fast", "exact"):
             raise ValueError(f"--flare-method must be fast or exact (got {self.flare_method!r})")
         if not (self.flare_threshold > 0 and math.isfinite(self.flare_threshold)):

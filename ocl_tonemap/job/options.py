@@ -59,6 +59,8 @@ class JobOptions:
     plot_frames: list[int] | None = None
     ocio_export: str | None = None      # a folder: the observer as an OCIO view (colour/export.py)
     ocio_export_size: int | str = "auto"    # lattice nodes per axis, or auto
+    fov_given: bool = False             # --fov given: a Radiance picture's VIEW does not set it
+    fov_source: str = ""                # where the field of view came from (ocltm:fov)
     max_band_pixels: int | None = None
     progress: bool = False
     operator_options: dict | None = None

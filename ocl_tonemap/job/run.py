@@ -44,8 +44,39 @@ def make_tonemapper(opts: JobOptions, colour: ColourPipeline, state, disp) -> To
 
 def setup_run(opts: JobOptions, state: AdaptationState | None):
     """What a run sets up once: (RunSetup, Tonemapper from ``state``)."""
+    opts = view_from_header(opts)
     run = RunSetup(opts, state.extra if state is not None else None)
     return run, make_tonemapper(opts, run.colour, state, run.disp)
+
+
+def view_from_header(opts: JobOptions) -> JobOptions:
+    """The field of view from the first input's Radiance VIEW when ``--fov`` was not
+    given (``radiance.fov_for``); said once, and in every output's ``ocltm:fov``."""
+    import dataclasses
+
+    from .. import radiance
+    if opts.fov_given or not dataclasses.is_dataclass(opts.effects):
+        return opts
+    try:
+        first = frame_jobs(opts)[0][1]
+    except Exception:                    # noqa: BLE001 -- the run itself says what is wrong
+        return opts
+    if not radiance.is_radiance(first):
+        return opts
+    try:
+        view = radiance.read_header(first).view
+    except (radiance.HeaderError, OSError):
+        return opts                      # (the frame's read says it, naming the file)
+    if view is None:
+        return opts
+    fov, what = radiance.fov_for(view)
+    if fov is None:
+        log.warning("%s: %s: the field of view stays --fov %g", first, what,
+                    opts.effects.fov_deg)
+        return opts
+    log.info("field of view %.4g degrees from the Radiance VIEW (%s)", fov, what)
+    return dataclasses.replace(opts, effects=dataclasses.replace(opts.effects, fov_deg=fov),
+                               fov_given=True, fov_source=f"Radiance VIEW: {what}")
 
 
 def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -> JobResult:

@@ -38,15 +38,18 @@ class RunSetup:
             log.log(level, msg, *args)
 
     def input_colour(self, fr, path) -> InputColour:
-        ic = resolve_input(self.cfg, path, fr.colorspace, self.opts.iscolorspace,
-                           fr.chromaticities if fr.format_name == "openexr" else None,
+        chrom = fr.chromaticities if (fr.format_name == "openexr"
+                                      or fr.radiance is not None) else None
+        ic = resolve_input(self.cfg, path, fr.colorspace, self.opts.iscolorspace, chrom,
+                           chromaticities_from=fr.radiance.chromaticities_source
+                           if fr.radiance is not None else "EXR chromaticities",
                            rules_from_user_config=not is_builtin_source(self.config_source))
         self.once(logging.WARNING if ic.assumed else logging.INFO,
                   "input colour: %s (%s)", ic.colorspace, ic.why)
         return ic
 
     def calibrate(self, fr, pix_fn) -> tuple[float, str]:
-        cal = self.calibrator.frame(fr.spec, fr.format_name, pix_fn)
+        cal = self.calibrator.frame(fr.spec, fr.format_name, pix_fn, fr.radiance)
         if cal.assumed:
             self.once(logging.WARNING, "calibration: 1.0 = %.6g cd/m^2 (%s); %s",
                       cal.scale, cal.source, ASSUMED_HELP)
