@@ -94,6 +94,10 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    "at these frames; a file of frame numbers, or detect (from the shot's "
                    "statistics, a jump of more than 1 log10 unit in the cone adaptation "
                    "goal; needs the measure/integrate passes). Default: no cuts")
+    p.add_argument("--stills", action="store_true",
+                   help="the frames are independent stills (views of a room, a year of "
+                   "daylight renderings): each gets its own observer, adapted to it as a lone "
+                   "still is (with --preadapt: that), no state files; start-up paid once")
     p.add_argument("--missing", choices=["error", "hold", "skip"], default="error",
                    help="a frame missing inside a sequence: error (default, before any frame "
                    "is processed), hold (repeat the previous frame at its time) or skip")
@@ -177,6 +181,7 @@ def _options(a, input_, output):
         state_in=a.state_in, state_out=a.state_out, backend=_backend(a, tier),
         device=a.device, quality=tier.name,
         out_bits=a.out_bits, plot=a.plot, ocio_export=a.ocio_export, fov_given=a.fov is not None,
+        stills=a.stills,
         ocio_export_size=_export_size(a.ocio_export_size),
         plot_frames=[int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
         max_band_pixels=a.max_band_pixels, operator_options=_tier_options(a, tier),

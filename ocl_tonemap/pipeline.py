@@ -179,14 +179,14 @@ class Tonemapper:
         self.schedule_set_pixels(self._state.pixels)
         self._state.pixels = None
 
-    def reset_adaptation(self) -> None:
+    def reset_adaptation(self, preadapt=None) -> None:
         """A scene cut (``--cuts``): the observer starts again fully adapted to the
-        next frame, as at the start of a shot (no pre-adaptation), with no memory
-        of the last shot (operator and effect state); the time and the run's
-        calibration constant are kept."""
+        next frame, as at the start of a shot (no pre-adaptation; ``preadapt``: this
+        one, ``--stills``), with no memory of the last shot (operator and effect
+        state); the time and the run's calibration constant are kept."""
         keep = {k: v for k, v in self._state.extra.items() if k == AUTO_SCALE_KEY}
-        self.preadapt = None
-        self.op.preadapt = None
+        self.preadapt = preadapt
+        self.op.preadapt = preadapt
         self.state = AdaptationState(self.operator_name, time_s=self._state.time_s,
                                      frame=self._state.frame, extra=keep)
 

@@ -61,6 +61,7 @@ class JobOptions:
     ocio_export_size: int | str = "auto"    # lattice nodes per axis, or auto
     fov_given: bool = False             # --fov given: a Radiance picture's VIEW does not set it
     fov_source: str = ""                # where the field of view came from (ocltm:fov)
+    stills: bool = False                # every frame its own observer (--stills)
     max_band_pixels: int | None = None
     progress: bool = False
     operator_options: dict | None = None

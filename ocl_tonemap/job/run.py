@@ -49,6 +49,17 @@ def setup_run(opts: JobOptions, state: AdaptationState | None):
     return run, make_tonemapper(opts, run.colour, state, run.disp)
 
 
+def check_stills(opts: JobOptions) -> None:
+    """``--stills``: independent frames keep no state; what needs one is refused."""
+    for flag, given in (("--state-in", opts.state_in), ("--state-out", opts.state_out),
+                        ("--resume", opts.resume), ("--cuts", opts.cuts),
+                        ("--plot", opts.plot)):
+        if given:
+            raise ValueError(f"--stills: every frame is its own observer, with no state "
+                             f"over time; {flag} has nothing to work on (run the frames "
+                             "left again with --frames to finish an interrupted run)")
+
+
 def view_from_header(opts: JobOptions) -> JobOptions:
     """The field of view from the first input's Radiance VIEW when ``--fov`` was not
     given (``radiance.fov_for``); said once, and in every output's ``ocltm:fov``."""
@@ -89,7 +100,9 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
     jobs = frame_jobs(opts) if jobs is None else list(jobs)
     # a still keeps its state in its own metadata (ocltm:state): no side file unless
     # asked for (--state-out); a sequence checkpoints it beside its frames
-    still = not is_sequence(opts.input) and len(jobs) == 1 and not opts.resume
+    still = (not is_sequence(opts.input) and len(jobs) == 1 and not opts.resume) or opts.stills
+    if opts.stills:
+        check_stills(opts)
     ckpt = checkpoint_path(opts) if ((opts.checkpoint and not still) or opts.resume) else None
     if not whole:                    # a chunk of a shot's apply pass: the chunks run together
         return _run_job(opts, jobs, state, ckpt, t_start, chunk=True)
@@ -146,7 +159,9 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                 io.prefetch(k + 1, lambda inp1=inp1, f1=jobs[k + 1][0]:
                             read_frame(inp1, f1, opts.channels))
             try:
-                if f in cuts and tm.adapted:     # a scene cut: the eyes start afresh
+                if opts.stills and tm.adapted:   # each still its own observer
+                    tm.reset_adaptation(opts.preadapt)
+                elif f in cuts and tm.adapted:   # a scene cut: the eyes start afresh
                     tm.reset_adaptation()
                     log.info("frame %s: scene cut, adaptation reset", f)
                 if rows(k) and exporter is not None:
