@@ -104,6 +104,19 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
     logY[i] = log10(fmax(M_YR * o.x + M_YG * o.y + M_YB * o.z, Y_FLOOR));
 }
 
+/* The Purkinje effect on other operators (effects/purkinje.py): the shifted colour
+ * scaled back to the source's photopic luminance Y (the operator models rod
+ * luminance itself); where the shifted colour has no luminance, the source. */
+__kernel void keep_luminance(__global const float *src, __global float *shifted, const int n)
+{
+    const int i = get_global_id(0);
+    if (i >= n) return;
+    const float3 a = vload3(i, src), p = vload3(i, shifted);
+    const float yp = M_YR * p.x + M_YG * p.y + M_YB * p.z;
+    const float ya = M_YR * a.x + M_YG * a.y + M_YB * a.z;
+    vstore3(yp > 0.0f ? p * (ya / yp) : a, i, shifted);
+}
+
 /* Range reduction (Durand & Dorsey 2002), mesopic dimming and (RGB input) the
  * blend from the source by w. */
 __kernel void kirk11_compose(__global const float *src, __global const float *shifted,

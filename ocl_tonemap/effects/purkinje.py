@@ -40,23 +40,21 @@ def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None,
     rgb = np.asarray(rgb)
     if gain <= 0.0:
         return rgb, {"rod_gain": 0.0, "fallback_fraction": 0.0}
-    if device is not None:
-        p, fb = device.shift_rgb(np.asarray(rgb, np.float32), area, k1, k2, gain, M,
-                                 np.eye(3), ko.SHIFT_XYZ)
-        p = p.astype(np.float64)
-    else:
-        q = lmsr.rgb_to_lmsr(rgb)
-        qh, _ = ko.purkinje_shift(q, area, k1, k2, ko.SHIFT_XYZ, gain)
-        p, fbm = ko.gamut_map(M, qh)
-        fb = float(fbm.mean())
+    info = {"rod_gain": float(gain), "k1": float(k1)}
+    if device is not None:              # the luminance kept on the device too
+        p, fb = device.shift_rgb(np.ascontiguousarray(rgb, np.float32), area, k1, k2, gain, M,
+                                 np.eye(3), ko.SHIFT_XYZ, keep_luminance=True)
+        return p, {**info, "fallback_fraction": float(fb)}
+    q = lmsr.rgb_to_lmsr(rgb)
+    qh, _ = ko.purkinje_shift(q, area, k1, k2, ko.SHIFT_XYZ, gain)
+    p, fbm = ko.gamut_map(M, qh)
+    fb = float(fbm.mean())
     y_in = np.asarray(rgb, np.float64) @ Y_WEIGHTS
     y_p = p @ Y_WEIGHTS
     with np.errstate(divide="ignore", invalid="ignore"):
         k = np.where(y_p > 0, y_in / np.where(y_p > 0, y_p, 1.0), 0.0)
     out = np.where((y_p > 0)[..., None], p * k[..., None], rgb)
-    return out.astype(np.float32), {"rod_gain": float(gain), "k1": float(k1),
-                                    "fallback_fraction": float(fb)}
-
+    return out.astype(np.float32), {**info, "fallback_fraction": float(fb)}
 
 
 def _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt):

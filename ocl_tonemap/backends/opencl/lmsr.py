@@ -43,6 +43,7 @@ class KirkDevice:
         self._k_compose = rt.kernel("kirk11.cl", "kirk11_compose", c)
         self._k_sums = rt.kernel("kirk11.cl", "kirk11_sums", c)
         self._k_finish = rt.kernel("kirk11.cl", "kirk11_finish", c)
+        self._k_keep_y = rt.kernel("kirk11.cl", "keep_luminance", c)
         self._k_spectrum = rt.kernel("colour.cl", "spectrum_to_lmsr")
         self._k_hist = rt.kernel("kirk11.cl", "base_histogram", c)
         self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
@@ -108,9 +109,11 @@ class KirkDevice:
                            np.float32(knee))
 
     def shift_rgb(self, rgb: np.ndarray, area: float, k1: float, k2: float, gain: float,
-                  M: np.ndarray, D: np.ndarray, xyz) -> tuple[np.ndarray, float]:
+                  M: np.ndarray, D: np.ndarray, xyz,
+                  keep_luminance: bool = False) -> tuple[np.ndarray, float]:
         """Eqs. 10-13 and 15 on working RGB (cd/m^2, host array): the shifted RGB and
-        the NNLS fallback share. Used by the Purkinje effect for other operators."""
+        the NNLS fallback share. Used by the Purkinje effect for other operators
+        (``keep_luminance``: each pixel scaled back to its source's Y, on the device)."""
         cl, q_ = self.cl, self.rt.queue
         h, w = rgb.shape[:2]
         n = h * w
@@ -119,6 +122,8 @@ class KirkDevice:
         q = self._buf(n * 16)
         self._k_lmsr(q_, gsz, wg, src, np.int32(3), np.int32(n), self._buf(0, lmsr.fitted()["H"]), q)
         out, _, _, fb = self.shift(q, n, area, k1, k2, gain, xyz, M, D)
+        if keep_luminance:
+            self._k_keep_y(q_, gsz, wg, src, out, np.int32(n))
         res = np.empty((h, w, 3), np.float32)
         cl.enqueue_copy(q_, res, out)
         nfb = np.empty(1, np.int32)
