@@ -31,6 +31,8 @@ import time
 
 import numpy as np
 
+from benchmarks.lib.report import write_markdown
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_OUT = os.path.join(HERE, "results", "ocio_export_lut.md")
 LEVELS = (3000.0, 100.0, 3.0, 0.03)
@@ -120,10 +122,7 @@ def main(argv=None) -> int:
          "", "| scene | operator | lattice | worst p99 (8-bit) | worst max (8-bit) | within | "
          "max (10-bit) | p99 (half steps) | A matrix | B rgb | ms build | ms write | "
          "ms read-back | MB/frame | auto: each frame's lattice |", "|" + "---|" * 15]
-    L += ["| " + " | ".join(r) + " |" for r in rows]
-    os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
-    with open(a.out, "w") as fh:
-        fh.write("\n".join(L) + "\n")
+    write_markdown(a.out, L, rows)
     return 0
 
 

@@ -31,6 +31,8 @@ import time
 
 import numpy as np
 
+from benchmarks.lib.report import write_markdown
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_OUT = os.path.join(HERE, "results", "radiance_peer.md")
 PHOTO = "dikhololo_night_1k.hdr"
@@ -134,10 +136,7 @@ def main(argv=None) -> int:
          "time), MiB; bound (issue 33): 4x the frame's float32 RGB + 300 MiB", "",
          "| work | operator (defaults) | ours s | pcond -h s | speed | ours peak | pcond peak "
          "| bound | memory |", "|---|---|---|---|---|---|---|---|---|"]
-    L += ["| " + " | ".join(r) + " |" for r in rows]
-    os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
-    with open(a.out, "w") as fh:
-        fh.write("\n".join(L) + "\n")
+    write_markdown(a.out, L, rows)
     return 0
 
 

@@ -21,3 +21,13 @@ def fmt_de(v) -> str:
         return "0"
     return f"{v:.1e}" if v < 0.01 else f"{v:.3f}" if v < 0.1 else f"{v:.2f}" if v < 10 else \
         f"{v:.1f}"
+
+
+def write_markdown(path: str, lines: list, rows) -> None:
+    """``lines`` (title, notes, the table's header) then ``rows`` as table rows, to ``path``
+    (its folder made)."""
+    import os
+    out = list(lines) + ["| " + " | ".join(map(str, r)) + " |" for r in rows]
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w") as fh:
+        fh.write("\n".join(out) + "\n")
