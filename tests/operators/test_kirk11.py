@@ -358,3 +358,17 @@ def test_base_range_counted_on_the_device_is_the_hosts(rt, percentiles):
     if percentiles != (0.0, 100.0):          # the counts themselves
         assert np.array_equal(acc.acc.hist, np.bincount(base_hist_bins(v),
                                                         minlength=BASE_HIST_BINS))
+
+
+def test_the_purkinje_shift_in_bands_is_the_shift_whole(rt, monkeypatch):
+    """shift_rgb works in bands of SHIFT_BAND pixels (its buffers are host memory on
+    a CPU device): bands of 7 pixels give the whole frame's result, fallback share too."""
+    from ocl_tonemap.backends.opencl.lmsr import KirkDevice
+    from ocl_tonemap.effects.purkinje import apply_purkinje
+    rgb = (_rgb_scene().astype(np.float64) * 0.01).astype(np.float32)
+    dev = KirkDevice(rt)
+    whole, info = apply_purkinje(rgb, 0.02, 0.01, dev)
+    monkeypatch.setattr(KirkDevice, "SHIFT_BAND", 7)
+    bands, info7 = apply_purkinje(rgb, 0.02, 0.01, dev)
+    np.testing.assert_array_equal(bands, whole)
+    assert info7["fallback_fraction"] == info["fallback_fraction"]

@@ -108,27 +108,38 @@ class KirkDevice:
                            rgb, np.int32(n), np.float32(gain), np.float32(inv_white),
                            np.float32(knee))
 
+    #: shift_rgb works in bands of this many pixels (its buffers: ~60 bytes a pixel;
+    #: on a CPU device they are the host's memory).
+    SHIFT_BAND = 1 << 18
+
     def shift_rgb(self, rgb: np.ndarray, area: float, k1: float, k2: float, gain: float,
                   M: np.ndarray, D: np.ndarray, xyz,
                   keep_luminance: bool = False) -> tuple[np.ndarray, float]:
         """Eqs. 10-13 and 15 on working RGB (cd/m^2, host array): the shifted RGB and
         the NNLS fallback share. Used by the Purkinje effect for other operators
-        (``keep_luminance``: each pixel scaled back to its source's Y, on the device)."""
+        (``keep_luminance``: each pixel scaled back to its source's Y, on the device),
+        pointwise, so in bands of :data:`SHIFT_BAND` pixels."""
         cl, q_ = self.cl, self.rt.queue
         h, w = rgb.shape[:2]
         n = h * w
-        gsz, wg = (round_up(n, 64),), (64,)
-        src = self._buf(0, rgb.reshape(n, 3))
-        q = self._buf(n * 16)
-        self._k_lmsr(q_, gsz, wg, src, np.int32(3), np.int32(n), self._buf(0, lmsr.fitted()["H"]), q)
-        out, _, _, fb = self.shift(q, n, area, k1, k2, gain, xyz, M, D)
-        if keep_luminance:
-            self._k_keep_y(q_, gsz, wg, src, out, np.int32(n))
-        res = np.empty((h, w, 3), np.float32)
-        cl.enqueue_copy(q_, res, out)
-        nfb = np.empty(1, np.int32)
-        cl.enqueue_copy(q_, nfb, fb)
-        return res, float(nfb[0]) / max(n, 1)
+        flat = np.ascontiguousarray(rgb, np.float32).reshape(n, 3)
+        res = np.empty((n, 3), np.float32)
+        H = self._buf(0, lmsr.fitted()["H"])
+        fallback = 0
+        for a in range(0, n, self.SHIFT_BAND):
+            m = min(self.SHIFT_BAND, n - a)
+            gsz, wg = (round_up(m, 64),), (64,)
+            src = self._buf(0, flat[a:a + m])
+            q = self._buf(m * 16)
+            self._k_lmsr(q_, gsz, wg, src, np.int32(3), np.int32(m), H, q)
+            out, _, _, fb = self.shift(q, m, area, k1, k2, gain, xyz, M, D)
+            if keep_luminance:
+                self._k_keep_y(q_, gsz, wg, src, out, np.int32(m))
+            cl.enqueue_copy(q_, res[a:a + m], out)
+            nfb = np.empty(1, np.int32)
+            cl.enqueue_copy(q_, nfb, fb)
+            fallback += int(nfb[0])
+        return res.reshape(h, w, 3), float(fallback) / max(n, 1)
 
     def lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
         """One band (or a whole frame) to LMSR on the device: (q buffer, source
