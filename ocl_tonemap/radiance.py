@@ -135,7 +135,8 @@ def parse_header(lines) -> RadianceHeader:
                 h.colorcorr = tuple(a * b for a, b in zip(h.colorcorr, v))
         elif eq and key == "PRIMARIES":
             v = [_number(x) for x in value.split()]
-            if len(v) == 8 and all(x is not None for x in v):
+            # (Photoshop writes PRIMARIES=0 0 0 0 0 0 0 0: a placeholder, not primaries)
+            if len(v) == 8 and all(x is not None for x in v) and all(y > 0 for y in v[1::2]):
                 h.primaries = tuple(v)
         elif eq and key == "FORMAT":
             h.xyze = "xyze" in value.lower()

@@ -164,3 +164,11 @@ def test_a_header_without_its_end_is_one_line(tmp_path):
     r = _run(p, tmp_path / "bad.png")
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and "Radiance header" in r.stderr, r.stderr
+
+
+def test_photoshops_zero_primaries_are_no_primaries():
+    """Photoshop writes PRIMARIES=0 0 0 0 0 0 0 0 (the photographs of the benchmarks
+    have it): a placeholder; the picture stays OIIO's Rec.709, with no warning."""
+    h = radiance.parse_header(["# Made with Adobe Photoshop", "GAMMA=1",
+                               "PRIMARIES=0 0 0 0 0 0 0 0", "FORMAT=32-bit_rle_rgbe"])
+    assert h.primaries is None and h.chromaticities is None and not h.absolute
