@@ -204,3 +204,17 @@ def test_effect_settings_validation():
     assert EffectSettings.for_operator("kirk11").purkinje == "off"          # its own shift
     assert EffectSettings.for_operator("durand00", paper=True).acuity == "off"
     assert EffectSettings.for_operator("durand00", paper=True, acuity="on").paper
+
+
+def test_the_flare_pyramids_go_back_to_the_pool_after_each_frame(rt):
+    """The fast flare's pyramids (~70 bytes a pixel) are scratch of one frame: after a
+    flared frame the backend's pool holds none of them (on a CPU device they are host
+    memory the operator and later effects would hold beside their own). A second frame
+    makes them again (the frames against the host path: the test above)."""
+    img = _lamp_scene().astype(np.float32) * 1e-2
+    tm = Tonemapper("durand00", "opencl", effects=EffectSettings(flare="on"))
+    for t in (1.0, 2.0):
+        tm.process(img, time_s=t)
+        assert tm.last.effects["flare"]["ran"]
+        assert not [n for n in tm.backend._pool
+                    if n.startswith(("flare:S", "flare:acc", "flare:tmp"))]

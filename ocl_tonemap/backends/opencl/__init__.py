@@ -90,7 +90,7 @@ class OpenCLBackend:
     def flare_device(self):
         """The fast flare on the device (``effects/flare.py``)."""
         from .flare import DeviceFlare
-        return DeviceFlare(self.rt, self.buffer)
+        return DeviceFlare(self.rt, self.buffer, self.release)
 
     def purkinje_device(self):
         """kirk11's shift kernels for the Purkinje effect on other operators."""
@@ -106,6 +106,12 @@ class OpenCLBackend:
             b = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, max(int(nbytes), 4))
             self._pool[name] = b
         return b
+
+    def release(self, *prefixes: str) -> None:
+        """Drop the pool's buffers whose names start with one of ``prefixes`` (scratch
+        a stage no longer needs: on a CPU device they are the host's memory)."""
+        for name in [n for n in self._pool if n.startswith(prefixes)]:
+            del self._pool[name]
 
     def constant(self, arr: np.ndarray):
         import pyopencl as cl
