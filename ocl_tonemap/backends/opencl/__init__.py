@@ -122,7 +122,9 @@ class OpenCLBackend:
         need = npix * max(channels, 3)
         if self.bufs is None or self._cap < need:
             cap = max(need, 1)
-            self.bufs = {k: self.buffer(k, cap * 4) for k in ("src", "rgb", "Y", "Ys", "out")}
+            self.bufs = {k: self.buffer(k, cap * 4) for k in ("src", "rgb", "out")}
+            # one channel each: a third of the others (cap >= 3 x pixels)
+            self.bufs.update({k: self.buffer(k, -(-cap // 3) * 4) for k in ("Y", "Ys")})
             self.bufs["counts"] = self.buffer("counts", 8 * 4)
             self._cap = cap
         return self.bufs
