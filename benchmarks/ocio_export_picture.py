@@ -22,6 +22,8 @@ import tempfile
 
 import numpy as np
 
+from benchmarks.lib.report import join, write_image
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_OUT = os.path.join(HERE, "..", "docs", "ocio_export.png")
 
@@ -58,15 +60,8 @@ def main(argv=None) -> int:
             diff = np.abs(run.astype(int) - rep.astype(int))
             print(f"frame {n}: p99 {np.percentile(diff, 99):.0f}, max {diff.max()} 8-bit codes")
             if n == a.frame:
-                gap = np.full((run.shape[0], 8, 3), 255, np.uint8)
-                pic = np.concatenate([run, gap, rep, gap,
-                                      np.clip(diff * 32, 0, 255).astype(np.uint8)], axis=1)
-        out = oiio.ImageBuf(oiio.ImageSpec(pic.shape[1], pic.shape[0], 3, oiio.UINT8))
-        out.set_pixels(oiio.ROI(), pic)
-        os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
-        if not out.write(os.path.abspath(a.out)):
-            raise SystemExit(out.geterror())
-        print(f"wrote {os.path.abspath(a.out)}")
+                pic = join([run, rep, np.clip(diff * 32, 0, 255).astype(np.uint8)], gap=8)
+        print(f"wrote {write_image(a.out, pic)}")
     finally:
         shutil.rmtree(d, ignore_errors=True)
     return 0

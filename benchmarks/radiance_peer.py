@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from benchmarks.lib.report import write_markdown
+from benchmarks.lib.report import radiance_env, write_image, write_markdown
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_OUT = os.path.join(HERE, "results", "radiance_peer.md")
@@ -50,14 +50,6 @@ def _timed(cmd, env=None, stdout=None) -> tuple[float, float]:
     return dt, int(r.stderr.strip().splitlines()[-1]) / 1024.0
 
 
-def _write_hdr(path: str, img: np.ndarray) -> None:
-    import OpenImageIO as oiio
-    b = oiio.ImageBuf(oiio.ImageSpec(img.shape[1], img.shape[0], 3, oiio.FLOAT))
-    b.set_pixels(oiio.ROI(), np.ascontiguousarray(img, np.float32))
-    if not b.write(path):
-        raise SystemExit(b.geterror())
-
-
 def make_inputs(d: str) -> dict:
     """The night photograph at 1080p and 4K (Radiance units: 179 cd/m^2 per unit),
     20 stills and a 60-frame sequence (a slow pan across it)."""
@@ -71,11 +63,11 @@ def make_inputs(d: str) -> dict:
     for name, (w, h) in (("1080p", (1920, 1080)), ("4k", (3840, 2160))):
         img = load_photo(path, w, h).astype(np.float32)[..., :3] * (LEVEL / lm / 179.0)
         out[name] = os.path.join(d, f"night_{name}.hdr")
-        _write_hdr(out[name], img)
+        write_image(out[name], img)
     os.makedirs(os.path.join(d, "seq"))
     for k in range(60):                     # a pan: 1920x1080 windows of the 2560x1280
         x0 = int(round(k * (2560 - 1920) / 59))
-        _write_hdr(os.path.join(d, "seq", f"f.{k + 1:04d}.hdr"), wide[100:1180, x0:x0 + 1920])
+        write_image(os.path.join(d, "seq", f"f.{k + 1:04d}.hdr"), wide[100:1180, x0:x0 + 1920])
     out["seq"] = os.path.join(d, "seq", "f.####.hdr")
     os.makedirs(os.path.join(d, "stills"))
     for k in range(20):
@@ -90,10 +82,7 @@ def main(argv=None) -> int:
     ap.add_argument("--operators", default="durand00,pattanaik00")
     ap.add_argument("--out", default=DEFAULT_OUT)
     a = ap.parse_args(argv)
-    from ocl_tonemap import radiance
-    tools = radiance.tools()
-    if tools is None:
-        raise SystemExit("Radiance's programs are missing: pip install 'ocl-tonemap[radiance]'")
+    tools = radiance_env()
     env = tools[1]
     d = tempfile.mkdtemp(prefix="ocltm_peer_")
     rows = []

@@ -23,6 +23,8 @@ import tempfile
 
 import numpy as np
 
+from benchmarks.lib.report import join, radiance_env, write_image
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_OUT = os.path.join(HERE, "..", "docs", "sheets", "radiance_pcond.jpg")
 OPERATORS = ("pattanaik00", "ledda04", "durand00", "kirk11")
@@ -169,11 +171,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=DEFAULT_OUT)
     a = ap.parse_args(argv)
-    from ocl_tonemap import radiance
-    tools = radiance.tools()
-    if tools is None:
-        raise SystemExit("Radiance's programs are missing: pip install 'ocl-tonemap[radiance]'")
-    env = tools[1]
+    env = radiance_env()[1]
     d = tempfile.mkdtemp(prefix="ocltm_sheet_")
     try:
         pics = render(d, env)
@@ -190,18 +188,9 @@ def main(argv=None) -> int:
                 subprocess.run([sys.executable, "-m", "ocl_tonemap", "run", hdr, png,
                                 "--operator", op, "-q"], check=True)
                 cells.append(oiio.ImageBuf(png).get_pixels(oiio.UINT8)[..., :3])
-            gap = np.full((SIZE[1], 6, 3), 255, np.uint8)
-            rows.append(np.concatenate([x for c in cells for x in (c, gap)][:-1], axis=1))
+            rows.append(join(cells))
             print(f"{name}: done", flush=True)
-        hgap = np.full((6, rows[0].shape[1], 3), 255, np.uint8)
-        sheet = np.concatenate([x for r in rows for x in (r, hgap)][:-1], axis=0)
-        buf = oiio.ImageBuf(oiio.ImageSpec(sheet.shape[1], sheet.shape[0], 3, oiio.UINT8))
-        buf.set_pixels(oiio.ROI(), sheet)
-        buf.specmod().attribute("Compression", "jpeg:88")
-        os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
-        if not buf.write(os.path.abspath(a.out)):
-            raise SystemExit(buf.geterror())
-        print(f"wrote {os.path.abspath(a.out)}")
+        print(f"wrote {write_image(a.out, join(rows, axis=0), Compression='jpeg:88')}")
     finally:
         shutil.rmtree(d, ignore_errors=True)
     return 0

@@ -34,6 +34,9 @@ HEADER_CAP = 1 << 16
 STANDARD_PRIMARIES = (0.640, 0.330, 0.290, 0.600, 0.150, 0.060, 1.0 / 3.0, 1.0 / 3.0)
 #: The chromaticities of CIE XYZ as RGB (an XYZE picture), white E.
 XYZ_PRIMARIES = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0 / 3.0, 1.0 / 3.0)
+#: File name endings of Radiance pictures (whose VIEW a run looks for before its first
+#: frame; any file is read as one by its "#?" first line).
+SUFFIXES = (".hdr", ".pic", ".rgbe", ".xyze", ".unf")
 #: Programs whose pictures are renderings in Radiance's absolute units.
 RENDERERS = ("rpict", "rtrace", "rvu", "rcontrib")
 #: Programs whose pictures are photographs.

@@ -31,3 +31,44 @@ def write_markdown(path: str, lines: list, rows) -> None:
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w") as fh:
         fh.write("\n".join(out) + "\n")
+
+
+def write_image(path: str, pixels: np.ndarray, **attributes) -> str:
+    """(H, W, C) uint8 or float32 ``pixels`` to ``path`` through OIIO (its folder made;
+    ``attributes``: spec attributes, such as Compression="jpeg:88"); the absolute path."""
+    import os
+
+    import OpenImageIO as oiio
+    px = np.ascontiguousarray(pixels)
+    kind = oiio.UINT8 if px.dtype == np.uint8 else oiio.FLOAT
+    buf = oiio.ImageBuf(oiio.ImageSpec(px.shape[1], px.shape[0], px.shape[2], kind))
+    buf.set_pixels(oiio.ROI(), px if kind == oiio.UINT8 else px.astype(np.float32))
+    for k, v in attributes.items():
+        buf.specmod().attribute(k, v)
+    path = os.path.abspath(path)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    if not buf.write(path):
+        raise SystemExit(f"{path}: {buf.geterror()}")
+    return path
+
+
+def radiance_env() -> tuple[str, dict]:
+    """(bin folder, environment) of Radiance's programs (``ocl_tonemap.radiance.tools``),
+    or the benchmark ends saying how to install them."""
+    from ocl_tonemap import radiance
+    tools = radiance.tools()
+    if tools is None:
+        raise SystemExit("Radiance's programs are missing: pip install 'ocl-tonemap[radiance]'")
+    return tools
+
+
+def join(images, axis: int = 1, gap: int = 6) -> np.ndarray:
+    """uint8 (H, W, 3) images side by side (``axis`` 1) or stacked (0), white gaps between."""
+    out = []
+    for k, im in enumerate(images):
+        if k:
+            shape = list(im.shape)
+            shape[axis] = gap
+            out.append(np.full(shape, 255, np.uint8))
+        out.append(im)
+    return np.concatenate(out, axis=axis)

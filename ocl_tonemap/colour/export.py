@@ -37,7 +37,7 @@ import PyOpenColorIO as ocio
 from .. import safeio
 from ..effects.purkinje import apply_purkinje
 from ..models.display import DISPLAY_LINEAR_MAX, apply_shoulder
-from ..models.photometry import photopic_luminance, scotopic_luminance
+from ..models.photometry import Y_WEIGHTS, photopic_luminance, scotopic_luminance
 from . import clf, lattice
 
 log = logging.getLogger("ocl_tonemap")
@@ -280,7 +280,8 @@ class OcioExport:
              f"name: {_q(self.name)}",
              f"description: {_q(f'{tm.operator_name} observer exported by ocl-tonemap')}",
              "environment:", f"  FRAME: {_q(str(self.first))}",
-             'search_path: "."', "strictparsing: true", "luma: [0.2126, 0.7152, 0.0722]", "",
+             'search_path: "."', "strictparsing: true",
+             "luma: [" + ", ".join(f"{w:.6f}" for w in Y_WEIGHTS) + "]", "",
              "roles:", f"  default: {_q(inp)}", f"  scene_linear: {_q(inp)}",
              '  data: "Raw"', "",
              "file_rules:", f"  - !<Rule> {{name: Default, colorspace: {_q(inp)}}}", "",

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..models.display import DISPLAY_LINEAR_MAX
+from ..models.photometry import Y_WEIGHTS
 
 #: Entries of the shapers' LUT1D (the grid the lattice nodes are snapped to; odd: a
 #: range symmetric about 0 has 0 on the grid).
@@ -149,7 +150,6 @@ class Coordinates:
 
     @property
     def D(self) -> np.ndarray:
-        from ..models.photometry import Y_WEIGHTS
         return np.eye(3) + self.delta * np.outer(np.ones(3), Y_WEIGHTS)
 
     def forward(self, x) -> np.ndarray:
@@ -309,7 +309,7 @@ def fit_linear(raw, pixels: np.ndarray):
 def lightness(display_linear: np.ndarray) -> np.ndarray:
     """A display lightness of display-linear RGB (for placing nodes): the sRGB curve
     of the luminance, clamped to [0, 1]."""
-    Y = np.clip(np.asarray(display_linear, np.float64) @ np.array([0.2126, 0.7152, 0.0722]),
+    Y = np.clip(np.asarray(display_linear, np.float64) @ Y_WEIGHTS,
                 0.0, 1.0)
     return np.where(Y <= 0.0031308, 12.92 * Y, 1.055 * Y ** (1 / 2.4) - 0.055)
 
@@ -325,13 +325,13 @@ def stage_a(raw, pixels: np.ndarray, n: int = LATTICE) -> Stage:
     T = fit_linear(raw, px)
     if T is not None:
         return Stage([matrix_op(T), range_op(0.0, None)], "matrix")
-    Y = px @ np.array([0.2126, 0.7152, 0.0722])
+    Y = px @ Y_WEIGHTS
     top = positive_top(px, 1e-30)
     pos = Y[Y > 0]
     beta = max(float(np.quantile(pos, 0.001)) if pos.size else top * 1e-6, top * 1e-12)
     cin = Coordinates(DELTA, camera_log(min(beta, top * 0.5), top))
     out = raw(px)
-    Yo = out @ np.array([0.2126, 0.7152, 0.0722])
+    Yo = out @ Y_WEIGHTS
     with np.errstate(divide="ignore", invalid="ignore"):
         dip = np.where(Yo > 0, -out.min(axis=1) / Yo, 0.0)
     delta_o = max(1.0, 1.5 * float(np.max(dip, initial=0.0)))

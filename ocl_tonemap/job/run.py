@@ -66,8 +66,9 @@ def view_from_header(opts: JobOptions) -> JobOptions:
     import dataclasses
 
     from .. import radiance
-    if opts.fov_given or not dataclasses.is_dataclass(opts.effects):
-        return opts
+    if opts.fov_given or not dataclasses.is_dataclass(opts.effects) or \
+            os.path.splitext(opts.input)[1].lower() not in radiance.SUFFIXES:
+        return opts                      # (no frame listing for inputs of other kinds)
     try:
         first = frame_jobs(opts)[0][1]
     except Exception:                    # noqa: BLE001 -- the run itself says what is wrong
