@@ -362,7 +362,9 @@ def test_base_range_counted_on_the_device_is_the_hosts(rt, percentiles):
 
 def test_the_purkinje_shift_in_bands_is_the_shift_whole(rt, monkeypatch):
     """shift_rgb works in bands of SHIFT_BAND pixels (its buffers are host memory on
-    a CPU device): bands of 7 pixels give the whole frame's result, fallback share too."""
+    a CPU device): bands of 7 pixels give the whole frame's result (to float32 rounding:
+    a driver may vectorise a 7-pixel launch differently; Intel's CPU runtime differs in
+    the last bits), fallback share too."""
     from ocl_tonemap.backends.opencl.lmsr import KirkDevice
     from ocl_tonemap.effects.purkinje import apply_purkinje
     rgb = (_rgb_scene().astype(np.float64) * 0.01).astype(np.float32)
@@ -370,5 +372,5 @@ def test_the_purkinje_shift_in_bands_is_the_shift_whole(rt, monkeypatch):
     whole, info = apply_purkinje(rgb, 0.02, 0.01, dev)
     monkeypatch.setattr(KirkDevice, "SHIFT_BAND", 7)
     bands, info7 = apply_purkinje(rgb, 0.02, 0.01, dev)
-    np.testing.assert_array_equal(bands, whole)
+    np.testing.assert_allclose(bands, whole, rtol=4e-6, atol=0)
     assert info7["fallback_fraction"] == info["fallback_fraction"]
