@@ -30,17 +30,16 @@ __kernel void to_lmsr(__global const float *in, const int nc, const int n,
  * Minv: M^-1 (3x3); solvers: 7 (3x3), full support first; M: display RGB -> LMS
  * (its row sums give the neutral); D: display RGB -> working RGB.
  * Output: working RGB (cd/m^2 units), w. */
-__kernel void kirk11_shift(__global const float *q, const int n, __constant float *par,
-                           __constant float *Minv, __constant float *solvers,
-                           __constant float *M,
-                           __constant float *D, __global float *rgb_out,
-                           __global float *w_out, __global float *logY,
-                           __global int *fallbacks)
+/* One pixel of Eqs. 10-13, 15-16 (kirk11_shift, purkinje_rgb): from its LMSR ``qq``
+ * the display RGB solution (before D) and w (Eq. 16); *fb_out is 1 where the solve
+ * fell back (Eq. 15's full support infeasible, or the gamut map moved it). ``exact``:
+ * Eq. 15's NNLS, else the gamut map (a literal 0 leaves straight-line code that the
+ * driver vectorises across work-items). */
+inline float3 shift_pixel(const float4 qq, __constant float *par, __constant float *Minv,
+                          __constant float *solvers, __constant float *M, float *lum_out,
+                          int *fb_out, const int exact)
 {
-    const int i = get_global_id(0);
-    if (i >= n) return;
     const float area = par[0], k1 = par[1], k2 = par[2], gain = par[3];
-    const float4 qq = vload4(i, q);
     const float4 dw = (float4)(par[11], par[12], par[13], 1.0f);
     const float4 qt = qq * dw * area;                             /* Eq. 10 units */
     const float gl = rsqrt(1.0f + REGULATION_C * (qt.x + k1 * qt.w));  /* Eq. 10 */
@@ -62,11 +61,11 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
                               Minv[3] * qh.x + Minv[4] * qh.y + Minv[5] * qh.z,
                               Minv[6] * qh.x + Minv[7] * qh.y + Minv[8] * qh.z);
     float3 best;
-    if (par[14] > 0.5f) {
+    int fb = 0;
+    if (exact) {
         /* Eq. 15 as printed: unconstrained first, then the best feasible smaller support */
         best = (float3)(0.0f);
         float best_res = dot(qh, qh);
-        int fb = 0;
         for (int k = 0; k < N_SUPPORTS; ++k) {
             __constant float *P = solvers + 9 * k;
             float3 pk = (float3)(P[0] * qh.x + P[1] * qh.y + P[2] * qh.z,
@@ -82,7 +81,6 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
             if (k == 0) { best = pk; best_res = res; break; }
             if (res < best_res) { best = pk; best_res = res; }
         }
-        if (fb) atomic_inc(fallbacks);
     } else {
         /* the unconstrained solve; outside the gamut, toward the neutral of the
          * same L + M until it enters (kirk11.gamut_map) */
@@ -94,8 +92,27 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
         if (p.z < 0.0f) t = fmin(t, pn / (pn - p.z));
         t = clamp(t, 0.0f, 1.0f);
         best = fmax((float3)(pn) + t * (p - (float3)(pn)), (float3)(0.0f));
-        if (p.x < 0.0f || p.y < 0.0f || p.z < 0.0f) atomic_inc(fallbacks);
+        fb = (p.x < 0.0f || p.y < 0.0f || p.z < 0.0f) ? 1 : 0;
     }
+    *lum_out = lum;
+    *fb_out = fb;
+    return best;
+}
+
+__kernel void kirk11_shift(__global const float *q, const int n, __constant float *par,
+                           __constant float *Minv, __constant float *solvers,
+                           __constant float *M,
+                           __constant float *D, __global float *rgb_out,
+                           __global float *w_out, __global float *logY,
+                           __global int *fallbacks)
+{
+    const int i = get_global_id(0);
+    if (i >= n) return;
+    float lum;
+    int fb;
+    const float3 best = shift_pixel(vload4(i, q), par, Minv, solvers, M, &lum, &fb,
+                                     par[14] > 0.5f);
+    if (fb) atomic_inc(fallbacks);
     const float3 o = (float3)(D[0] * best.x + D[1] * best.y + D[2] * best.z,
                               D[3] * best.x + D[4] * best.y + D[5] * best.z,
                               D[6] * best.x + D[7] * best.y + D[8] * best.z);
@@ -104,17 +121,107 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
     logY[i] = log10(fmax(M_YR * o.x + M_YG * o.y + M_YB * o.z, Y_FLOOR));
 }
 
-/* The Purkinje effect on other operators (effects/purkinje.py): the shifted colour
- * scaled back to the source's photopic luminance Y (the operator models rod
- * luminance itself); where the shifted colour has no luminance, the source. */
-__kernel void keep_luminance(__global const float *src, __global float *shifted, const int n)
+/* The Purkinje effect on other operators (effects/purkinje.py), in place on working
+ * RGB (cd/m^2): to LMSR through H (4 x 3, row-major; to_lmsr), the shift with the
+ * gamut map and D = I (shift_pixel), then the shifted colour scaled back to the
+ * source's photopic luminance Y (the operator models rod luminance itself; where the
+ * shifted colour has no luminance, the source). Fallbacks are counted per work-group
+ * (PURKINJE_WG items, a build option), then once into ``fallbacks``. */
+/* shift_pixel's gamut-map path on four pixels, a lane each (l, m, s, r: their LMSR):
+ * the display RGB solution in *pr, *pg, *pb; the lanes that fell back are -1 in *fb.
+ * The same operations as shift_pixel's, in vector form (PoCL runs the scalar form
+ * per work-item: measured 2.2x slower on a CPU). */
+inline void shift_gamut4(const float4 l, const float4 m, const float4 s, const float4 r,
+                         __constant float *par, __constant float *Minv, __constant float *M,
+                         float4 *pr, float4 *pg, float4 *pb, int4 *fb)
 {
-    const int i = get_global_id(0);
-    if (i >= n) return;
-    const float3 a = vload3(i, src), p = vload3(i, shifted);
+    const float area = par[0], k1 = par[1], k2 = par[2], gain = par[3];
+    const float dwx = par[11], dwy = par[12], dwz = par[13];
+    const float4 tl = l * dwx * area, tm = m * dwy * area, ts = s * dwz * area, tr = r * area;
+    const float4 gl = rsqrt(1.0f + REGULATION_C * (tl + k1 * tr));      /* Eq. 10 */
+    const float4 gm = rsqrt(1.0f + REGULATION_C * (tm + k1 * tr));
+    const float4 gs = rsqrt(1.0f + REGULATION_C * (ts + k2 * tr));
+    const float4 nl = gl / L_MAX_F, nm = gm / M_MAX_F, ns = gs / S_MAX_F;
+    const float4 lum = ALPHA_F * nl + (1.0f - ALPHA_F) * nm;             /* Eq. 16 */
+    const float4 rod = gain * tr;
+    const float4 d0 = par[4] * k1 * (par[7] * nm - par[8] * nl) * rod;   /* Eq. 12 */
+    const float4 d1 = par[5] * (par[9] * ns - par[10] * lum) * rod;
+    const float4 d2 = par[6] * lum * rod;
+    const float4 qx = l + (A_INV_00 * d0 + A_INV_02 * d2) / (dwx * area);
+    const float4 qy = m + (A_INV_10 * d0 + A_INV_12 * d2) / (dwy * area);
+    const float4 qz = s + (d1 + d2) / (dwz * area);
+    const float4 px = Minv[0] * qx + Minv[1] * qy + Minv[2] * qz;
+    const float4 py = Minv[3] * qx + Minv[4] * qy + Minv[5] * qz;
+    const float4 pz = Minv[6] * qx + Minv[7] * qy + Minv[8] * qz;
+    const float4 pn = fmax(qx + qy, 0.0f) / (M[0] + M[1] + M[2] + M[3] + M[4] + M[5]);
+    float4 t = (float4)(1.0f);
+    t = select(t, fmin(t, pn / (pn - px)), px < 0.0f);
+    t = select(t, fmin(t, pn / (pn - py)), py < 0.0f);
+    t = select(t, fmin(t, pn / (pn - pz)), pz < 0.0f);
+    t = clamp(t, 0.0f, 1.0f);
+    *pr = fmax(pn + t * (px - pn), 0.0f);
+    *pg = fmax(pn + t * (py - pn), 0.0f);
+    *pb = fmax(pn + t * (pz - pn), 0.0f);
+    *fb = (px < 0.0f) | (py < 0.0f) | (pz < 0.0f);
+}
+
+/* The shifted colour scaled back to the source's photopic Y (yp: its own; where it
+ * has none, the source a). */
+inline float3 keep_y(const float3 a, const float3 p)
+{
     const float yp = M_YR * p.x + M_YG * p.y + M_YB * p.z;
     const float ya = M_YR * a.x + M_YG * a.y + M_YB * a.z;
-    vstore3(yp > 0.0f ? p * (ya / yp) : a, i, shifted);
+    return yp > 0.0f ? p * (ya / yp) : a;
+}
+
+__kernel void purkinje_rgb(__global float *rgb, const int n, __constant float *H,
+                           __constant float *par, __constant float *Minv,
+                           __constant float *solvers, __constant float *M,
+                           __global int *fallbacks)
+{
+    __local int fbs[PURKINJE_WG];
+    const int q = get_global_id(0), lid = get_local_id(0), i0 = ITEM_PIXELS(4) * q;
+    int fb = 0;
+    if (VECTOR_PIXELS && i0 + 3 < n) {                  /* four pixels, a lane each */
+        const float4 a0 = vload4(3 * q, rgb), a1 = vload4(3 * q + 1, rgb),
+                     a2 = vload4(3 * q + 2, rgb);
+        const float4 r = (float4)(a0.x, a0.w, a1.z, a2.y);
+        const float4 g = (float4)(a0.y, a1.x, a1.w, a2.z);
+        const float4 b = (float4)(a0.z, a1.y, a2.x, a2.w);
+        float4 pr, pg, pb;
+        int4 f;
+        shift_gamut4(H[0] * r + H[1] * g + H[2] * b, H[3] * r + H[4] * g + H[5] * b,
+                     H[6] * r + H[7] * g + H[8] * b, H[9] * r + H[10] * g + H[11] * b,
+                     par, Minv, M, &pr, &pg, &pb, &f);
+        const float4 yp = M_YR * pr + M_YG * pg + M_YB * pb;
+        const float4 k = (M_YR * r + M_YG * g + M_YB * b) / yp;
+        const int4 keep = yp > 0.0f;
+        const float4 orr = select(r, pr * k, keep), og = select(g, pg * k, keep),
+                     ob = select(b, pb * k, keep);
+        vstore4((float4)(orr.x, og.x, ob.x, orr.y), 3 * q, rgb);
+        vstore4((float4)(og.y, ob.y, orr.z, og.z), 3 * q + 1, rgb);
+        vstore4((float4)(ob.z, orr.w, og.w, ob.w), 3 * q + 2, rgb);
+        fb = -(f.x + f.y + f.z + f.w);
+    } else {
+        for (int i = i0; i < min(i0 + ITEM_PIXELS(4), n); ++i) {
+            const float3 a = vload3(i, rgb);
+            const float4 qq = (float4)(H[0] * a.x + H[1] * a.y + H[2] * a.z,
+                                       H[3] * a.x + H[4] * a.y + H[5] * a.z,
+                                       H[6] * a.x + H[7] * a.y + H[8] * a.z,
+                                       H[9] * a.x + H[10] * a.y + H[11] * a.z);
+            float lum;
+            int f;
+            vstore3(keep_y(a, shift_pixel(qq, par, Minv, solvers, M, &lum, &f, 0)), i, rgb);
+            fb += f;
+        }
+    }
+    fbs[lid] = fb;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid == 0) {
+        int c = 0;
+        for (int k = 0; k < PURKINJE_WG; ++k) c += fbs[k];
+        if (c) atomic_add(fallbacks, c);
+    }
 }
 
 /* Range reduction (Durand & Dorsey 2002), mesopic dimming and (RGB input) the

@@ -622,10 +622,13 @@ class Tonemapper:
         if not self.plan.active and fx.s.flare == "off" and fx.s.purkinje == "off" \
                 and not own_chroma and not scene_plugins:
             return pix, scale, None
-        # the flare whole on the device: the working frame and the flared one stay there
-        # (one upload, no round trip; the operator's colour stage copies it on the device)
+        # the flare whole on the device, the Purkinje shift in place there: the working
+        # frame and the flared one stay there (one upload, no round trip; the
+        # operator's colour stage copies it on the device)
         h, w = pix.shape[:2]
-        on_dev = pix.shape[2] == 3 and fx.settings.flare != "off" and fx.flare_on_device(h, w)
+        flare_dev = fx.settings.flare != "off" and fx.flare_on_device(h, w)
+        on_dev = pix.shape[2] == 3 and (flare_dev or (fx.settings.flare == "off"
+                                                      and fx.purkinje_on_device()))
         levels = self.backend.working(pix, scale, self.metering, own_chroma and self._grey_world(),
                                       on_device=on_dev, proxy_stride=self.plan.proxy_stride(h, w))
         rgb, repairs, (G_rod, G_cone), estimate = levels[:4]
@@ -634,8 +637,7 @@ class Tonemapper:
         new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)
         if new is not None:
             rgb, changed = new, True
-        if not isinstance(rgb, np.ndarray) and (fx.s.purkinje != "off" or scene_plugins
-                                                or own_chroma):
+        if not isinstance(rgb, np.ndarray) and (scene_plugins or own_chroma):
             rgb = np.asarray(rgb)             # the stages below work on host pixels
         new, eff["purkinje"] = fx.purkinje(rgb, G_rod, G_cone, self._state.extra, dt, fresh,
                                            self.preadapt)

@@ -231,6 +231,15 @@ class Effects:
         return _purkinje.run(self.s, rgb, G_rod, G_cone, extra, dt, fresh, preadapt,
                              self._purkinje_dev, self.weight("purkinje"))
 
+    def purkinje_on_device(self) -> bool:
+        """Whether the Purkinje shift runs on the device (then in place on a device
+        image: the working frame can stay there)."""
+        if self.settings.purkinje == "off":
+            return False
+        if self._purkinje_dev is None:
+            self._purkinje_dev = self.backend.purkinje_device()
+        return self._purkinje_dev is not None
+
     def _purkinje_skipped(self) -> bool:
         return self.settings.purkinje != "off" and self.s.purkinje == "off"
 

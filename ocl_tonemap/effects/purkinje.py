@@ -32,19 +32,19 @@ def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None,
     """Shift working RGB (cd/m^2) as kirk11 does with ``--kappa adaptive`` and keep
     each pixel's photopic luminance. ``G_rod``: the (adapted) scotopic level;
     ``sensitivity``: how far the rods are dark adapted (0..1, scales the rods'
-    share). ``device``: a KirkDevice, else float64."""
+    share). ``device``: a KirkDevice (``rgb`` may then be a device image, shifted in
+    place), else float64."""
     area = ko.model_scale()
     k1, k2, gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), G_rod)
     k1, k2, gain = k1 * sensitivity, k2 * sensitivity, gain * sensitivity
     M = lmsr.fitted()["H"][:3]
-    rgb = np.asarray(rgb)
     if gain <= 0.0:
         return rgb, {"rod_gain": 0.0, "fallback_fraction": 0.0}
     info = {"rod_gain": float(gain), "k1": float(k1)}
-    if device is not None:              # the luminance kept on the device too
-        p, fb = device.shift_rgb(np.ascontiguousarray(rgb, np.float32), area, k1, k2, gain, M,
-                                 np.eye(3), ko.SHIFT_XYZ, keep_luminance=True)
+    if device is not None:              # one pass on the device, the luminance kept there
+        p, fb = device.purkinje(rgb, area, k1, k2, gain, M, ko.SHIFT_XYZ)
         return p, {**info, "fallback_fraction": float(fb)}
+    rgb = np.asarray(rgb)
     q = lmsr.rgb_to_lmsr(rgb)
     qh, _ = ko.purkinje_shift(q, area, k1, k2, ko.SHIFT_XYZ, gain)
     p, fbm = ko.gamut_map(M, qh)
@@ -83,12 +83,16 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | No
         return None, {"ran": False}
     lv, sens = _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt)
     sens *= float(weight)
+    levels = {"A_rod": lv["A_rod"], "rod_sensitivity": sens}
+    # decided before the shift: on the device it is made in place
+    gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), lv["A_rod"])[2] * sens
+    if settings.purkinje == "auto" and gain <= PURKINJE_AUTO_GAIN:
+        return None, {"ran": False, "reason": "photopic", "rod_gain": float(max(gain, 0.0)),
+                      **levels}
+    if gain <= 0.0:                          # on, but no rod signal: nothing to shift
+        return None, {"ran": False, "reason": "no rod signal", "rod_gain": 0.0, **levels}
     out, info = apply_purkinje(rgb, lv["A_rod"], lv["A_cone"], device, sens)
-    info.update({"A_rod": lv["A_rod"], "rod_sensitivity": sens})
-    if settings.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
-        return None, {"ran": False, "reason": "photopic", **info}
-    if info["rod_gain"] <= 0.0:              # on, but no rod signal: nothing to shift
-        return None, {"ran": False, "reason": "no rod signal", **info}
+    info.update(levels)
     info["ran"] = True
     return out, info
 

@@ -361,15 +361,25 @@ def test_base_range_counted_on_the_device_is_the_hosts(rt, percentiles):
 
 
 def test_the_purkinje_shift_in_bands_is_the_shift_whole(rt, monkeypatch):
-    """shift_rgb works in bands of SHIFT_BAND pixels (its buffers are host memory on
-    a CPU device): bands of 7 pixels give the whole frame's result (to float32 rounding:
-    a driver may vectorise a 7-pixel launch differently; Intel's CPU runtime differs in
-    the last bits), fallback share too."""
+    """KirkDevice.purkinje shifts a host frame in bands of SHIFT_BAND pixels (its buffer
+    is host memory on a CPU device) and a device image in place: bands of 7 pixels
+    give the whole frame's result (to float32 rounding: a driver may vectorise a
+    7-pixel launch differently; Intel's CPU runtime differs in the last bits), the
+    device image the same pixels, fallback share too."""
+    import pyopencl as cl
+    from ocl_tonemap.backends.opencl.image import DeviceImage
     from ocl_tonemap.backends.opencl.lmsr import KirkDevice
     from ocl_tonemap.effects.purkinje import apply_purkinje
     rgb = (_rgb_scene().astype(np.float64) * 0.01).astype(np.float32)
     dev = KirkDevice(rt)
     whole, info = apply_purkinje(rgb, 0.02, 0.01, dev)
+    buf = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR,
+                    hostbuf=np.ascontiguousarray(rgb))
+    img = DeviceImage(rt, buf, rgb.shape)
+    on_dev, info_d = apply_purkinje(img, 0.02, 0.01, dev)
+    assert on_dev is img                       # in place
+    np.testing.assert_allclose(np.asarray(on_dev), whole, rtol=4e-6, atol=0)
+    assert info_d["fallback_fraction"] == info["fallback_fraction"]
     monkeypatch.setattr(KirkDevice, "SHIFT_BAND", 7)
     bands, info7 = apply_purkinje(rgb, 0.02, 0.01, dev)
     np.testing.assert_allclose(bands, whole, rtol=4e-6, atol=0)

@@ -23,11 +23,15 @@ from .runtime import round_up
 #: DISPLAY_LINEAR_MAX and the other shared ones come with every program (constants.py).
 #: Eq. 11's A^-1 as the kernel's closed form takes it: the four entries of its first two
 #: rows that are not 0 (the last row, (0, 1, 1), is written out there).
+#: purkinje_rgb's work-group size (its per-group fallback count)
+PURKINJE_WG = 64
+
 KERNEL_CONSTANTS = (
     ("L_MAX_F", lmsr.L_MAX), ("M_MAX_F", lmsr.M_MAX), ("S_MAX_F", lmsr.S_MAX),
     ("ALPHA_F", K.ALPHA), ("REGULATION_C", K.REGULATION_C),
     *((f"A_INV_{i}{j}", float(K.A_INV[i, j])) for i in (0, 1) for j in (0, 2)),
     ("N_SUPPORTS", len(K.SUBSETS)), ("Y_FLOOR", K.Y_FLOOR), ("LOG_FLOOR", K.LOG_FLOOR),
+    ("PURKINJE_WG", PURKINJE_WG),
 )
 
 
@@ -43,7 +47,7 @@ class KirkDevice:
         self._k_compose = rt.kernel("kirk11.cl", "kirk11_compose", c)
         self._k_sums = rt.kernel("kirk11.cl", "kirk11_sums", c)
         self._k_finish = rt.kernel("kirk11.cl", "kirk11_finish", c)
-        self._k_keep_y = rt.kernel("kirk11.cl", "keep_luminance", c)
+        self._k_purkinje = rt.kernel("kirk11.cl", "purkinje_rgb", c)
         self._k_spectrum = rt.kernel("colour.cl", "spectrum_to_lmsr")
         self._k_hist = rt.kernel("kirk11.cl", "base_histogram", c)
         self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
@@ -108,38 +112,58 @@ class KirkDevice:
                            rgb, np.int32(n), np.float32(gain), np.float32(inv_white),
                            np.float32(knee))
 
-    #: shift_rgb works in bands of this many pixels (its buffers: ~60 bytes a pixel;
-    #: on a CPU device they are the host's memory).
+    #: purkinje works on host frames in bands of this many pixels (a pooled buffer of
+    #: 12 bytes a pixel; on a CPU device it is the host's memory).
     SHIFT_BAND = 1 << 18
 
-    def shift_rgb(self, rgb: np.ndarray, area: float, k1: float, k2: float, gain: float,
-                  M: np.ndarray, D: np.ndarray, xyz,
-                  keep_luminance: bool = False) -> tuple[np.ndarray, float]:
-        """Eqs. 10-13 and 15 on working RGB (cd/m^2, host array): the shifted RGB and
-        the NNLS fallback share. Used by the Purkinje effect for other operators
-        (``keep_luminance``: each pixel scaled back to its source's Y, on the device),
-        pointwise, so in bands of :data:`SHIFT_BAND` pixels."""
+    def _shift_params(self, area, k1, k2, gain, M, xyz):
+        par = np.array([area, k1, k2, gain, *xyz, *RHO, *white_norm()[:3], 0.0], np.float32)
+        key = par.tobytes() + np.asarray(M, np.float64).tobytes()
+        if getattr(self, "_params_key", None) != key:
+            self._params_key = key
+            self._params = (self._buf(0, lmsr.fitted()["H"]), self._buf(0, par),
+                            self._buf(0, np.linalg.inv(M).reshape(-1)),
+                            self._buf(0, subset_solvers(M).reshape(-1)), self._buf(0, M))
+        return self._params
+
+    def purkinje(self, rgb, area: float, k1: float, k2: float, gain: float, M: np.ndarray,
+                 xyz):
+        """Eqs. 10-13 and 15 (the gamut map, D = I) on working RGB (cd/m^2), each pixel
+        scaled back to its source's photopic Y (kernels/kirk11.cl purkinje_rgb):
+        ``(shifted, fallback share)``. ``rgb`` a :class:`~.image.DeviceImage`: shifted in
+        place on the device (the same image comes back); a host array: through one
+        buffer of :data:`SHIFT_BAND` pixels, kept for the next frame."""
+        from .image import DeviceImage
         cl, q_ = self.cl, self.rt.queue
-        h, w = rgb.shape[:2]
-        n = h * w
-        flat = np.ascontiguousarray(rgb, np.float32).reshape(n, 3)
-        res = np.empty((n, 3), np.float32)
-        H = self._buf(0, lmsr.fitted()["H"])
-        fallback = 0
-        for a in range(0, n, self.SHIFT_BAND):
-            m = min(self.SHIFT_BAND, n - a)
-            gsz, wg = (round_up(m, 64),), (64,)
-            src = self._buf(0, flat[a:a + m])
-            q = self._buf(m * 16)
-            self._k_lmsr(q_, gsz, wg, src, np.int32(3), np.int32(m), H, q)
-            out, _, _, fb = self.shift(q, m, area, k1, k2, gain, xyz, M, D)
-            if keep_luminance:
-                self._k_keep_y(q_, gsz, wg, src, out, np.int32(m))
-            cl.enqueue_copy(q_, res[a:a + m], out)
-            nfb = np.empty(1, np.int32)
-            cl.enqueue_copy(q_, nfb, fb)
-            fallback += int(nfb[0])
-        return res.reshape(h, w, 3), float(fallback) / max(n, 1)
+        params = self._shift_params(area, k1, k2, gain, M, xyz)
+        fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
+
+        def run(buf, n):
+            items = round_up(self.rt.pixel_items(n, 4), PURKINJE_WG)
+            self._k_purkinje(q_, (items,), (PURKINJE_WG,), buf, np.int32(n), *params, fb)
+
+        if isinstance(rgb, DeviceImage):
+            h, w = rgb.shape[:2]
+            n = h * w
+            run(rgb.buffer, n)
+            res = rgb
+        else:
+            h, w = rgb.shape[:2]
+            n = h * w
+            res = np.ascontiguousarray(rgb, np.float32).reshape(n, 3).copy()
+            nb = 12 * min(self.SHIFT_BAND, max(n, 1))
+            band = getattr(self, "_band", None)
+            if band is None or band.size < nb:
+                band = self._band = self._buf(nb)
+            for a in range(0, n, self.SHIFT_BAND):
+                m = min(self.SHIFT_BAND, n - a)
+                cl.enqueue_copy(q_, band, res[a:a + m])
+                run(band, m)
+                cl.enqueue_copy(q_, res[a:a + m], band)
+            res = res.reshape(h, w, 3)
+        nfb = np.empty(1, np.int32)
+        cl.enqueue_copy(q_, nfb, fb)
+        return res, float(nfb[0]) / max(n, 1)
 
     def lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
         """One band (or a whole frame) to LMSR on the device: (q buffer, source
