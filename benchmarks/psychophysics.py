@@ -57,17 +57,22 @@ def dark_section(res, crit) -> list:
     return L + [""]
 
 
-def acuity_section(rows) -> list:
+def acuity_section(res) -> list:
+    ops = list(res)
     L = ["## 2. Acuity against luminance (Shlaer 1937)", "",
          f"Sine gratings, {acuity.FOV_DEG:g} degrees over {acuity.WIDTH} px, "
-         "`--acuity on` against `off` (durand00, `--model none`); cut-off where the "
-         "transfer falls through 10^-0.395 (Eq. 10). Shlaer: Table 1 at the field's "
-         "photopic luminance; Ward: Ward Larson et al. 1997's fit.", "",
-         "| La cd/m^2 | measured c/deg | Shlaer | measured / Shlaer | Ward's fit | "
-         "the model's omega |", "|---|---|---|---|---|---|"]
-    for La, m, s, w, om in rows:
-        L.append(f"| {La:.3g} | {_f(m, '{:.2f}')} | {s:.2f} | "
-                 f"{_f(None if m is None else m / s, '{:.3f}')} | {w:.2f} | {om:.2f} |")
+         "`--acuity on` against `off` (each operator, `--model none` otherwise); cut-off "
+         "where the transfer falls through 10^-0.395 (Eq. 10). Shlaer: Table 1 at the "
+         "field's photopic luminance; Ward: Ward Larson et al. 1997's fit; omega: the "
+         "model's own cut-off. Measured c/deg, and / Shlaer in brackets.", "",
+         "| La cd/m^2 | Shlaer | Ward's fit | omega | " + " | ".join(ops) + " |",
+         "|---|---|---|---|" + "---|" * len(ops)]
+    for k, (La, _, s, w, om) in enumerate(res[ops[0]]):
+        cells = []
+        for op in ops:
+            m = res[op][k][1]
+            cells.append("—" if m is None else f"{m:.2f} ({m / s:.3f})")
+        L.append(f"| {La:.3g} | {s:.2f} | {w:.2f} | {om:.2f} | " + " | ".join(cells) + " |")
     return L + [""]
 
 
@@ -103,11 +108,31 @@ def purkinje_section(peaks, mes) -> list:
     return L + [""]
 
 
+def _axes(ax, xlabel: str, ylabel: str, logy: bool = False) -> None:
+    """Log x (luminance), labels, grid and legend, as every plot here has them."""
+    ax.set_xscale("log")
+    if logy:
+        ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+
+
+def _save(fig, out_dir: str, name: str, paths: list) -> None:
+    import matplotlib.pyplot as plt
+    fig.tight_layout()
+    paths.append(os.path.join(out_dir, name))
+    fig.savefig(paths[-1], dpi=90)
+    plt.close(fig)
+
+
 def plots(out_dir, res_dark, acu, res_tvi, peaks, mes) -> list:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    paths = []
+    from ocl_tonemap.models.shaler1937 import SHALER_LOG_L, SHALER_OMEGA
+    paths: list = []
     pts = load_hecht1937()
     fig, axs = plt.subplots(1, len(res_dark), figsize=(5 * len(res_dark), 4.2), sharey=True)
     for ax, (op, d) in zip(np.atleast_1d(axs), res_dark.items()):
@@ -125,28 +150,17 @@ def plots(out_dir, res_dark, acu, res_tvi, peaks, mes) -> list:
     np.atleast_1d(axs)[0].set_ylabel("log threshold, micro-micro-lamberts")
     np.atleast_1d(axs)[0].legend(fontsize=8, title="Hecht et al. 1937 (points)")
     fig.suptitle("Dark adaptation: Hecht, Haig & Chase 1937 (points) and each operator (lines)")
-    fig.tight_layout()
-    paths.append(os.path.join(out_dir, "psychophysics_dark.png"))
-    fig.savefig(paths[-1], dpi=90)
-    plt.close(fig)
+    _save(fig, out_dir, "psychophysics_dark.png", paths)
 
     fig, ax = plt.subplots(figsize=(6, 4.2))
-    La = np.array([r[0] for r in acu])
-    from ocl_tonemap.models.shaler1937 import SHALER_LOG_L, SHALER_OMEGA
     ax.plot(10.0 ** SHALER_LOG_L, SHALER_OMEGA, "ko", ms=4, label="Shlaer 1937 (Table 1)")
     xs = np.logspace(-3.5, 3, 100)
     ax.plot(xs, acuity.ward_fit(xs), "k:", label="Ward Larson et al. 1997 fit")
-    ax.plot(La, [np.nan if r[1] is None else r[1] for r in acu], "s-", color="#d95f02",
-            label="measured through the CLI (--acuity on)")
-    ax.set_xscale("log")
-    ax.set_xlabel("field luminance, cd/m^2")
-    ax.set_ylabel("cut-off, cycles/degree")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(os.path.join(out_dir, "psychophysics_acuity.png"))
-    fig.savefig(paths[-1], dpi=90)
-    plt.close(fig)
+    for op, rows in acu.items():
+        ax.plot([r[0] for r in rows], [np.nan if r[1] is None else r[1] for r in rows],
+                "s-", ms=4, alpha=0.8, label=f"{op} through the CLI (--acuity on)")
+    _axes(ax, "field luminance, cd/m^2", "cut-off, cycles/degree")
+    _save(fig, out_dir, "psychophysics_acuity.png", paths)
 
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     for op, rows in res_tvi.items():
@@ -154,17 +168,10 @@ def plots(out_dir, res_dark, acu, res_tvi, peaks, mes) -> list:
         ax.plot([r[0] for r in rows], [r[4] for r in rows], "s--", color=line.get_color(),
                 alpha=0.6)
     ax.axhspan(0.5, 2.0, color="0.9")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("adapting luminance La, cd/m^2")
-    ax.set_ylabel("display-JND increment / Ferwerda threshold")
     ax.set_title("solid: Delta E ITP = 1; dashed: Ferwerda display threshold", fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(os.path.join(out_dir, "psychophysics_tvi.png"))
-    fig.savefig(paths[-1], dpi=90)
-    plt.close(fig)
+    _axes(ax, "adapting luminance La, cd/m^2", "display-JND increment / Ferwerda threshold",
+          logy=True)
+    _save(fig, out_dir, "psychophysics_tvi.png", paths)
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
     a1.plot([p[0] for p in peaks], [p[1] for p in peaks], "o-", color="#7570b3",
@@ -173,24 +180,13 @@ def plots(out_dir, res_dark, acu, res_tvi, peaks, mes) -> list:
     a1.axhline(507, color="k", ls="--", lw=1)
     a1.text(2e-4, 556.5, "V (555 nm)", fontsize=8)
     a1.text(2e-4, 508.5, "V' (507 nm)", fontsize=8)
-    a1.set_xscale("log")
-    a1.set_xlabel("mean photopic luminance, cd/m^2")
-    a1.set_ylabel("brightest wavelength, nm")
-    a1.grid(alpha=0.3)
-    a1.legend(fontsize=8)
+    _axes(a1, "mean photopic luminance, cd/m^2", "brightest wavelength, nm")
     Ls = [m[0] for m in mes]
     a2.plot(Ls, [m[1] for m in mes], "k-", lw=2.5, label="CIE 191:2010 (1 - m)")
     for op in mes[0][2]:
         a2.plot(Ls, [m[2][op] for m in mes], "o-", ms=3, label=op)
-    a2.set_xscale("log")
-    a2.set_xlabel("neutral field, cd/m^2")
-    a2.set_ylabel("rod weight")
-    a2.grid(alpha=0.3)
-    a2.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(os.path.join(out_dir, "psychophysics_purkinje.png"))
-    fig.savefig(paths[-1], dpi=90)
-    plt.close(fig)
+    _axes(a2, "neutral field, cd/m^2", "rod weight")
+    _save(fig, out_dir, "psychophysics_purkinje.png", paths)
     return paths
 
 
@@ -201,7 +197,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     res_dark, crit = dark.run_all()
     print(f"dark adaptation: {time.perf_counter() - t0:.0f} s", flush=True)
-    acu = acuity.run_all()
+    acu = {op: acuity.run_all(operator=op) for op in tvi.OPERATORS}
     print(f"acuity: {time.perf_counter() - t0:.0f} s", flush=True)
     res_tvi = tvi.run_all()
     print(f"thresholds: {time.perf_counter() - t0:.0f} s", flush=True)

@@ -4,7 +4,8 @@
  *
  * L_MAX_F, M_MAX_F, S_MAX_F (models/lmsr.py L_MAX, M_MAX, S_MAX), ALPHA_F (Eq. 16),
  * REGULATION_C (Eq. 10), A_INV_00, A_INV_02, A_INV_10, A_INV_12 (Eq. 11's A^-1),
- * N_SUPPORTS (Eq. 15's supports), Y_FLOOR and LOG_FLOOR are given as build options
+ * N_SUPPORTS (Eq. 15's supports), Y_FLOOR, LOG_FLOOR and PURKINJE_WG (purkinje_rgb's
+ * work-group size) are given as build options
  * from ocl_tonemap/models/kirk2011.py (backends/opencl/kirk11.py, KERNEL_CONSTANTS);
  * DISPLAY_LINEAR_MAX and SIGNAL_CEILING with common.h's: one definition, not retyped
  * here. */

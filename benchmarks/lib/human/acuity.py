@@ -3,8 +3,8 @@
 
 A chart of vertical sine gratings (one band of rows per frequency, 20% modulation
 around La, a neutral) at a stated field of view goes through the command line twice,
-``--acuity on`` and ``--acuity off`` (durand00, whose paper the effect is from,
-``--model none`` otherwise); each band's transfer is the ratio of the two outputs'
+``--acuity on`` and ``--acuity off`` (an operator, durand00 by default: the effect is
+from its paper; ``--model none`` otherwise); each band's transfer is the ratio of the two outputs'
 modulation at its frequency (display-linear luminance projected on the grating). The
 measured cut-off is where the transfer crosses 10^-0.395, the paper's own criterion
 (Eq. 10: the blur's transfer at omega), interpolated in log frequency.

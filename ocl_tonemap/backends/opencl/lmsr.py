@@ -19,13 +19,14 @@ from .bilateral import DeviceBilateral
 from .runtime import round_up
 
 
+#: purkinje_rgb's work-group size.
+PURKINJE_WG = 64
+
 #: Model constants of kernels/kirk11.cl, given as build options (never retyped);
 #: DISPLAY_LINEAR_MAX and the other shared ones come with every program (constants.py).
 #: Eq. 11's A^-1 as the kernel's closed form takes it: the four entries of its first two
-#: rows that are not 0 (the last row, (0, 1, 1), is written out there).
-#: purkinje_rgb's work-group size (its per-group fallback count)
-PURKINJE_WG = 64
-
+#: rows that are not 0 (the last row, (0, 1, 1), is written out there); purkinje_rgb's
+#: work-group size (:data:`PURKINJE_WG`: its fallbacks are counted per group).
 KERNEL_CONSTANTS = (
     ("L_MAX_F", lmsr.L_MAX), ("M_MAX_F", lmsr.M_MAX), ("S_MAX_F", lmsr.S_MAX),
     ("ALPHA_F", K.ALPHA), ("REGULATION_C", K.REGULATION_C),
@@ -51,6 +52,8 @@ class KirkDevice:
         self._k_spectrum = rt.kernel("colour.cl", "spectrum_to_lmsr")
         self._k_hist = rt.kernel("kirk11.cl", "base_histogram", c)
         self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
+        self._params_key, self._params = None, ()              # purkinje's constants
+        self._band = None                                      # purkinje's host band
         self._hist = self._buf(BASE_HIST_BINS * 4)             # base_histogram's counts
 
     def _buf(self, nbytes: int, host: np.ndarray | None = None):
@@ -112,14 +115,14 @@ class KirkDevice:
                            rgb, np.int32(n), np.float32(gain), np.float32(inv_white),
                            np.float32(knee))
 
-    #: purkinje works on host frames in bands of this many pixels (a pooled buffer of
+    #: purkinje works on host frames in bands of this many pixels (one kept buffer of
     #: 12 bytes a pixel; on a CPU device it is the host's memory).
     SHIFT_BAND = 1 << 18
 
     def _shift_params(self, area, k1, k2, gain, M, xyz):
         par = np.array([area, k1, k2, gain, *xyz, *RHO, *white_norm()[:3], 0.0], np.float32)
         key = par.tobytes() + np.asarray(M, np.float64).tobytes()
-        if getattr(self, "_params_key", None) != key:
+        if self._params_key != key:
             self._params_key = key
             self._params = (self._buf(0, lmsr.fitted()["H"]), self._buf(0, par),
                             self._buf(0, np.linalg.inv(M).reshape(-1)),
@@ -142,17 +145,15 @@ class KirkDevice:
             items = round_up(self.rt.pixel_items(n, 4), PURKINJE_WG)
             self._k_purkinje(q_, (items,), (PURKINJE_WG,), buf, np.int32(n), *params, fb)
 
+        h, w = rgb.shape[:2]
+        n = h * w
         if isinstance(rgb, DeviceImage):
-            h, w = rgb.shape[:2]
-            n = h * w
             run(rgb.buffer, n)
             res = rgb
         else:
-            h, w = rgb.shape[:2]
-            n = h * w
             res = np.ascontiguousarray(rgb, np.float32).reshape(n, 3).copy()
             nb = 12 * min(self.SHIFT_BAND, max(n, 1))
-            band = getattr(self, "_band", None)
+            band = self._band
             if band is None or band.size < nb:
                 band = self._band = self._buf(nb)
             for a in range(0, n, self.SHIFT_BAND):
