@@ -371,13 +371,19 @@ class Tonemapper:
         stats = self.measure(frame)
         params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh, illuminant,
                                        eff)
+        fx, blurred = self.effects, None
         if encoding is not None and (not self.schedule.encodes_output
-                                     or self.effects.slot_plugins("display")
-                                     or self.effects.acuity_needed(stats.G_rod, stats.width)):
+                                     or fx.slot_plugins("display")):
             encoding = None              # display-linear first: something works on it
+        elif encoding is not None and fx.acuity_needed(stats.G_rod, stats.width):
+            # the blur on the device before the encoding, or display-linear first
+            encoding, blurred = fx.acuity_encoding(encoding, stats.G_rod, stats.height,
+                                                   stats.width)
         out = self.apply(frame, stats, params, gains, encoding=encoding)
         self._frozen = (stats, params, gains)
-        if encoding is not None:         # code values: no display-slot effect was at work
+        if blurred is not None:
+            eff["acuity"] = blurred
+        elif encoding is not None:       # code values: no display-slot effect was at work
             eff["acuity"] = self.effects.acuity_report(stats.G_rod, stats.width)
         else:
             out, eff["acuity"] = self.effects.acuity(out, stats.G_rod)

@@ -271,6 +271,19 @@ class Effects:
             info["weight"] = w
         return out, info
 
+    def acuity_encoding(self, encoding, G_rod: float, h: int, w: int):
+        """(``encoding`` with the acuity blur on the device before it, the frame's acuity
+        record) where the backend can blur the frame where the operator leaves it
+        (``backend.acuity_encoding``), else (None, None): the blur of :meth:`acuity`
+        with the plan's weight, in float32 on the device."""
+        make = getattr(self.backend, "acuity_encoding", None)
+        plan = _acuity.blur_plan(self.s, G_rod, w, self.weight("acuity"))
+        if make is None or plan is None or self._device_blur is None:
+            return None, None
+        taps, t, info = plan
+        enc = make(encoding, h, w, taps, t, self._device_blur)
+        return (None, None) if enc is None else (enc, info)
+
     def acuity_needed(self, G_rod: float, width: int) -> bool:
         return _acuity.needed(self.s, G_rod, width)
 

@@ -38,6 +38,17 @@ def report(settings, G_rod: float, width: int) -> dict:
     return info
 
 
+def blur_plan(settings, G_rod: float, width: int, weight: float = 1.0):
+    """(taps, blend, info) of a frame ``width`` px wide that blurs: what :func:`run`
+    does to it, the blend times the plan's ``weight``; None where it does not blur."""
+    info = report(settings, G_rod, width)
+    if not info.get("ran"):
+        return None
+    if weight < 1.0:
+        info["weight"] = float(weight)
+    return gaussian_taps(info["sigma_px"]), info["blend"] * float(weight), info
+
+
 def run(settings, img: np.ndarray, G_rod: float, blur=None):
     if settings.acuity == "off":
         return img, {"ran": False}

@@ -87,6 +87,20 @@ class OpenCLBackend:
         from .convolution import DeviceBlur
         return DeviceBlur(self.rt, max_pixels or self.max_band_pixels)
 
+    def acuity_encoding(self, encoding, h: int, w: int, taps, t: float, blur):
+        """``encoding`` with the loss-of-acuity blur (``taps``, blend ``t``) before it,
+        on the device where the operator leaves the frame (``blur``: a :meth:`device_blur`),
+        or None where the frame is mapped in more than one band (then the host blurs the
+        display-linear frame). Its scratch goes back to the pool after the frame."""
+        from .display import BlurredOutputEncoding
+        if encoding is None or blur is None or len(self.bands(h, w)) != 1:
+            return None
+
+        def run(src):
+            blur.acuity_in_place(src, h, w, taps, t, self.buffer("acuity:tmp", 12 * h * w))
+            self.release("acuity:")
+        return BlurredOutputEncoding(encoding, run, h * w)
+
     def flare_device(self):
         """The fast flare on the device (``effects/flare.py``)."""
         from .flare import DeviceFlare

@@ -21,6 +21,7 @@ class DeviceBlur:
         self._k = rt.kernel("convolution.cl", "blur_axis")
         self._bufs = None
         self._cap = 0
+        self._k_rgb = None                     # acuity_rgb_x, acuity_rgb_y_blend
 
     def _buffers(self, n: int):
         import pyopencl as cl
@@ -101,3 +102,21 @@ class DeviceBlur:
                 cl.enqueue_copy(q, band, tmp)
                 out[y0:y1, :, c] = band[y0 - a0:y1 - a0]
         return out[..., 0] if a.ndim == 2 else out
+
+    def acuity_in_place(self, buf, h: int, w: int, taps: np.ndarray, t: float, tmp) -> None:
+        """The loss-of-acuity blur of a display-linear RGB frame where it is (``buf``:
+        h x w interleaved float RGB on the device), clamped edges, blended in place:
+        buf + t (blur - buf) (``kernels/convolution.cl`` acuity_rgb_x, _y_blend; the
+        reference: ``models/shaler1937.apply_acuity``). ``tmp``: 12 h w bytes."""
+        import pyopencl as cl
+        if self._k_rgb is None:
+            self._k_rgb = (self.rt.kernel("convolution.cl", "acuity_rgb_x"),
+                           self.rt.kernel("convolution.cl", "acuity_rgb_y_blend"))
+        R = len(taps) - 1
+        tap_buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                            hostbuf=np.asarray(taps, np.float32))
+        q, (kx, ky) = self.rt.queue, self._k_rgb
+        gs = (round_up(w, 16), round_up(h, 4))
+        kx(q, gs, (16, 4), buf, tmp, np.int32(w), np.int32(h), tap_buf, np.int32(R))
+        ky(q, gs, (16, 4), tmp, buf, np.int32(w), np.int32(h), tap_buf, np.int32(R),
+           np.float32(t))
