@@ -146,3 +146,98 @@ __kernel void flare_finish(__global const float *rgb, __global const float4 *S,
     }
     group_sum4(scratch, F, partial);
 }
+
+/* Level 0, fused (the frame's own resolution, where most of the work is): its
+ * Gaussians along x all at once into nk planes of a band's rows, then the flared
+ * frame straight from them (flare_finish0), without level 0's accumulator:
+ *   out = rgb - S + max(a0 S + U(acc_1) + sum_k w_k G_k,y * tmp_k, 0)
+ * (flare_up, flare_blur_y_add and flare_finish in one pass). kinfo[k]: (first tap,
+ * radius) of Gaussian k in taps. */
+__kernel void flare_blur0_x(__global const float4 *S, const int w, const int r0,
+                            const int rows, __global float4 *tmp, __constant float *taps,
+                            __constant int2 *kinfo, const int nk)
+{
+    const int x = get_global_id(0), yb = get_global_id(1);
+    if (x >= w || yb >= rows) return;
+    __global const float4 *row = S + (size_t)(r0 + yb) * w;
+    const size_t plane = (size_t)rows * w, o = (size_t)yb * w + x;
+    const float4 c = row[x];
+    for (int k = 0; k < nk; ++k) {
+        __constant float *t = taps + kinfo[k].x;
+        const int radius = kinfo[k].y;
+        float4 acc = t[0] * c;
+        if (x >= radius && x + radius < w) {
+            for (int r = 1; r <= radius; ++r) acc += t[r] * (row[x - r] + row[x + r]);
+        } else {
+            for (int r = 1; r <= radius; ++r) {
+                const float4 a = x - r >= 0 ? row[x - r] : (float4)(0.0f);
+                const float4 b = x + r < w ? row[x + r] : (float4)(0.0f);
+                acc += t[r] * (a + b);
+            }
+        }
+        tmp[k * plane + o] = acc;
+    }
+}
+
+/* Rows y0 .. y0 + rows - 1 of the flared frame (2D: x, row of the band); tmp holds
+ * image rows t0 .. t0 + trows - 1 (the band and its halo; rows outside the image are
+ * zero). coarse: level 1's accumulator (cw x ch with margin cm), has_coarse 0: none.
+ * partial[gbase + group]: the group's sum of the flare (r, g, b, 0), as flare_finish. */
+__kernel void flare_finish0(__global const float *rgb, __global const float4 *S, const int w,
+                            const int h, const int y0, const int rows,
+                            __global const float4 *tmp, const int t0, const int trows,
+                            __constant float *taps, __constant int2 *kinfo,
+                            __constant float *kw, const int nk,
+                            __global const float4 *coarse, const int cw, const int ch,
+                            const int cm, const int has_coarse, const float a0,
+                            __global float *out, __global float4 *partial, const int gbase,
+                            __local float4 *scratch)
+{
+    const int x = get_global_id(0), yb = get_global_id(1);
+    float4 F = (float4)(0.0f);
+    if (x < w && yb < rows) {
+        const int y = y0 + yb;
+        const size_t p = (size_t)y * w + x;
+        const float4 s = S[p];
+        F = a0 * s;
+        if (has_coarse) {                 /* flare_up at (x, y): level 0 has no margin */
+            const int ji = half_floor(y), jk = half_floor(x);
+            const int ni = (y - 2 * ji) == 0 ? ji - 1 : ji + 1;
+            const int nk_ = (x - 2 * jk) == 0 ? jk - 1 : jk + 1;
+            const int q0 = clamp(ji + cm, 0, ch - 1), q1 = clamp(ni + cm, 0, ch - 1);
+            const int c0 = clamp(jk + cm, 0, cw - 1), c1 = clamp(nk_ + cm, 0, cw - 1);
+            const float4 a = 0.75f * coarse[(size_t)q0 * cw + c0] + 0.25f * coarse[(size_t)q1 * cw + c0];
+            const float4 b = 0.75f * coarse[(size_t)q0 * cw + c1] + 0.25f * coarse[(size_t)q1 * cw + c1];
+            F += 0.75f * a + 0.25f * b;
+        }
+        const size_t plane = (size_t)trows * w;
+        const int ty = y - t0;
+        for (int k = 0; k < nk; ++k) {
+            __constant float *t = taps + kinfo[k].x;
+            const int radius = kinfo[k].y;
+            __global const float4 *col = tmp + k * plane + x;
+            float4 g = t[0] * col[(size_t)ty * w];
+            if (y >= radius && y + radius < h) {
+                for (int r = 1; r <= radius; ++r)
+                    g += t[r] * (col[(size_t)(ty - r) * w] + col[(size_t)(ty + r) * w]);
+            } else {
+                for (int r = 1; r <= radius; ++r) {
+                    const float4 a = y - r >= 0 ? col[(size_t)(ty - r) * w] : (float4)(0.0f);
+                    const float4 b = y + r < h ? col[(size_t)(ty + r) * w] : (float4)(0.0f);
+                    g += t[r] * (a + b);
+                }
+            }
+            F += kw[k] * g;
+        }
+        F = fmax(F, (float4)(0.0f));
+        F.w = 0.0f;
+        const size_t o = 3 * p;
+        out[o] = rgb[o] - s.x + F.x;
+        out[o + 1] = rgb[o + 1] - s.y + F.y;
+        out[o + 2] = rgb[o + 2] - s.z + F.z;
+    }
+    /* the group's sum (2D groups: flat local index) */
+    group_sum4_into(scratch, F, get_local_id(1) * get_local_size(0) + get_local_id(0),
+                    get_local_size(0) * get_local_size(1),
+                    partial + gbase + get_group_id(1) * get_num_groups(0) + get_group_id(0));
+}

@@ -26,8 +26,9 @@ inline void kahan(float *s, float *c, float v)
     *s = t;
 }
 
-/* Store each work-item's record in scratch and tree-reduce them into record 0
- * (sums 0-4 add, maxima 5-6 take the max). Local size must be a power of two. */
+/* Store each work-item's record in scratch and reduce them into record 0, read by
+ * work-item 0 (sums 0-4 add, maxima 5-6 take the max). Local size must be a power of
+ * two. */
 inline void reduce_records(__local float *scratch, const int lid, const int lsz,
                            const float *s, const float mY, const float mYs)
 {
@@ -35,6 +36,17 @@ inline void reduce_records(__local float *scratch, const int lid, const int lsz,
     for (int k = 0; k < 5; ++k) me[k] = s[k];
     me[5] = mY; me[6] = mYs; me[7] = 0.0f;
     barrier(CLK_LOCAL_MEM_FENCE);
+#if DEVICE_CPU
+    /* one barrier, the first work-item adds the records in order (common.h
+     * group_sum4_into says why) */
+    if (lid == 0)
+        for (int j = 1; j < lsz; ++j) {
+            __local float *o = scratch + j * NMETER;
+            for (int k = 0; k < 5; ++k) me[k] += o[k];
+            me[5] = fmax(me[5], o[5]);
+            me[6] = fmax(me[6], o[6]);
+        }
+#else
     for (int off = lsz / 2; off > 0; off >>= 1) {
         if (lid < off) {
             __local float *o = scratch + (lid + off) * NMETER;
@@ -44,6 +56,7 @@ inline void reduce_records(__local float *scratch, const int lid, const int lsz,
         }
         barrier(CLK_LOCAL_MEM_FENCE);
     }
+#endif
 }
 
 __kernel void meter_partial(__global const float *Y, __global const float *Ys,

@@ -35,11 +35,12 @@ class DeviceFlare:
         self._pool = buffer
         self._release = release
         names = ("flare_source", "flare_down", "flare_up", "flare_blur_x", "flare_blur_y_add",
-                 "flare_add", "flare_finish")
+                 "flare_add", "flare_finish", "flare_blur0_x", "flare_finish0")
         self._k = {n: rt.kernel("flare.cl", n) for n in names}
         wg = int(rt.device.max_work_group_size)
         self.local = 1 << (min(256, max(1, wg)).bit_length() - 1)
         self._scratch = cl.LocalMemory(16 * self.local)
+        self._scratch64 = cl.LocalMemory(16 * 64)          # flare_finish0's 16 x 4 groups
         self._taps: dict = {}
 
     def fits(self, h: int, w: int) -> bool:
@@ -100,9 +101,9 @@ class DeviceFlare:
             k["flare_down"](q, (round_up(cw, 16), round_up(ch, 4)), (16, 4), S[l - 1],
                             np.int32(fw), np.int32(fh), np.int32(fx.level_margin(l - 1)),
                             S[l], np.int32(cw), np.int32(ch), np.int32(fx.level_margin(l)))
-        tmp = self._buf("tmp", 16 * stored[0][0] * stored[0][1])
+        fused = plan.lring != 0                 # level 0 in one pass (below)
         acc, have = None, False
-        for l in range(plan.top, -1, -1):
+        for l in range(plan.top, 0 if fused else -1, -1):
             hh, ww = stored[l]
             gs = (round_up(ww, 16), round_up(hh, 4))
             a = self._buf(f"acc{l}", 16 * hh * ww)
@@ -113,6 +114,7 @@ class DeviceFlare:
                               np.int32(fx.level_margin(l)))
             for sc, wk in plan.by_level.get(l, []):
                 taps, R = self._tap_buf(sc)
+                tmp = self._buf("tmp", 16 * stored[l][0] * stored[l][1])
                 k["flare_blur_x"](q, gs, (16, 4), S[l], tmp, np.int32(ww), np.int32(hh), taps,
                                   np.int32(R))
                 k["flare_blur_y_add"](q, gs, (16, 4), tmp, a, np.int32(ww), np.int32(hh), taps,
@@ -128,18 +130,78 @@ class DeviceFlare:
                 have = True
             acc = a if have else None
         d_out = self._buf("out", 12 * n)
-        k["flare_finish"](q, (groups * L,), (L,), d_rgb, S[0], acc if have else S[0],
-                          np.int32(1 if have else 0), np.float32(plan.a0), np.int32(n), d_out,
-                          part, self._scratch)
+        if fused:
+            part, groups = self._finish0(d_rgb, S[0], acc, stored, plan, h, w, d_out)
+        else:
+            k["flare_finish"](q, (groups * L,), (L,), d_rgb, S[0], acc if have else S[0],
+                              np.int32(1 if have else 0), np.float32(plan.a0), np.int32(n),
+                              d_out, part, self._scratch)
         fsum = self._partials(part, groups)
         if self._release is not None:           # the pyramids: scratch of this frame only
-            self._release("flare:S", "flare:acc", "flare:tmp")
+            self._release("flare:S", "flare:acc", "flare:tmp", "flare:partial0")
         if resident:                            # stays on the device for the operator
             out = DeviceImage(self.rt, d_out, (h, w, 3))
         else:
             out = np.empty((h, w, 3), np.float32)
             cl.enqueue_copy(q, out, d_out)
         return out, sources, ssum[:3], fsum[:3]
+
+    #: Level 0's Gaussians are made along x for bands of about this many pixels (their
+    #: planes: 16 bytes a pixel each, with the halo rows the y taps reach).
+    BAND0_PIXELS = 1 << 19
+
+    def _level0(self, plan: fl.FastPlan):
+        """(taps buffer, (first tap, radius) buffer, weights buffer, count, largest
+        radius) of level 0's Gaussians; the taps are kept per set of widths (a frame
+        size's), the weights (the pupil's) made per frame."""
+        import pyopencl as cl
+        gs = plan.by_level.get(0, [])
+        ro = cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
+        key = ("level0",) + tuple(float(sc) for sc, _ in gs)
+        if key not in self._taps:
+            taps, info = [], []
+            for sc, _ in gs:
+                t = np.asarray(gaussian_taps(sc), np.float32)
+                info.append((len(taps), len(t) - 1))
+                taps.extend(t.tolist())
+            self._taps[key] = (
+                cl.Buffer(self.rt.context, ro, hostbuf=np.asarray(taps or [0.0], np.float32)),
+                cl.Buffer(self.rt.context, ro, hostbuf=np.asarray(info or [(0, 0)], np.int32)),
+                max([r for _, r in info], default=0))
+        taps, info, R = self._taps[key]
+        wts = cl.Buffer(self.rt.context, ro,
+                        hostbuf=np.asarray([wk for _, wk in gs] or [0.0], np.float32))
+        return taps, info, wts, len(gs), R
+
+    def _finish0(self, d_rgb, S0, acc1, stored, plan, h: int, w: int, d_out):
+        """Level 0 and the flared frame, band by band (``flare_blur0_x``, ``flare_finish0``):
+        no level-0 accumulator, its Gaussians' planes for one band at a time. Returns the
+        buffer of the flare's per-group sums (all bands) and their count."""
+        q, k, L = self.rt.queue, self._k, self.local
+        taps, info, wts, nk, R = self._level0(plan)
+        rows = max(1, min(h, self.BAND0_PIXELS // max(w, 1)))
+        bands = [(y0, min(h, y0 + rows)) for y0 in range(0, h, rows)]
+        gcount = [(round_up(w, 16) // 16) * (round_up(y1 - y0, 4) // 4) for y0, y1 in bands]
+        part = self._buf("partial0", 16 * sum(gcount))
+        tmp = self._buf("tmp", 16 * max(nk, 1) * w * min(h, rows + 2 * R))
+        ch, cw = stored[1] if acc1 is not None else (1, 1)
+        cm = fx.level_margin(1)
+        gbase = 0
+        for (y0, y1), g in zip(bands, gcount):
+            t0, t1 = max(0, y0 - R), min(h, y1 + R)
+            if nk:
+                k["flare_blur0_x"](q, (round_up(w, 16), round_up(t1 - t0, 4)), (16, 4), S0,
+                                   np.int32(w), np.int32(t0), np.int32(t1 - t0), tmp, taps,
+                                   info, np.int32(nk))
+            k["flare_finish0"](q, (round_up(w, 16), round_up(y1 - y0, 4)), (16, 4), d_rgb, S0, np.int32(w), np.int32(h),
+                               np.int32(y0), np.int32(y1 - y0), tmp, np.int32(t0),
+                               np.int32(t1 - t0), taps, info, wts, np.int32(nk),
+                               acc1 if acc1 is not None else S0, np.int32(cw), np.int32(ch),
+                               np.int32(cm), np.int32(0 if acc1 is None else 1),
+                               np.float32(plan.a0), d_out, part, np.int32(gbase),
+                               self._scratch64)
+            gbase += g
+        return part, gbase
 
     def _ring(self, S_buf, hh: int, ww: int, deg_per_px: float, w3: float):
         """w3 f3 * S on a level (host FFT of its few thousand samples), on the device."""
