@@ -292,8 +292,7 @@ def read_frame(path: str, frame: int | None = None, channels: list[str] | None =
             r.close()
     rad, src = radiance_source(path, frame)
     try:
-        buf = oiio.ImageBuf(src, 0, 0, hint)
-        fr = frame_from_imagebuf(buf, path, frame, channels)
+        fr = frame_from_file(src, hint, path, frame, channels)
     finally:
         if src != path:
             safeio.remove(src)
@@ -356,6 +355,19 @@ def _extra_channels(path: str) -> bool:
         inp.close()
 
 
+def _check_size(spec, path: str, frame: int | None) -> None:
+    """A frame OIIO declares is not empty, and fits this machine as float32."""
+    if spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
+        raise FrameError(path, frame, f"empty image ({spec.width}x{spec.height}, "
+                         f"{spec.nchannels} channels)")
+    need = float(spec.width) * spec.height * max(spec.depth, 1) * spec.nchannels * 4
+    if need > max_frame_bytes():
+        raise FrameError(path, frame, f"{spec.width}x{spec.height}x{spec.nchannels} would take "
+                         f"{need / 2**30:.1f} GiB as float32, more than this machine can hold "
+                         f"({max_frame_bytes() / 2**30:.1f} GiB allowed); a corrupt header, or "
+                         "split the image")
+
+
 def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
                         channels: list[str] | None = None) -> Frame:
     """A :class:`Frame` from an OIIO ImageBuf (the file's or the caller's)."""
@@ -367,18 +379,38 @@ def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
         raise FrameError(path, frame, f"cannot read: {exc}") from None
     if not buf.initialized:
         raise FrameError(path, frame, "cannot read: the ImageBuf holds no image")
-    if spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
-        raise FrameError(path, frame, f"empty image ({spec.width}x{spec.height}, "
-                         f"{spec.nchannels} channels)")
-    need = float(spec.width) * spec.height * max(spec.depth, 1) * spec.nchannels * 4
-    if need > max_frame_bytes():
-        raise FrameError(path, frame, f"{spec.width}x{spec.height}x{spec.nchannels} would take "
-                         f"{need / 2**30:.1f} GiB as float32, more than this machine can hold "
-                         f"({max_frame_bytes() / 2**30:.1f} GiB allowed); a corrupt header, or "
-                         "split the image")
+    _check_size(spec, path, frame)
     pix = buf.get_pixels(oiio.FLOAT)
     if buf.has_error or pix is None:
         raise FrameError(path, frame, f"cannot read pixels: {oiio_error(buf.geterror())}")
+    return frame_from_pixels(spec, pix, buf.file_format_name or "", path, frame, channels)
+
+
+def frame_from_file(src: str, hint, path: str, frame: int | None = None,
+                    channels: list[str] | None = None) -> Frame:
+    """A :class:`Frame` of the file ``src`` (named ``path`` in messages), its first
+    subimage read straight into one float32 array by its ImageInput (``hint``: the
+    open's configuration): an ImageBuf's get_pixels keeps a float copy of its own
+    beside it, a frame's size more at the peak (95 MiB at 4K) and ~30% slower."""
+    inp = oiio.ImageInput.open(src, hint)
+    if inp is None:
+        raise FrameError(path, frame, f"cannot read: {oiio_error(oiio.geterror())}")
+    try:
+        spec = inp.spec()
+        _check_size(spec, path, frame)
+        pix = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+        if pix is None:
+            raise FrameError(path, frame, f"cannot read pixels: {oiio_error(inp.geterror())}")
+        fmt = inp.format_name() or ""
+    finally:
+        inp.close()
+        oiio.geterror()
+    return frame_from_pixels(spec, pix, fmt, path, frame, channels)
+
+
+def frame_from_pixels(spec, pix, fmt: str, path: str, frame: int | None,
+                      channels: list[str] | None) -> Frame:
+    """A :class:`Frame` from an image's spec, its float pixels and its format's name."""
     pix = np.asarray(pix, np.float32)
     if pix.ndim == 4:  # volume images: take the first slice
         pix = pix[0]
@@ -401,7 +433,6 @@ def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
             pix = np.ascontiguousarray(pix[..., idx])
     wl = spec.getattribute("whiteLuminance")
     ts = spec.getattribute("ocltm:timestamp")
-    fmt = buf.file_format_name or ""
     chrom = spec.getattribute("chromaticities")
     if not (isinstance(chrom, (tuple, list)) and len(chrom) == 8):
         chrom = None
