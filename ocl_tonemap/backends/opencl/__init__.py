@@ -104,7 +104,17 @@ class OpenCLBackend:
     def flare_device(self):
         """The fast flare on the device (``effects/flare.py``)."""
         from .flare import DeviceFlare
-        return DeviceFlare(self.rt, self.buffer, self.release)
+        return DeviceFlare(self.rt, self.buffer, self.release, self._spare_frame)
+
+    def _spare_frame(self, nbytes: int):
+        """The colour stage's upload buffer where the working frame it made is resident
+        and whole (``working(on_device=True)``): its content is spent until the next
+        colour stage, so a scene effect on the device may leave its frame there (the
+        flare: no frame of its own, and the colour stage's copy is none); else None."""
+        b = self.bufs
+        if self._resident is None or b is None or b["src"].size < nbytes:
+            return None
+        return b["src"]
 
     def purkinje_device(self):
         """kirk11's shift kernels for the Purkinje effect on other operators."""
@@ -172,7 +182,8 @@ class OpenCLBackend:
         b = self._buffers(n, channels)
         lo, hi = count_rows if count_rows is not None else (0, rows)
         if isinstance(band, DeviceImage):          # a frame made on the device this frame
-            band.copy_to(q, b["src"])
+            if band.buffer != b["src"]:            # (already there: _spare_frame)
+                band.copy_to(q, b["src"])
         else:
             cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
         cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)

@@ -29,11 +29,14 @@ class DeviceFlare:
     pixel that the operator and the later effects then do not hold beside their own
     (a 1080p still's peak 488 -> 387 MiB on a CPU device)."""
 
-    def __init__(self, rt, buffer, release=None):
+    def __init__(self, rt, buffer, release=None, spare=None):
         import pyopencl as cl
         self.rt = rt
         self._pool = buffer
         self._release = release
+        #: ``spare(nbytes)``: where a resident frame's flared frame may go (the colour
+        #: stage's spent upload buffer: ``OpenCLBackend._spare_frame``), or None
+        self._spare = spare
         names = ("flare_source", "flare_down", "flare_up", "flare_blur_x", "flare_blur_y_add",
                  "flare_add", "flare_finish", "flare_blur0_x", "flare_finish0")
         self._k = {n: rt.kernel("flare.cl", n) for n in names}
@@ -129,7 +132,8 @@ class DeviceFlare:
                     cl.enqueue_copy(q, a, ring)
                 have = True
             acc = a if have else None
-        d_out = self._buf("out", 12 * n)
+        d_out = (self._spare(12 * n) if resident and self._spare is not None else None) \
+            or self._buf("out", 12 * n)
         if fused:
             part, groups = self._finish0(d_rgb, S[0], acc, stored, plan, h, w, d_out)
         else:
