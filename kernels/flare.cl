@@ -6,8 +6,17 @@
  * (source_part) and ocl_tonemap/backends/flare_exec.py (_down_axis, _up_axis,
  * convolve_fast). */
 
-/* S = rgb max(0, 1 - lim / Y): the part of each pixel above ``lim`` cd/m^2.
- * partial: per group (sum of S r, g, b, number of source pixels). */
+/* S = rgb max(0, 1 - lim / Y) of pixel i: the part above ``lim`` cd/m^2. */
+inline float4 source_part(__global const float *rgb, const size_t i, const float lim)
+{
+    const float r = rgb[3 * i], g = rgb[3 * i + 1], b = rgb[3 * i + 2];
+    const float Y = M_YR * r + M_YG * g + M_YB * b;
+    if (!(Y > lim)) return (float4)(0.0f);
+    const float f = 1.0f - lim / Y;
+    return (float4)(r * f, g * f, b * f, 0.0f);
+}
+
+/* S of every pixel. partial: per group (sum of S r, g, b, number of source pixels). */
 __kernel void flare_source(__global const float *rgb, const int n, const float lim,
                            __global float4 *S, __global float4 *partial,
                            __local float4 *scratch)
@@ -15,13 +24,7 @@ __kernel void flare_source(__global const float *rgb, const int n, const float l
     const int i = get_global_id(0);
     float4 s = (float4)(0.0f);
     if (i < n) {
-        const float r = rgb[3 * (size_t)i], g = rgb[3 * (size_t)i + 1],
-                    b = rgb[3 * (size_t)i + 2];
-        const float Y = M_YR * r + M_YG * g + M_YB * b;
-        if (Y > lim) {
-            const float f = 1.0f - lim / Y;
-            s = (float4)(r * f, g * f, b * f, 0.0f);
-        }
+        s = source_part(rgb, (size_t)i, lim);
         S[i] = s;
     }
     const int src = (s.x != 0.0f || s.y != 0.0f || s.z != 0.0f);
@@ -51,6 +54,53 @@ __kernel void flare_down(__global const float4 *fine, const int fw, const int fh
         acc += wt[t] * rs;
     }
     coarse[(size_t)J * cw + K] = acc * (1.0f / 64.0f);
+}
+
+/* Level 1 straight from the frame (the fused path: level 0's S is never stored
+ * whole): flare_down's [1 3 3 1]/8 sums of S made from rgb (w x h, no margin) as they
+ * are read; each coarse sample's own 2 x 2 fine pixels (its footprint's middle) go
+ * to the group's sums as flare_source's do: partial[group] (S r, g, b, sources). */
+__kernel void flare_down_src(__global const float *rgb, const int w, const int h,
+                             const float lim, __global float4 *coarse, const int cw,
+                             const int ch, const int cm, __global float4 *partial,
+                             __local float4 *scratch)
+{
+    const int K = get_global_id(0), J = get_global_id(1);
+    float4 own = (float4)(0.0f);
+    if (K < cw && J < ch) {
+        const int y0 = 2 * (J - cm) - 1, x0 = 2 * (K - cm) - 1;
+        const float wt[4] = {1.0f, 3.0f, 3.0f, 1.0f};
+        float4 acc = (float4)(0.0f);
+        for (int t = 0; t < 4; ++t) {
+            const int y = y0 + t;
+            if (y < 0 || y >= h) continue;
+            float4 rs = (float4)(0.0f);
+            for (int u = 0; u < 4; ++u) {
+                const int x = x0 + u;
+                if (x < 0 || x >= w) continue;
+                const float4 v = source_part(rgb, (size_t)y * w + x, lim);
+                rs += wt[u] * v;
+                if (t == 1 || t == 2) {
+                    if (u == 1 || u == 2)
+                        own += (float4)(v.x, v.y, v.z,
+                                        (v.x != 0.0f || v.y != 0.0f || v.z != 0.0f) ? 1.0f : 0.0f);
+                }
+            }
+            acc += wt[t] * rs;
+        }
+        coarse[(size_t)J * cw + K] = acc * (1.0f / 64.0f);
+    }
+    group_sum4_into(scratch, own, get_local_id(1) * get_local_size(0) + get_local_id(0),
+                    get_local_size(0) * get_local_size(1),
+                    partial + get_group_id(1) * get_num_groups(0) + get_group_id(0));
+}
+
+/* S of image rows r0 .. r0 + rows - 1 into a band (the fused level 0's). */
+__kernel void flare_source_rows(__global const float *rgb, const int w, const int r0,
+                                const int rows, const float lim, __global float4 *S)
+{
+    const int i = get_global_id(0);
+    if (i < rows * w) S[i] = source_part(rgb, (size_t)r0 * w + i, lim);
 }
 
 /* floor(i / 2) for any sign. */
@@ -152,7 +202,8 @@ __kernel void flare_finish(__global const float *rgb, __global const float4 *S,
  * frame straight from them (flare_finish0), without level 0's accumulator:
  *   out = rgb - S + max(a0 S + U(acc_1) + sum_k w_k G_k,y * tmp_k, 0)
  * (flare_up, flare_blur_y_add and flare_finish in one pass). kinfo[k]: (first tap,
- * radius) of Gaussian k in taps. */
+ * radius) of Gaussian k in taps. S: the band's source part (flare_source_rows), rows
+ * r0 .. of it for blur0_x; image rows t0 .. t0 + trows - 1 for finish0. */
 __kernel void flare_blur0_x(__global const float4 *S, const int w, const int r0,
                             const int rows, __global float4 *tmp, __constant float *taps,
                             __constant int2 *kinfo, const int nk)
@@ -179,9 +230,9 @@ __kernel void flare_blur0_x(__global const float4 *S, const int w, const int r0,
     }
 }
 
-/* Rows y0 .. y0 + rows - 1 of the flared frame (2D: x, row of the band); tmp holds
- * image rows t0 .. t0 + trows - 1 (the band and its halo; rows outside the image are
- * zero). coarse: level 1's accumulator (cw x ch with margin cm), has_coarse 0: none.
+/* Rows y0 .. y0 + rows - 1 of the flared frame (2D: x, row of the band); tmp and S
+ * hold image rows t0 .. t0 + trows - 1 (the band and its halo; rows outside the image
+ * are zero). coarse: level 1's accumulator (cw x ch with margin cm), has_coarse 0: none.
  * partial[gbase + group]: the group's sum of the flare (r, g, b, 0), as flare_finish. */
 __kernel void flare_finish0(__global const float *rgb, __global const float4 *S, const int w,
                             const int h, const int y0, const int rows,
@@ -198,7 +249,7 @@ __kernel void flare_finish0(__global const float *rgb, __global const float4 *S,
     if (x < w && yb < rows) {
         const int y = y0 + yb;
         const size_t p = (size_t)y * w + x;
-        const float4 s = S[p];
+        const float4 s = S[(size_t)(y - t0) * w + x];           /* S: the band's rows */
         F = a0 * s;
         if (has_coarse) {                 /* flare_up at (x, y): level 0 has no margin */
             const int ji = half_floor(y), jk = half_floor(x);

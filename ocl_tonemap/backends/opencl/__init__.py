@@ -91,13 +91,19 @@ class OpenCLBackend:
         """``encoding`` with the loss-of-acuity blur (``taps``, blend ``t``) before it,
         on the device where the operator leaves the frame (``blur``: a :meth:`device_blur`),
         or None where the frame is mapped in more than one band (then the host blurs the
-        display-linear frame). Its scratch goes back to the pool after the frame."""
+        display-linear frame). Its scratch is a spent frame of the colour stage, or the
+        pool's until the end of the frame."""
         from .display import BlurredOutputEncoding
         if encoding is None or blur is None or len(self.bands(h, w)) != 1:
             return None
 
         def run(src):
-            blur.acuity_in_place(src, h, w, taps, t, self.buffer("acuity:tmp", 12 * h * w))
+            # the operator has run: the colour stage's frames are spent (not a frame more)
+            b, nb = self.bufs, 12 * h * w
+            tmp = next((b[k] for k in ("rgb", "src") if b is not None and b[k] != src
+                        and b[k].size >= nb), None)
+            blur.acuity_in_place(src, h, w, taps, t,
+                                 tmp if tmp is not None else self.buffer("acuity:tmp", nb))
             self.release("acuity:")
         return BlurredOutputEncoding(encoding, run, h * w)
 

@@ -38,7 +38,8 @@ class DeviceFlare:
         #: stage's spent upload buffer: ``OpenCLBackend._spare_frame``), or None
         self._spare = spare
         names = ("flare_source", "flare_down", "flare_up", "flare_blur_x", "flare_blur_y_add",
-                 "flare_add", "flare_finish", "flare_blur0_x", "flare_finish0")
+                 "flare_add", "flare_finish", "flare_blur0_x", "flare_finish0",
+                 "flare_down_src", "flare_source_rows")
         self._k = {n: rt.kernel("flare.cl", n) for n in names}
         wg = int(rt.device.max_work_group_size)
         self.local = 1 << (min(256, max(1, wg)).bit_length() - 1)
@@ -91,20 +92,34 @@ class DeviceFlare:
         sizes = fx.level_sizes(plan.shape, plan.top)
         stored = [(sizes[l][0] + 2 * fx.level_margin(l), sizes[l][1] + 2 * fx.level_margin(l))
                   for l in range(plan.top + 1)]
-        S = [self._buf(f"S{l}", 16 * hh * ww) for l, (hh, ww) in enumerate(stored)]
-        part = self._buf("partial", 16 * groups)
-        k["flare_source"](q, (groups * L,), (L,), d_rgb, np.int32(n), np.float32(lim), S[0],
-                          part, self._scratch)
+        # fused: level 0's source part is never whole (16 bytes a pixel): level 1 is made
+        # from the frame, level 0 band by band in _finish0 (the ring on level 0 of a
+        # tiny frame, or no level 1: the pyramid as it is written out, below)
+        fused = plan.lring != 0 and plan.top >= 1
+        S = [None if (fused and l == 0) else self._buf(f"S{l}", 16 * hh * ww)
+             for l, (hh, ww) in enumerate(stored)]
+        if fused:
+            ch, cw = stored[1]
+            groups = (round_up(cw, 16) // 16) * (round_up(ch, 4) // 4)
+            part = self._buf("partial", 16 * groups)
+            k["flare_down_src"](q, (round_up(cw, 16), round_up(ch, 4)), (16, 4), d_rgb,
+                                np.int32(w), np.int32(h), np.float32(lim), S[1], np.int32(cw),
+                                np.int32(ch), np.int32(fx.level_margin(1)), part,
+                                self._scratch64)
+        else:
+            part = self._buf("partial", 16 * groups)
+            k["flare_source"](q, (groups * L,), (L,), d_rgb, np.int32(n), np.float32(lim),
+                              S[0], part, self._scratch)
         ssum = self._partials(part, groups)
         sources = int(round(ssum[3]))
         if sources == 0:
+            self._release_scratch()
             return None, 0, ssum[:3], np.zeros(3)
-        for l in range(1, plan.top + 1):
+        for l in range(2 if fused else 1, plan.top + 1):
             (fh, fw), (ch, cw) = stored[l - 1], stored[l]
             k["flare_down"](q, (round_up(cw, 16), round_up(ch, 4)), (16, 4), S[l - 1],
                             np.int32(fw), np.int32(fh), np.int32(fx.level_margin(l - 1)),
                             S[l], np.int32(cw), np.int32(ch), np.int32(fx.level_margin(l)))
-        fused = plan.lring != 0                 # level 0 in one pass (below)
         acc, have = None, False
         for l in range(plan.top, 0 if fused else -1, -1):
             hh, ww = stored[l]
@@ -135,14 +150,13 @@ class DeviceFlare:
         d_out = (self._spare(12 * n) if resident and self._spare is not None else None) \
             or self._buf("out", 12 * n)
         if fused:
-            part, groups = self._finish0(d_rgb, S[0], acc, stored, plan, h, w, d_out)
+            part, groups = self._finish0(d_rgb, lim, acc, stored, plan, h, w, d_out)
         else:
             k["flare_finish"](q, (groups * L,), (L,), d_rgb, S[0], acc if have else S[0],
                               np.int32(1 if have else 0), np.float32(plan.a0), np.int32(n),
                               d_out, part, self._scratch)
         fsum = self._partials(part, groups)
-        if self._release is not None:           # the pyramids: scratch of this frame only
-            self._release("flare:S", "flare:acc", "flare:tmp", "flare:partial0")
+        self._release_scratch()
         if resident:                            # stays on the device for the operator
             out = DeviceImage(self.rt, d_out, (h, w, 3))
         else:
@@ -177,27 +191,40 @@ class DeviceFlare:
                         hostbuf=np.asarray([wk for _, wk in gs] or [0.0], np.float32))
         return taps, info, wts, len(gs), R
 
-    def _finish0(self, d_rgb, S0, acc1, stored, plan, h: int, w: int, d_out):
-        """Level 0 and the flared frame, band by band (``flare_blur0_x``, ``flare_finish0``):
-        no level-0 accumulator, its Gaussians' planes for one band at a time. Returns the
-        buffer of the flare's per-group sums (all bands) and their count."""
+    def _release_scratch(self) -> None:
+        """The pyramids and bands go back to the pool: scratch of this frame only."""
+        if self._release is not None:
+            self._release("flare:S", "flare:acc", "flare:tmp", "flare:partial0")
+
+    def _finish0(self, d_rgb, lim: float, acc1, stored, plan, h: int, w: int, d_out):
+        """Level 0 and the flared frame, band by band: the band's source part
+        (``flare_source_rows``), its Gaussians along x (``flare_blur0_x``) and the flared
+        rows (``flare_finish0``): no level-0 source part, accumulator or planes beyond
+        one band's. Returns the buffer of the flare's per-group sums (all bands) and
+        their count."""
         q, k, L = self.rt.queue, self._k, self.local
         taps, info, wts, nk, R = self._level0(plan)
         rows = max(1, min(h, self.BAND0_PIXELS // max(w, 1)))
         bands = [(y0, min(h, y0 + rows)) for y0 in range(0, h, rows)]
         gcount = [(round_up(w, 16) // 16) * (round_up(y1 - y0, 4) // 4) for y0, y1 in bands]
         part = self._buf("partial0", 16 * sum(gcount))
-        tmp = self._buf("tmp", 16 * max(nk, 1) * w * min(h, rows + 2 * R))
+        most = w * min(h, rows + 2 * R)
+        tmp = self._buf("tmp", 16 * max(nk, 1) * most)
+        S0 = self._buf("Sband", 16 * most)
         ch, cw = stored[1] if acc1 is not None else (1, 1)
         cm = fx.level_margin(1)
         gbase = 0
         for (y0, y1), g in zip(bands, gcount):
             t0, t1 = max(0, y0 - R), min(h, y1 + R)
+            nb = (t1 - t0) * w
+            k["flare_source_rows"](q, (round_up(nb, L),), (L,), d_rgb, np.int32(w),
+                                   np.int32(t0), np.int32(t1 - t0), np.float32(lim), S0)
             if nk:
                 k["flare_blur0_x"](q, (round_up(w, 16), round_up(t1 - t0, 4)), (16, 4), S0,
-                                   np.int32(w), np.int32(t0), np.int32(t1 - t0), tmp, taps,
+                                   np.int32(w), np.int32(0), np.int32(t1 - t0), tmp, taps,
                                    info, np.int32(nk))
-            k["flare_finish0"](q, (round_up(w, 16), round_up(y1 - y0, 4)), (16, 4), d_rgb, S0, np.int32(w), np.int32(h),
+            k["flare_finish0"](q, (round_up(w, 16), round_up(y1 - y0, 4)), (16, 4), d_rgb,
+                               S0, np.int32(w), np.int32(h),
                                np.int32(y0), np.int32(y1 - y0), tmp, np.int32(t0),
                                np.int32(t1 - t0), taps, info, wts, np.int32(nk),
                                acc1 if acc1 is not None else S0, np.int32(cw), np.int32(ch),
