@@ -150,6 +150,9 @@ class DeviceFlare:
         d_out = (self._spare(12 * n) if resident and self._spare is not None else None) \
             or self._buf("out", 12 * n)
         if fused:
+            if self._release is not None:       # level 0 needs level 1's accumulator only
+                self._release("flare:S", *(f"flare:acc{l}" for l in range(2, plan.top + 1)))
+                S = None                        # (freed once their kernels have run)
             part, groups = self._finish0(d_rgb, lim, acc, stored, plan, h, w, d_out)
         else:
             k["flare_finish"](q, (groups * L,), (L,), d_rgb, S[0], acc if have else S[0],
@@ -166,7 +169,7 @@ class DeviceFlare:
 
     #: Level 0's Gaussians are made along x for bands of about this many pixels (their
     #: planes: 16 bytes a pixel each, with the halo rows the y taps reach).
-    BAND0_PIXELS = 1 << 19
+    BAND0_PIXELS = 1 << 18
 
     def _level0(self, plan: fl.FastPlan):
         """(taps buffer, (first tap, radius) buffer, weights buffer, count, largest

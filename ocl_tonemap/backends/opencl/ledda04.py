@@ -348,14 +348,15 @@ class LeddaSchedule(PixelStateMixin):
             else:
                 ic, st = stats.planes["I_c"], self._dev[0]
             items = be.rt.pixel_items(n, 4) if self._map_vector else n
+            dst = be.output_buffer(n, len(bands) == 1)
             self._k_map(q, (round_up(items, 64),), (64,), be.bufs["rgb"], i32(0), ic, st, i32(n),
-                        i32(n), f32(sd), f32(1.0 / op.display.unit_cd), be.bufs["out"], strength,
+                        i32(n), f32(sd), f32(1.0 / op.display.unit_cd), dst, strength,
                         lgc, f32(1.0 / white), f32(knee), i32(op.ward))
             if sink is None:
-                be.fetch_output(out[y0:y0 + nr], be.bufs["out"], n, encoding)
+                be.fetch_output(out[y0:y0 + nr], dst, n, encoding)
             else:
                 band = np.empty((nr, w, 3), np.float32)
-                cl.enqueue_copy(q, band, be.bufs["out"])
+                cl.enqueue_copy(q, band, dst)
                 sink(y0, band)
         return out
 
