@@ -19,10 +19,36 @@ def _leave(code: int) -> None:
     os._exit(code)
 
 
+#: The command's allocations of at least this many bytes are mapped from the system
+#: on their own (glibc's M_MMAP_THRESHOLD), and go back to it when freed.
+MMAP_THRESHOLD = 2 << 20
+
+
+def _return_freed_memory() -> None:
+    """Frame-sized buffers (a frame read, the device's scratch on a CPU driver: the flare's
+    pyramids and bands, made and freed every frame) go back to the system when freed.
+    glibc's default raises its mmap threshold to the largest block freed (up to 32 MiB),
+    so after the first frame such buffers come from the heap and what is freed there
+    stays in the process: a 60-frame 1080p sequence peaked ~75 MiB higher (468 against
+    393 MiB, issue 33's bound 395; benchmarks/results/radiance_peer.md). Only the
+    command's own process: the library leaves its host's allocator alone. A user's
+    ``MALLOC_MMAP_THRESHOLD_`` wins; other C libraries (no ``mallopt``) are left as they are."""
+    if os.environ.get("MALLOC_MMAP_THRESHOLD_"):
+        return
+    try:
+        import ctypes
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return
+    M_MMAP_THRESHOLD = -3                 # <malloc.h>
+    mallopt(ctypes.c_int(M_MMAP_THRESHOLD), ctypes.c_int(MMAP_THRESHOLD))
+
+
 def entry() -> int:
     try:
         from .interrupts import install
         install()
+        _return_freed_memory()
         from .cli import main
         code = main()
     except BaseException as exc:          # noqa: BLE001 - only the two signals end here

@@ -169,7 +169,7 @@ class DeviceFlare:
 
     #: Level 0's Gaussians are made along x for bands of about this many pixels (their
     #: planes: 16 bytes a pixel each, with the halo rows the y taps reach).
-    BAND0_PIXELS = 1 << 18
+    BAND0_PIXELS = 1 << 17
 
     def _level0(self, plan: fl.FastPlan):
         """(taps buffer, (first tap, radius) buffer, weights buffer, count, largest

@@ -1,0 +1,78 @@
+"""Issue 33's memory bound through the real command: a whole-frame run peaks at most at
+4x the frame's float32 RGB plus 300 MiB (1080p: 395 MiB), with an operator's defaults,
+on a 1080p night still and on a sequence (the next frame read and the last one written
+while the device works). The peak is the command's own maximum resident set (wait4's
+rusage of that child alone). Measured with PoCL, the driver CI runs on: another
+driver brings its own resident size (Intel's CPU runtime maps several hundred MiB)."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from ocl_tonemap.models.photometry import Y_WEIGHTS
+
+H, W = 1080, 1920
+BOUND_MIB = 4 * H * W * 12 / 2 ** 20 + 300
+
+
+def _night(k: int) -> np.ndarray:
+    """A night scene at ~0.5 cd/m^2 log-average (Radiance units: 179 cd/m^2 a unit):
+    a textured ground, a sky, and a row of lamps that light the flare; ``k`` pans it."""
+    rng = np.random.default_rng(7)
+    y = np.linspace(0.0, 1.0, H, dtype=np.float32)[:, None]
+    x = np.linspace(0.0, 1.0, W + 64, dtype=np.float32)[None, :]
+    base = 0.2 + 2.0 * np.exp(-((y - 0.45) / 0.05) ** 2) + 0.3 * np.sin(40 * x) ** 2
+    tex = rng.uniform(0.5, 1.5, (H, W + 64)).astype(np.float32)
+    lum = base * tex
+    for cx in range(40, W + 64, 160):                     # lamps along the horizon
+        lum[int(0.42 * H) - 3:int(0.42 * H) + 3, cx - 3:cx + 3] = 5e4
+    rgb = lum[..., None] * np.array([1.0, 0.85, 0.6], np.float32)
+    rgb = rgb[:, k * 8:k * 8 + W]
+    lm = float(np.exp(np.mean(np.log(np.maximum(rgb @ Y_WEIGHTS, 1e-9)))))
+    return (rgb * (0.5 / lm / 179.0)).astype(np.float32)
+
+
+def _write(path: str, pix: np.ndarray) -> None:
+    out = oiio.ImageOutput.create(path)
+    assert out is not None and out.open(path, oiio.ImageSpec(W, H, 3, oiio.FLOAT))
+    assert out.write_image(pix) and out.close()
+
+
+def _peak_mib(args) -> float:
+    """(the command's maximum resident set, MiB), the command run to its end."""
+    p = subprocess.Popen([sys.executable, "-m", "ocl_tonemap", "run", *args, "-q"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(p.pid, 0)
+    err = p.stderr.read().decode()
+    p.stdout.close()
+    p.stderr.close()
+    p.returncode = os.waitstatus_to_exitcode(status)
+    assert p.returncode == 0, err
+    return usage.ru_maxrss / 1024.0                       # KiB on Linux
+
+
+@pytest.fixture(scope="module")
+def night(tmp_path_factory, rt):
+    if "portable computing language" not in rt.device.platform.name.lower():
+        pytest.skip(f"the bound is measured with PoCL (this device: {rt.device.platform.name})")
+    d = tmp_path_factory.mktemp("night")
+    for k in range(6):
+        _write(str(d / f"n.{k + 1:04d}.hdr"), _night(k))
+    return d
+
+
+@pytest.mark.parametrize("op", ["durand00", "pattanaik00"])
+def test_a_1080p_sequence_and_still_stay_within_the_bound(night, tmp_path, op):
+    seq = _peak_mib([str(night / "n.####.hdr"), str(tmp_path / "o.####.png"),
+                     "--operator", op, "--fps", "24"])
+    still = _peak_mib([str(night / "n.0001.hdr"), str(tmp_path / "s.png"), "--operator", op])
+    # the flare ran (lamps), so its scratch was part of the peak
+    inp = oiio.ImageInput.open(str(tmp_path / "o.0006.png"))
+    assert "flare" in inp.spec().getattribute("ocltm:effects_ran").split(",")
+    inp.close()
+    assert seq <= BOUND_MIB, (seq, BOUND_MIB)
+    assert still <= BOUND_MIB, (still, BOUND_MIB)
