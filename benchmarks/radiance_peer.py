@@ -2,8 +2,8 @@
 the tool lighting designers use to show a rendering as a person would see it: whole
 commands, time and peak memory, in the same run on the same machine.
 
-One command (Radiance from PyPI: ``pip install "ocl-tonemap[radiance]"``):
-    python -m benchmarks.radiance_peer [--out benchmarks/results/radiance_peer.md]
+One command (Radiance from PyPI: ``pip install "ocl-tonemap[radiance]"``; ~6 min):
+    python -m benchmarks.radiance_peer [--out benchmarks/results/radiance_peer.md] [--repeat 3]
 
 Work (a night photograph with lamps at 0.5 cd/m^2 log-average, written as Radiance
 .hdr; ``benchmarks/lib/photos.py``):
@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from benchmarks.lib.report import radiance_env, write_image, write_markdown
+from benchmarks.lib.report import cpu_model, radiance_env, write_image, write_markdown
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_OUT = os.path.join(HERE, "results", "radiance_peer.md")
@@ -81,6 +81,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--operators", default="durand00,pattanaik00")
     ap.add_argument("--out", default=DEFAULT_OUT)
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="runs of each command, interleaved with the peer's (medians)")
     a = ap.parse_args(argv)
     tools = radiance_env()
     env = tools[1]
@@ -104,13 +106,21 @@ def main(argv=None) -> int:
                 ("4K still", inp["4k"], [], 1, "4k"),
                 ("20 independent 1080p stills", inp["stills"], ["--stills"], 20, "1080p"),
                 ("60-frame 1080p sequence", inp["seq"], ["--fps", "24"], 60, "1080p"))
+        ops = a.operators.split(",")
         for what, src, extra, n, size in work:
-            pt, pm = pcond_files(src, n) if n > 1 else _timed([pcond, "-h", src], env,
-                                                              open(os.devnull, "wb"))
+            peer, ours = [], {op: [] for op in ops}
+            for _ in range(max(1, a.repeat)):      # interleaved: the machine's phases
+                with open(os.devnull, "wb") as null:
+                    peer.append(pcond_files(src, n) if n > 1 else
+                                _timed([pcond, "-h", src], env, null))
+                for op in ops:
+                    outp = os.path.join(d, "o", op, "out.####.png" if n > 1 else "out.png")
+                    shutil.rmtree(os.path.dirname(outp), ignore_errors=True)
+                    ours[op].append(_timed(me + [src, outp, "--operator", op, "-q", *extra]))
+            pt, pm = float(np.median([p[0] for p in peer])), max(p[1] for p in peer)
             bound = 4 * frame_mib[size] + 300
-            for op in a.operators.split(","):
-                outp = os.path.join(d, "o", op, "out.####.png" if n > 1 else "out.png")
-                t, m = _timed(me + [src, outp, "--operator", op, "-q", *extra])
+            for op in ops:
+                t, m = float(np.median([r[0] for r in ours[op]])), max(r[1] for r in ours[op])
                 rows.append((what, op, f"{t:.2f}", f"{pt:.2f}", f"{pt / t:.2f}x",
                              f"{m:.0f}", f"{pm:.0f}", f"{bound:.0f}",
                              "within" if m <= bound else "over"))
@@ -119,10 +129,14 @@ def main(argv=None) -> int:
         shutil.rmtree(d, ignore_errors=True)
     L = ["# ocl-tonemap against Radiance's pcond -h", "",
          f"- command `python -m benchmarks.radiance_peer`; a night photograph with lamps "
-         f"({PHOTO}) at {LEVEL} cd/m^2 log-average as Radiance .hdr; this machine (2 cores, "
-         "PoCL CPU OpenCL); ours writes 8-bit PNG, pcond -h its .hdr (one process per frame)",
+         f"({PHOTO}) at {LEVEL} cd/m^2 log-average as Radiance .hdr; this machine "
+         f"({os.cpu_count()} cores, {cpu_model()}, PoCL CPU OpenCL); ours writes 8-bit PNG, "
+         "pcond -h its .hdr (one process per frame)",
+         f"- times: the median of {max(1, a.repeat)} runs each, ours and pcond's "
+         "interleaved (this machine's speed drifts by tens of percent between minutes)",
          "- speed: pcond's time / ours (> 1: ours faster); peak: maximum resident set (GNU "
-         "time), MiB; bound (issue 33): 4x the frame's float32 RGB + 300 MiB", "",
+         "time, the largest of the runs), MiB; bound (issue 33): 4x the frame's float32 "
+         "RGB + 300 MiB", "",
          "| work | operator (defaults) | ours s | pcond -h s | speed | ours peak | pcond peak "
          "| bound | memory |", "|---|---|---|---|---|---|---|---|---|"]
     write_markdown(a.out, L, rows)

@@ -23,6 +23,20 @@ def fmt_de(v) -> str:
         f"{v:.1f}"
 
 
+def cpu_model() -> str:
+    """The host CPU's model name (Linux ``/proc/cpuinfo``), else the machine type: the
+    peers' ratios move with it (a single-threaded peer gains most from a fast core)."""
+    import platform
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def write_markdown(path: str, lines: list, rows) -> None:
     """``lines`` (title, notes, the table's header) then ``rows`` as table rows, to ``path``
     (its folder made)."""
