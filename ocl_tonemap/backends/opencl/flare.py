@@ -16,18 +16,19 @@ from .. import flare_exec as fx
 from .image import DeviceImage
 from .runtime import round_up
 
-#: Bytes of device memory per pixel of the frame: source part, accumulator and
-#: blur scratch as float4 on the pyramid (4/3 of the frame each, the scratch 1),
-#: the frame in and out as float3.
+#: Bytes of device memory per pixel of the frame, at most (the pyramid written out:
+#: source part, accumulator and blur scratch as float4, 4/3 of the frame each, the
+#: scratch 1; the frame in and out as float3). The fused level 0 holds less: levels
+#: from 1 up (~11 bytes a pixel) and one band's planes.
 BYTES_PER_PIXEL = 16 * (4 / 3 + 4 / 3 + 1) + 24
 
 
 class DeviceFlare:
     """``apply(rgb, plan, lim)``: the fast flare of one frame on the device; its
     buffers come from the backend's pool (``buffer(name, nbytes)``, grown as needed),
-    and its pyramids go back to it after each frame (``release(prefix)``): ~70 bytes a
-    pixel that the operator and the later effects then do not hold beside their own
-    (a 1080p still's peak 488 -> 387 MiB on a CPU device)."""
+    and its pyramids and bands go back to it after each frame (``release(prefix)``),
+    levels 2 and up already before level 0: scratch that the operator and the later
+    effects then do not hold beside their own (on a CPU device, host memory)."""
 
     def __init__(self, rt, buffer, release=None, spare=None):
         import pyopencl as cl
