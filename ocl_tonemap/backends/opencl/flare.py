@@ -148,8 +148,9 @@ class DeviceFlare:
                     cl.enqueue_copy(q, a, ring)
                 have = True
             acc = a if have else None
-        d_out = (self._spare(12 * n) if resident and self._spare is not None else None) \
-            or self._buf("out", 12 * n)
+        d_out = self._spare(12 * n) if resident and self._spare is not None else None
+        if d_out is None:                       # (a Buffer's truth is not asked)
+            d_out = self._buf("out", 12 * n)
         if fused:
             if self._release is not None:       # level 0 needs level 1's accumulator only
                 self._release("flare:S", *(f"flare:acc{l}" for l in range(2, plan.top + 1)))
