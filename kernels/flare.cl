@@ -95,14 +95,6 @@ __kernel void flare_down_src(__global const float *rgb, const int w, const int h
                     partial + get_group_id(1) * get_num_groups(0) + get_group_id(0));
 }
 
-/* S of image rows r0 .. r0 + rows - 1 into a band (the fused level 0's). */
-__kernel void flare_source_rows(__global const float *rgb, const int w, const int r0,
-                                const int rows, const float lim, __global float4 *S)
-{
-    const int i = get_global_id(0);
-    if (i < rows * w) S[i] = source_part(rgb, (size_t)r0 * w + i, lim);
-}
-
 /* floor(i / 2) for any sign. */
 inline int half_floor(const int i) { return i >= 0 ? i / 2 : -((1 - i) / 2); }
 
@@ -197,98 +189,149 @@ __kernel void flare_finish(__global const float *rgb, __global const float4 *S,
     group_sum4(scratch, F, partial);
 }
 
-/* Level 0, fused (the frame's own resolution, where most of the work is): its
- * Gaussians along x all at once into nk planes of a band's rows, then the flared
- * frame straight from them (flare_finish0), without level 0's accumulator:
+/* Level 0, fused (the frame's own resolution, where most of the work is), built
+ * for the frame's Gaussians (-D by backends/opencl/flare.py from the plan: L0_NK
+ * Gaussians, radii L0_RADII, first taps L0_FIRST in L0_TAPS (taps[0] the centre),
+ * the largest radius L0_RMAX): tap loops of known length over a band padded with
+ * zeros (L0_RMAX columns either side, its rows beyond the image) have no branch, so
+ * the driver unrolls and vectorises them. The band's source part
+ * (flare_source_band), its Gaussians along x all at once into L0_NK planes
+ * (flare_blur0_x), then the flared frame straight from them (flare_finish0),
+ * without level 0's accumulator:
  *   out = rgb - S + max(a0 S + U(acc_1) + sum_k w_k G_k,y * tmp_k, 0)
- * (flare_up, flare_blur_y_add and flare_finish in one pass). kinfo[k]: (first tap,
- * radius) of Gaussian k in taps. S: the band's source part (flare_source_rows), rows
- * r0 .. of it for blur0_x; image rows t0 .. t0 + trows - 1 for finish0. */
-__kernel void flare_blur0_x(__global const float4 *S, const int w, const int r0,
-                            const int rows, __global float4 *tmp, __constant float *taps,
-                            __constant int2 *kinfo, const int nk)
+ * (flare_up, flare_blur_y_add and flare_finish in one pass). A band: image rows
+ * t0 .. t0 + trows - 1 (t0 = y0 - L0_RMAX: the rows y0 .. y0 + rows - 1 it flares and
+ * the halo its y taps reach), (w + 2 L0_RMAX) S samples a row. */
+#ifdef L0_NK
+#if L0_NK > 0
+__constant int l0_radius[L0_NK] = {L0_RADII};
+__constant int l0_first[L0_NK] = {L0_FIRST};
+__constant float l0_taps[] = {L0_TAPS};
+#endif
+
+/* S of a band (2D: padded column, row of the band); zero beyond the image. */
+__kernel void flare_source_band(__global const float *rgb, const int w, const int h,
+                                const int t0, const int trows, const float lim,
+                                __global float4 *S)
 {
-    const int x = get_global_id(0), yb = get_global_id(1);
-    if (x >= w || yb >= rows) return;
-    __global const float4 *row = S + (size_t)(r0 + yb) * w;
-    const size_t plane = (size_t)rows * w, o = (size_t)yb * w + x;
-    const float4 c = row[x];
-    for (int k = 0; k < nk; ++k) {
-        __constant float *t = taps + kinfo[k].x;
-        const int radius = kinfo[k].y;
-        float4 acc = t[0] * c;
-        if (x >= radius && x + radius < w) {
-            for (int r = 1; r <= radius; ++r) acc += t[r] * (row[x - r] + row[x + r]);
-        } else {
-            for (int r = 1; r <= radius; ++r) {
-                const float4 a = x - r >= 0 ? row[x - r] : (float4)(0.0f);
-                const float4 b = x + r < w ? row[x + r] : (float4)(0.0f);
-                acc += t[r] * (a + b);
-            }
-        }
-        tmp[k * plane + o] = acc;
-    }
+    const int xp = get_global_id(0), yb = get_global_id(1);
+    const int pw = w + 2 * L0_RMAX;
+    if (xp >= pw || yb >= trows) return;
+    const int x = xp - L0_RMAX, y = t0 + yb;
+    S[(size_t)yb * pw + xp] = (x >= 0 && x < w && y >= 0 && y < h)
+                                ? source_part(rgb, (size_t)y * w + x, lim) : (float4)(0.0f);
 }
 
-/* Rows y0 .. y0 + rows - 1 of the flared frame (2D: x, row of the band); tmp and S
- * hold image rows t0 .. t0 + trows - 1 (the band and its halo; rows outside the image
- * are zero). coarse: level 1's accumulator (cw x ch with margin cm), has_coarse 0: none.
- * partial[gbase + group]: the group's sum of the flare (r, g, b, 0), as flare_finish. */
+/* The four float4 pixels at p as one float16 (float4 loads: PoCL's vload16 is a call). */
+#define QUAD(p) ((float16)((p)[0], (p)[1], (p)[2], (p)[3]))
+
+/* Four pixels a work-item (2D: x / 4, row of the band) as float16 (r, g, b, 0 of
+ * each): a CPU driver runs work-items as a scalar loop, so the vectors are spelled
+ * out here (flare_finish0: 38 -> ~20 ms a 1080p frame on PoCL). Loads may reach
+ * past a short last quad (the buffers have 64 bytes to spare); only its pixels are
+ * stored. */
+__kernel void flare_blur0_x(__global const float4 *S, const int w, const int trows,
+                            __global float4 *tmp)
+{
+#if L0_NK > 0
+    const int x = 4 * get_global_id(0), yb = get_global_id(1);
+    if (x >= w || yb >= trows) return;
+    __global const float4 *row = S + (size_t)yb * (w + 2 * L0_RMAX) + L0_RMAX + x;
+    const size_t plane = (size_t)trows * w, o = (size_t)yb * w + x;
+    const float16 c = QUAD(row);
+#pragma unroll
+    for (int k = 0; k < L0_NK; ++k) {
+        __constant float *t = l0_taps + l0_first[k];
+        float16 acc = t[0] * c;
+#pragma unroll
+        for (int r = 1; r <= l0_radius[k]; ++r)
+            acc += t[r] * (QUAD(row - r) + QUAD(row + r));
+        __global float4 *dst = tmp + k * plane + o;
+        if (x + 3 < w) {
+            dst[0] = acc.s0123;
+            dst[1] = acc.s4567;
+            dst[2] = acc.s89ab;
+            dst[3] = acc.scdef;
+        } else {
+            dst[0] = acc.s0123;
+            if (x + 1 < w) dst[1] = acc.s4567;
+            if (x + 2 < w) dst[2] = acc.s89ab;
+        }
+    }
+#endif
+}
+
+/* Rows y0 .. y0 + rows - 1 of the flared frame (2D: x / 4, row of the band; four
+ * pixels a work-item as flare_blur0_x), from the band (S, tmp: image rows t0 ..).
+ * coarse: level 1's accumulator (cw x ch with margin cm), has_coarse 0: none. kw: the
+ * Gaussians' weights (the pupil's). partial[gbase + group]: the group's sum of the
+ * flare (r, g, b, 0), as flare_finish. */
 __kernel void flare_finish0(__global const float *rgb, __global const float4 *S, const int w,
-                            const int h, const int y0, const int rows,
-                            __global const float4 *tmp, const int t0, const int trows,
-                            __constant float *taps, __constant int2 *kinfo,
-                            __constant float *kw, const int nk,
+                            const int y0, const int rows, __global const float4 *tmp,
+                            const int t0, const int trows, __constant float *kw,
                             __global const float4 *coarse, const int cw, const int ch,
                             const int cm, const int has_coarse, const float a0,
                             __global float *out, __global float4 *partial, const int gbase,
                             __local float4 *scratch)
 {
-    const int x = get_global_id(0), yb = get_global_id(1);
-    float4 F = (float4)(0.0f);
+    const int x = 4 * get_global_id(0), yb = get_global_id(1);
+    float4 Fsum = (float4)(0.0f);
     if (x < w && yb < rows) {
-        const int y = y0 + yb;
+        const int y = y0 + yb, ty = y - t0;
         const size_t p = (size_t)y * w + x;
-        const float4 s = S[(size_t)(y - t0) * w + x];           /* S: the band's rows */
-        F = a0 * s;
-        if (has_coarse) {                 /* flare_up at (x, y): level 0 has no margin */
-            const int ji = half_floor(y), jk = half_floor(x);
+        const float16 s = QUAD(S + (size_t)ty * (w + 2 * L0_RMAX) + L0_RMAX + x);
+        float16 F = a0 * s;
+        if (has_coarse) {   /* flare_up at x .. x + 3 (level 0 has no margin): coarse
+                             * columns x/2 - 1 .. x/2 + 2, each pixel its nearest two */
+            const int ji = half_floor(y);
             const int ni = (y - 2 * ji) == 0 ? ji - 1 : ji + 1;
-            const int nk_ = (x - 2 * jk) == 0 ? jk - 1 : jk + 1;
             const int q0 = clamp(ji + cm, 0, ch - 1), q1 = clamp(ni + cm, 0, ch - 1);
-            const int c0 = clamp(jk + cm, 0, cw - 1), c1 = clamp(nk_ + cm, 0, cw - 1);
-            const float4 a = 0.75f * coarse[(size_t)q0 * cw + c0] + 0.25f * coarse[(size_t)q1 * cw + c0];
-            const float4 b = 0.75f * coarse[(size_t)q0 * cw + c1] + 0.25f * coarse[(size_t)q1 * cw + c1];
-            F += 0.75f * a + 0.25f * b;
-        }
-        const size_t plane = (size_t)trows * w;
-        const int ty = y - t0;
-        for (int k = 0; k < nk; ++k) {
-            __constant float *t = taps + kinfo[k].x;
-            const int radius = kinfo[k].y;
-            __global const float4 *col = tmp + k * plane + x;
-            float4 g = t[0] * col[(size_t)ty * w];
-            if (y >= radius && y + radius < h) {
-                for (int r = 1; r <= radius; ++r)
-                    g += t[r] * (col[(size_t)(ty - r) * w] + col[(size_t)(ty + r) * w]);
-            } else {
-                for (int r = 1; r <= radius; ++r) {
-                    const float4 a = y - r >= 0 ? col[(size_t)(ty - r) * w] : (float4)(0.0f);
-                    const float4 b = y + r < h ? col[(size_t)(ty + r) * w] : (float4)(0.0f);
-                    g += t[r] * (a + b);
-                }
+            float4 a[4];
+            for (int j = 0; j < 4; ++j) {
+                const int c = clamp(x / 2 - 1 + j + cm, 0, cw - 1);
+                a[j] = 0.75f * coarse[(size_t)q0 * cw + c] + 0.25f * coarse[(size_t)q1 * cw + c];
             }
+            F += (float16)(0.75f * a[1] + 0.25f * a[0], 0.75f * a[1] + 0.25f * a[2],
+                           0.75f * a[2] + 0.25f * a[1], 0.75f * a[2] + 0.25f * a[3]);
+        }
+#if L0_NK > 0
+        const size_t plane = (size_t)trows * w;
+#pragma unroll
+        for (int k = 0; k < L0_NK; ++k) {
+            __constant float *t = l0_taps + l0_first[k];
+            __global const float4 *col = tmp + k * plane + (size_t)ty * w + x;
+            float16 g = t[0] * QUAD(col);
+#pragma unroll
+            for (int r = 1; r <= l0_radius[k]; ++r)
+                g += t[r] * (QUAD(col - (size_t)r * w) + QUAD(col + (size_t)r * w));
             F += kw[k] * g;
         }
-        F = fmax(F, (float4)(0.0f));
-        F.w = 0.0f;
-        const size_t o = 3 * p;
-        out[o] = rgb[o] - s.x + F.x;
-        out[o + 1] = rgb[o + 1] - s.y + F.y;
-        out[o + 2] = rgb[o + 2] - s.z + F.z;
+#endif
+        F = fmax(F, (float16)(0.0f));
+        __global const float *in = rgb + 3 * p;
+        __global float *o = out + 3 * p;
+        if (x + 3 < w && (p & 3) == 0) {  /* 12 floats at a multiple of 16 bytes */
+            __global const float4 *in4 = (__global const float4 *)in;
+            __global float4 *o4 = (__global float4 *)o;
+            o4[0] = in4[0] - (float4)(s.s0, s.s1, s.s2, s.s4) + (float4)(F.s0, F.s1, F.s2, F.s4);
+            o4[1] = in4[1] - (float4)(s.s5, s.s6, s.s8, s.s9) + (float4)(F.s5, F.s6, F.s8, F.s9);
+            o4[2] = in4[2] - (float4)(s.sa, s.sc, s.sd, s.se) + (float4)(F.sa, F.sc, F.sd, F.se);
+            Fsum = (F.s0123 + F.s4567) + (F.s89ab + F.scdef);
+        } else {                        /* a row's last 1-3 pixels, or w not 4k */
+            float fs[16], ss[16];
+            vstore16(F, 0, fs);
+            vstore16(s, 0, ss);
+            for (int j = 0; j < min(4, w - x); ++j) {
+                for (int c = 0; c < 3; ++c)
+                    o[3 * j + c] = in[3 * j + c] - ss[4 * j + c] + fs[4 * j + c];
+                Fsum += vload4(j, fs);
+            }
+        }
+        Fsum.w = 0.0f;
     }
     /* the group's sum (2D groups: flat local index) */
-    group_sum4_into(scratch, F, get_local_id(1) * get_local_size(0) + get_local_id(0),
+    group_sum4_into(scratch, Fsum, get_local_id(1) * get_local_size(0) + get_local_id(0),
                     get_local_size(0) * get_local_size(1),
                     partial + gbase + get_group_id(1) * get_num_groups(0) + get_group_id(0));
 }
+#endif

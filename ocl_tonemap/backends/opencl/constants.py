@@ -35,7 +35,10 @@ COMMON = (
 
 
 def define_value(v) -> str:
-    """A -D value: ints as they are, floats as float32 literals that round-trip."""
+    """A -D value: ints as they are, floats as float32 literals that round-trip, a
+    tuple as its items' values joined by commas (an array's initialiser)."""
+    if isinstance(v, tuple):
+        return ",".join(define_value(x) for x in v)
     if isinstance(v, (bool, int)):
         return str(int(v))
     import numpy as np

@@ -39,8 +39,7 @@ class DeviceFlare:
         #: stage's spent upload buffer: ``OpenCLBackend._spare_frame``), or None
         self._spare = spare
         names = ("flare_source", "flare_down", "flare_up", "flare_blur_x", "flare_blur_y_add",
-                 "flare_add", "flare_finish", "flare_blur0_x", "flare_finish0",
-                 "flare_down_src", "flare_source_rows")
+                 "flare_add", "flare_finish", "flare_down_src")
         self._k = {n: rt.kernel("flare.cl", n) for n in names}
         wg = int(rt.device.max_work_group_size)
         self.local = 1 << (min(256, max(1, wg)).bit_length() - 1)
@@ -173,28 +172,35 @@ class DeviceFlare:
     #: planes: 16 bytes a pixel each, with the halo rows the y taps reach).
     BAND0_PIXELS = 1 << 17
 
+    #: Level 0's kernels, built for a frame's Gaussians (their count, radii and taps
+    #: as compile-time constants: kernels/flare.cl, L0_*), kept per set of widths.
+    LEVEL0_KERNELS = ("flare_source_band", "flare_blur0_x", "flare_finish0")
+
     def _level0(self, plan: fl.FastPlan):
-        """(taps buffer, (first tap, radius) buffer, weights buffer, count, largest
-        radius) of level 0's Gaussians; the taps are kept per set of widths (a frame
-        size's), the weights (the pupil's) made per frame."""
+        """(kernels, weights buffer, count, largest radius) of level 0's Gaussians: the
+        kernels built per set of widths (a frame size's), the weights (the pupil's)
+        made per frame."""
         import pyopencl as cl
         gs = plan.by_level.get(0, [])
-        ro = cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
         key = ("level0",) + tuple(float(sc) for sc, _ in gs)
         if key not in self._taps:
-            taps, info = [], []
+            taps, first, radii = [], [], []
             for sc, _ in gs:
                 t = np.asarray(gaussian_taps(sc), np.float32)
-                info.append((len(taps), len(t) - 1))
-                taps.extend(t.tolist())
-            self._taps[key] = (
-                cl.Buffer(self.rt.context, ro, hostbuf=np.asarray(taps or [0.0], np.float32)),
-                cl.Buffer(self.rt.context, ro, hostbuf=np.asarray(info or [(0, 0)], np.int32)),
-                max([r for _, r in info], default=0))
-        taps, info, R = self._taps[key]
-        wts = cl.Buffer(self.rt.context, ro,
+                first.append(len(taps))
+                radii.append(len(t) - 1)
+                taps.extend(float(v) for v in t)
+            R = max(radii, default=0)
+            defines = (("L0_NK", len(gs)), ("L0_RMAX", R))
+            if gs:
+                defines += (("L0_RADII", tuple(radii)), ("L0_FIRST", tuple(first)),
+                            ("L0_TAPS", tuple(taps)))
+            self._taps[key] = ({n: self.rt.kernel("flare.cl", n, defines)
+                                for n in self.LEVEL0_KERNELS}, R)
+        kern, R = self._taps[key]
+        wts = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                         hostbuf=np.asarray([wk for _, wk in gs] or [0.0], np.float32))
-        return taps, info, wts, len(gs), R
+        return kern, wts, len(gs), R
 
     def _release_scratch(self) -> None:
         """The pyramids and bands go back to the pool: scratch of this frame only."""
@@ -203,35 +209,35 @@ class DeviceFlare:
 
     def _finish0(self, d_rgb, lim: float, acc1, stored, plan, h: int, w: int, d_out):
         """Level 0 and the flared frame, band by band: the band's source part
-        (``flare_source_rows``), its Gaussians along x (``flare_blur0_x``) and the flared
-        rows (``flare_finish0``): no level-0 source part, accumulator or planes beyond
-        one band's. Returns the buffer of the flare's per-group sums (all bands) and
-        their count."""
-        q, k, L = self.rt.queue, self._k, self.local
-        taps, info, wts, nk, R = self._level0(plan)
+        (``flare_source_band``, padded with zeros), its Gaussians along x
+        (``flare_blur0_x``) and the flared rows (``flare_finish0``): no level-0 source
+        part, accumulator or planes beyond one band's. Returns the buffer of the
+        flare's per-group sums (all bands) and their count."""
+        q, L = self.rt.queue, self.local
+        k, wts, nk, R = self._level0(plan)
         rows = max(1, min(h, self.BAND0_PIXELS // max(w, 1)))
         bands = [(y0, min(h, y0 + rows)) for y0 in range(0, h, rows)]
-        gcount = [(round_up(w, 16) // 16) * (round_up(y1 - y0, 4) // 4) for y0, y1 in bands]
+        quads = (w + 3) // 4                    # blur0_x and finish0: 4 pixels an item
+        gcount = [(round_up(quads, 16) // 16) * (round_up(y1 - y0, 4) // 4) for y0, y1 in bands]
         part = self._buf("partial0", 16 * sum(gcount))
-        most = w * min(h, rows + 2 * R)
-        tmp = self._buf("tmp", 16 * max(nk, 1) * most)
-        S0 = self._buf("Sband", 16 * most)
+        trows_most = min(h, rows) + 2 * R
+        # (+ 64 bytes: a short last quad's loads reach past the row)
+        tmp = self._buf("tmp", 16 * max(nk, 1) * w * trows_most + 64)
+        S0 = self._buf("Sband", 16 * (w + 2 * R) * trows_most + 64)
         ch, cw = stored[1] if acc1 is not None else (1, 1)
         cm = fx.level_margin(1)
         gbase = 0
         for (y0, y1), g in zip(bands, gcount):
-            t0, t1 = max(0, y0 - R), min(h, y1 + R)
-            nb = (t1 - t0) * w
-            k["flare_source_rows"](q, (round_up(nb, L),), (L,), d_rgb, np.int32(w),
-                                   np.int32(t0), np.int32(t1 - t0), np.float32(lim), S0)
+            t0, trows = y0 - R, (y1 - y0) + 2 * R
+            k["flare_source_band"](q, (round_up(w + 2 * R, 16), round_up(trows, 4)), (16, 4),
+                                   d_rgb, np.int32(w), np.int32(h), np.int32(t0),
+                                   np.int32(trows), np.float32(lim), S0)
             if nk:
-                k["flare_blur0_x"](q, (round_up(w, 16), round_up(t1 - t0, 4)), (16, 4), S0,
-                                   np.int32(w), np.int32(0), np.int32(t1 - t0), tmp, taps,
-                                   info, np.int32(nk))
-            k["flare_finish0"](q, (round_up(w, 16), round_up(y1 - y0, 4)), (16, 4), d_rgb,
-                               S0, np.int32(w), np.int32(h),
-                               np.int32(y0), np.int32(y1 - y0), tmp, np.int32(t0),
-                               np.int32(t1 - t0), taps, info, wts, np.int32(nk),
+                k["flare_blur0_x"](q, (round_up(quads, 16), round_up(trows, 4)), (16, 4), S0,
+                                   np.int32(w), np.int32(trows), tmp)
+            k["flare_finish0"](q, (round_up(quads, 16), round_up(y1 - y0, 4)), (16, 4), d_rgb,
+                               S0, np.int32(w), np.int32(y0), np.int32(y1 - y0), tmp,
+                               np.int32(t0), np.int32(trows), wts,
                                acc1 if acc1 is not None else S0, np.int32(cw), np.int32(ch),
                                np.int32(cm), np.int32(0 if acc1 is None else 1),
                                np.float32(plan.a0), d_out, part, np.int32(gbase),
