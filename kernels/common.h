@@ -42,6 +42,44 @@
  * ledda04_step4 at 0.40 of the copy roofline, one an item runs it at 1.09). The host
  * launches Runtime.pixel_items(n, K) items. */
 #define ITEM_PIXELS(K) (VECTOR_PIXELS ? (K) : 1)
+
+/* fmax, fmin and clamp inline on CPU devices. PoCL as pyopencl's wheel ships it calls
+ * these built-ins out of line: perf put ~5% of a 1080p sequence's CPU in _cl_clamp,
+ * _cl_fmax and _cl_fmin, and a call keeps the driver from vectorising a loop across
+ * work-items. Here they are overloaded inline functions with the built-ins' values:
+ * fmax/fmin give the other argument where one is NaN, clamp(x, lo, hi) =
+ * fmin(fmax(x, lo), hi) (NaN -> lo), as the OpenCL C specification defines them; for
+ * integers clamp is min(max(x, lo), hi). GPU compilers inline their own. */
+#if DEVICE_CPU
+#define OCLTM_FMINMAX(T) \
+    __attribute__((overloadable)) inline T ocltm_fmax(const T a, const T b) \
+    { return (a >= b || b != b) ? a : b; } \
+    __attribute__((overloadable)) inline T ocltm_fmin(const T a, const T b) \
+    { return (a <= b || b != b) ? a : b; } \
+    __attribute__((overloadable)) inline T ocltm_clamp(const T x, const T lo, const T hi) \
+    { return ocltm_fmin(ocltm_fmax(x, lo), hi); }
+#define OCLTM_FMINMAX_V(T) OCLTM_FMINMAX(T) \
+    __attribute__((overloadable)) inline T ocltm_fmax(const T a, const float b) \
+    { return ocltm_fmax(a, (T)(b)); } \
+    __attribute__((overloadable)) inline T ocltm_fmin(const T a, const float b) \
+    { return ocltm_fmin(a, (T)(b)); } \
+    __attribute__((overloadable)) inline T ocltm_clamp(const T x, const float lo, const float hi) \
+    { return ocltm_clamp(x, (T)(lo), (T)(hi)); }
+#define OCLTM_ICLAMP(T) \
+    __attribute__((overloadable)) inline T ocltm_clamp(const T x, const T lo, const T hi) \
+    { const T a = x > lo ? x : lo; return a < hi ? a : hi; }
+OCLTM_FMINMAX(float)
+OCLTM_FMINMAX_V(float2)
+OCLTM_FMINMAX_V(float3)
+OCLTM_FMINMAX_V(float4)
+OCLTM_FMINMAX_V(float8)
+OCLTM_FMINMAX_V(float16)
+OCLTM_ICLAMP(int)
+OCLTM_ICLAMP(int4)
+#define fmax ocltm_fmax
+#define fmin ocltm_fmin
+#define clamp ocltm_clamp
+#endif
 /* The sum of a work-group's float4 records (v: this work-item's; lid, lsz: its flat
  * local index and the group's size, a power of two; scratch: one float4 per
  * work-item) into *slot. The host adds the groups (in float64). */
@@ -107,8 +145,29 @@ inline float4 scotopic_luminance4(const float4 r, const float4 g, const float4 b
 {
     const float4 X = M_XR * r + M_XG * g + M_XB * b;
     const float4 Z = M_ZR * r + M_ZG * g + M_ZB * b;
-    const float4 ys = fmax(Y * (WARD97_GAIN * (1.0f + (Y + Z) / X) - WARD97_OFFSET), 0.0f);
-    return select((float4)(0.0f), ys, isgreater(X, (float4)(0.0f)));
+    const float4 ys = Y * (WARD97_GAIN * (1.0f + (Y + Z) / X) - WARD97_OFFSET);
+    const float4 zero = (float4)(0.0f);
+    /* fmax(ys, 0) where X > 0, else 0, as vector selects (fmax, select: PoCL calls) */
+    return X > zero ? (ys > zero ? ys : zero) : zero;
+}
+
+/* log2 of four positive normal floats, inline: PoCL (pyopencl's wheel) calls its log2
+ * out of line, and the call cost meter_partial more than its sums (perf). The
+ * exponent from the bits; the mantissa m, taken to [sqrt(1/2), sqrt(2)), by the
+ * series log2 m = 2/ln2 (t + t^3/3 + ... + t^9/9), t = (m - 1)/(m + 1), |t| < 0.172:
+ * the first term left out is below 3e-10; float32 rounding dominates (within 1.2e-7
+ * of max(1, |log2 x|) from 1e-6 to 1e10: tests/backends/test_opencl_vs_reference.py). */
+inline float4 log2_positive4(const float4 x)
+{
+    const int4 bits = as_int4(x);
+    const int4 big = (bits & 0x007fffff) > 0x003504f3;          /* m > sqrt(2): -1 */
+    const float4 m = as_float4(((bits & 0x007fffff) | 0x3f800000) - (big & 0x00800000));
+    const int4 e = ((bits >> 23) & 0xff) - 127 - big;
+    const float4 t = (m - 1.0f) / (m + 1.0f), t2 = t * t;
+    const float c = 2.0f * M_LOG2E_F;                            /* 2 / ln 2 */
+    const float4 p = c * t * (1.0f + t2 * (1.0f / 3.0f + t2 * (1.0f / 5.0f
+                     + t2 * (1.0f / 7.0f + t2 * (1.0f / 9.0f)))));
+    return (as_float4(e + 0x4b400000) - 0x1.8p23f) + p;      /* (float)e, |e| < 2^22 */
 }
 
 /* x^e for x > 0 as exp2(e*log2(x)): PoCL's scalar pow() is much slower. */

@@ -71,8 +71,8 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
     float mY = 0.0f, mYs = 0.0f;
     int start = get_global_id(0);
     if (mode == 0) {
-        /* uniform weights: four pixels at a time in float4 (PoCL vectorises log2
-         * on float4, not scalar log across work-items: 8x faster), ln = log2 ln2 */
+        /* uniform weights: four pixels at a time in float4 (PoCL does not vectorise
+         * scalar log across work-items), ln = log2 ln2, log2 inline (common.h) */
         float4 s1 = 0.0f, s2 = 0.0f, s3 = 0.0f, s4 = 0.0f;
         float4 c1 = 0.0f, c2 = 0.0f, c3 = 0.0f, c4 = 0.0f;
         float4 m1 = 0.0f, m2 = 0.0f;
@@ -85,12 +85,12 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
             float4 v, y, t;
 #define KAHAN4(S, C, V) v = (V); y = v - C; t = S + y; C = (t - S) - y; S = t;
             KAHAN4(s1, c1, l)
-            KAHAN4(s2, c2, log2(fmax(l, lf)) * M_LN2_F)
+            KAHAN4(s2, c2, log2_positive4(l > lf ? l : lf) * M_LN2_F)
             KAHAN4(s3, c3, ls)
-            KAHAN4(s4, c4, log2(fmax(ls, lf)) * M_LN2_F)
+            KAHAN4(s4, c4, log2_positive4(ls > lf ? ls : lf) * M_LN2_F)
 #undef KAHAN4
-            m1 = fmax(m1, l);
-            m2 = fmax(m2, ls);
+            m1 = l > m1 ? l : m1;                       /* (fmax: a call on PoCL) */
+            m2 = ls > m2 ? ls : m2;
         }
         s[0] = qb > qa ? 4.0f * (float)((qb - qa + qs - 1) / qs) : 0.0f;   /* pixels */
         s[1] = (s1.x + s1.y) + (s1.z + s1.w);

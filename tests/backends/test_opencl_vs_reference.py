@@ -312,3 +312,28 @@ def test_one_pixel_a_work_item_equals_the_vector_path(tmp_path):
         b = got["1"][key]
         assert np.isfinite(a).all(), key
         np.testing.assert_allclose(a, b, rtol=2e-6, atol=1e-7, err_msg=key)
+
+
+def test_inline_log2_within_float32_rounding_of_log2(rt):
+    """common.h log2_positive4 (metering's log-average; PoCL calls its own log2 out of
+    line): within 1.2e-7 of max(1, |log2 x|) from metering's floor (1e-6 cd/m^2) to
+    1e10, the mantissa's fold at sqrt(2), powers of two and values just beside them."""
+    import pyopencl as cl
+    from ocl_tonemap.backends.opencl.runtime import build_options, kernel_dir
+    src = (kernel_dir() / "common.h").read_text() + """
+__kernel void log2_test(__global const float *x, __global float *y)
+{ const int i = get_global_id(0); vstore4(log2_positive4(vload4(i, x)), i, y); }"""
+    prog = cl.Program(rt.context, src).build(options=build_options(rt.device))
+    r2 = np.float32(np.sqrt(2.0))
+    special = np.array([1e-6, 1.0, 2.0, 0.5, 1e10, r2, np.nextafter(r2, 2), np.nextafter(r2, 0),
+                        np.nextafter(np.float32(1), 0), np.nextafter(np.float32(2), 0)], np.float32)
+    x = np.concatenate([np.geomspace(1e-6, 1e10, 400_000).astype(np.float32), special,
+                        np.ones(2, np.float32)])
+    d_x = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=x)
+    d_y = cl.Buffer(rt.context, cl.mem_flags.WRITE_ONLY, x.nbytes)
+    cl.Kernel(prog, "log2_test")(rt.queue, (x.size // 4,), None, d_x, d_y)
+    y = np.empty_like(x)
+    cl.enqueue_copy(rt.queue, y, d_y)
+    ref = np.log2(x.astype(np.float64))
+    assert np.max(np.abs(y - ref) / np.maximum(np.abs(ref), 1.0)) < 1.2e-7
+    assert y[np.flatnonzero(x == 1.0)].tolist() == [0.0] * 3 and y[x == 2.0][0] == 1.0
