@@ -150,9 +150,10 @@ __kernel void apply_gains(__global float *rgb, __global float *Y, const int n,
 {
     const int i = get_global_id(0);
     if (i >= n) return;
-    const float3 c = vload3(i, rgb) * (float3)(gr, gg, gb);
-    vstore3(c, i, rgb);
-    Y[i] = M_YR * c.x + M_YG * c.y + M_YB * c.z;
+    __global float *p = rgb + 3 * (size_t)i;    /* (vload3, vstore3: calls on PoCL) */
+    const float r = p[0] * gr, g = p[1] * gg, b = p[2] * gb;
+    p[0] = r; p[1] = g; p[2] = b;
+    Y[i] = M_YR * r + M_YG * g + M_YB * b;
 }
 
 /* Spectral radiance to LMSR in one pass (kirk11, Eq. 8; host side

@@ -43,7 +43,7 @@
  * launches Runtime.pixel_items(n, K) items. */
 #define ITEM_PIXELS(K) (VECTOR_PIXELS ? (K) : 1)
 
-/* fmax, fmin and clamp inline on CPU devices. PoCL as pyopencl's wheel ships it calls
+/* fmax, fmin, clamp, select and comparisons inline on CPU devices. PoCL as pyopencl's wheel ships it calls
  * these built-ins out of line: perf put ~5% of a 1080p sequence's CPU in _cl_clamp,
  * _cl_fmax and _cl_fmin, and a call keeps the driver from vectorising a loop across
  * work-items. Here they are overloaded inline functions with the built-ins' values:
@@ -79,6 +79,14 @@ OCLTM_ICLAMP(int4)
 #define fmax ocltm_fmax
 #define fmin ocltm_fmin
 #define clamp ocltm_clamp
+/* select and the ordered comparisons as the operators they equal: a vector ?: takes
+ * each lane by its condition's most significant bit, as select does; comparisons give
+ * -1 / 0 lanes (1 / 0 for scalars) and false where a NaN is compared, as these do. */
+#define select(a, b, c) ((c) ? (b) : (a))
+#define isgreater(a, b) ((a) > (b))
+#define isgreaterequal(a, b) ((a) >= (b))
+#define isless(a, b) ((a) < (b))
+#define islessequal(a, b) ((a) <= (b))
 #endif
 /* The sum of a work-group's float4 records (v: this work-item's; lid, lsz: its flat
  * local index and the group's size, a power of two; scratch: one float4 per
@@ -204,9 +212,19 @@ inline float3 shoulder3(float3 c, const float inv_white, const float knee)
 
 /* Four pixels at a time, their channels apart (r, g, b hold pixels 4q .. 4q+3):
  * twelve interleaved floats in and out, and shoulder3 on each of the four. */
+/* The 12 floats of quad q (four RGB pixels) as float4 loads and stores where they
+ * start at a multiple of 16 bytes (a whole buffer's quads), else vload4/vstore4 (a
+ * band's offset): PoCL calls vload4 and vstore4 out of line. */
 inline void load_rgb4(const int q, __global const float *rgb, float4 *r, float4 *g, float4 *b)
 {
-    const float4 a0 = vload4(3 * q, rgb), a1 = vload4(3 * q + 1, rgb), a2 = vload4(3 * q + 2, rgb);
+    __global const float *p = rgb + 12 * (size_t)q;
+    float4 a0, a1, a2;
+    if (((size_t)p & 15) == 0) {
+        __global const float4 *p4 = (__global const float4 *)p;
+        a0 = p4[0]; a1 = p4[1]; a2 = p4[2];
+    } else {
+        a0 = vload4(0, p); a1 = vload4(1, p); a2 = vload4(2, p);
+    }
     *r = (float4)(a0.x, a0.w, a1.z, a2.y);
     *g = (float4)(a0.y, a1.x, a1.w, a2.z);
     *b = (float4)(a0.z, a1.y, a2.x, a2.w);
@@ -215,15 +233,21 @@ inline void load_rgb4(const int q, __global const float *rgb, float4 *r, float4 
 inline void store_rgb4(const int q, __global float *rgb, const float4 r, const float4 g,
                        const float4 b)
 {
-    vstore4((float4)(r.x, g.x, b.x, r.y), 3 * q, rgb);
-    vstore4((float4)(g.y, b.y, r.z, g.z), 3 * q + 1, rgb);
-    vstore4((float4)(b.z, r.w, g.w, b.w), 3 * q + 2, rgb);
+    __global float *p = rgb + 12 * (size_t)q;
+    const float4 a0 = (float4)(r.x, g.x, b.x, r.y), a1 = (float4)(g.y, b.y, r.z, g.z),
+                 a2 = (float4)(b.z, r.w, g.w, b.w);
+    if (((size_t)p & 15) == 0) {
+        __global float4 *p4 = (__global float4 *)p;
+        p4[0] = a0; p4[1] = a1; p4[2] = a2;
+    } else {
+        vstore4(a0, 0, p); vstore4(a1, 1, p); vstore4(a2, 2, p);
+    }
 }
 
 inline float4 shoulder_curve4(const float4 x, const float knee)
 {
     const float4 t = (x - knee) / (1.0f - knee);
-    return select(x, knee + (1.0f - knee) * t / (1.0f + t), isgreater(x, (float4)(knee)));
+    return x > (float4)(knee) ? knee + (1.0f - knee) * t / (1.0f + t) : x;   /* (select: a call) */
 }
 
 /* shoulder3 of four pixels: the same steps, each pixel's branches as selects. */
@@ -233,8 +257,8 @@ inline void shoulder4(float4 *r, float4 *g, float4 *b, const float inv_white, co
     const float4 cr = fmax(*r * inv_white, 0.0f), cg = fmax(*g * inv_white, 0.0f),
                  cb = fmax(*b * inv_white, 0.0f);
     const float4 m = fmax(fmax(cr, cg), cb);
-    const int4 bright = isgreater(m, (float4)(knee));
-    if (!any(bright)) {                        /* the common case: all four below the knee */
+    const int4 bright = m > (float4)(knee);    /* (isgreater, any: calls on PoCL) */
+    if (!(bright.x | bright.y | bright.z | bright.w)) {   /* all four below the knee */
         *r = cr / inv_white; *g = cg / inv_white; *b = cb / inv_white;
         return;
     }

@@ -156,9 +156,9 @@ inline void shift_gamut4(const float4 l, const float4 m, const float4 s, const f
     const float4 pz = Minv[6] * qx + Minv[7] * qy + Minv[8] * qz;
     const float4 pn = fmax(qx + qy, 0.0f) / (M[0] + M[1] + M[2] + M[3] + M[4] + M[5]);
     float4 t = (float4)(1.0f);
-    t = select(t, fmin(t, pn / (pn - px)), px < 0.0f);
-    t = select(t, fmin(t, pn / (pn - py)), py < 0.0f);
-    t = select(t, fmin(t, pn / (pn - pz)), pz < 0.0f);
+    t = px < 0.0f ? fmin(t, pn / (pn - px)) : t;     /* (select: a call on PoCL) */
+    t = py < 0.0f ? fmin(t, pn / (pn - py)) : t;
+    t = pz < 0.0f ? fmin(t, pn / (pn - pz)) : t;
     t = clamp(t, 0.0f, 1.0f);
     *pr = fmax(pn + t * (px - pn), 0.0f);
     *pg = fmax(pn + t * (py - pn), 0.0f);
@@ -184,11 +184,8 @@ __kernel void purkinje_rgb(__global float *rgb, const int n, __constant float *H
     const int q = get_global_id(0), lid = get_local_id(0), i0 = ITEM_PIXELS(4) * q;
     int fb = 0;
     if (VECTOR_PIXELS && i0 + 3 < n) {                  /* four pixels, a lane each */
-        const float4 a0 = vload4(3 * q, rgb), a1 = vload4(3 * q + 1, rgb),
-                     a2 = vload4(3 * q + 2, rgb);
-        const float4 r = (float4)(a0.x, a0.w, a1.z, a2.y);
-        const float4 g = (float4)(a0.y, a1.x, a1.w, a2.z);
-        const float4 b = (float4)(a0.z, a1.y, a2.x, a2.w);
+        float4 r, g, b;
+        load_rgb4(q, rgb, &r, &g, &b);
         float4 pr, pg, pb;
         int4 f;
         shift_gamut4(H[0] * r + H[1] * g + H[2] * b, H[3] * r + H[4] * g + H[5] * b,
@@ -197,11 +194,7 @@ __kernel void purkinje_rgb(__global float *rgb, const int n, __constant float *H
         const float4 yp = M_YR * pr + M_YG * pg + M_YB * pb;
         const float4 k = (M_YR * r + M_YG * g + M_YB * b) / yp;
         const int4 keep = yp > 0.0f;
-        const float4 orr = select(r, pr * k, keep), og = select(g, pg * k, keep),
-                     ob = select(b, pb * k, keep);
-        vstore4((float4)(orr.x, og.x, ob.x, orr.y), 3 * q, rgb);
-        vstore4((float4)(og.y, ob.y, orr.z, og.z), 3 * q + 1, rgb);
-        vstore4((float4)(ob.z, orr.w, og.w, ob.w), 3 * q + 2, rgb);
+        store_rgb4(q, rgb, keep ? pr * k : r, keep ? pg * k : g, keep ? pb * k : b);
         fb = -(f.x + f.y + f.z + f.w);
     } else {
         for (int i = i0; i < min(i0 + ITEM_PIXELS(4), n); ++i) {
