@@ -49,7 +49,9 @@
  * work-items. Here they are overloaded inline functions with the built-ins' values:
  * fmax/fmin give the other argument where one is NaN, clamp(x, lo, hi) =
  * fmin(fmax(x, lo), hi) (NaN -> lo), as the OpenCL C specification defines them; for
- * integers clamp is min(max(x, lo), hi). GPU compilers inline their own. */
+ * integers clamp is min(max(x, lo), hi). GPU compilers inline their own. (PoCL's
+ * headers map these names to its _cl_* functions by macros: #undef first, or its
+ * compiler warns on every build.) */
 #if DEVICE_CPU
 #define OCLTM_FMINMAX(T) \
     __attribute__((overloadable)) inline T ocltm_fmax(const T a, const T b) \
@@ -76,16 +78,24 @@ OCLTM_FMINMAX_V(float8)
 OCLTM_FMINMAX_V(float16)
 OCLTM_ICLAMP(int)
 OCLTM_ICLAMP(int4)
+#undef fmax
 #define fmax ocltm_fmax
+#undef fmin
 #define fmin ocltm_fmin
+#undef clamp
 #define clamp ocltm_clamp
 /* select and the ordered comparisons as the operators they equal: a vector ?: takes
  * each lane by its condition's most significant bit, as select does; comparisons give
  * -1 / 0 lanes (1 / 0 for scalars) and false where a NaN is compared, as these do. */
+#undef select
 #define select(a, b, c) ((c) ? (b) : (a))
+#undef isgreater
 #define isgreater(a, b) ((a) > (b))
+#undef isgreaterequal
 #define isgreaterequal(a, b) ((a) >= (b))
+#undef isless
 #define isless(a, b) ((a) < (b))
+#undef islessequal
 #define islessequal(a, b) ((a) <= (b))
 #endif
 /* The sum of a work-group's float4 records (v: this work-item's; lid, lsz: its flat
