@@ -91,14 +91,8 @@ __kernel void scene_to_working4(__global const float *src, const int channels, c
     if (VECTOR_PIXELS && i0 + 3 < n && (channels == 3 || channels == 4)) {   /* common.h */
         float4 r, g, b;
         if (channels == 3) {
-            /* float4 loads and stores where vload4/vstore4 would do (a quad's 12 or 16
-             * floats start at a multiple of 16 bytes): PoCL calls those out of line */
-            __global const float4 *s4 = (__global const float4 *)src + 3 * q;
-            const float4 a0 = s4[0], a1 = s4[1], a2 = s4[2];
-            r = (float4)(a0.x, a0.w, a1.z, a2.y);
-            g = (float4)(a0.y, a1.x, a1.w, a2.z);
-            b = (float4)(a0.z, a1.y, a2.x, a2.w);
-        } else {
+            load_rgb4(q, src, &r, &g, &b);
+        } else {                /* (float4 loads: PoCL calls vload4 out of line) */
             __global const float4 *s4 = (__global const float4 *)src + i0;
             const float4 p0 = s4[0], p1 = s4[1], p2 = s4[2], p3 = s4[3];
             r = (float4)(p0.x, p1.x, p2.x, p3.x);
@@ -109,10 +103,7 @@ __kernel void scene_to_working4(__global const float *src, const int channels, c
         r *= scale; g *= scale; b *= scale;
         const int4 ok = raw_ok & (r <= L_MAX) & (g <= L_MAX) & (b <= L_MAX);
         if (all(ok)) {
-            __global float4 *o4 = (__global float4 *)rgb + 3 * q;
-            o4[0] = (float4)(r.x, g.x, b.x, r.y);
-            o4[1] = (float4)(g.y, b.y, r.z, g.z);
-            o4[2] = (float4)(b.z, r.w, g.w, b.w);
+            store_rgb4(q, rgb, r, g, b);
             const float4 y = M_YR * r + M_YG * g + M_YB * b;
             ((__global float4 *)Y)[q] = y;
             ((__global float4 *)Ys)[q] = scotopic_luminance4(r, g, b, y);

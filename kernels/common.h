@@ -43,8 +43,8 @@
  * launches Runtime.pixel_items(n, K) items. */
 #define ITEM_PIXELS(K) (VECTOR_PIXELS ? (K) : 1)
 
-/* fmax, fmin, clamp, select and comparisons inline on CPU devices. PoCL as pyopencl's wheel ships it calls
- * these built-ins out of line: perf put ~5% of a 1080p sequence's CPU in _cl_clamp,
+/* fmax, fmin, clamp, select and comparisons inline on CPU devices. PoCL as
+ * pyopencl's wheel ships it calls these built-ins out of line: perf put ~5% of a 1080p sequence's CPU in _cl_clamp,
  * _cl_fmax and _cl_fmin, and a call keeps the driver from vectorising a loop across
  * work-items. Here they are overloaded inline functions with the built-ins' values:
  * fmax/fmin give the other argument where one is NaN, clamp(x, lo, hi) =
@@ -163,10 +163,8 @@ inline float4 scotopic_luminance4(const float4 r, const float4 g, const float4 b
 {
     const float4 X = M_XR * r + M_XG * g + M_XB * b;
     const float4 Z = M_ZR * r + M_ZG * g + M_ZB * b;
-    const float4 ys = Y * (WARD97_GAIN * (1.0f + (Y + Z) / X) - WARD97_OFFSET);
-    const float4 zero = (float4)(0.0f);
-    /* fmax(ys, 0) where X > 0, else 0, as vector selects (fmax, select: PoCL calls) */
-    return X > zero ? (ys > zero ? ys : zero) : zero;
+    const float4 ys = fmax(Y * (WARD97_GAIN * (1.0f + (Y + Z) / X) - WARD97_OFFSET), 0.0f);
+    return select((float4)(0.0f), ys, isgreater(X, (float4)(0.0f)));
 }
 
 /* log2 of four positive normal floats, inline: PoCL (pyopencl's wheel) calls its log2
@@ -221,10 +219,10 @@ inline float3 shoulder3(float3 c, const float inv_white, const float knee)
 }
 
 /* Four pixels at a time, their channels apart (r, g, b hold pixels 4q .. 4q+3):
- * twelve interleaved floats in and out, and shoulder3 on each of the four. */
-/* The 12 floats of quad q (four RGB pixels) as float4 loads and stores where they
- * start at a multiple of 16 bytes (a whole buffer's quads), else vload4/vstore4 (a
- * band's offset): PoCL calls vload4 and vstore4 out of line. */
+ * twelve interleaved floats in and out, and shoulder3 on each of the four. The 12
+ * floats of quad q go as float4 loads and stores where they start at a multiple of 16
+ * bytes (a whole buffer's quads), else by vload4/vstore4 (a band's offset): PoCL
+ * calls vload4 and vstore4 out of line. */
 inline void load_rgb4(const int q, __global const float *rgb, float4 *r, float4 *g, float4 *b)
 {
     __global const float *p = rgb + 12 * (size_t)q;
@@ -257,7 +255,7 @@ inline void store_rgb4(const int q, __global float *rgb, const float4 r, const f
 inline float4 shoulder_curve4(const float4 x, const float knee)
 {
     const float4 t = (x - knee) / (1.0f - knee);
-    return x > (float4)(knee) ? knee + (1.0f - knee) * t / (1.0f + t) : x;   /* (select: a call) */
+    return select(x, knee + (1.0f - knee) * t / (1.0f + t), isgreater(x, (float4)(knee)));
 }
 
 /* shoulder3 of four pixels: the same steps, each pixel's branches as selects. */
@@ -267,8 +265,9 @@ inline void shoulder4(float4 *r, float4 *g, float4 *b, const float inv_white, co
     const float4 cr = fmax(*r * inv_white, 0.0f), cg = fmax(*g * inv_white, 0.0f),
                  cb = fmax(*b * inv_white, 0.0f);
     const float4 m = fmax(fmax(cr, cg), cb);
-    const int4 bright = m > (float4)(knee);    /* (isgreater, any: calls on PoCL) */
-    if (!(bright.x | bright.y | bright.z | bright.w)) {   /* all four below the knee */
+    const int4 bright = isgreater(m, (float4)(knee));
+    if (!(bright.x | bright.y | bright.z | bright.w)) {  /* all four below the knee (any():
+                                                        * a call on PoCL) */
         *r = cr / inv_white; *g = cg / inv_white; *b = cb / inv_white;
         return;
     }

@@ -247,16 +247,10 @@ __kernel void flare_blur0_x(__global const float4 *S, const int w, const int tro
         for (int r = 1; r <= l0_radius[k]; ++r)
             acc += t[r] * (QUAD(row - r) + QUAD(row + r));
         __global float4 *dst = tmp + k * plane + o;
-        if (x + 3 < w) {
-            dst[0] = acc.s0123;
-            dst[1] = acc.s4567;
-            dst[2] = acc.s89ab;
-            dst[3] = acc.scdef;
-        } else {
-            dst[0] = acc.s0123;
-            if (x + 1 < w) dst[1] = acc.s4567;
-            if (x + 2 < w) dst[2] = acc.s89ab;
-        }
+        dst[0] = acc.s0123;                 /* (the quad's pixels in the row) */
+        if (x + 1 < w) dst[1] = acc.s4567;
+        if (x + 2 < w) dst[2] = acc.s89ab;
+        if (x + 3 < w) dst[3] = acc.scdef;
     }
 #endif
 }

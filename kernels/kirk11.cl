@@ -156,9 +156,9 @@ inline void shift_gamut4(const float4 l, const float4 m, const float4 s, const f
     const float4 pz = Minv[6] * qx + Minv[7] * qy + Minv[8] * qz;
     const float4 pn = fmax(qx + qy, 0.0f) / (M[0] + M[1] + M[2] + M[3] + M[4] + M[5]);
     float4 t = (float4)(1.0f);
-    t = px < 0.0f ? fmin(t, pn / (pn - px)) : t;     /* (select: a call on PoCL) */
-    t = py < 0.0f ? fmin(t, pn / (pn - py)) : t;
-    t = pz < 0.0f ? fmin(t, pn / (pn - pz)) : t;
+    t = select(t, fmin(t, pn / (pn - px)), px < 0.0f);
+    t = select(t, fmin(t, pn / (pn - py)), py < 0.0f);
+    t = select(t, fmin(t, pn / (pn - pz)), pz < 0.0f);
     t = clamp(t, 0.0f, 1.0f);
     *pr = fmax(pn + t * (px - pn), 0.0f);
     *pg = fmax(pn + t * (py - pn), 0.0f);
@@ -194,7 +194,8 @@ __kernel void purkinje_rgb(__global float *rgb, const int n, __constant float *H
         const float4 yp = M_YR * pr + M_YG * pg + M_YB * pb;
         const float4 k = (M_YR * r + M_YG * g + M_YB * b) / yp;
         const int4 keep = yp > 0.0f;
-        store_rgb4(q, rgb, keep ? pr * k : r, keep ? pg * k : g, keep ? pb * k : b);
+        store_rgb4(q, rgb, select(r, pr * k, keep), select(g, pg * k, keep),
+                   select(b, pb * k, keep));
         fb = -(f.x + f.y + f.z + f.w);
     } else {
         for (int i = i0; i < min(i0 + ITEM_PIXELS(4), n); ++i) {

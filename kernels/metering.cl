@@ -85,12 +85,12 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
             float4 v, y, t;
 #define KAHAN4(S, C, V) v = (V); y = v - C; t = S + y; C = (t - S) - y; S = t;
             KAHAN4(s1, c1, l)
-            KAHAN4(s2, c2, log2_positive4(l > lf ? l : lf) * M_LN2_F)
+            KAHAN4(s2, c2, log2_positive4(fmax(l, lf)) * M_LN2_F)
             KAHAN4(s3, c3, ls)
-            KAHAN4(s4, c4, log2_positive4(ls > lf ? ls : lf) * M_LN2_F)
+            KAHAN4(s4, c4, log2_positive4(fmax(ls, lf)) * M_LN2_F)
 #undef KAHAN4
-            m1 = l > m1 ? l : m1;                       /* (fmax: a call on PoCL) */
-            m2 = ls > m2 ? ls : m2;
+            m1 = fmax(m1, l);
+            m2 = fmax(m2, ls);
         }
         s[0] = qb > qa ? 4.0f * (float)((qb - qa + qs - 1) / qs) : 0.0f;   /* pixels */
         s[1] = (s1.x + s1.y) + (s1.z + s1.w);

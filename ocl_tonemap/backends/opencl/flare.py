@@ -45,7 +45,8 @@ class DeviceFlare:
         self.local = 1 << (min(256, max(1, wg)).bit_length() - 1)
         self._scratch = cl.LocalMemory(16 * self.local)
         self._scratch64 = cl.LocalMemory(16 * 64)          # flare_finish0's 16 x 4 groups
-        self._taps: dict = {}
+        self._taps: dict = {}                 # sigma -> (taps buffer, radius)
+        self._level0_kernels: dict = {}       # level 0's widths -> (kernels, radius)
 
     def fits(self, h: int, w: int) -> bool:
         """Whether a frame of h x w fits the device (else the host-driven path, in bands)."""
@@ -182,8 +183,8 @@ class DeviceFlare:
         made per frame."""
         import pyopencl as cl
         gs = plan.by_level.get(0, [])
-        key = ("level0",) + tuple(float(sc) for sc, _ in gs)
-        if key not in self._taps:
+        key = tuple(float(sc) for sc, _ in gs)
+        if key not in self._level0_kernels:
             taps, first, radii = [], [], []
             for sc, _ in gs:
                 t = np.asarray(gaussian_taps(sc), np.float32)
@@ -195,9 +196,9 @@ class DeviceFlare:
             if gs:
                 defines += (("L0_RADII", tuple(radii)), ("L0_FIRST", tuple(first)),
                             ("L0_TAPS", tuple(taps)))
-            self._taps[key] = ({n: self.rt.kernel("flare.cl", n, defines)
-                                for n in self.LEVEL0_KERNELS}, R)
-        kern, R = self._taps[key]
+            self._level0_kernels[key] = ({n: self.rt.kernel("flare.cl", n, defines)
+                                          for n in self.LEVEL0_KERNELS}, R)
+        kern, R = self._level0_kernels[key]
         wts = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                         hostbuf=np.asarray([wk for _, wk in gs] or [0.0], np.float32))
         return kern, wts, len(gs), R
