@@ -31,7 +31,8 @@ import time
 
 import numpy as np
 
-from benchmarks.lib.report import cpu_model, radiance_env, write_image, write_markdown
+from benchmarks.lib.report import (compile_package, cpu_model, radiance_env, write_image,
+                                   write_markdown)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_OUT = os.path.join(HERE, "results", "radiance_peer.md")
@@ -86,6 +87,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     tools = radiance_env()
     env = tools[1]
+    compiled = compile_package()
     d = tempfile.mkdtemp(prefix="ocltm_peer_")
     rows = []
     try:
@@ -131,7 +133,7 @@ def main(argv=None) -> int:
          f"- command `python -m benchmarks.radiance_peer`; a night photograph with lamps "
          f"({PHOTO}) at {LEVEL} cd/m^2 log-average as Radiance .hdr; this machine "
          f"({os.cpu_count()} cores, {cpu_model()}, PoCL CPU OpenCL); ours writes 8-bit PNG, "
-         "pcond -h its .hdr (one process per frame)",
+         f"pcond -h its .hdr (one process per frame); {compiled}",
          f"- times: the median of {max(1, a.repeat)} runs each, ours and pcond's "
          "interleaved (this machine's speed drifts by tens of percent between minutes)",
          "- speed: pcond's time / ours (> 1: ours faster); peak: maximum resident set (GNU "
