@@ -20,28 +20,41 @@ def _leave(code: int) -> None:
 
 
 #: The command's allocations of at least this many bytes are mapped from the system
-#: on their own (glibc's M_MMAP_THRESHOLD), and go back to it when freed.
-MMAP_THRESHOLD = 2 << 20
+#: on their own (glibc's M_MMAP_THRESHOLD), and go back to it when freed; smaller
+#: ones come from the heap, which keeps up to M_TRIM_THRESHOLD free at its top.
+MMAP_THRESHOLD = 16 << 20
+TRIM_THRESHOLD = 64 << 20
 
 
-def _return_freed_memory() -> None:
-    """Frame-sized buffers (a frame read, the device's scratch on a CPU driver: the flare's
-    pyramids and bands, made and freed every frame) go back to the system when freed.
-    glibc's default raises its mmap threshold to the largest block freed (up to 32 MiB),
-    so after the first frame such buffers come from the heap and what is freed there
-    stays in the process: a 60-frame 1080p sequence peaked ~75 MiB higher (468 against
-    393 MiB, issue 33's bound 395; benchmarks/results/radiance_peer.md). Only the
-    command's own process: the library leaves its host's allocator alone. A user's
-    ``MALLOC_MMAP_THRESHOLD_`` wins; other C libraries (no ``mallopt``) are left as they are."""
-    if os.environ.get("MALLOC_MMAP_THRESHOLD_"):
-        return
+def _malloc_for_frames() -> None:
+    """glibc's allocator set for a run of frames, in the command's own process only
+    (the library leaves its host's allocator alone).
+
+    - Blocks of a frame's size (16 MiB and more: a 1080p float32 frame is 24 MiB) are
+      mapped on their own and go back to the system when freed. glibc's default
+      raises its mmap threshold to the largest block freed (up to 32 MiB), so after
+      the first frame such blocks came from the heap and what was freed there stayed
+      in the process: a 60-frame 1080p sequence peaked ~75 MiB higher (468 against
+      393 MiB, issue 33's bound 395). Frames read whole reuse their own arrays
+      (``imageio.FramePool``), so they fault their pages in once.
+    - Smaller blocks (OIIO's read bands and encoded outputs, the flare's scratch on a
+      CPU driver) come from the heap and stay there when freed, up to 64 MiB: with a
+      2 MiB threshold each was mapped afresh every frame, and the kernel zeroing its
+      pages took ~10% of a 1080p run's CPU (3 s of system time in a 60-frame
+      sequence against 0.45 s now; the peak 377 MiB).
+
+    A user's ``MALLOC_MMAP_THRESHOLD_`` or ``MALLOC_TRIM_THRESHOLD_`` wins; other C
+    libraries (no ``mallopt``) are left as they are."""
     try:
         import ctypes
         mallopt = ctypes.CDLL(None).mallopt
     except (OSError, AttributeError):
         return
-    M_MMAP_THRESHOLD = -3                 # <malloc.h>
-    mallopt(ctypes.c_int(M_MMAP_THRESHOLD), ctypes.c_int(MMAP_THRESHOLD))
+    M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3           # <malloc.h>
+    for env, param, value in (("MALLOC_MMAP_THRESHOLD_", M_MMAP_THRESHOLD, MMAP_THRESHOLD),
+                              ("MALLOC_TRIM_THRESHOLD_", M_TRIM_THRESHOLD, TRIM_THRESHOLD)):
+        if not os.environ.get(env):
+            mallopt(ctypes.c_int(param), ctypes.c_int(value))
 
 
 def _one_blas_thread() -> None:
@@ -61,7 +74,7 @@ def entry() -> int:
     try:
         from .interrupts import install
         install()
-        _return_freed_memory()
+        _malloc_for_frames()
         _one_blas_thread()
         from .cli import main
         code = main()

@@ -14,7 +14,7 @@ import time
 
 from .. import safeio
 from ..colour import ColourPipeline
-from ..imageio import FrameError, is_sequence, read_frame
+from ..imageio import FramePool, FrameError, is_sequence, read_frame
 from ..imagewrite import output_bits, write_frame
 from ..pipeline import Tonemapper
 from ..state import AdaptationState
@@ -24,7 +24,7 @@ from .frame import encode_pixels, frame_input, map_frame, output_metadata
 from .frames import frame_jobs, frame_time
 from .options import RUN_KEY, Interrupted, JobOptions, JobResult, output_is_linear, run_fingerprint
 from .setup import RunSetup, check_output_depth
-from .stream import stream_frame, stream_rows
+from .stream import read_whole, stream_frame, stream_rows
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -126,14 +126,23 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         st, jobs = resume_point(opts, jobs, ckpt, opts.operator)
         state = st if st is not None else state
         done_before = [j for j in all_jobs if j not in jobs]
-    run, tm = setup_run(opts, state)
-    check_output_depth(opts, run.disp, jobs)
-    exporter = None
-    if opts.ocio_export:
-        from ..colour.export import OcioExport
-        # the shot's first frame (a chunk of a shot's apply pass: the whole shot's)
-        first = (done_before or (frame_jobs(opts) if chunk else jobs) or [(None,)])[0][0]
-        exporter = OcioExport(opts.ocio_export, run.colour, tm, first, opts.ocio_export_size)
+    io = _FrameIO(opts.overlap_io)
+    try:
+        if jobs and read_whole(opts, jobs[0][1]):   # the first frame read while the run
+            f0, inp0 = jobs[0][0], jobs[0][1]       # sets up (its errors come at its turn)
+            io.prefetch(0, lambda: read_frame(inp0, f0, opts.channels, io.pool))
+        run, tm = setup_run(opts, state)
+        check_output_depth(opts, run.disp, jobs)
+        exporter = None
+        if opts.ocio_export:
+            from ..colour.export import OcioExport
+            # the shot's first frame (a chunk of a shot's apply pass: the whole shot's)
+            first = (done_before or (frame_jobs(opts) if chunk else jobs) or [(None,)])[0][0]
+            exporter = OcioExport(opts.ocio_export, run.colour, tm, first,
+                                  opts.ocio_export_size)
+    except BaseException:
+        io.__exit__(None, None, None)
+        raise
     fingerprint = run_fingerprint(opts)
     result = JobResult([], [])
     fps = opts.fps
@@ -153,12 +162,12 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
             rows_of[k] = stream_rows(opts, tm, jobs[k][1], jobs[k][0])
         return rows_of[k]
 
-    with _StopSignals() as stop, _FrameIO(opts.overlap_io) as io:
+    with _StopSignals() as stop, io:
         for k, (f, inp, outp, held) in enumerate(jobs):
             if k + 1 < n and not rows(k + 1):         # read-ahead of the next frame
                 _, inp1, _, _ = jobs[k + 1]
                 io.prefetch(k + 1, lambda inp1=inp1, f1=jobs[k + 1][0]:
-                            read_frame(inp1, f1, opts.channels))
+                            read_frame(inp1, f1, opts.channels, io.pool))
             try:
                 if opts.stills and tm.adapted:   # each still its own observer
                     tm.reset_adaptation(opts.preadapt)
@@ -174,7 +183,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                                                 t_prev)
                     write = None
                 else:
-                    fr = io.read(k, lambda: read_frame(inp, f, opts.channels))
+                    fr = io.read(k, lambda: read_frame(inp, f, opts.channels, io.pool))
                     t, info, fps, write = _whole_frame(run, tm, fr, inp, outp, f, held, fps,
                                                        t_prev, exporter)
             except BaseException:
@@ -320,6 +329,7 @@ class _FrameIO:
         self._w = ThreadPoolExecutor(1, "ocltm-write") if enabled else None
         self._reads: dict = {}
         self._pending = None
+        self.pool = FramePool()          # frames read whole, into memory used before
 
     def prefetch(self, key, fn) -> None:
         if self._r is not None and key not in self._reads:

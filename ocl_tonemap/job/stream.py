@@ -35,26 +35,10 @@ def stream_rows(opts: JobOptions, tm: Tonemapper, inp: str, f) -> int | None:
     """Rows per band when this frame is to be streamed, else None: when it would
     take more than ``--max-memory`` whole (or more than the machine can hold),
     for operators that can stream (``Tonemapper.can_stream``)."""
-    from ..imageio import max_frame_bytes
-    if opts.max_memory is None and not os.path.exists(inp):
+    spec, budget = _over_budget(opts, inp)
+    if spec is None:
         return None
-    try:
-        import OpenImageIO as oiio
-        i = oiio.ImageInput.open(inp)
-        if i is None:
-            oiio.geterror()          # (this thread's; read_frame reports it properly)
-            return None
-        spec = i.spec()
-        i.close()
-    except Exception:  # noqa: BLE001 -- read_frame reports it properly
-        return None
-    from ..imageio import spectral_channels
-    if spectral_channels(spec.channelnames):
-        return None                                   # spectra are read whole
     frame_bytes = float(spec.width) * spec.height * 12.0
-    budget = opts.max_memory * 2**20 if opts.max_memory else max_frame_bytes()
-    if WHOLE_FRAME_COPIES * frame_bytes <= budget or spec.width < 1:
-        return None
     why = tm.can_stream()
     if why:
         log.warning("%s: %.0f MiB would be needed whole, over the budget of %.0f MiB, but it "
@@ -64,6 +48,38 @@ def stream_rows(opts: JobOptions, tm: Tonemapper, inp: str, f) -> int | None:
     rows = int(max(1, min(spec.height, (budget / 4) // (STREAM_BYTES_PER_PIXEL * spec.width))))
     log.info("%s: streamed in bands of %d rows (budget %.0f MiB)", inp, rows, budget / 2**20)
     return rows
+
+
+def read_whole(opts: JobOptions, inp: str) -> bool:
+    """Whether this frame is read whole whatever the operator (within the budget, a
+    spectral image, or a file whose header cannot be read: its read says why), so it
+    can be read before the run is set up."""
+    return _over_budget(opts, inp)[0] is None
+
+
+def _over_budget(opts: JobOptions, inp: str):
+    """(the file's spec, the budget in bytes) when the frame would take more than the
+    budget whole, else (None, budget)."""
+    from ..imageio import max_frame_bytes, spectral_channels
+    budget = opts.max_memory * 2**20 if opts.max_memory else max_frame_bytes()
+    if opts.max_memory is None and not os.path.exists(inp):
+        return None, budget
+    try:
+        import OpenImageIO as oiio
+        i = oiio.ImageInput.open(inp)
+        if i is None:
+            oiio.geterror()          # (this thread's; read_frame reports it properly)
+            return None, budget
+        spec = i.spec()
+        i.close()
+    except Exception:  # noqa: BLE001 -- read_frame reports it properly
+        return None, budget
+    if spectral_channels(spec.channelnames):
+        return None, budget                           # spectra are read whole
+    frame_bytes = float(spec.width) * spec.height * 12.0
+    if WHOLE_FRAME_COPIES * frame_bytes <= budget or spec.width < 1:
+        return None, budget
+    return spec, budget
 
 
 class WorkingBands:

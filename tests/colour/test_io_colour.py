@@ -8,7 +8,8 @@ import PyOpenColorIO as ocio
 import pytest
 
 from ocl_tonemap import colour
-from ocl_tonemap.imageio import FrameError, find_frames, frame_path, read_frame
+from ocl_tonemap import imageio
+from ocl_tonemap.imageio import FrameError, FramePool, find_frames, frame_path, read_frame
 from ocl_tonemap.imagewrite import write_frame
 
 
@@ -79,6 +80,66 @@ def test_read_errors_name_file_and_frame(tmp_path):
     with pytest.raises(FrameError) as e:
         read_frame(str(bad), 5)
     assert e.value.frame == 5 and "broken.0005.exr" in e.value.path
+
+
+def _windowed_exr(path, pix, x=3, y=2):
+    h, w, c = pix.shape
+    spec = oiio.ImageSpec(w, h, c, oiio.FLOAT)
+    spec.x, spec.y = x, y                      # data window offset
+    spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, w + 8, h + 6
+    buf = oiio.ImageBuf(spec)
+    buf.set_pixels(oiio.ROI(x, x + w, y, y + h, 0, 1, 0, c), pix)
+    assert buf.write(str(path)), buf.geterror()
+
+
+@pytest.mark.parametrize("ext", [".exr", ".hdr", ".png", ".tif"])
+def test_read_into_a_pool_in_bands_equals_the_whole_read(tmp_path, monkeypatch, ext):
+    """A frame read in row bands into a pooled array (the run's reads) has the pixels
+    and the metadata of the whole read: every band in its place (bands of 3 rows here,
+    the last one short), a data window that does not start at 0 included."""
+    rng = np.random.default_rng(4)
+    pix = rng.uniform(0, 4, (11, 9, 4 if ext == ".exr" else 3)).astype(np.float32)
+    src = tmp_path / f"in{ext}"
+    if ext == ".exr":
+        _windowed_exr(src, pix)
+    else:
+        write_frame(str(src), pix if ext == ".hdr" else pix / 4, None, "lin_rec709", {},
+                    None)
+    whole = read_frame(str(src), 3)
+    monkeypatch.setattr(imageio, "POOL_BAND_BYTES", 3 * 9 * pix.shape[2] * 4)
+    pool = FramePool()
+    banded = read_frame(str(src), 3, pool=pool)
+    np.testing.assert_array_equal(banded.pixels, whole.pixels)
+    def meta(fr):
+        return (fr.colorspace, fr.channel_note, fr.unassociated_alpha, fr.chromaticities,
+                fr.format_name, fr.white_luminance, fr.pixels.dtype, fr.pixels.shape)
+    assert meta(banded) == meta(whole)
+    assert pool.made == 1 and any(a is banded.pixels for a in pool._arrays)
+    if ext == ".exr":
+        np.testing.assert_array_equal(banded.pixels, pix)
+
+
+def test_a_pool_gives_an_array_again_only_when_nothing_holds_it():
+    S, T = (4, 5, 3), (2, 2, 3)
+    pool = FramePool(keep=2)
+    a = pool.take(S)
+    b = pool.take(S)
+    assert b is not a and pool.made == 2              # a is held: a second array
+    bid, view = id(b), b[1:, :, :2]
+    del b
+    c = pool.take(S)
+    assert id(c) not in (id(a), bid) and pool.made == 3   # a view still holds b
+    assert not any(x is c for x in pool._arrays)      # over ``keep``: not kept
+    del view, c
+    d = pool.take(S)
+    assert id(d) == bid and pool.made == 3            # b is free again: no new memory
+    del d
+    e = pool.take(T)                                  # another size: the free b makes room
+    eid = id(e)
+    assert e.shape == T and pool.made == 4 and len(pool._arrays) == 2
+    del e
+    assert id(pool.take(T)) == eid and pool.made == 4
+    assert pool.take(S) is not a and pool.made == 5   # a is still held, b is gone
 
 
 def test_sequence_patterns(tmp_path):

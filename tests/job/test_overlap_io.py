@@ -89,3 +89,46 @@ def test_write_failure_is_named_at_its_frame(seq, tmp_path, capsys):
     assert json.loads((tmp_path / "o.png.state.json").read_text())["frame"] == frames[0]
     assert not any(os.path.exists(frame_path(out, f)) for f in frames[2:])
     assert not [p for p in os.listdir(tmp_path) if ".tmp" in p]
+
+
+def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, monkeypatch):
+    """The first frame's read starts before the run is set up (on the reader thread),
+    into memory the next frames use again: a sequence reads into three arrays in all.
+    Its failure is still reported at its turn: a run that cannot be set up says why
+    (one ERROR line, not the frame's), and a bad first frame is named when the run is."""
+    from ocl_tonemap.job import run as job_run
+    pattern, frames = seq
+    made, order = [], []
+    real_read, real_setup = job_run.read_frame, job_run.setup_run
+
+    def read(path, frame=None, channels=None, pool=None):
+        order.append(("read", frame))
+        fr = real_read(path, frame, channels, pool)
+        made.append(pool.made)
+        return fr
+
+    def setup(*a, **k):
+        order.append(("setup", None))
+        return real_setup(*a, **k)
+    monkeypatch.setattr(job_run, "read_frame", read)
+    monkeypatch.setattr(job_run, "setup_run", setup)
+    out = str(tmp_path / "o.####.png")
+    assert main(["run", pattern, out, "-q"]) == 0
+    assert order[0] == ("read", frames[0]) and ("setup", None) in order
+    assert len(made) == len(frames) and made[-1] <= 3 < len(frames)
+    monkeypatch.undo()
+
+    d = tmp_path / "in"
+    shutil.copytree(os.path.dirname(pattern), d)
+    pat = str(d / os.path.basename(pattern))
+    bad = frame_path(pat, frames[0])
+    with open(bad, "wb") as fh:
+        fh.write(b"garbage")
+    capsys.readouterr()
+    assert main(["run", pat, str(tmp_path / "b.####.exr"), "--out-bits", "8", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("ocl-tonemap ERROR") == 1 and "--out-bits 8" in err and bad not in err
+    assert main(["run", pat, str(tmp_path / "b.####.png"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("ocl-tonemap ERROR") == 1 and f"{bad} frame {frames[0]}:" in err
+    assert not [p for p in os.listdir(tmp_path) if p.startswith("b.")]
