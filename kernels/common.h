@@ -222,10 +222,10 @@ inline float3 shoulder3(float3 c, const float inv_white, const float knee)
  * twelve interleaved floats in and out, and shoulder3 on each of the four. The 12
  * floats of quad q go as float4 loads and stores where they start at a multiple of 16
  * bytes (a whole buffer's quads), else by vload4/vstore4 (a band's offset): PoCL
- * calls vload4 and vstore4 out of line. */
-inline void load_rgb4(const int q, __global const float *rgb, float4 *r, float4 *g, float4 *b)
+ * calls vload4 and vstore4 out of line. load_rgb4_at: the four pixels from p, wherever
+ * they start. */
+inline void load_rgb4_at(__global const float *p, float4 *r, float4 *g, float4 *b)
 {
-    __global const float *p = rgb + 12 * (size_t)q;
     float4 a0, a1, a2;
     if (((size_t)p & 15) == 0) {
         __global const float4 *p4 = (__global const float4 *)p;
@@ -236,6 +236,12 @@ inline void load_rgb4(const int q, __global const float *rgb, float4 *r, float4 
     *r = (float4)(a0.x, a0.w, a1.z, a2.y);
     *g = (float4)(a0.y, a1.x, a1.w, a2.z);
     *b = (float4)(a0.z, a1.y, a2.x, a2.w);
+}
+
+/* Pixels 4q .. 4q+3 of an interleaved RGB buffer. */
+inline void load_rgb4(const int q, __global const float *rgb, float4 *r, float4 *g, float4 *b)
+{
+    load_rgb4_at(rgb + 12 * (size_t)q, r, g, b);
 }
 
 inline void store_rgb4(const int q, __global float *rgb, const float4 r, const float4 g,

@@ -58,3 +58,27 @@ def test_device_blur_matches_reference_and_bands(edge, rt):
     banded = DeviceBlur(rt, max_pixels=29 * 30).blur(img, taps, edge)
     np.testing.assert_allclose(dev, ref, atol=2e-6)
     assert np.array_equal(dev, banded)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 9), (9, 1), (13, 37), (24, 64), (7, 203)])
+@pytest.mark.parametrize("sigma", [0.45, 1.1, 1.6, 3.3, 9.0])
+def test_device_acuity_in_place_matches_the_reference(rt, shape, sigma):
+    """The acuity blur where the operator left the frame (interleaved RGB on the device,
+    four pixels a work-item on CPUs: a vector body where the window is inside one row,
+    tap by tap at the frame's edges) against float64 (clamped edges, then the blend):
+    every shape, from one pixel and rows narrower than the window to a width that is
+    not a multiple of four, and radii of 2 to 36 pixels."""
+    import pyopencl as cl
+    h, w = shape
+    rng = np.random.default_rng(7)
+    img = rng.random((h, w, 3)).astype(np.float32) * 50.0
+    taps = gaussian_taps(sigma)
+    t = 0.8
+    want = (blur_reference(img, taps, EDGE_CLAMP) * t + img.astype(np.float64) * (1 - t))
+    mf = cl.mem_flags
+    buf = cl.Buffer(rt.context, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=img)
+    tmp = cl.Buffer(rt.context, mf.READ_WRITE, img.nbytes)
+    DeviceBlur(rt).acuity_in_place(buf, h, w, taps, t, tmp)
+    got = np.empty_like(img)
+    cl.enqueue_copy(rt.queue, got, buf)
+    np.testing.assert_allclose(got, want, rtol=2e-6, atol=2e-6 * 50.0)

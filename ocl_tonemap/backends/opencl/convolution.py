@@ -116,7 +116,7 @@ class DeviceBlur:
         tap_buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                             hostbuf=np.asarray(taps, np.float32))
         q, (kx, ky) = self.rt.queue, self._k_rgb
-        gs = (round_up(w, 16), round_up(h, 4))
-        kx(q, gs, (16, 4), buf, tmp, np.int32(w), np.int32(h), tap_buf, np.int32(R))
-        ky(q, gs, (16, 4), tmp, buf, np.int32(w), np.int32(h), tap_buf, np.int32(R),
+        gs = (round_up(self.rt.pixel_items(h * w, 4), 64),)      # four pixels an item on CPUs
+        kx(q, gs, (64,), buf, tmp, np.int32(w), np.int32(h), tap_buf, np.int32(R))
+        ky(q, gs, (64,), tmp, buf, np.int32(w), np.int32(h), tap_buf, np.int32(R),
            np.float32(t))
