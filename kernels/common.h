@@ -78,6 +78,58 @@ OCLTM_FMINMAX_V(float8)
 OCLTM_FMINMAX_V(float16)
 OCLTM_ICLAMP(int)
 OCLTM_ICLAMP(int4)
+/* min, max (integers and floats: y < x ? y : x, as defined where neither is NaN), fabs
+ * (the sign bit cleared) and fma (the fused operation, lane by lane, where the target
+ * has it: the same value) likewise: PoCL called _cl_min, _cl_fabs and _cl_fma out of line
+ * in the display encoding, ~14% of its time. */
+#define OCLTM_MINMAX(T) \
+    __attribute__((overloadable)) inline T ocltm_min(const T a, const T b) \
+    { return b < a ? b : a; } \
+    __attribute__((overloadable)) inline T ocltm_max(const T a, const T b) \
+    { return b > a ? b : a; }
+#define OCLTM_MINMAX_V(T, S) OCLTM_MINMAX(T) \
+    __attribute__((overloadable)) inline T ocltm_min(const T a, const S b) \
+    { return ocltm_min(a, (T)(b)); } \
+    __attribute__((overloadable)) inline T ocltm_max(const T a, const S b) \
+    { return ocltm_max(a, (T)(b)); }
+#define OCLTM_FABS(T, U) \
+    __attribute__((overloadable)) inline T ocltm_fabs(const T x) \
+    { return as_##T(as_##U(x) & 0x7fffffffu); }
+OCLTM_MINMAX(int)
+OCLTM_MINMAX(uint)
+OCLTM_MINMAX(long)
+OCLTM_MINMAX(ulong)
+OCLTM_MINMAX(float)
+OCLTM_MINMAX_V(int2, int)
+OCLTM_MINMAX_V(int4, int)
+OCLTM_MINMAX_V(int8, int)
+OCLTM_MINMAX_V(float2, float)
+OCLTM_MINMAX_V(float4, float)
+OCLTM_MINMAX_V(float8, float)
+OCLTM_FABS(float, uint)
+OCLTM_FABS(float2, uint2)
+OCLTM_FABS(float3, uint3)
+OCLTM_FABS(float4, uint4)
+OCLTM_FABS(float8, uint8)
+OCLTM_FABS(float16, uint16)
+#undef min
+#define min ocltm_min
+#undef max
+#define max ocltm_max
+#undef fabs
+#define fabs ocltm_fabs
+#if defined(__FMA__)
+__attribute__((overloadable)) inline float ocltm_fma(const float a, const float b, const float c)
+{ return __builtin_fmaf(a, b, c); }
+__attribute__((overloadable)) inline float4 ocltm_fma(const float4 a, const float4 b,
+                                                      const float4 c)
+{
+    return (float4)(__builtin_fmaf(a.x, b.x, c.x), __builtin_fmaf(a.y, b.y, c.y),
+                    __builtin_fmaf(a.z, b.z, c.z), __builtin_fmaf(a.w, b.w, c.w));
+}
+#undef fma
+#define fma ocltm_fma
+#endif
 #undef fmax
 #define fmax ocltm_fmax
 #undef fmin

@@ -118,8 +118,8 @@ inline uint pack_u8(const float4 a)
 {
     /* clamp (NaN -> 0), then round to nearest, ties to even, by adding 1.5 2^23: the
        sum's low mantissa bits are the rounded value (PoCL's rint on float4 is slow) */
-    const uint4 i = as_uint4(clamp(a * 255.0f, 0.0f, 255.0f) + 0x1.8p23f) & 0xFFu;
-    return i.x | (i.y << 8) | (i.z << 16) | (i.w << 24);
+    const uint4 i = as_uint4(clamp(a * 255.0f, 0.0f, 255.0f) + 0x1.8p23f);
+    return as_uint(as_uchar16(i).s048c);         /* each lane's low byte, in order */
 }
 
 inline void store_out4(const int q, __global uchar *restrict dst, const float4 r,
@@ -148,10 +148,8 @@ __kernel void display_lut1d_rgb4(__global const float *restrict src,
     const int q = get_global_id(0);
     if (4 * q + 4 > n) return;
     const float eps = par[12], s_lo = par[13], scale = par[14];
-    __global const float *p = src + 12 * (size_t)q;
-    const float4 c0 = vload4(0, p), c1 = vload4(1, p), c2 = vload4(2, p);
-    const float4 r = (float4)(c0.x, c0.w, c1.z, c2.y), g = (float4)(c0.y, c1.x, c1.w, c2.z),
-                 b = (float4)(c0.z, c1.y, c2.x, c2.w);
+    float4 r, g, b;
+    load_rgb4(q, src, &r, &g, &b);                 /* (common.h: float4 loads, no call) */
     float4 o[3];
     for (int c = 0; c < 3; ++c) {
         const float4 v = par[3 * c] * r + par[3 * c + 1] * g + par[3 * c + 2] * b + par[9 + c];
