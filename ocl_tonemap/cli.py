@@ -164,7 +164,9 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
                    help="fast flare: Gaussians per octave (default 1)")
 
 
-def _options(a, input_, output):
+def _options(a, input_, output, defer_backend: bool = False):
+    """The run's JobOptions. ``defer_backend``: the OpenCL device is probed by the job
+    (``job.run.run_job``: behind the first frame's read), not here ("auto")."""
     from .backends.plan import quality_tier
     from .imageio import parse_frames
     from .job.options import JobOptions, parse_preadapt
@@ -178,7 +180,7 @@ def _options(a, input_, output):
         display_peak=a.display_peak, display_black=a.display_black, unpremult=a.unpremult,
         encode=a.encode,
         preadapt=parse_preadapt(a.preadapt) if a.preadapt else None,
-        state_in=a.state_in, state_out=a.state_out, backend=_backend(a, tier),
+        state_in=a.state_in, state_out=a.state_out, backend=_backend(a, tier, defer_backend),
         device=a.device, quality=tier.name,
         out_bits=a.out_bits, plot=a.plot, ocio_export=a.ocio_export, fov_given=a.fov is not None,
         stills=a.stills,
@@ -204,15 +206,17 @@ def _export_size(text: str):
         raise ValueError(f"--ocio-export-size must be auto or a number (got {text!r})") from None
 
 
-def _backend(a, tier) -> str:
+def _backend(a, tier, defer: bool = False) -> str:
     """The backend a run uses. ``--backend`` given: that one (a broken or missing
     OpenCL device is then an error, as is a ``--device`` naming a broken one).
     Otherwise OpenCL on the first working device, else the float64 reference with one
-    warning line (``backends.resolve_backend``)."""
+    warning line (``backends.resolve_backend``; ``defer``: "auto", for the job to
+    resolve)."""
     from .backends import resolve_backend
     if a.backend:
         return a.backend
-    return resolve_backend("auto" if tier.backend == "opencl" else tier.backend, a.device)
+    name = "auto" if tier.backend == "opencl" else tier.backend
+    return name if defer and name == "auto" else resolve_backend(name, a.device)
 
 
 def parse_cuts(text: str | None):
@@ -654,7 +658,7 @@ def _main(argv: list[str] | None = None) -> int:
         from .job.options import Interrupted
         from .job.run import run_job
         try:
-            res = run_job(_options(a, a.input, a.output))
+            res = run_job(_options(a, a.input, a.output, defer_backend=True))
         except Interrupted as e:
             import shlex
             again = [x for x in (argv if argv is not None else sys.argv[1:]) if x != "--resume"]

@@ -49,6 +49,17 @@ def setup_run(opts: JobOptions, state: AdaptationState | None):
     return run, make_tonemapper(opts, run.colour, state, run.disp)
 
 
+def resolved_backend(opts: JobOptions) -> JobOptions:
+    """``opts`` with a backend of "auto" (``cli._options(defer_backend=True)``) resolved:
+    OpenCL on the first working device, else the reference with one warning."""
+    if opts.backend != "auto":
+        return opts
+    import dataclasses
+
+    from ..backends import resolve_backend
+    return dataclasses.replace(opts, backend=resolve_backend("auto", opts.device))
+
+
 def check_stills(opts: JobOptions) -> None:
     """``--stills``: independent frames keep no state; what needs one is refused."""
     for flag, given in (("--state-in", opts.state_in), ("--state-out", opts.state_out),
@@ -122,6 +133,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         state.extra.pop(RUN_KEY, None)
     done_before: list = []
     if opts.resume:
+        opts = resolved_backend(opts)              # (its fingerprint names the backend)
         all_jobs = jobs
         st, jobs = resume_point(opts, jobs, ckpt, opts.operator)
         state = st if st is not None else state
@@ -131,6 +143,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         if jobs and read_whole(opts, jobs[0][1]):   # the first frame read while the run
             f0, inp0 = jobs[0][0], jobs[0][1]       # sets up (its errors come at its turn)
             io.prefetch(0, lambda: read_frame(inp0, f0, opts.channels, io.pool))
+        opts = resolved_backend(opts)              # the device probed behind the read
         run, tm = setup_run(opts, state)
         check_output_depth(opts, run.disp, jobs)
         exporter = None

@@ -92,7 +92,8 @@ def test_write_failure_is_named_at_its_frame(seq, tmp_path, capsys):
 
 
 def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, monkeypatch):
-    """The first frame's read starts before the run is set up (on the reader thread),
+    """The first frame's read starts before the device is probed and the run is set up
+    (on the reader thread),
     into memory the next frames use again: a sequence reads into three arrays in all.
     Its failure is still reported at its turn: a run that cannot be set up says why
     (one ERROR line, not the frame's), and a bad first frame is named when the run is."""
@@ -110,11 +111,25 @@ def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, mo
     def setup(*a, **k):
         order.append(("setup", None))
         return real_setup(*a, **k)
+
+    def resolve(*a, **k):
+        order.append(("device", None))
+        return real_resolve(*a, **k)
+    def prefetch(self, key, fn):
+        order.append(("prefetch", key))
+        return real_prefetch(self, key, fn)
+    from ocl_tonemap import backends
+    real_resolve, real_prefetch = backends.resolve_backend, job_run._FrameIO.prefetch
+    monkeypatch.setattr(job_run._FrameIO, "prefetch", prefetch)
     monkeypatch.setattr(job_run, "read_frame", read)
     monkeypatch.setattr(job_run, "setup_run", setup)
+    monkeypatch.setattr(backends, "resolve_backend", resolve)
     out = str(tmp_path / "o.####.png")
     assert main(["run", pattern, out, "-q"]) == 0
-    assert order[0] == ("read", frames[0]) and ("setup", None) in order
+    # the OpenCL device is probed (cli: "auto") and the run set up behind the read
+    main_thread = [o for o in order if o[0] != "read"]
+    assert main_thread[:3] == [("prefetch", 0), ("device", None), ("setup", None)]
+    assert [o for o in order if o[0] == "read"][0] == ("read", frames[0])
     assert len(made) == len(frames) and made[-1] <= 3 < len(frames)
     monkeypatch.undo()
 
