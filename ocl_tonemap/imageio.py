@@ -315,8 +315,9 @@ class FramePool:
 
 
 #: Bytes of a band of rows when a frame is read into a :class:`FramePool` array:
-#: OIIO's temporaries that small come back from malloc's heap, not fresh pages.
-POOL_BAND_BYTES = 4 * 2**20
+#: OIIO's temporaries (a band and its NumPy copy) under the command's mmap threshold
+#: (``__main__.MMAP_THRESHOLD``) come back from malloc's heap, not fresh pages.
+POOL_BAND_BYTES = 1 * 2**20
 
 
 def read_frame(path: str, frame: int | None = None, channels: list[str] | None = None,
