@@ -52,16 +52,23 @@ def test_overlapped_io_equals_serial(seq, tmp_path, op, ext):
     assert ca == cb and ca["frame"] == frames[-1]
 
 
-def test_bad_frame_while_the_last_one_is_written(seq, tmp_path, capsys):
-    """Frame 4 cannot be read (its read ran ahead, on the reader thread): the error
-    names it; frames 1-3 are written whole and the checkpoint is frame 3's."""
-    pattern, frames = seq
+def _with_a_bad_frame(seq, tmp_path, frame):
+    """A copy of the sequence whose ``frame`` is garbage: (its pattern, that file)."""
+    pattern, _ = seq
     d = tmp_path / "in"
     shutil.copytree(os.path.dirname(pattern), d)
     pat = str(d / os.path.basename(pattern))
-    bad = frame_path(pat, frames[3])
+    bad = frame_path(pat, frame)
     with open(bad, "wb") as fh:
         fh.write(b"garbage")
+    return pat, bad
+
+
+def test_bad_frame_while_the_last_one_is_written(seq, tmp_path, capsys):
+    """Frame 4 cannot be read (its read ran ahead, on the reader thread): the error
+    names it; frames 1-3 are written whole and the checkpoint is frame 3's."""
+    _, frames = seq
+    pat, bad = _with_a_bad_frame(seq, tmp_path, frames[3])
     out = str(tmp_path / "o.####.png")
     assert main(["run", pat, out, "-q"]) == 2
     err = capsys.readouterr().err
@@ -133,12 +140,7 @@ def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, mo
     assert len(made) == len(frames) and made[-1] <= 2 < len(frames)
     monkeypatch.undo()
 
-    d = tmp_path / "in"
-    shutil.copytree(os.path.dirname(pattern), d)
-    pat = str(d / os.path.basename(pattern))
-    bad = frame_path(pat, frames[0])
-    with open(bad, "wb") as fh:
-        fh.write(b"garbage")
+    pat, bad = _with_a_bad_frame(seq, tmp_path, frames[0])
     capsys.readouterr()
     assert main(["run", pat, str(tmp_path / "b.####.exr"), "--out-bits", "8", "-q"]) == 2
     err = capsys.readouterr().err
