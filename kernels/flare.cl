@@ -59,11 +59,13 @@ __kernel void flare_down(__global const float4 *fine, const int fw, const int fh
 /* Level 1 straight from the frame (the fused path: level 0's S is never stored
  * whole): flare_down's [1 3 3 1]/8 sums of S made from rgb (w x h, no margin) as they
  * are read; each coarse sample's own 2 x 2 fine pixels (its footprint's middle) go
- * to the group's sums as flare_source's do: partial[group] (S r, g, b, sources). */
+ * to the group's sums as flare_source's do: partial[group] (S r, g, b, sources), and
+ * to occ[coarse sample]: 1 where one of them is a source (level 0's tiles:
+ * flare_tiles). */
 __kernel void flare_down_src(__global const float *rgb, const int w, const int h,
                              const float lim, __global float4 *coarse, const int cw,
-                             const int ch, const int cm, __global float4 *partial,
-                             __local float4 *scratch)
+                             const int ch, const int cm, __global uchar *occ,
+                             __global float4 *partial, __local float4 *scratch)
 {
     const int K = get_global_id(0), J = get_global_id(1);
     float4 own = (float4)(0.0f);
@@ -89,6 +91,7 @@ __kernel void flare_down_src(__global const float *rgb, const int w, const int h
             acc += wt[t] * rs;
         }
         coarse[(size_t)J * cw + K] = acc * (1.0f / 64.0f);
+        occ[(size_t)J * cw + K] = own.w != 0.0f;
     }
     group_sum4_into(scratch, own, get_local_id(1) * get_local_size(0) + get_local_id(0),
                     get_local_size(0) * get_local_size(1),
@@ -97,6 +100,42 @@ __kernel void flare_down_src(__global const float *rgb, const int w, const int h
 
 /* floor(i / 2) for any sign. */
 inline int half_floor(const int i) { return i >= 0 ? i / 2 : -((1 - i) / 2); }
+
+/* Level 0's TILE0 x TILE0 tiles that need its Gaussians, in two passes from level 1's
+ * flags of their own pixels (occ: cw x ch, margin cm). flare_tiles_x: near[TY tw + TX]
+ * = 1 where a source pixel lies in the tile's rows within rx columns of it;
+ * flare_tiles_y: tiles = near taken ny tiles up and down. With ny = ceil(R / TILE0)
+ * (R: level 0's largest radius, rx = R): where the flared frame needs the Gaussians
+ * (flare_finish0; elsewhere they are exactly 0); with ny = ceil((2 R + TILE0) /
+ * TILE0): the rows along x flare_finish0 reads (flare_blur0_x). */
+__kernel void flare_tiles_x(__global const uchar *occ, const int cw, const int ch,
+                            const int cm, const int tw, const int th, const int rx,
+                            __global uchar *near)
+{
+    const int TX = get_global_id(0), TY = get_global_id(1);
+    if (TX >= tw || TY >= th) return;
+    const int k0 = max(0, half_floor(TILE0 * TX - rx) + cm);
+    const int k1 = min(cw - 1, half_floor(TILE0 * TX + TILE0 - 1 + rx) + cm);
+    const int j0 = max(0, half_floor(TILE0 * TY) + cm);
+    const int j1 = min(ch - 1, half_floor(TILE0 * TY + TILE0 - 1) + cm);
+    int any = 0;
+    for (int j = j0; j <= j1 && !any; ++j) {
+        __global const uchar *row = occ + (size_t)j * cw;
+        for (int k = k0; k <= k1; ++k) any |= row[k];
+    }
+    near[(size_t)TY * tw + TX] = any != 0;
+}
+
+__kernel void flare_tiles_y(__global const uchar *near, const int tw, const int th,
+                            const int ny, __global uchar *tiles)
+{
+    const int TX = get_global_id(0), TY = get_global_id(1);
+    if (TX >= tw || TY >= th) return;
+    int any = 0;
+    for (int j = max(0, TY - ny); j <= min(th - 1, TY + ny); ++j)
+        any |= near[(size_t)j * tw + TX];
+    tiles[(size_t)TY * tw + TX] = any != 0;
+}
 
 /* One level down: fine[2j] = .75 c[j] + .25 c[j - 1], fine[2j + 1] = .75 c[j] +
  * .25 c[j + 1] on both axes (held at the ends of the stored coarse samples). */
@@ -209,16 +248,24 @@ __constant int l0_first[L0_NK] = {L0_FIRST};
 __constant float l0_taps[] = {L0_TAPS};
 #endif
 
-/* S of a band (2D: padded column, row of the band); zero beyond the image. */
+/* Whether level 0's tile of image pixel (x, y) needs its Gaussians (flare_tiles);
+ * none outside the image. */
+#define TILE_ON(tiles, tw, x, y, w, h) \
+    ((x) >= 0 && (x) < (w) && (y) >= 0 && (y) < (h) && \
+     (tiles)[(size_t)((y) / TILE0) * (tw) + (x) / TILE0])
+
+/* S of a band (2D: padded column, row of the band); zero beyond the image and in
+ * the tiles without a source near (tiles, tw: flare_tiles). */
 __kernel void flare_source_band(__global const float *rgb, const int w, const int h,
                                 const int t0, const int trows, const float lim,
+                                __global const uchar *tiles, const int tw,
                                 __global float4 *S)
 {
     const int xp = get_global_id(0), yb = get_global_id(1);
     const int pw = w + 2 * L0_RMAX;
     if (xp >= pw || yb >= trows) return;
     const int x = xp - L0_RMAX, y = t0 + yb;
-    S[(size_t)yb * pw + xp] = (x >= 0 && x < w && y >= 0 && y < h)
+    S[(size_t)yb * pw + xp] = TILE_ON(tiles, tw, x, y, w, h)
                                 ? source_part(rgb, (size_t)y * w + x, lim) : (float4)(0.0f);
 }
 
@@ -229,23 +276,31 @@ __kernel void flare_source_band(__global const float *rgb, const int w, const in
  * each): a CPU driver runs work-items as a scalar loop, so the vectors are spelled
  * out here (flare_finish0: 38 -> ~20 ms a 1080p frame on PoCL). Loads may reach
  * past a short last quad (the buffers have 64 bytes to spare); only its pixels are
- * stored. */
-__kernel void flare_blur0_x(__global const float4 *S, const int w, const int trows,
-                            __global float4 *tmp)
+ * stored. Only the rows flare_finish0 reads are made (rows: flare_tiles' map for
+ * them; the band's rows beyond the image are 0). */
+__kernel void flare_blur0_x(__global const float4 *S, const int w, const int h,
+                            const int t0, const int trows, __global const uchar *rows,
+                            const int tw, __global float4 *tmp)
 {
 #if L0_NK > 0
     const int x = 4 * get_global_id(0), yb = get_global_id(1);
     if (x >= w || yb >= trows) return;
     __global const float4 *row = S + (size_t)yb * (w + 2 * L0_RMAX) + L0_RMAX + x;
     const size_t plane = (size_t)trows * w, o = (size_t)yb * w + x;
+    const int y = t0 + yb;
+    const int in = y >= 0 && y < h;
+    if (in && !rows[(size_t)(y / TILE0) * tw + x / TILE0]) return;   /* never read */
     const float16 c = QUAD(row);
 #pragma unroll
     for (int k = 0; k < L0_NK; ++k) {
         __constant float *t = l0_taps + l0_first[k];
-        float16 acc = t[0] * c;
+        float16 acc = (float16)(0.0f);
+        if (in) {
+            acc = t[0] * c;
 #pragma unroll
-        for (int r = 1; r <= l0_radius[k]; ++r)
-            acc += t[r] * (QUAD(row - r) + QUAD(row + r));
+            for (int r = 1; r <= l0_radius[k]; ++r)
+                acc += t[r] * (QUAD(row - r) + QUAD(row + r));
+        }
         __global float4 *dst = tmp + k * plane + o;
         dst[0] = acc.s0123;                 /* (the quad's pixels in the row) */
         if (x + 1 < w) dst[1] = acc.s4567;
@@ -265,6 +320,7 @@ __kernel void flare_finish0(__global const float *rgb, __global const float4 *S,
                             const int t0, const int trows, __constant float *kw,
                             __global const float4 *coarse, const int cw, const int ch,
                             const int cm, const int has_coarse, const float a0,
+                            const int h, __global const uchar *tiles, const int tw,
                             __global float *out, __global float4 *partial, const int gbase,
                             __local float4 *scratch)
 {
@@ -290,15 +346,17 @@ __kernel void flare_finish0(__global const float *rgb, __global const float4 *S,
         }
 #if L0_NK > 0
         const size_t plane = (size_t)trows * w;
+        if (TILE_ON(tiles, tw, x, y, w, h)) {    /* else no source near: all 0 */
 #pragma unroll
-        for (int k = 0; k < L0_NK; ++k) {
-            __constant float *t = l0_taps + l0_first[k];
-            __global const float4 *col = tmp + k * plane + (size_t)ty * w + x;
-            float16 g = t[0] * QUAD(col);
+            for (int k = 0; k < L0_NK; ++k) {
+                __constant float *t = l0_taps + l0_first[k];
+                __global const float4 *col = tmp + k * plane + (size_t)ty * w + x;
+                float16 g = t[0] * QUAD(col);
 #pragma unroll
-            for (int r = 1; r <= l0_radius[k]; ++r)
-                g += t[r] * (QUAD(col - (size_t)r * w) + QUAD(col + (size_t)r * w));
-            F += kw[k] * g;
+                for (int r = 1; r <= l0_radius[k]; ++r)
+                    g += t[r] * (QUAD(col - (size_t)r * w) + QUAD(col + (size_t)r * w));
+                F += kw[k] * g;
+            }
         }
 #endif
         F = fmax(F, (float16)(0.0f));

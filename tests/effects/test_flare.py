@@ -134,6 +134,31 @@ def test_fast_flare_made_whole_on_the_device_is_the_reference(rt, shape, fov, L)
     assert F.run(s, dark, L, L, None, dev)[0] is None
     assert F.run(EffectSettings(flare="auto", fov_deg=fov), dark, L, L, None, dev)[0] is None
 
+@pytest.mark.parametrize("shape", [(120, 203), (61, 96)])
+def test_fast_flare_on_the_device_where_sources_are_few_is_the_reference(rt, shape):
+    """The device makes level 0's Gaussians only in the tiles with a source within
+    their reach (kernels/flare.cl flare_tiles_x/_y; 8 x 8 pixels, reach 8): sources
+    on tile corners and edges, just inside and just beyond the reach of the next
+    tile, and on the frame's edges, in a frame whose width is not a multiple of 8,
+    give the float64 fast method at every pixel (2e-6, as above); tiles far from
+    every source keep the frame as it was but for the coarse levels' veil. Several
+    frames in a row (the tile maps and bands reused) give the same."""
+    from ocl_tonemap.backends.opencl import OpenCLBackend
+    from ocl_tonemap.effects import flare as F
+    dev = OpenCLBackend().flare_device()
+    h, w = shape
+    rgb = np.full((h, w, 3), 0.2, np.float32)
+    for y, x in [(0, 0), (7, 8), (8, 7), (15, 16), (31, 40), (31, 49), (40, 24),
+                 (h - 1, w - 1), (h - 1, 0), (0, w - 1), (h // 2, w - 5)]:
+        rgb[y, x] = [3e3, 2e3, 1e3]
+    s = EffectSettings(flare="on", fov_deg=20.0)
+    ref, ri = F.run(s, rgb.astype(np.float64), 1.0, 1.0)
+    for _ in range(2):
+        got, gi = F.run(s, rgb, 1.0, 1.0, None, dev)
+        assert np.max(np.abs(got - ref) / ref) < 2e-6
+        assert gi["sources"] == ri["sources"] == 11
+
+
 def test_flare_brightens_around_sources_in_the_pipeline(rt):
     # the paper's linear mapping, so that the lamp's own value is not in the shoulder
     img = _lamp_scene().astype(np.float32)

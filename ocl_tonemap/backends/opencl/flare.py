@@ -39,14 +39,19 @@ class DeviceFlare:
         #: stage's spent upload buffer: ``OpenCLBackend._spare_frame``), or None
         self._spare = spare
         names = ("flare_source", "flare_down", "flare_up", "flare_blur_x", "flare_blur_y_add",
-                 "flare_add", "flare_finish", "flare_down_src")
-        self._k = {n: rt.kernel("flare.cl", n) for n in names}
+                 "flare_add", "flare_finish", "flare_down_src", "flare_tiles_x",
+                 "flare_tiles_y")
+        self._k = {n: rt.kernel("flare.cl", n, self._defines()) for n in names}
         wg = int(rt.device.max_work_group_size)
         self.local = 1 << (min(256, max(1, wg)).bit_length() - 1)
         self._scratch = cl.LocalMemory(16 * self.local)
         self._scratch64 = cl.LocalMemory(16 * 64)          # flare_finish0's 16 x 4 groups
         self._taps: dict = {}                 # sigma -> (taps buffer, radius)
         self._level0_kernels: dict = {}       # level 0's widths -> (kernels, radius)
+
+    @classmethod
+    def _defines(cls) -> tuple:
+        return (("TILE0", cls.TILE0),)
 
     def fits(self, h: int, w: int) -> bool:
         """Whether a frame of h x w fits the device (else the host-driven path, in bands)."""
@@ -99,13 +104,15 @@ class DeviceFlare:
         fused = plan.lring != 0 and plan.top >= 1
         S = [None if (fused and l == 0) else self._buf(f"S{l}", 16 * hh * ww)
              for l, (hh, ww) in enumerate(stored)]
+        occ = None
         if fused:
             ch, cw = stored[1]
             groups = (round_up(cw, 16) // 16) * (round_up(ch, 4) // 4)
             part = self._buf("partial", 16 * groups)
+            occ = self._buf("occ", ch * cw)
             k["flare_down_src"](q, (round_up(cw, 16), round_up(ch, 4)), (16, 4), d_rgb,
                                 np.int32(w), np.int32(h), np.float32(lim), S[1], np.int32(cw),
-                                np.int32(ch), np.int32(fx.level_margin(1)), part,
+                                np.int32(ch), np.int32(fx.level_margin(1)), occ, part,
                                 self._scratch64)
         else:
             part = self._buf("partial", 16 * groups)
@@ -155,7 +162,7 @@ class DeviceFlare:
             if self._release is not None:       # level 0 needs level 1's accumulator only
                 self._release("flare:S", *(f"flare:acc{l}" for l in range(2, plan.top + 1)))
                 S = None                        # (freed once their kernels have run)
-            part, groups = self._finish0(d_rgb, lim, acc, stored, plan, h, w, d_out)
+            part, groups = self._finish0(d_rgb, lim, acc, stored, plan, h, w, d_out, occ)
         else:
             k["flare_finish"](q, (groups * L,), (L,), d_rgb, S[0], acc if have else S[0],
                               np.int32(1 if have else 0), np.float32(plan.a0), np.int32(n),
@@ -168,6 +175,10 @@ class DeviceFlare:
             out = np.empty((h, w, 3), np.float32)
             cl.enqueue_copy(q, out, d_out)
         return out, sources, ssum[:3], fsum[:3]
+
+    #: Level 0's tiles (kernels/flare.cl TILE0): its Gaussians are made only in the
+    #: tiles with a source within their reach (``flare_tiles``).
+    TILE0 = 8
 
     #: Level 0's Gaussians are made along x for bands of about this many pixels (their
     #: planes: 16 bytes a pixel each, with the halo rows the y taps reach).
@@ -192,7 +203,7 @@ class DeviceFlare:
                 radii.append(len(t) - 1)
                 taps.extend(float(v) for v in t)
             R = max(radii, default=0)
-            defines = (("L0_NK", len(gs)), ("L0_RMAX", R))
+            defines = self._defines() + (("L0_NK", len(gs)), ("L0_RMAX", R))
             if gs:
                 defines += (("L0_RADII", tuple(radii)), ("L0_FIRST", tuple(first)),
                             ("L0_TAPS", tuple(taps)))
@@ -208,14 +219,28 @@ class DeviceFlare:
         if self._release is not None:
             self._release("flare:S", "flare:acc", "flare:tmp", "flare:partial0")
 
-    def _finish0(self, d_rgb, lim: float, acc1, stored, plan, h: int, w: int, d_out):
+    def _finish0(self, d_rgb, lim: float, acc1, stored, plan, h: int, w: int, d_out, occ):
         """Level 0 and the flared frame, band by band: the band's source part
         (``flare_source_band``, padded with zeros), its Gaussians along x
         (``flare_blur0_x``) and the flared rows (``flare_finish0``): no level-0 source
-        part, accumulator or planes beyond one band's. Returns the buffer of the
+        part, accumulator or planes beyond one band's, and the Gaussians only in the
+        tiles with a source within their reach (``flare_tiles``, from level 1's flags
+        ``occ``; a night frame's lamps: ~15% of the tiles). Returns the buffer of the
         flare's per-group sums (all bands) and their count."""
         q, L = self.rt.queue, self.local
         k, wts, nk, R = self._level0(plan)
+        ch, cw = stored[1]
+        cm = fx.level_margin(1)
+        T = self.TILE0
+        tw, th = -(-w // T), -(-h // T)
+        gs = (round_up(tw, 16), round_up(th, 4))
+        near = self._buf("tilenear", tw * th)
+        self._k["flare_tiles_x"](q, gs, (16, 4), occ, np.int32(cw), np.int32(ch), np.int32(cm),
+                                 np.int32(tw), np.int32(th), np.int32(R), near)
+        tiles, rows_on = self._buf("tiles", tw * th), self._buf("tilerows", tw * th)
+        for out, ry in ((tiles, R), (rows_on, 2 * R + T)):
+            self._k["flare_tiles_y"](q, gs, (16, 4), near, np.int32(tw), np.int32(th),
+                                     np.int32(-(-ry // T)), out)
         rows = max(1, min(h, self.BAND0_PIXELS // max(w, 1)))
         bands = [(y0, min(h, y0 + rows)) for y0 in range(0, h, rows)]
         quads = (w + 3) // 4                    # blur0_x and finish0: 4 pixels an item
@@ -225,23 +250,25 @@ class DeviceFlare:
         # (+ 64 bytes: a short last quad's loads reach past the row)
         tmp = self._buf("tmp", 16 * max(nk, 1) * w * trows_most + 64)
         S0 = self._buf("Sband", 16 * (w + 2 * R) * trows_most + 64)
-        ch, cw = stored[1] if acc1 is not None else (1, 1)
-        cm = fx.level_margin(1)
+        if acc1 is None:
+            ch, cw = 1, 1
         gbase = 0
         for (y0, y1), g in zip(bands, gcount):
             t0, trows = y0 - R, (y1 - y0) + 2 * R
             k["flare_source_band"](q, (round_up(w + 2 * R, 16), round_up(trows, 4)), (16, 4),
                                    d_rgb, np.int32(w), np.int32(h), np.int32(t0),
-                                   np.int32(trows), np.float32(lim), S0)
+                                   np.int32(trows), np.float32(lim), tiles, np.int32(tw), S0)
             if nk:
                 k["flare_blur0_x"](q, (round_up(quads, 16), round_up(trows, 4)), (16, 4), S0,
-                                   np.int32(w), np.int32(trows), tmp)
+                                   np.int32(w), np.int32(h), np.int32(t0), np.int32(trows),
+                                   rows_on, np.int32(tw), tmp)
             k["flare_finish0"](q, (round_up(quads, 16), round_up(y1 - y0, 4)), (16, 4), d_rgb,
                                S0, np.int32(w), np.int32(y0), np.int32(y1 - y0), tmp,
                                np.int32(t0), np.int32(trows), wts,
                                acc1 if acc1 is not None else S0, np.int32(cw), np.int32(ch),
                                np.int32(cm), np.int32(0 if acc1 is None else 1),
-                               np.float32(plan.a0), d_out, part, np.int32(gbase),
+                               np.float32(plan.a0), np.int32(h), tiles, np.int32(tw), d_out,
+                               part, np.int32(gbase),
                                self._scratch64)
             gbase += g
         return part, gbase
