@@ -49,6 +49,24 @@ def setup_run(opts: JobOptions, state: AdaptationState | None):
     return run, make_tonemapper(opts, run.colour, state, run.disp)
 
 
+def kernels_key(tm: Tonemapper) -> str:
+    """What decides the kernels a run asks for, device aside (the runtime's): its
+    settings as given, before any frame (the plan turns ``auto`` effects on and off)."""
+    return "|".join((tm.operator_name, tm.quality, repr(tm.effects.s),
+                     repr(sorted(tm.options.items()))))
+
+
+def prepare_kernels(tm: Tonemapper, key: str, stop) -> None:
+    """While the first frame is read (until ``stop()``): the kernels the last run of
+    ``key`` asked for, loaded from the cache (``Runtime.warm_kernels``; a 4K frame's
+    ~40 ms of program loads), and a module its first frame imports (NumPy's
+    percentile, in the mechanism plan, brings in numpy.ma: ~15 ms)."""
+    import numpy.ma  # noqa: F401
+    rt = tm.backend.device_runtime()
+    if rt is not None and not stop():
+        rt.warm_kernels(key, stop)
+
+
 def resolved_backend(opts: JobOptions) -> JobOptions:
     """``opts`` with a backend of "auto" (``cli._options(defer_backend=True)``) resolved:
     OpenCL on the first working device, else the reference with one warning."""
@@ -153,6 +171,10 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
             first = (done_before or (frame_jobs(opts) if chunk else jobs) or [(None,)])[0][0]
             exporter = OcioExport(opts.ocio_export, run.colour, tm, first,
                                   opts.ocio_export_size)
+        kernels = kernels_key(tm)
+        first = io.pending(0)
+        if first is not None:                      # the device's kernels while it is read
+            prepare_kernels(tm, kernels, first.done)
     except BaseException:
         io.__exit__(None, None, None)
         raise
@@ -233,6 +255,9 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                     sys.stderr.write("\n")
                 raise Interrupted(stop.signum, k + 1, n, f, ckpt)
         io.drain()
+    rt = tm.backend.device_runtime()
+    if rt is not None:                             # for the next run's start
+        rt.remember_kernels(kernels)
     if opts.progress and n:
         sys.stderr.write("\n")
     if opts.state_out:
@@ -349,6 +374,11 @@ class _FrameIO:
     def prefetch(self, key, fn) -> None:
         if self._r is not None and key not in self._reads:
             self._reads[key] = self._r.submit(fn)
+
+    def pending(self, key):
+        """The read of ``key`` submitted and not yet done (its future), else None."""
+        fut = self._reads.get(key)
+        return fut if fut is not None and not fut.done() else None
 
     def read(self, key, fn):
         fut = self._reads.pop(key, None)

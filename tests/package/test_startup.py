@@ -57,6 +57,8 @@ def test_program_binaries_cached_give_the_same_frames(tmp_path, sample_dir):
             bins = sorted((tmp_path / "cache" / "programs").glob("*.bin"))
             assert bins and all(p.stat().st_size > 0 for p in bins)
             assert list((tmp_path / "cache" / "display-tables").glob("*.npz"))
+            # the kernels the run asked for, listed for the next run's start
+            assert len(list((tmp_path / "cache" / "programs").glob("run-*.json"))) == 1
         outs.append(oiio.ImageBuf(str(out)).get_pixels(oiio.FLOAT))
     assert np.isfinite(outs[0]).all() and np.array_equal(outs[0], outs[1])
     # PYOPENCL_NO_CACHE: no binaries kept or read
@@ -66,3 +68,41 @@ def test_program_binaries_cached_give_the_same_frames(tmp_path, sample_dir):
                        text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert not (tmp_path / "cache2" / "programs").exists()
+
+
+@pytest.mark.requires_opencl
+def test_kernels_of_the_last_run_are_loaded_from_the_cache_and_never_compiled(tmp_path,
+                                                                              monkeypatch):
+    """``Runtime.remember_kernels`` lists the kernels a run asked for; the next run's
+    ``warm_kernels`` (while its first frame is read) makes them again from the cached
+    binaries, stops when told to, and compiles nothing: a program whose binary is not
+    in the cache is left to its first use."""
+    monkeypatch.setenv("OCLTM_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("PYOPENCL_NO_CACHE", raising=False)
+    from ocl_tonemap.backends.opencl import runtime as R
+    rt = R.get_runtime()
+    asked = dict(R._ASKED)
+    try:
+        R._build.cache_clear()
+        R._kernel.cache_clear()
+        R._ASKED.clear()
+        rt.kernel("colour.cl", "apply_gains")     # compiled; its binary kept in tmp_path
+        rt.remember_kernels("k")
+        assert len(list((tmp_path / "programs").glob("run-*.json"))) == 1
+        R._build.cache_clear()
+        R._kernel.cache_clear()
+        assert rt.warm_kernels("k", lambda: True) == 0        # told to stop at once
+        assert R._build.cache_info().currsize == 0
+        assert rt.warm_kernels("k", lambda: False) == 1
+        assert R._kernel.cache_info().currsize == 1
+        # a kernel whose program was never built here: listed, not compiled by the warm-up
+        R._ASKED[("colour.cl", "apply_gains", (("OCLTM_TEST_UNBUILT", 1),))] = None
+        rt.remember_kernels("k")
+        R._build.cache_clear()
+        R._kernel.cache_clear()
+        assert rt.warm_kernels("k", lambda: False) == 1
+        assert R._build.cache_info().currsize == 1
+        assert rt.warm_kernels("another run", lambda: False) == 0
+    finally:
+        R._ASKED.clear()
+        R._ASKED.update(asked)

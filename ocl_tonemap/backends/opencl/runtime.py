@@ -187,8 +187,63 @@ class Runtime:
         and parameter indices generated from the Python side, never retyped).
         With ``OCLTM_PROFILE=1`` in the environment each launch is timed
         (:func:`kernel_times`)."""
-        k = _kernel(self.context, self.device, file, name, tuple(defines))
+        defines = tuple(defines)
+        k = _kernel(self.context, self.device, file, name, defines)
+        _ASKED.setdefault((file, name, defines), None)
         return _TimedKernel(k, name) if PROFILING else k
+
+    def remember_kernels(self, key: str) -> None:
+        """Keep the list of the kernels this process asked for under ``key`` (a run's
+        operator and settings) in the user's cache, for :meth:`warm_kernels`."""
+        path = _journal_path(self.device, key)
+        if path is None or not _ASKED:
+            return
+        import json
+        data = json.dumps([[f, n, [list(d) for d in defs]] for f, n, defs in _ASKED]).encode()
+        try:
+            if path.read_bytes() == data:
+                return
+        except OSError:
+            pass
+        from ...resources import cache_write
+        if cache_write(path, data):
+            try:                            # the most recent RUN_LISTS lists are kept
+                old = sorted(path.parent.glob("run-*.json"), key=lambda p: p.stat().st_mtime)
+                for p in old[:max(0, len(old) - RUN_LISTS)]:
+                    p.unlink(missing_ok=True)
+            except OSError:
+                pass
+
+    def warm_kernels(self, key: str, stop) -> int:
+        """Make the kernels the last run of ``key`` asked for (:meth:`remember_kernels`)
+        until ``stop()`` is true: their programs are loaded from the user's cache, never
+        compiled here (a program not there is left to its first use). For the time a
+        run waits for its first frame's read: a 4K frame's ~40 ms of program loads then
+        cost nothing. Returns the number made."""
+        path = _journal_path(self.device, key)
+        if path is None:
+            return 0
+        import json
+        try:
+            items = json.loads(path.read_bytes())
+        except (OSError, ValueError):
+            return 0
+        made = 0
+        for item in items if isinstance(items, list) else ():
+            if stop():
+                break
+            try:
+                file, name, defs = item
+                defines = tuple((str(k), _frozen(v)) for k, v in defs)
+                src, opts = _source(self.device, (file,), defines)
+                cached = program_cache_path(self.device, src, opts)
+                if cached is None or not cached.exists():
+                    continue
+                _kernel(self.context, self.device, file, name, defines)
+                made += 1
+            except Exception:           # noqa: BLE001 -- a cache: never fails a run
+                continue
+        return made
 
     @functools.cached_property
     def vector_pixels(self) -> bool:
@@ -209,6 +264,31 @@ class Runtime:
 
     def global_mem_bytes(self) -> int:
         return int(self.device.global_mem_size)
+
+
+#: (file, name, defines) of every kernel this process asked for, in order
+#: (``Runtime.remember_kernels``).
+_ASKED: dict = {}
+
+
+def _frozen(v):
+    """A define's value as given (JSON gives lists for tuples)."""
+    return tuple(_frozen(x) for x in v) if isinstance(v, list) else v
+
+
+def _journal_path(device, key: str) -> Path | None:
+    """Where the kernels of a run of ``key`` on ``device`` are listed (None with
+    ``PYOPENCL_NO_CACHE``: no program cache to load them from)."""
+    if os.environ.get("PYOPENCL_NO_CACHE"):
+        return None
+    import hashlib
+    from ...resources import user_cache_dir
+    h = hashlib.sha256("\0".join([_device_key(device), key]).encode())
+    return user_cache_dir() / "programs" / f"run-{h.hexdigest()[:32]}.json"
+
+
+#: Lists of a run's kernels (:meth:`Runtime.remember_kernels`) kept at most.
+RUN_LISTS = 64
 
 
 #: ``OCLTM_PROFILE=1``: the queue records each kernel's device time (benchmarks,
@@ -265,12 +345,17 @@ def index_defines(names, prefix: str = "P_") -> tuple:
     return tuple((f"{prefix}{n}", i) for i, n in enumerate(names))
 
 
+def _source(device, files: tuple[str, ...], defines: tuple = ()) -> tuple[str, list]:
+    """(source, build options) of a program of ``files`` built with ``defines``."""
+    kdir = kernel_dir()
+    src = "\n".join((kdir / f).read_text() for f in ("common.h", *files))
+    return src, build_options(device) + [f"-D{k}={define_value(v)}" for k, v in defines]
+
+
 @functools.lru_cache(maxsize=None)
 def _build(context, device, files: tuple[str, ...], defines: tuple = ()):
     cl = cl_api()
-    kdir = kernel_dir()
-    src = "\n".join((kdir / f).read_text() for f in ("common.h", *files))
-    opts = build_options(device) + [f"-D{k}={define_value(v)}" for k, v in defines]
+    src, opts = _source(device, files, defines)
     cached = program_cache_path(device, src, opts)
     if cached is not None:
         try:
