@@ -537,6 +537,8 @@ class Tonemapper:
         measure pass has swept the frame)."""
         fx = self.effects
         fx.begin_frame(None)
+        fx.drop_started()
+        reused = self._frame_plan.get("reused", False)
         self._frame_plan = {}
         own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
         if not self.plan.active and fx.s.flare == "off" and fx.s.purkinje == "off" \
@@ -623,6 +625,8 @@ class Tonemapper:
         map (cd/m^2 with scale 1 when changed) and the repairs of the original."""
         fx = self.effects
         fx.begin_frame(None)
+        fx.drop_started()
+        reused = self._frame_plan.get("reused", False)
         self._frame_plan = {}
         own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
         scene_plugins = fx.slot_plugins("scene")
@@ -639,6 +643,11 @@ class Tonemapper:
         levels = self.backend.working(pix, scale, self.metering, own_chroma and self._grey_world(),
                                       on_device=on_dev, proxy_stride=self.plan.proxy_stride(h, w))
         rgb, repairs, (G_rod, G_cone), estimate = levels[:4]
+        if flare_dev:           # the device starts on the flare while the host plans
+            if self.plan.wants_sources(fresh or not reused):
+                self.backend.source_proxy_ahead((h, w), self.plan.proxy_stride(h, w),
+                                                fx.settings.flare_threshold * G_cone)
+            fx.start_flare(rgb, G_rod, G_cone, levels.max_Y)
         self._begin_plan(levels, lambda a, b: pix[a:b], h, w, scale, dt, fresh)
         changed = False
         new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)

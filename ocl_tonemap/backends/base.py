@@ -99,6 +99,11 @@ class Backend(Protocol):
         of the frame the last :meth:`working` made, where the backend still holds it
         whole; else None (the plan then predicts from the proxy itself)."""
 
+    def source_proxy_ahead(self, shape, stride: int, lim: float) -> None:
+        """Start :meth:`source_proxy` of these arguments now, so that the call itself only
+        collects it (a device queue: work enqueued after it runs meanwhile); nothing
+        where there is no queue."""
+
     def scene_levels(self, source, scale: float, spec: MeteringSpec,
                      illuminant: bool, proxy_stride: int = 0) -> Levels:
         """Colour stage and metering of a band source (``source[y0:y1]``), without
@@ -140,6 +145,9 @@ class HostBackend:
         return None
 
     def purkinje_device(self):
+        return None
+
+    def source_proxy_ahead(self, shape, stride: int, lim: float) -> None:
         return None
 
     @contextmanager

@@ -205,12 +205,30 @@ class Effects:
         where :meth:`flare_on_device`: the new one is then one too)."""
         self._make_flare_device()
         new, info = _flare.run(self.s, rgb, G_rod, G_cone, self._blur, self._flare_dev)
+        if self._flare_dev is not None:
+            self._flare_dev.discard()         # start()'s passes, where the plan skipped it
         w = self.weight("flare")
         if new is not None and w < 1.0:       # blended in or out (the plan's ramp)
             old = np.asarray(rgb, np.float32)[..., :3]
             new = (old + w * (np.asarray(new, np.float32) - old)).astype(np.float32)
             info["weight"] = w
         return new, info
+
+    def start_flare(self, rgb, G_rod: float, G_cone: float, max_Y: float | None) -> None:
+        """Before the frame is planned: the first passes of its flare on the device,
+        where the frame has a source (``max_Y`` above the threshold) and the flare may
+        run (on, or ``auto`` for the plan to decide): the device makes them while the
+        host plans. :meth:`flare` goes on from them, or drops them."""
+        self._make_flare_device()
+        if self._flare_dev is not None and self.settings.flare != "off" and \
+                max_Y is not None and max_Y > self.settings.flare_threshold * G_cone:
+            _flare.start_on_device(self.settings, rgb, G_rod, G_cone, self._flare_dev)
+
+    def drop_started(self) -> None:
+        """Drop :meth:`start_flare`'s passes a frame left (one that failed before its
+        flare): the next frame starts afresh."""
+        if self._flare_dev is not None:
+            self._flare_dev.discard()
 
     def _make_flare_device(self) -> None:
         if self.s.flare != "off" and self.s.flare_method == "fast" and \

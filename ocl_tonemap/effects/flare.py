@@ -41,13 +41,28 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, blur=None, devic
     return out.astype(np.float32), info
 
 
-def _run_on_device(settings, rgb, G_rod: float, G_cone: float, device):
-    """:func:`run` with the pyramid on the device: the same plan and info."""
-    h, w = rgb.shape[:2]
+def device_plan(settings, shape, G_rod: float, G_cone: float):
+    """(pupil mm, source threshold cd/m^2, fast plan) of a frame's flare on the device."""
+    h, w = (int(v) for v in shape[:2])
     D = float(fl.pupil_diameter(0.5 * (G_cone + G_rod)))
     lim = settings.flare_threshold * max(float(G_cone), 0.0)
     plan = fl.fast_plan((h, w), settings.fov_deg / w, D, settings.flare_per_octave,
                         fit=stored_fit((h, w), settings.fov_deg / w, settings.flare_per_octave))
+    return D, lim, plan
+
+
+def start_on_device(settings, rgb, G_rod: float, G_cone: float, device) -> None:
+    """The first passes of the frame's flare on the device, enqueued before the frame is
+    planned (``DeviceFlare.start``): :func:`run` goes on from them."""
+    if settings.flare != "off" and settings.flare_method == "fast" and \
+            device.fits(*rgb.shape[:2]):
+        _, lim, plan = device_plan(settings, rgb.shape, G_rod, G_cone)
+        device.start(rgb, plan, lim)
+
+
+def _run_on_device(settings, rgb, G_rod: float, G_cone: float, device):
+    """:func:`run` with the pyramid on the device: the same plan and info."""
+    D, lim, plan = device_plan(settings, rgb.shape, G_rod, G_cone)
     out, sources, S_sum, F_sum = device.apply(rgb, plan, lim)
     if sources == 0 and settings.flare == "auto":
         return None, {"ran": False, "reason": "no light sources"}

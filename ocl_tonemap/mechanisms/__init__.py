@@ -35,6 +35,12 @@ class MechanismPlan:
             return None
         return self.backend.source_proxy((h, w), block_stride(h, w), lim)
 
+    def wants_sources(self, predicts: bool) -> bool:
+        """Whether a frame's plan reads the flare's source proxy (:meth:`backend_sources`)
+        where it ``predicts`` (its predictions not reused from the last frame)."""
+        return bool(self.active and self.gated and predicts
+                    and ("flare" in self.gated or self.settings.flare == "on"))
+
     def proxy_stride(self, h: int, w: int) -> int:
         """The block size of the frame's proxy (0: no plan for this run)."""
         return block_stride(h, w) if self.active else 0

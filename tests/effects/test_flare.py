@@ -159,6 +159,46 @@ def test_fast_flare_on_the_device_where_sources_are_few_is_the_reference(rt, sha
         assert gi["sources"] == ri["sources"] == 11
 
 
+def test_flare_started_before_the_plan_goes_on_to_the_same_frame(rt):
+    """The pipeline enqueues a frame's first flare passes before it plans the frame
+    (``DeviceFlare.start``; the device makes them while the host plans): ``apply``
+    goes on from them to the frame it makes at once, bit for bit; passes started
+    with another threshold are not taken for this one's; passes the plan leaves
+    unused (``discard``) go back to the pool. The source proxy read ahead
+    (``source_proxy_ahead``) is the one read when asked, and only for its own
+    arguments."""
+    import pyopencl as cl
+    from ocl_tonemap.backends.opencl import OpenCLBackend
+    from ocl_tonemap.backends.opencl.image import DeviceImage
+    from ocl_tonemap.effects import flare as F
+    from ocl_tonemap.models.metering import MeteringSpec
+    be = OpenCLBackend()
+    dev = be.flare_device()
+    rgb = _lamp_scene().astype(np.float32)
+    img = DeviceImage(be.rt, cl.Buffer(be.rt.context, cl.mem_flags.READ_ONLY
+                                       | cl.mem_flags.COPY_HOST_PTR, hostbuf=rgb), rgb.shape)
+    s = EffectSettings(flare="on", fov_deg=50.0)
+    ref = np.array(F.run(s, img, 1.0, 1.0, None, dev)[0])
+    F.start_on_device(s, img, 1.0, 1.0, dev)
+    assert dev._started is not None
+    assert np.array_equal(np.array(F.run(s, img, 1.0, 1.0, None, dev)[0]), ref)
+    assert dev._started is None
+    F.start_on_device(s, img, 1.0, 3.0, dev)          # another threshold
+    assert np.array_equal(np.array(F.run(s, img, 1.0, 1.0, None, dev)[0]), ref)
+    F.start_on_device(s, img, 1.0, 1.0, dev)
+    dev.discard()
+    assert dev._started is None
+    assert not [n for n in be._pool if n.startswith(("flare:S", "flare:acc"))]
+    # the source proxy
+    be.working(rgb, 1.0, MeteringSpec.parse("logmean"), on_device=True, proxy_stride=8)
+    want = be.source_proxy((90, 160), 8, 5.0)
+    assert want is not None and want.max() > 0
+    be.source_proxy_ahead((90, 160), 8, 5.0)
+    assert np.array_equal(be.source_proxy((90, 160), 8, 5.0), want)
+    be.source_proxy_ahead((90, 160), 8, 50.0)
+    assert np.array_equal(be.source_proxy((90, 160), 8, 5.0), want)
+
+
 def test_flare_brightens_around_sources_in_the_pipeline(rt):
     # the paper's linear mapping, so that the lamp's own value is not in the shoulder
     img = _lamp_scene().astype(np.float32)

@@ -36,6 +36,7 @@ class OpenCLBackend:
         self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
         self._blocks = self.rt.kernel("metering.cl", "block_sums")
         self._resident = None          # (h, w) of the working frame whole in bufs["rgb"]
+        self._ahead = None             # source_proxy_ahead's: (its arguments, sums, collect)
         if max_band_pixels is None:
             # Per pixel: src (<=4 floats), rgb 3, Y, Y', out 3 = 48 B; keep to 1/4
             # of global memory and under the largest single allocation.
@@ -233,9 +234,11 @@ class OpenCLBackend:
         return row_bands(h, w, self.max_band_pixels, halo)
 
     def _block_sums(self, w: int, nr: int, y0: int, s: int, into: np.ndarray,
-                    lim: float = 0.0) -> None:
+                    lim: float = 0.0, wait: bool = True):
         """Add the band's block sums (``metering.cl:block_sums``; ``lim`` > 0: of the
-        source part) into ``into`` (block rows x block columns x 4, float64)."""
+        source part) into ``into`` (block rows x block columns x 4, float64); ``wait``
+        False: their read is only enqueued, and the function returned adds them once
+        it has come."""
         import pyopencl as cl
         bw = into.shape[1]
         by0, by1 = y0 // s, (y0 + nr - 1) // s + 1
@@ -245,8 +248,15 @@ class OpenCLBackend:
                      np.int32(nr), np.int32(y0), np.int32(s), np.int32(bw), np.int32(by0),
                      np.int32(by1 - by0), np.float32(lim), out)
         part = np.empty((by1 - by0, bw, 4), np.float32)
-        cl.enqueue_copy(self.rt.queue, part, out)
-        into[by0:by1] += part
+        ev = cl.enqueue_copy(self.rt.queue, part, out, is_blocking=wait)
+
+        def add():
+            ev.wait()
+            into[by0:by1] += part
+        if not wait:
+            return add
+        add()
+        return None
 
     def meter_pass(self, pixels, scale, spec, illuminant: bool, keep_rgb: np.ndarray | None,
                    proxy_stride: int = 0):
@@ -260,6 +270,7 @@ class OpenCLBackend:
         sums = None
         illum = np.zeros(4)
         self._resident = None
+        self._ahead = None
         stride = int(proxy_stride)
         blocks = np.zeros((-(-h // stride), -(-w // stride), 4)) if stride else None
         for y0, nr in bands:
@@ -285,9 +296,22 @@ class OpenCLBackend:
         h, w = int(shape[0]), int(shape[1])
         if self._resident != (h, w):
             return None
-        blocks = np.zeros((-(-h // stride), -(-w // stride), 4))
-        self._block_sums(w, h, 0, int(stride), blocks, float(lim))
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead[0] == (h, w, int(stride), float(lim)):
+            blocks = ahead[1]
+            ahead[2]()
+        else:
+            blocks = np.zeros((-(-h // stride), -(-w // stride), 4))
+            self._block_sums(w, h, 0, int(stride), blocks, float(lim))
         return blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)
+
+    def source_proxy_ahead(self, shape, stride: int, lim: float) -> None:
+        h, w = int(shape[0]), int(shape[1])
+        self._ahead = None
+        if self._resident == (h, w):
+            blocks = np.zeros((-(-h // stride), -(-w // stride), 4))
+            self._ahead = ((h, w, int(stride), float(lim)), blocks,
+                           self._block_sums(w, h, 0, int(stride), blocks, float(lim), False))
 
     def scene_levels(self, source, scale: float, spec: met.MeteringSpec,
                      illuminant: bool, proxy_stride: int = 0) -> Levels:

@@ -46,6 +46,7 @@ class DeviceFlare:
         self.local = 1 << (min(256, max(1, wg)).bit_length() - 1)
         self._scratch = cl.LocalMemory(16 * self.local)
         self._scratch64 = cl.LocalMemory(16 * 64)          # flare_finish0's 16 x 4 groups
+        self._started = None                  # start()'s passes: (key, what they made)
         self._taps: dict = {}                 # sigma -> (taps buffer, radius)
         self._level0_kernels: dict = {}       # level 0's widths -> (kernels, radius)
 
@@ -77,24 +78,37 @@ class DeviceFlare:
         cl.enqueue_copy(self.rt.queue, p, buf)
         return p.astype(np.float64).sum(axis=0)
 
-    def apply(self, rgb: np.ndarray, plan: fl.FastPlan, lim: float):
-        """(flared frame or None when no pixel is a source, sources, S sum (3), F sum (3)).
-        ``rgb``: (H, W, 3) working rgb, cd/m^2, a host array or a :class:`DeviceImage`
-        (then read where it is, and the flared frame is a DeviceImage too: it does not
-        come to the host); ``lim``: the source threshold, cd/m^2 (threshold x L_wa)."""
-        import pyopencl as cl
+    def start(self, rgb, plan: fl.FastPlan, lim: float) -> None:
+        """Enqueue the first passes of :meth:`apply` of a frame left on the device (its
+        source part to level 1, the decimations to the top) and return at once: the
+        device works on them while the host plans the frame (``pipeline``). The next
+        :meth:`apply` of the same frame, plan and threshold goes on from them; anything
+        else first drops them (:meth:`discard`)."""
+        self.discard()
+        if isinstance(rgb, DeviceImage):
+            self._started = (self._first_key(rgb, plan, lim),
+                             self._first_passes(rgb.buffer, rgb.shape[:2], plan, lim, True))
+
+    def discard(self) -> None:
+        """Drop passes :meth:`start` left for an :meth:`apply` that did not come (the
+        plan skipped the flare): their scratch goes back to the pool."""
+        if getattr(self, "_started", None) is not None:
+            self._started = None
+            self._release_scratch()
+
+    @staticmethod
+    def _first_key(rgb, plan: fl.FastPlan, lim: float) -> tuple:
+        return (id(rgb.buffer), tuple(rgb.shape[:2]), tuple(plan.shape), plan.top, plan.lring,
+                float(lim))
+
+    def _first_passes(self, d_rgb, shape, plan: fl.FastPlan, lim: float, downs: bool):
+        """The source part made into level 1 (the fused path) or level 0, its partial
+        sums, and with ``downs`` the decimations to the top: (S, stored, fused, part,
+        groups, occ, downs made)."""
         q, k, L = self.rt.queue, self._k, self.local
-        resident = isinstance(rgb, DeviceImage)
-        if not resident:
-            rgb = np.ascontiguousarray(rgb[..., :3], np.float32)
-        h, w = rgb.shape[:2]
+        h, w = shape
         n = h * w
         groups = round_up(n, L) // L
-        if resident:                            # already on the device: read it there
-            d_rgb = rgb.buffer
-        else:
-            d_rgb = self._buf("rgb", 12 * n)
-            cl.enqueue_copy(q, d_rgb, rgb)
         sizes = fx.level_sizes(plan.shape, plan.top)
         stored = [(sizes[l][0] + 2 * fx.level_margin(l), sizes[l][1] + 2 * fx.level_margin(l))
                   for l in range(plan.top + 1)]
@@ -118,16 +132,52 @@ class DeviceFlare:
             part = self._buf("partial", 16 * groups)
             k["flare_source"](q, (groups * L,), (L,), d_rgb, np.int32(n), np.float32(lim),
                               S[0], part, self._scratch)
+        if downs:
+            self._downs(S, stored, fused, plan)
+        return S, stored, fused, part, groups, occ, downs
+
+    def _downs(self, S, stored, fused: bool, plan: fl.FastPlan) -> None:
+        for l in range(2 if fused else 1, plan.top + 1):
+            (fh, fw), (ch, cw) = stored[l - 1], stored[l]
+            self._k["flare_down"](self.rt.queue, (round_up(cw, 16), round_up(ch, 4)), (16, 4),
+                                  S[l - 1], np.int32(fw), np.int32(fh),
+                                  np.int32(fx.level_margin(l - 1)), S[l], np.int32(cw),
+                                  np.int32(ch), np.int32(fx.level_margin(l)))
+
+    def apply(self, rgb: np.ndarray, plan: fl.FastPlan, lim: float):
+        """(flared frame or None when no pixel is a source, sources, S sum (3), F sum (3)).
+        ``rgb``: (H, W, 3) working rgb, cd/m^2, a host array or a :class:`DeviceImage`
+        (then read where it is, and the flared frame is a DeviceImage too: it does not
+        come to the host); ``lim``: the source threshold, cd/m^2 (threshold x L_wa).
+        Goes on from :meth:`start`'s passes where they are of this frame."""
+        import pyopencl as cl
+        q, k, L = self.rt.queue, self._k, self.local
+        resident = isinstance(rgb, DeviceImage)
+        if not resident:
+            rgb = np.ascontiguousarray(rgb[..., :3], np.float32)
+        h, w = rgb.shape[:2]
+        n = h * w
+        started, self._started = getattr(self, "_started", None), None
+        if resident and started is not None and started[0] == self._first_key(rgb, plan, lim):
+            d_rgb = rgb.buffer
+            S, stored, fused, part, groups, occ, downs = started[1]
+        else:
+            if started is not None:
+                self._release_scratch()
+            if resident:                        # already on the device: read it there
+                d_rgb = rgb.buffer
+            else:
+                d_rgb = self._buf("rgb", 12 * n)
+                cl.enqueue_copy(q, d_rgb, rgb)
+            S, stored, fused, part, groups, occ, downs = self._first_passes(
+                d_rgb, (h, w), plan, lim, False)
         ssum = self._partials(part, groups)
         sources = int(round(ssum[3]))
         if sources == 0:
             self._release_scratch()
             return None, 0, ssum[:3], np.zeros(3)
-        for l in range(2 if fused else 1, plan.top + 1):
-            (fh, fw), (ch, cw) = stored[l - 1], stored[l]
-            k["flare_down"](q, (round_up(cw, 16), round_up(ch, 4)), (16, 4), S[l - 1],
-                            np.int32(fw), np.int32(fh), np.int32(fx.level_margin(l - 1)),
-                            S[l], np.int32(cw), np.int32(ch), np.int32(fx.level_margin(l)))
+        if not downs:
+            self._downs(S, stored, fused, plan)
         acc, have = None, False
         for l in range(plan.top, 0 if fused else -1, -1):
             hh, ww = stored[l]
