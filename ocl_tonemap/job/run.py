@@ -172,9 +172,9 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
             exporter = OcioExport(opts.ocio_export, run.colour, tm, first,
                                   opts.ocio_export_size)
         kernels = kernels_key(tm)
-        first = io.pending(0)
-        if first is not None:                      # the device's kernels while it is read
-            prepare_kernels(tm, kernels, first.done)
+        read_done = io.read_done(0)
+        if not read_done():                        # the device's kernels while it is read
+            prepare_kernels(tm, kernels, read_done)
     except BaseException:
         io.__exit__(None, None, None)
         raise
@@ -375,10 +375,16 @@ class _FrameIO:
         if self._r is not None and key not in self._reads:
             self._reads[key] = self._r.submit(fn)
 
-    def pending(self, key):
-        """The read of ``key`` submitted and not yet done (its future), else None."""
-        fut = self._reads.get(key)
-        return fut if fut is not None and not fut.done() else None
+    def read_done(self, key):
+        """A function saying whether the read of ``key`` is done (or was never
+        submitted). It holds no reference to the read: a frame is pooled memory that
+        only the frame's own turn may keep (``FramePool``)."""
+        reads = self._reads
+
+        def done() -> bool:
+            fut = reads.get(key)
+            return fut is None or fut.done()
+        return done
 
     def read(self, key, fn):
         fut = self._reads.pop(key, None)

@@ -6,6 +6,7 @@ reported at its own frame, with the frames before it complete."""
 import json
 import os
 import shutil
+import time
 
 import numpy as np
 import OpenImageIO as oiio
@@ -100,8 +101,10 @@ def test_write_failure_is_named_at_its_frame(seq, tmp_path, capsys):
 
 def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, monkeypatch):
     """The first frame's read starts before the device is probed and the run is set up
-    (on the reader thread),
-    into memory the next frames use again: a sequence reads into two arrays in all.
+    (on the reader thread), the device's kernels are made while it is still being read
+    (``prepare_kernels``, stopped by its end), and it goes
+    into memory the next frames use again: a sequence reads into two arrays in all
+    (nothing the run keeps holds the first frame's read).
     Its failure is still reported at its turn: a run that cannot be set up says why
     (one ERROR line, not the frame's), and a bad first frame is named when the run is."""
     from ocl_tonemap.job import run as job_run
@@ -113,7 +116,13 @@ def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, mo
         order.append(("read", frame))
         fr = real_read(path, frame, channels, pool)
         made.append(pool.made)
+        if frame == frames[0]:
+            time.sleep(0.5)           # a large first frame: still read when set up
         return fr
+
+    def prepare(tm, key, stop):
+        order.append(("prepare", stop()))
+        return real_prepare(tm, key, stop)
 
     def setup(*a, **k):
         order.append(("setup", None))
@@ -127,6 +136,8 @@ def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, mo
         return real_prefetch(self, key, fn)
     from ocl_tonemap import backends
     real_resolve, real_prefetch = backends.resolve_backend, job_run._FrameIO.prefetch
+    real_prepare = job_run.prepare_kernels
+    monkeypatch.setattr(job_run, "prepare_kernels", prepare)
     monkeypatch.setattr(job_run._FrameIO, "prefetch", prefetch)
     monkeypatch.setattr(job_run, "read_frame", read)
     monkeypatch.setattr(job_run, "setup_run", setup)
@@ -135,7 +146,8 @@ def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, mo
     assert main(["run", pattern, out, "-q"]) == 0
     # the OpenCL device is probed (cli: "auto") and the run set up behind the read
     main_thread = [o for o in order if o[0] != "read"]
-    assert main_thread[:3] == [("prefetch", 0), ("device", None), ("setup", None)]
+    assert main_thread[:4] == [("prefetch", 0), ("device", None), ("setup", None),
+                               ("prepare", False)]
     assert [o for o in order if o[0] == "read"][0] == ("read", frames[0])
     assert len(made) == len(frames) and made[-1] <= 2 < len(frames)
     monkeypatch.undo()
