@@ -92,7 +92,7 @@ class DeviceFlare:
     def discard(self) -> None:
         """Drop passes :meth:`start` left for an :meth:`apply` that did not come (the
         plan skipped the flare): their scratch goes back to the pool."""
-        if getattr(self, "_started", None) is not None:
+        if self._started is not None:
             self._started = None
             self._release_scratch()
 
@@ -157,7 +157,7 @@ class DeviceFlare:
             rgb = np.ascontiguousarray(rgb[..., :3], np.float32)
         h, w = rgb.shape[:2]
         n = h * w
-        started, self._started = getattr(self, "_started", None), None
+        started, self._started = self._started, None
         if resident and started is not None and started[0] == self._first_key(rgb, plan, lim):
             d_rgb = rgb.buffer
             S, stored, fused, part, groups, occ, downs = started[1]
