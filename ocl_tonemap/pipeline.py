@@ -538,7 +538,6 @@ class Tonemapper:
         fx = self.effects
         fx.begin_frame(None)
         fx.drop_started()
-        reused = self._frame_plan.get("reused", False)
         self._frame_plan = {}
         own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
         if not self.plan.active and fx.s.flare == "off" and fx.s.purkinje == "off" \
@@ -644,9 +643,7 @@ class Tonemapper:
                                       on_device=on_dev, proxy_stride=self.plan.proxy_stride(h, w))
         rgb, repairs, (G_rod, G_cone), estimate = levels[:4]
         if flare_dev:           # the device starts on the flare while the host plans
-            if self.plan.wants_sources(fresh or not reused):
-                self.backend.source_proxy_ahead((h, w), self.plan.proxy_stride(h, w),
-                                                fx.settings.flare_threshold * G_cone)
+            self.plan.sources_ahead(h, w, G_cone, fresh or not reused)
             fx.start_flare(rgb, G_rod, G_cone, levels.max_Y)
         self._begin_plan(levels, lambda a, b: pix[a:b], h, w, scale, dt, fresh)
         changed = False

@@ -220,8 +220,8 @@ class Effects:
         run (on, or ``auto`` for the plan to decide): the device makes them while the
         host plans. :meth:`flare` goes on from them, or drops them."""
         self._make_flare_device()
-        if self._flare_dev is not None and self.settings.flare != "off" and \
-                max_Y is not None and max_Y > self.settings.flare_threshold * G_cone:
+        if self._flare_dev is not None and max_Y is not None and \
+                max_Y > self.settings.flare_threshold * G_cone:
             _flare.start_on_device(self.settings, rgb, G_rod, G_cone, self._flare_dev)
 
     def drop_started(self) -> None:

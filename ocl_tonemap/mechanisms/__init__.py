@@ -35,11 +35,19 @@ class MechanismPlan:
             return None
         return self.backend.source_proxy((h, w), block_stride(h, w), lim)
 
-    def wants_sources(self, predicts: bool) -> bool:
-        """Whether a frame's plan reads the flare's source proxy (:meth:`backend_sources`)
-        where it ``predicts`` (its predictions not reused from the last frame)."""
-        return bool(self.active and self.gated and predicts
-                    and ("flare" in self.gated or self.settings.flare == "on"))
+    def flare_limit(self, G_cone: float) -> float:
+        """The flare's source threshold, cd/m^2, where the plan predicts from it (else 0)."""
+        if "flare" in self.gated or self.settings.flare == "on":
+            return self.settings.flare_threshold * G_cone
+        return 0.0
+
+    def sources_ahead(self, h: int, w: int, G_cone: float, predicts: bool) -> None:
+        """Have the backend start the source proxy :meth:`frame` will read, where the
+        frame's plan ``predicts`` (its predictions not reused from the last frame), so
+        that work enqueued meanwhile runs before the plan waits for it."""
+        lim = self.flare_limit(G_cone)
+        if self.active and self.gated and predicts and lim > 0 and self.backend is not None:
+            self.backend.source_proxy_ahead((h, w), block_stride(h, w), lim)
 
     def proxy_stride(self, h: int, w: int) -> int:
         """The block size of the frame's proxy (0: no plan for this run)."""
@@ -56,8 +64,7 @@ class MechanismPlan:
         G_rod, G_cone = levels.goal
         patches = patches_of(get_rows, h, w, scale) if self.gated else []
         an = analyse(levels.proxy, G_rod, G_cone, w, h, self.display, patches)
-        if "flare" in self.gated or self.settings.flare == "on":
-            an.flare_limit = self.settings.flare_threshold * G_cone
+        an.flare_limit = self.flare_limit(G_cone)
         prev = (extra or {}).get(planner.STATE_KEY) or {}
         if prev.get("G_cone") and dt > 0:
             an.adapting = abs(math.log10(max(an.G_cone, 1e-12) / max(prev["G_cone"], 1e-12))) / dt
