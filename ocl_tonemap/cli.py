@@ -587,6 +587,12 @@ def main(argv: list[str] | None = None) -> int:
     except (KeyboardInterrupt, Terminated) as exc:
         print("ocl-tonemap: interrupted; the frame in flight was discarded", file=sys.stderr)
         return exit_code(exc)
+    except Exception:
+        from . import interrupts
+        if interrupts.received:          # a signal a library turned into its own error
+            print("ocl-tonemap: interrupted", file=sys.stderr)   # before _main's handler:
+            return exit_code()           # NumPy's import under the parser -> ImportError
+        raise
 
 
 def _main(argv: list[str] | None = None) -> int:

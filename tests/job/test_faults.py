@@ -335,6 +335,26 @@ def test_a_second_run_on_the_same_outputs_is_refused(seq, tmp_path):
     assert not _temps(tmp_path)
 
 
+def test_a_signal_a_library_turned_into_an_import_error_while_the_parser_is_made(
+        monkeypatch, capsys):
+    """A SIGTERM that lands inside NumPy's first import (made while the command's parser
+    is built, before the run's own error handling) comes out of NumPy as an ImportError
+    ("PyCapsule_Import could not import module 'datetime'", seen on a loaded machine):
+    still one line and exit 143, never a traceback. Without a signal the error is
+    the library's, raised as it was."""
+    from ocl_tonemap import cli, interrupts
+
+    def broken(*a, **k):
+        raise ImportError("PyCapsule_Import could not import module \"datetime\"")
+    monkeypatch.setattr(cli, "build_parser", broken)
+    monkeypatch.setattr(interrupts, "received", signal.SIGTERM)
+    assert cli.main(["run", "a.exr", "b.png"]) == 143
+    assert capsys.readouterr().err.strip() == "ocl-tonemap: interrupted"
+    monkeypatch.setattr(interrupts, "received", 0)
+    with pytest.raises(ImportError):
+        cli.main(["run", "a.exr", "b.png"])
+
+
 @pytest.mark.parametrize("delay", [0.06, 0.3, 1.0])   # (the handlers are in by ~30 ms)
 def test_early_signals_exit_130_and_143_without_a_traceback(seq, tmp_path, delay):
     pattern, _ = seq
