@@ -165,8 +165,7 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
 
 
 def _options(a, input_, output, defer_backend: bool = False):
-    """The run's JobOptions. ``defer_backend``: the OpenCL device is probed by the job
-    (``job.run.run_job``: behind the first frame's read), not here ("auto")."""
+    """The run's JobOptions; ``defer_backend``: "auto", probed by ``job.run.run_job``."""
     from .backends.plan import quality_tier
     from .imageio import parse_frames
     from .job.options import JobOptions, parse_preadapt
@@ -587,12 +586,12 @@ def main(argv: list[str] | None = None) -> int:
     except (KeyboardInterrupt, Terminated) as exc:
         print("ocl-tonemap: interrupted; the frame in flight was discarded", file=sys.stderr)
         return exit_code(exc)
-    except Exception:
-        from . import interrupts
-        if interrupts.received:          # a signal a library turned into its own error
-            print("ocl-tonemap: interrupted", file=sys.stderr)   # before _main's handler:
-            return exit_code()           # NumPy's import under the parser -> ImportError
-        raise
+    except Exception:                     # a signal a library made its own error (NumPy's
+        from . import interrupts          # import under the parser: ImportError)
+        if not interrupts.received:
+            raise
+        print("ocl-tonemap: interrupted", file=sys.stderr)
+        return exit_code()
 
 
 def _main(argv: list[str] | None = None) -> int:
