@@ -254,57 +254,71 @@ __kernel void kirk11_compose(__global const float *src, __global const float *sh
  *   mode 2, x = display-linear RGB: ln max(Y / u, 1e-6), 0                (anchor_gain)
  * Four pixels per step in float4 (PoCL vectorises log on float4, not across items). */
 inline float4 kirk_terms4(__global const float *x, const int q, const int mode,
-                          const float inv_u, float4 *second)
+                          const float inv_u, float4 *second, float4 *lit)
 {
+    /* lit: 1 where the pixel is metered (above LOG_FLOOR: models/metering.py's rule,
+     * an unlit pixel -- exact zeros, black borders -- adds nothing to a log-average) */
     if (mode == 0) {
         const float4 a = vload4(4 * q, x), b = vload4(4 * q + 1, x),
                      c = vload4(4 * q + 2, x), d = vload4(4 * q + 3, x);
-        *second = log(fmax((float4)(a.x + a.y, b.x + b.y, c.x + c.y, d.x + d.y),
-                           LOG_FLOOR));
-        return log(fmax((float4)(a.w, b.w, c.w, d.w), LOG_FLOOR));
+        const float4 lm = (float4)(a.x + a.y, b.x + b.y, c.x + c.y, d.x + d.y),
+                     r = (float4)(a.w, b.w, c.w, d.w);
+        *lit = select((float4)(0.0f), (float4)(1.0f), isgreater(fmax(lm, r), (float4)(LOG_FLOOR)));
+        *second = *lit * log(fmax(lm, LOG_FLOOR));
+        return *lit * log(fmax(r, LOG_FLOOR));
     }
     *second = (float4)(0.0f);
+    *lit = (float4)(1.0f);
     if (mode == 1) return vload4(q, x);
     float4 r, g, b;
     load_rgb4(q, x, &r, &g, &b);
-    return log(fmax((M_YR * r + M_YG * g + M_YB * b) * inv_u, LOG_FLOOR));
+    const float4 y = (M_YR * r + M_YG * g + M_YB * b) * inv_u;
+    *lit = select((float4)(0.0f), (float4)(1.0f), isgreater(y, (float4)(LOG_FLOOR)));
+    return *lit * log(fmax(y, LOG_FLOOR));
 }
 
-inline float2 kirk_terms1(__global const float *x, const int i, const int mode,
+inline float3 kirk_terms1(__global const float *x, const int i, const int mode,
                           const float inv_u)
 {
     if (mode == 0) {
         const float4 v = vload4(i, x);
-        return (float2)(log(fmax(v.w, LOG_FLOOR)), log(fmax(v.x + v.y, LOG_FLOOR)));
+        const float lm = v.x + v.y;
+        if (!(fmax(lm, v.w) > LOG_FLOOR)) return (float3)(0.0f);
+        return (float3)(log(fmax(v.w, LOG_FLOOR)), log(fmax(lm, LOG_FLOOR)), 1.0f);
     }
-    if (mode == 1) return (float2)(x[i], 0.0f);
+    if (mode == 1) return (float3)(x[i], 0.0f, 1.0f);
     const float3 c = vload3(i, x);
-    return (float2)(log(fmax((M_YR * c.x + M_YG * c.y + M_YB * c.z) * inv_u, LOG_FLOOR)),
-                    0.0f);
+    const float y = (M_YR * c.x + M_YG * c.y + M_YB * c.z) * inv_u;
+    if (!(y > LOG_FLOOR)) return (float3)(0.0f);
+    return (float3)(log(fmax(y, LOG_FLOOR)), 0.0f, 1.0f);
 }
 
+/* Sums over n pixels: (first term, second term, pixels metered) per group. */
 __kernel void kirk11_sums(__global const float *x, const int n, const int mode,
                           const float inv_u, __global float4 *partial,
                           __local float4 *scratch)
 {
     const int gid = get_global_id(0), gsz = get_global_size(0);
-    float4 s1 = 0.0f, s2 = 0.0f, c1 = 0.0f, c2 = 0.0f, v, y, t, sec;
+    float4 s1 = 0.0f, s2 = 0.0f, s3 = 0.0f, c1 = 0.0f, c2 = 0.0f, c3 = 0.0f, v, y, t, sec, lit;
     const int nq = n / 4;
     int qa, qb, qs;
     share_range(nq, &qa, &qb, &qs);
     for (int q = qa; q < qb; q += qs) {
 #define KAHAN4(S, C, V) v = (V); y = v - C; t = S + y; C = (t - S) - y; S = t;
-        KAHAN4(s1, c1, kirk_terms4(x, q, mode, inv_u, &sec))
+        KAHAN4(s1, c1, kirk_terms4(x, q, mode, inv_u, &sec, &lit))
         KAHAN4(s2, c2, sec)
+        KAHAN4(s3, c3, lit)
 #undef KAHAN4
     }
-    float a = (s1.x + s1.y) + (s1.z + s1.w), b = (s2.x + s2.y) + (s2.z + s2.w);
+    float a = (s1.x + s1.y) + (s1.z + s1.w), b = (s2.x + s2.y) + (s2.z + s2.w),
+          k = (s3.x + s3.y) + (s3.z + s3.w);
     for (int i = 4 * nq + gid; i < n; i += gsz) {
-        const float2 e = kirk_terms1(x, i, mode, inv_u);
+        const float3 e = kirk_terms1(x, i, mode, inv_u);
         a += e.x;
         b += e.y;
+        k += e.z;
     }
-    group_sum4(scratch, (float4)(a, b, 0.0f, 0.0f), partial);
+    group_sum4(scratch, (float4)(a, b, k, 0.0f), partial);
 }
 
 /* Kirk11.finish (operators/kirk11.py) in place on display-linear RGB: the

@@ -1,12 +1,14 @@
 /* Metering reductions (two-stage): weighted sums of Y, log Y, Y', log Y' and
- * the maxima, then a log-luminance histogram for percentile metering.
+ * the maxima, then a log-luminance histogram for percentile metering. The sums
+ * are over the lit pixels (Y or Y' above log_floor, models/metering.py): a pixel
+ * at or below the floor adds to the maxima only.
  *
  * Weight modes: 0 uniform; 1 centre-weighted (w_in inside a disc of radius
  * p2 px at (p0, p1), w_out outside); 2 Gaussian spot at (p0, p1) px with
  * sigma p2 px; 3 a weight image (mask, full-frame, row-major). Pixel coordinates are of the full frame: a band starting at
  * row y0 meters exactly like the whole image. */
 
-#define NMETER 8  /* sum w, sum wY, sum w lnY, sum wY', sum w lnY', max Y, max Y', pad */
+#define NMETER 8  /* lit pixels' sum w, sum wY, sum w lnY, sum wY', sum w lnY'; max Y, max Y'; pad */
 
 inline float meter_weight(int mode, float x, float y, float p0, float p1, float p2,
                           float w_in, float w_out)
@@ -73,8 +75,8 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
     if (mode == 0) {
         /* uniform weights: four pixels at a time in float4 (PoCL does not vectorise
          * scalar log across work-items), ln = log2 ln2, log2 inline (common.h) */
-        float4 s1 = 0.0f, s2 = 0.0f, s3 = 0.0f, s4 = 0.0f;
-        float4 c1 = 0.0f, c2 = 0.0f, c3 = 0.0f, c4 = 0.0f;
+        float4 s0 = 0.0f, s1 = 0.0f, s2 = 0.0f, s3 = 0.0f, s4 = 0.0f;
+        float4 c0 = 0.0f, c1 = 0.0f, c2 = 0.0f, c3 = 0.0f, c4 = 0.0f;
         float4 m1 = 0.0f, m2 = 0.0f;
         const int nq = n / 4;
         const float4 lf = (float4)(log_floor);
@@ -82,17 +84,19 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
         share_range(nq, &qa, &qb, &qs);
         for (int q = qa; q < qb; q += qs) {
             const float4 l = vload4(q, Y), ls = vload4(q, Ys);
+            const float4 w = select((float4)(0.0f), (float4)(1.0f), isgreater(fmax(l, ls), lf));
             float4 v, y, t;
 #define KAHAN4(S, C, V) v = (V); y = v - C; t = S + y; C = (t - S) - y; S = t;
-            KAHAN4(s1, c1, l)
-            KAHAN4(s2, c2, log2_positive4(fmax(l, lf)) * M_LN2_F)
-            KAHAN4(s3, c3, ls)
-            KAHAN4(s4, c4, log2_positive4(fmax(ls, lf)) * M_LN2_F)
+            KAHAN4(s0, c0, w)
+            KAHAN4(s1, c1, w * l)
+            KAHAN4(s2, c2, w * (log2_positive4(fmax(l, lf)) * M_LN2_F))
+            KAHAN4(s3, c3, w * ls)
+            KAHAN4(s4, c4, w * (log2_positive4(fmax(ls, lf)) * M_LN2_F))
 #undef KAHAN4
             m1 = fmax(m1, l);
             m2 = fmax(m2, ls);
         }
-        s[0] = qb > qa ? 4.0f * (float)((qb - qa + qs - 1) / qs) : 0.0f;   /* pixels */
+        s[0] = (s0.x + s0.y) + (s0.z + s0.w);          /* lit pixels */
         s[1] = (s1.x + s1.y) + (s1.z + s1.w);
         s[2] = (s2.x + s2.y) + (s2.z + s2.w);
         s[3] = (s3.x + s3.y) + (s3.z + s3.w);
@@ -106,6 +110,7 @@ __kernel void meter_partial(__global const float *Y, __global const float *Ys,
         float w = mode == 3 ? mask[(size_t)y0 * width + i]
                             : meter_weight(mode, x, y, p0, p1, p2, w_in, w_out);
         float l = Y[i], ls = Ys[i];
+        w = fmax(l, ls) > log_floor ? w : 0.0f;
         kahan(&s[0], &c[0], w);
         kahan(&s[1], &c[1], w * l);
         kahan(&s[2], &c[2], w * log(fmax(l, log_floor)));
@@ -140,10 +145,10 @@ __kernel void meter_final(__global const float *partial, const int groups,
 }
 
 /* Histogram of log10(L) over [lo, hi) in nbins bins (below -> bin 0, above ->
- * last bin), accumulated into hist (which the host zeroes once per frame). */
+ * last bin) of the values above floor_L, accumulated into hist (which the host zeroes once per frame). */
 __kernel void log_histogram(__global const float *L, const int n, const float lo,
-                            const float hi, const int nbins, __global int *hist,
-                            __local int *lh)
+                            const float hi, const int nbins, const float floor_L,
+                            __global int *hist, __local int *lh)
 {
     const int lid = get_local_id(0), lsz = get_local_size(0);
     for (int b = lid; b < nbins; b += lsz) lh[b] = 0;
@@ -151,7 +156,8 @@ __kernel void log_histogram(__global const float *L, const int n, const float lo
     const float scale = nbins / (hi - lo);
     for (int i = get_global_id(0); i < n; i += get_global_size(0)) {
         float v = L[i];
-        int b = v > 0.0f ? (int)floor((log10(v) - lo) * scale) : 0;
+        if (!(v > floor_L)) continue;       /* at or below the floor: not metered */
+        int b = (int)floor((log10(v) - lo) * scale);
         b = clamp(b, 0, nbins - 1);
         atomic_inc(&lh[b]);
     }

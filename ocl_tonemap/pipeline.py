@@ -2,10 +2,10 @@
 
 Data flows one way per frame:
     pixels (working space) x luminance scale -> cd/m^2 (bad-value policy)
-    -> scene effects -> **measure** (metering, local levels)
-    -> **integrate** (advance the adaptation state; receptor effects)
-    -> **apply** (per-pixel operator) -> display effects
-    -> display-linear (1.0 = display unit).
+    -> optical effects (flare) -> **measure** (metering, local levels)
+    -> **integrate** (advance the adaptation state and the effects' time courses)
+    -> seen effects (Purkinje shift) -> **apply** (per-pixel operator)
+    -> display effects -> display-linear (1.0 = display unit).
 The three phases can be called separately (:meth:`Tonemapper.measure`,
 :meth:`~Tonemapper.integrate`, :meth:`~Tonemapper.apply`); :meth:`Tonemapper.process`
 chains them. The operator says what each phase computes (``operators/``), the
@@ -26,14 +26,17 @@ from .alpha import restore_alpha, straight_colour
 from .backends import make_backend
 from .backends.plan import quality_tier
 from .effects import EffectSettings, Effects
+from .effects.stages import metered_weight, optical_effects, seen_effects
 from .mechanisms import MechanismPlan
+from .models import spencer1995 as fl
 from .models.display import DisplaySpec, display_for
 from .models.metering import MeteringSpec
 from .models.photometry import RepairCounts, Y_WEIGHTS
 from .operators import get_operator
-from .operators.base import Frame, FrameStats
+from .operators.base import Frame, FrameStats, ModelOperator
 from .state import AUTO_SCALE_KEY, AdaptationState
-from .streaming import STREAM_EFFECT_BANDS, SceneBands, WorkingRows, alpha_sink
+from .streaming import (STREAM_EFFECT_BANDS, SceneBands, WorkingRows, alpha_sink,
+                        stream_flare, stream_seen)
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -153,7 +156,6 @@ class Tonemapper:
         self.last: FrameInfo | None = None
         self.last_output: np.ndarray | None = None
         self.last_alpha = None
-        self._said_fast = False
         self._frame_plan: dict = {}          # this frame's plan record (FrameInfo.plan)
         self._measure_only = False
         self.front_door = None           # the ImageBuf API's run setup, by its settings (job/imagebuf.py)
@@ -212,56 +214,80 @@ class Tonemapper:
 
     # -- the three phases -----------------------------------------------------------
     def measure(self, frame: Frame) -> FrameStats:
-        """Per-frame statistics of ``frame`` (metering, the illuminant, local levels)."""
-        s = self.effects.s
-        stats = self.schedule.measure(frame, self.metering,
-                                      s.chromatic_adaptation != "off" and self._grey_world())
-        est = self.effects.estimate
-        if est is not None and not s.paper:     # the scene analysis's bounded estimate
-            stats.illuminant = lambda e=np.asarray(est[0], np.float64): e
-        return stats
+        """Per-frame statistics of ``frame`` (metering, the illuminant, local levels): of
+        the frame as it reaches the eye, before any effect; the effects change what
+        the observer sees, not the light it adapts to (docs/models.md, "Effects
+        after metering"), so a frame's statistics never depend on the state."""
+        s = self.effects.settings
+        return self.schedule.measure(frame, self.metering,
+                                     s.chromatic_adaptation != "off" and self._grey_world())
 
     def _grey_world(self) -> bool:
         """Whether chromatic adaptation takes the backend's grey-world sums (the paper's
         estimate, or no scene analysis); else the analysis's bounded estimate."""
         return self.effects.s.paper or not self.plan.active
 
+    def _own_chroma(self) -> bool:
+        """Chromatic adaptation on the scene's colours (schedules without receptor gains)."""
+        return not self.schedule.receptor_gains and \
+            self.effects.settings.chromatic_adaptation != "off"
+
+    def _scene_stats(self, stats: FrameStats, levels) -> None:
+        """``stats`` completed from the frame's scene pass (``levels``; None where no
+        effect or plan runs): the goals of the frame before its optical effects (the
+        Purkinje shift's receptor levels follow them) and the illuminant estimate
+        (the analysis's bounded one, else the grey world)."""
+        if levels is None:
+            return
+        stats.scene_goal = (float(levels.goal[0]), float(levels.goal[1]))
+        est = self.effects.estimate
+        if est is not None and not self.effects.s.paper:
+            stats.illuminant = lambda e=np.asarray(est[0], np.float64): e
+        elif stats.illuminant is None:
+            stats.illuminant = levels.illuminant
+
     def advance_plan(self, predicted: dict, G_cone: float, dt: float, fresh: bool,
                      sig: list | None = None) -> dict:
         """Advance the mechanism plan over a frame's stored predictions and signature
-        (the shot's integrate pass; a serial run does it in the frame): the weights."""
-        return self.plan.advance(self._state.extra, predicted, G_cone, dt, fresh, sig)[0]
-
-    def leave_out_unsplittable(self) -> list:
-        """Switch off the effects on ``auto`` that :meth:`check_measure_only` would
-        refuse (the shot's passes); returns their flags."""
-        s, fx = self.effects.settings, {}
-        if s.purkinje == "auto":
-            fx["purkinje"] = "off"
-        if not self.schedule.receptor_gains and s.chromatic_adaptation == "auto":
-            fx["chromatic_adaptation"] = "off"
-        if fx:
-            from dataclasses import replace
-            self.effects.settings = self.effects.s = replace(s, **fx)
-            self.plan = MechanismPlan(self.op, self.effects.settings, self.display,
-                                      self.metering, self.backend)
-        return ["--" + k.replace("_", "-") for k in fx]
+        (the shot's integrate pass; a serial run does it in the frame): the weights,
+        also handed to the effects for the frame's :meth:`integrate`."""
+        weights = self.plan.advance(self._state.extra, predicted, G_cone, dt, fresh, sig)[0]
+        self.effects.begin_frame(weights)
+        return weights
 
     def integrate(self, stats: FrameStats, time_s: float, frame_number: int | None = None,
                   dt: float = 0.0, fresh: bool = False, illuminant=None, eff: dict | None = None):
-        """Advance the adaptation state over one frame's statistics (the operator's
-        state and the receptor-slot effects). Returns (params, receptor gains)."""
-        st, fx = self._state, self.effects
-        eff = {} if eff is None else eff
+        """Advance the observer over one frame's statistics: the operator's state, then
+        the effects' (chromatic adaptation, the Purkinje shift's receptor levels; their
+        records into ``eff``). Returns (params, receptor gains)."""
+        params = self._advance_operator(stats, time_s, frame_number, dt, fresh)
+        return params, self._advance_effects(stats, dt, fresh, illuminant,
+                                             {} if eff is None else eff)
+
+    def _advance_operator(self, stats, time_s, frame_number, dt, fresh):
+        st = self._state
         self.schedule.integrate(st, stats, dt, fresh)
         st.time_s, st.frame = float(time_s), frame_number
-        params = self.op.params(st, stats) if self.schedule.receptor_gains else None
-        gains = None
-        if self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off":
-            goal, src = fx.illuminant_goal(illuminant, stats.illuminant)
-            gains, eff["chromatic_adaptation"] = fx.chromatic(
-                st.extra, goal, src, dt, fresh, self.preadapt is not None, stats.G_cone)
-        return params, gains
+        return self.op.params(st, stats) if self.schedule.receptor_gains else None
+
+    def _advance_effects(self, stats, dt, fresh, illuminant, eff: dict):
+        """The effects' time courses over the frame, toward its scene goals: returns the
+        chromatic gains for the schedule's cone signals (receptor gains; the scene's
+        gains of the other schedules stay in ``eff["chromatic_adaptation"]``)."""
+        fx, st = self.effects, self._state
+        # the shift's receptor levels follow the frame before its optical effects
+        G_rod, G_cone = stats.scene_goal or (stats.G_rod, stats.G_cone)
+        eff["purkinje"] = fx.purkinje_advance(G_rod, G_cone, st.extra, dt, fresh, self.preadapt)
+        if fx.s.chromatic_adaptation == "off" or not (self.schedule.receptor_gains
+                                                      or stats.scene_goal is not None):
+            return None
+        goal, src = fx.illuminant_goal(illuminant, stats.illuminant)
+        # the adapting luminance: the metered frame's on the cone signals; the frame's
+        # own metering where the gains go on the scene (local operators' levels differ)
+        L_A = stats.G_cone if self.schedule.receptor_gains else G_cone
+        gains, eff["chromatic_adaptation"] = fx.chromatic(
+            st.extra, goal, src, dt, fresh, self.preadapt is not None, L_A)
+        return gains if self.schedule.receptor_gains else None
 
     def apply(self, frame: Frame, stats: FrameStats, params=None, gains=None, sink=None,
               encoding=None):
@@ -290,8 +316,8 @@ class Tonemapper:
         nm^-1 times ``luminance_scale`` / 683 ... see models/lmsr.py) sampled at these
         wavelengths (nm); operators that take spectral input (kirk11) only.
         ``measure_only``: the frame's :class:`FrameStats` as the run would measure them
-        (after the scene effects), the state untouched: the measure pass of a shot
-        split over machines (``shot/``); see :meth:`check_measure_only`.
+        (of the frame as it is: the effects come after the metering), the state
+        untouched: the measure pass of a shot split over machines (``shot/``).
         """
         res = self.process_frame(frame, dt, time_s, frame_number, luminance_scale, illuminant,
                                  wavelengths, premultiplied, measure_only=measure_only)
@@ -300,15 +326,16 @@ class Tonemapper:
     def process_frame(self, frame: np.ndarray, dt: float | None = None,
                       time_s: float | None = None, frame_number: int | None = None,
                       luminance_scale: float = 1.0, illuminant=None, wavelengths=None,
-                      premultiplied: bool = True, encoding=None, measure_only: bool = False):
+                      premultiplied: bool = True, encoding=None, measure_only: bool = False,
+                      weights: dict | None = None):
         """:meth:`process`, returning the frame as a :class:`FrameResult` (with
         ``measure_only``: its :class:`FrameStats`). ``encoding``: a display encoding on
         the device (``ColourPipeline.device_output_encoding``) for a frame the caller
         writes encoded; a frame that allows it (RGB in, no alpha, no display-slot
         effect at work, a schedule that brings its output back through the backend)
-        comes back as display code values straight from the device (``encoded``)."""
-        if measure_only:
-            self.check_measure_only()
+        comes back as display code values straight from the device (``encoded``).
+        ``weights``: the plan's weights of the gated effects instead of the frame's
+        own (a shot's integrate pass measuring a frame as the serial run weighs it)."""
         if wavelengths is not None:
             return self._process_spectral(frame, dt, time_s, frame_number, luminance_scale,
                                           wavelengths, measure_only, encoding)
@@ -324,7 +351,7 @@ class Tonemapper:
         if grey is not None or pix.shape[2] != 3:
             encoding = None                           # code values only for RGB in and out
         res = self._process_rgb(pix, dt, time_s, frame_number, luminance_scale, illuminant,
-                                premultiplied, measure_only, encoding)
+                                premultiplied, measure_only, encoding, weights)
         if measure_only:
             return res
         if grey is not None:                          # luminance in, luminance out
@@ -337,27 +364,16 @@ class Tonemapper:
         return res
 
     def _process_rgb(self, pix, dt, time_s, frame_number, luminance_scale, illuminant,
-                     premultiplied, measure_only=False, encoding=None):
-        if not (math.isfinite(luminance_scale) and luminance_scale > 0):
-            raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
+                     premultiplied, measure_only=False, encoding=None, weights=None):
+        self._check_scale(luminance_scale)
         pix = np.ascontiguousarray(pix, np.float32)
         alpha = None
         if pix.shape[2] == 4:
             pix, alpha = straight_colour(pix, premultiplied)
-        if measure_only:             # (no stateful scene effect: check_measure_only)
-            step_dt, fresh = 0.0, True
-        else:
-            time_s, step_dt, fresh = self.frame_clock(dt, time_s)
-        eff: dict = {}
-        self._measure_only = measure_only
-        work, scale, pre_repairs = self._scene_effects(pix, luminance_scale, eff, step_dt, fresh,
-                                                       illuminant)
+        res = self._run_frame(Frame(pix, luminance_scale, None, self.display_primaries), dt,
+                              time_s, frame_number, illuminant, encoding, measure_only, weights)
         if measure_only:
-            return self.measure(Frame(work, scale, None, self.display_primaries))
-        res = self._run_frame(Frame(work, scale, None, self.display_primaries), time_s,
-                              frame_number, step_dt, fresh, illuminant, eff, pre_repairs,
-                              encoding)
-        res.info.plan = self._frame_plan
+            return res
         if pix.shape[2] == 4 and alpha is not None:   # premultiplied again where it was
             res.output = restore_alpha(res.output, alpha)
         elif pix.shape[2] == 4:
@@ -365,13 +381,58 @@ class Tonemapper:
         res.alpha = alpha
         return res
 
-    def _run_frame(self, frame: Frame, time_s, frame_number, step_dt, fresh, illuminant, eff,
-                   pre_repairs=None, encoding=None) -> FrameResult:
-        """measure -> integrate -> apply -> display effects, and the frame's record."""
-        stats = self.measure(frame)
-        params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh, illuminant,
-                                       eff)
-        fx, blurred = self.effects, None
+    @staticmethod
+    def _check_scale(scale) -> None:
+        if not (math.isfinite(scale) and scale > 0):
+            raise ValueError(f"luminance scale must be a positive finite number (got {scale})")
+
+    def _begin_frame(self, measure_only: bool, scene: bool = True) -> bool:
+        """A frame starts: the effects forget the last frame's plan (``scene`` False: a
+        spectral frame, scene effects left out); returns whether the last frame's
+        predictions were reused (the flare's early start waits for this one's)."""
+        reused = bool(self._frame_plan.get("reused", False))
+        self.effects.drop_started()
+        self.effects.begin_frame(None if scene else {"acuity": 1.0})
+        self._frame_plan = {}
+        self._measure_only = measure_only
+        return reused
+
+    def _run_frame(self, frame: Frame, dt, time_s, frame_number, illuminant, encoding=None,
+                   measure_only: bool = False, weights: dict | None = None):
+        """One whole frame: the optical effects (flare, scene plugins) -> measure ->
+        integrate (the observer and the effects' time courses) -> the effects of what
+        the observer makes of the light (Purkinje shift, chromatic gains on the scene)
+        -> apply -> display effects, and its record (``measure_only``: its statistics,
+        the state untouched; ``weights``: the plan's weights of its gated effects
+        instead of the frame's own, for a shot's integrate pass)."""
+        rgb_in = frame.wavelengths is None
+        if measure_only:
+            step_dt, fresh = 0.0, True
+        else:
+            time_s, step_dt, fresh = self.frame_clock(dt, time_s)
+        reused = self._begin_frame(measure_only, rgb_in)
+        fx = self.effects
+        eff: dict = {}
+        levels = self._working(frame) if rgb_in else None
+        metered = frame
+        if levels is not None:
+            lim = self._source_limit(levels)
+            if levels.rgb is not None and not isinstance(levels.rgb, np.ndarray):
+                h, w = frame.shape[:2]       # the device starts the flare while the host plans
+                self.plan.sources_ahead(h, w, *levels.goal, fresh or not reused)
+                fx.start_flare(levels.rgb, *levels.goal, levels.max_Y, lim)
+            self._begin_plan(levels, frame, step_dt, fresh, weights)
+            metered, self._frame_plan["flare_metered"] = optical_effects(
+                fx, frame, levels, lim, eff, self.display_primaries)
+        stats = self.measure(metered)
+        self._scene_stats(stats, levels)
+        if measure_only:
+            return stats
+        params = self._advance_operator(stats, time_s, frame_number, step_dt, fresh)
+        gains = self._advance_effects(stats, step_dt, fresh, illuminant, eff)
+        work = metered if levels is None else seen_effects(
+            fx, metered, frame, levels, eff, self._own_chroma(), self.display_primaries)
+        blurred = None
         if encoding is not None and (not self.schedule.encodes_output
                                      or fx.slot_plugins("display")):
             encoding = None              # display-linear first: something works on it
@@ -379,23 +440,50 @@ class Tonemapper:
             # the blur on the device before the encoding, or display-linear first
             encoding, blurred = fx.acuity_encoding(encoding, stats.G_rod, stats.height,
                                                    stats.width)
-        out = self.apply(frame, stats, params, gains, encoding=encoding)
+        out = self.apply(work, stats, params, gains, encoding=encoding)
         stats.handle = None              # the resident frame: its pixels are spent now
         self._frozen = (stats, params, gains)
         if blurred is not None:
             eff["acuity"] = blurred
         elif encoding is not None:       # code values: no display-slot effect was at work
-            eff["acuity"] = self.effects.acuity_report(stats.G_rod, stats.width)
+            eff["acuity"] = fx.acuity_report(stats.G_rod, stats.width)
         else:
-            out, eff["acuity"] = self.effects.acuity(out, stats.G_rod)
-            for plugin in self.effects.slot_plugins("display"):
+            out, eff["acuity"] = fx.acuity(out, stats.G_rod)
+            for plugin in fx.slot_plugins("display"):
                 new, eff[plugin.NAME] = plugin.run(out, {"G_rod": stats.G_rod,
                                                          "G_cone": stats.G_cone})
                 out = out if new is None else np.asarray(new, np.float32)
+        repairs = levels.repairs if metered is not frame else stats.repairs
         info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
-                         pre_repairs or stats.repairs, self._state.copy(),
-                         self.schedule.summary(stats, params), eff)
+                         repairs, self._state.copy(), self.schedule.summary(stats, params),
+                         eff, self._frame_plan)
         return FrameResult(out, None, info, encoding is not None)
+
+    def _working(self, frame: Frame):
+        """The frame's colour stage and metering for the plan and the effects (the
+        backend's :class:`~ocl_tonemap.backends.base.Levels`), or None where neither
+        runs. The working frame stays on the device where an effect runs there (the
+        flare whole, else the Purkinje shift): one upload, no round trip."""
+        fx = self.effects
+        if not self.plan.active and not fx.slot_plugins("scene"):
+            return None
+        pix = frame.pixels
+        h, w = pix.shape[:2]
+        flare_dev = fx.settings.flare != "off" and fx.flare_on_device(h, w)
+        on_dev = pix.shape[2] == 3 and (flare_dev or (fx.settings.flare == "off"
+                                                      and fx.purkinje_on_device()))
+        return self.backend.working(pix, frame.scale, self.metering,
+                                    self._own_chroma() and self._grey_world(), on_device=on_dev,
+                                    proxy_stride=self.plan.proxy_stride(h, w))
+
+    def _source_limit(self, levels) -> float:
+        """The frame's flare source limit (``models/spencer1995.py`` source_limit): the
+        paper's test, and beyond the display's white for an observer adapted to the
+        frame (``MechanismPlan.flare_limit``: the flare changes the light that is
+        metered, so its sources cannot depend on the state); inf where it cannot run."""
+        if self.effects.settings.flare == "off":
+            return math.inf
+        return self.plan.flare_limit(*levels.goal)
 
     def freeze_mapping(self, stats, params, gains) -> None:
         """Make (``stats``, ``params``, ``gains``) of :meth:`integrate` the last mapping
@@ -411,18 +499,34 @@ class Tonemapper:
         _, params, gains = self._frozen
         return self.op, params, gains
 
-    def _begin_plan(self, levels, get_rows, h: int, w: int, scale: float, dt: float,
-                    fresh: bool) -> None:
-        """The frame's mechanism plan (``mechanisms/``) from its metering pass
+    def _begin_plan(self, levels, frame: Frame, dt: float, fresh: bool,
+                    weights: dict | None = None) -> None:
+        """The frame's mechanism plan (``mechanisms/``) from its scene pass
         (``levels``), handed to the effects; the weights advance in the state's
-        ``extra`` (not in a measure-only pass). Its record: ``_frame_plan``."""
-        plan = self.plan.frame(levels, get_rows, h, w, scale,
+        ``extra`` (not in a measure-only pass). Its record: ``_frame_plan``.
+        ``weights``: the gated effects' weights to use instead (a shot's integrate
+        pass measuring a frame again as the serial run's plan weighs it)."""
+        if levels is None:
+            return
+        h, w = frame.shape[:2]
+        pix = frame.pixels
+        plan = self.plan.frame(levels, lambda a, b: pix[a:b], h, w, frame.scale,
                                None if self._measure_only else self._state.extra, dt, fresh)
-        self.effects.begin_frame(plan.get("weights"), plan.get("estimate"))
+        self.effects.begin_frame(weights if weights is not None else plan.get("weights"),
+                                 plan.get("estimate"))
         self._frame_plan = plan.get("record", {})
 
+    @property
+    def frame_plan(self) -> dict:
+        """The last frame's plan record (``ocltm:plan``): weights, predictions, analysis,
+        and ``flare_metered``, the flare's weight in the frame that was metered (None
+        where no pixel could be a source)."""
+        return self._frame_plan
+
     def frame_clock(self, dt, time_s):
-        """(time of this frame, step since the last one, fresh observer?)."""
+        """(time of this frame, step since the last one, fresh observer?): the one rule
+        of every entry (RGB, spectral, streamed): ``time_s``, else the last frame's time
+        plus ``dt``; a fresh observer's first frame needs neither."""
         st = self._state
         fresh = not st.values
         if time_s is None:
@@ -438,25 +542,6 @@ class Tonemapper:
                              f"this one at {time_s} s")
         return time_s, step_dt, fresh
 
-    def check_measure_only(self) -> None:
-        """A frame's statistics can be measured apart from the run (``measure_only``)
-        when nothing before the metering depends on the adaptation state: the
-        Purkinje effect (its own time course) and chromatic adaptation applied to the
-        scene (operators without receptor gains) change the pixels that are metered,
-        so they are refused here."""
-        fx = self.effects.settings
-        why = []
-        if fx.purkinje != "off":
-            why.append("--purkinje")
-        if not self.schedule.receptor_gains and fx.chromatic_adaptation != "off":
-            why.append(f"--chromatic-adaptation (on the scene for {self.operator_name})")
-        if why:
-            raise ValueError(
-                f"{' and '.join(why)} change the frame before it is metered, from their "
-                "own time course, so its statistics cannot be measured apart from the "
-                "serial run; switch them off for measure/integrate/apply, or split the "
-                "shot serially with --state-in/--state-out")
-
     def can_stream(self) -> str | None:
         """Why frames cannot be streamed in bands (None: they can): operators whose
         schedule streams; every built-in effect streams (flare, Purkinje and
@@ -471,7 +556,8 @@ class Tonemapper:
     def process_stream(self, source, sink, dt: float | None = None,
                        time_s: float | None = None, frame_number: int | None = None,
                        luminance_scale: float = 1.0, illuminant=None,
-                       measure_only: bool = False, start=None) -> FrameInfo | FrameStats:
+                       measure_only: bool = False, start=None,
+                       weights: dict | None = None) -> FrameInfo | FrameStats:
         """One frame in row bands, never whole in memory: ``source[y0:y1]`` gives
         working-space bands (straight colour), ``source.shape`` is (H, W, C);
         ``sink(y0, band)`` receives the display-linear bands (3 channels) in order
@@ -480,109 +566,72 @@ class Tonemapper:
         the :class:`FrameInfo` (``measure_only``: the :class:`FrameStats`). Operators
         that stream (:meth:`can_stream`).
 
-        The effects as on whole frames: the scene effects (flare, Purkinje,
-        chromatic adaptation where the schedule cannot put it on the cone
-        signals) after a metering pass over the unchanged frame, as
-        ``_scene_effects`` meters it, each band made from the source's rows around
-        it (``streaming.SceneBands``; flare: ``effects/flare.py`` ``BandedFlare``); the
-        acuity blur on the display bands on their way to ``sink``
+        The same flow as a whole frame, band by band: the flare made from the
+        source's rows around each band (``streaming.SceneBands``, ``effects/flare.py``
+        ``BandedFlare``) before the metering pass, the Purkinje shift and chromatic
+        gains on the scene after the state step, on the bands' way to the operator,
+        and the acuity blur on the display bands on their way to ``sink``
         (``effects/acuity.py`` ``BandedAcuity``). A source with ``alpha(y0)``
-        (``job/stream.py``) is read again at a band whose alpha it no
-        longer holds when the sink gets it."""
+        (``job/stream.py``) is read again at a band whose alpha it no longer holds
+        when the sink gets it. The Purkinje shift's gamut fallbacks are known once
+        the bands are made: in the returned record, not in ``start``'s. ``weights``:
+        as :meth:`_run_frame`'s."""
         why = self.can_stream()
         if why:
             raise ValueError(f"cannot stream this frame: {why}")
+        self._check_scale(luminance_scale)
         if measure_only:
-            self.check_measure_only()
-        if not (math.isfinite(luminance_scale) and luminance_scale > 0):
-            raise ValueError(f"luminance scale must be a positive finite number (got {luminance_scale})")
-        time_s, step_dt, fresh = self.frame_clock(dt, time_s)
-        eff: dict = {}
-        before = self._state.copy()
+            step_dt, fresh = 0.0, True
+        else:
+            time_s, step_dt, fresh = self.frame_clock(dt, time_s)
+        self._begin_frame(measure_only)
         self.last_output = self.last_alpha = None
         h, w = source.shape[:2]
-        self._measure_only = measure_only
-        src, scale, pre_repairs, sweep = self._stream_scene_effects(
-            source, luminance_scale, eff, step_dt, fresh, illuminant)
-        frame = Frame(src, scale, None, self.display_primaries)
-        stats = self.measure(frame)
-        for finish in sweep:          # sums over the frame the measure pass swept
+        frame = metered = Frame(source, luminance_scale, None, self.display_primaries)
+        eff: dict = {}
+        levels, sweep, band_px = None, [], self._band_pixels(h, w)
+        if self.plan.active:          # the source's levels and proxy: nothing kept
+            levels = self.backend.scene_levels(source, luminance_scale, self.metering,
+                                               self._own_chroma() and self._grey_world(),
+                                               self.plan.proxy_stride(h, w))
+            lim = self._source_limit(levels)
+            self._begin_plan(levels, frame, step_dt, fresh, weights)
+            rows = WorkingRows(self.backend, source, luminance_scale,
+                               max(1, band_px // max(w, 1)))
+            self._frame_plan["flare_metered"] = metered_weight(self.effects, levels.max_Y, lim)
+            flare, sweep = stream_flare(self.effects, rows, levels, lim, eff, band_px)
+            if flare is not None:
+                metered = Frame(SceneBands(rows, flare), 1.0, None, self.display_primaries)
+        stats = self.measure(metered)
+        for finish in sweep:          # what the measure pass's sweep added up
             finish()
+        self._scene_stats(stats, levels)
         if measure_only:
-            self._state = before
             return stats
-        params, gains = self.integrate(stats, time_s, frame_number, step_dt, fresh,
-                                       illuminant, eff)
+        params = self._advance_operator(stats, time_s, frame_number, step_dt, fresh)
+        gains = self._advance_effects(stats, step_dt, fresh, illuminant, eff)
+        work, after = metered, []
+        if levels is not None:
+            work, after = stream_seen(self.effects, metered, levels, eff, self._own_chroma(),
+                                      self.display_primaries)
         out, eff["acuity"] = self.effects.acuity_stream(
-            alpha_sink(source, sink), stats.G_rod, (h, w),
-            STREAM_EFFECT_BANDS * self._band_pixels(h, w))
+            alpha_sink(source, sink), stats.G_rod, (h, w), STREAM_EFFECT_BANDS * band_px)
         self.last = info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod,
-                                     stats.G_cone, pre_repairs or stats.repairs,
-                                     self._state.copy(), self.schedule.summary(stats, params),
-                                     eff, self._frame_plan)
+                                     stats.G_cone, levels.repairs if metered is not frame
+                                     else stats.repairs, self._state.copy(),
+                                     self.schedule.summary(stats, params, work), eff,
+                                     self._frame_plan)
         if start is not None:
             start(info)
-        self.apply(frame, stats, params, gains, out)
+        self.apply(work, stats, params, gains, out)
         if not getattr(out, "done", True):     # a BandedAcuity sink counts its rows
             raise RuntimeError(f"the schedule sent rows up to {out.got} of {h}")
+        for finish in after:          # what the bands' sweep added up
+            finish()
         return info
 
     def _band_pixels(self, h: int, w: int) -> int:
         return int(self.backend.max_band_pixels or h * w)
-
-    def _stream_scene_effects(self, source, scale, eff: dict, dt: float, fresh: bool,
-                              illuminant):
-        """``_scene_effects`` for a frame in row bands: (band source to tone map, its
-        scale, the repairs of the original or None, functions to call once the
-        measure pass has swept the frame)."""
-        fx = self.effects
-        fx.begin_frame(None)
-        fx.drop_started()
-        self._frame_plan = {}
-        own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
-        if not self.plan.active and fx.s.flare == "off" and fx.s.purkinje == "off" \
-                and not own_chroma:
-            return source, scale, None, []
-        h, w, nc = source.shape
-        be = self.backend
-        band_px = self._band_pixels(h, w)
-        # the unchanged frame's levels, as backend.working gives them to _scene_effects
-        levels = be.scene_levels(source, scale, self.metering, own_chroma and self._grey_world(),
-                                 self.plan.proxy_stride(h, w))
-        self._begin_plan(levels, lambda a, b: source[a:b], h, w, scale, dt, fresh)
-        if fx.s.flare == "off" and fx.s.purkinje == "off" and not own_chroma:
-            return source, scale, None, []
-        repairs, (G_rod, G_cone) = levels.repairs, levels.goal
-        rows = WorkingRows(be, source, scale, max(1, band_px // max(w, 1)))
-        flare, eff["flare"] = fx.flare_stream((h, w), G_rod, G_cone, rows.get, band_px,
-                                              levels.max_Y, STREAM_EFFECT_BANDS * band_px)
-        if "streamed" in eff["flare"] and not self._said_fast:
-            log.warning("flare: streamed frames use --flare-method fast (the exact "
-                        "method's FFT needs the whole frame)")
-            self._said_fast = True
-        purk, eff["purkinje"] = fx.purkinje_stream(G_rod, G_cone, self._state.extra, dt,
-                                                   fresh, self.preadapt, h)
-        gains = None
-        if own_chroma:
-            goal, src = fx.illuminant_goal(illuminant, lambda: np.asarray(levels.illuminant())[:3])
-            gains, eff["chromatic_adaptation"] = fx.chromatic(
-                self._state.extra, goal, src, dt, fresh, self.preadapt is not None, G_cone)
-        if flare is None and purk is None and gains is None:
-            return source, scale, None, []
-        sweep = []
-        if flare is not None:
-            def flare_done(info=eff["flare"]):
-                e = flare.energy_in_frame()
-                if e is not None:
-                    info["energy_in_frame"] = e
-            sweep.append(flare_done)
-        if purk is not None:
-            def purkinje_done(info=eff["purkinje"]):
-                fb = purk.fallback_fraction()
-                if fb is not None:
-                    info["fallback_fraction"] = fb
-            sweep.append(purkinje_done)
-        return SceneBands(rows, flare, purk, gains, nc), 1.0, repairs, sweep
 
     def _process_spectral(self, frame, dt, time_s, frame_number, scale, wavelengths,
                           measure_only=False, encoding=None):
@@ -596,83 +645,14 @@ class Tonemapper:
             raise ValueError("flare, chromatic adaptation and the Purkinje effect need RGB "
                              "input; switch them off for spectral frames")
         # on auto they are left out of spectral frames; acuity (display slot) runs
-        self.effects.begin_frame({"acuity": 1.0})
-        self._frame_plan = {}
         pix = np.ascontiguousarray(frame, np.float32)
         lam = np.asarray(wavelengths, np.float64)
         if pix.ndim != 3 or pix.shape[2] != len(lam) or len(lam) < 2:
             raise ValueError(f"spectral frame must be H x W x {len(lam)} (got {pix.shape})")
-        if not (math.isfinite(scale) and scale > 0):
-            raise ValueError(f"luminance scale must be a positive finite number (got {scale})")
-        if measure_only:
-            return self.measure(Frame(pix, scale, lam, self.display_primaries))
-        st = self._state
-        fresh = not st.values
-        if time_s is None:
-            time_s = (st.time_s or 0.0) + (dt or 0.0)
-        step_dt = 0.0 if (fresh or st.time_s is None) else time_s - st.time_s
-        if not math.isfinite(step_dt) or step_dt < 0:
-            raise ValueError(f"time goes backwards: last frame at {st.time_s} s, this one at "
-                             f"{time_s} s")
-        return self._remember(self._run_frame(Frame(pix, scale, lam, self.display_primaries),
-                                              time_s, frame_number, step_dt, fresh, None, {},
-                                              None, encoding))
-
-    def _scene_effects(self, pix, scale, eff: dict, dt: float, fresh: bool, illuminant):
-        """Effects in the scene slot (flare, Purkinje, plugins), and chromatic adaptation
-        where the schedule cannot put it on the cone signals. Returns the frame to tone
-        map (cd/m^2 with scale 1 when changed) and the repairs of the original."""
-        fx = self.effects
-        fx.begin_frame(None)
-        fx.drop_started()
-        reused = self._frame_plan.get("reused", False)
-        self._frame_plan = {}
-        own_chroma = not self.schedule.receptor_gains and fx.s.chromatic_adaptation != "off"
-        scene_plugins = fx.slot_plugins("scene")
-        if not self.plan.active and fx.s.flare == "off" and fx.s.purkinje == "off" \
-                and not own_chroma and not scene_plugins:
-            return pix, scale, None
-        # the flare whole on the device, the Purkinje shift in place there: the working
-        # frame and the flared one stay there (one upload, no round trip; the
-        # operator's colour stage copies it on the device)
-        h, w = pix.shape[:2]
-        flare_dev = fx.settings.flare != "off" and fx.flare_on_device(h, w)
-        on_dev = pix.shape[2] == 3 and (flare_dev or (fx.settings.flare == "off"
-                                                      and fx.purkinje_on_device()))
-        levels = self.backend.working(pix, scale, self.metering, own_chroma and self._grey_world(),
-                                      on_device=on_dev, proxy_stride=self.plan.proxy_stride(h, w))
-        rgb, repairs, (G_rod, G_cone), estimate = levels[:4]
-        if flare_dev:           # the device starts on the flare while the host plans
-            self.plan.sources_ahead(h, w, G_cone, fresh or not reused)
-            fx.start_flare(rgb, G_rod, G_cone, levels.max_Y)
-        self._begin_plan(levels, lambda a, b: pix[a:b], h, w, scale, dt, fresh)
-        changed = False
-        new, eff["flare"] = fx.flare(rgb, G_rod, G_cone)
-        if new is not None:
-            rgb, changed = new, True
-        if not isinstance(rgb, np.ndarray) and (scene_plugins or own_chroma):
-            rgb = np.asarray(rgb)             # the stages below work on host pixels
-        new, eff["purkinje"] = fx.purkinje(rgb, G_rod, G_cone, self._state.extra, dt, fresh,
-                                           self.preadapt)
-        if new is not None:
-            rgb, changed = new, True
-        for plugin in scene_plugins:
-            new, eff[plugin.NAME] = plugin.run(rgb, {"G_rod": G_rod, "G_cone": G_cone})
-            if new is not None:
-                rgb, changed = np.asarray(new, np.float32), True
-        if own_chroma:
-            goal, src = fx.illuminant_goal(illuminant, estimate)
-            gains, eff["chromatic_adaptation"] = fx.chromatic(
-                self._state.extra, goal, src, dt, fresh, self.preadapt is not None, G_cone)
-            if gains is not None:
-                rgb, changed = (rgb * gains).astype(np.float32), True
-        if not changed:
-            return pix, scale, None
-        if not isinstance(rgb, np.ndarray):   # a device image (RGB frames only)
-            return rgb, 1.0, repairs
-        if pix.shape[2] == 4:
-            rgb = np.concatenate([rgb, pix[..., 3:4]], axis=2)
-        return np.ascontiguousarray(rgb, np.float32), 1.0, repairs
+        self._check_scale(scale)
+        res = self._run_frame(Frame(pix, scale, lam, self.display_primaries), dt, time_s,
+                              frame_number, None, encoding, measure_only)
+        return res if measure_only else self._remember(res)
 
     def process_imagebuf(self, buf, dt: float | None = None, time_s: float | None = None,
                          luminance_scale=None, colorconfig: str | None = None,

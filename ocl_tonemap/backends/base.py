@@ -72,9 +72,10 @@ class Schedule(Protocol):
 
     def stats_from_planes(self, stats: FrameStats, planes) -> FrameStats: ...
 
-    def summary(self, stats: FrameStats, params) -> dict:
+    def summary(self, stats: FrameStats, params, frame: Frame | None = None) -> dict:
         """The frame's record (metadata, plots); asked before :meth:`apply` when a
-        streamed frame's metadata is written with its first band."""
+        streamed frame's metadata is written with its first band (``frame``: the one
+        :meth:`apply` will map)."""
 
 
 class Backend(Protocol):
@@ -165,7 +166,7 @@ class ScheduleDefaults:
     def stats_from_planes(self, stats, planes) -> FrameStats:
         return stats
 
-    def summary(self, stats, params) -> dict:
+    def summary(self, stats, params, frame=None) -> dict:
         return self.op.summary(params, stats)
 
 

@@ -303,8 +303,10 @@ def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int 
 
 def apply_flare(rgb: np.ndarray, L_wa: float, L_waR: float, fov_deg: float,
                 method: str = "fast", threshold: float = fl.DEFAULT_THRESHOLD, per_octave: int = 1,
-                blur=None) -> tuple[np.ndarray, dict]:
-    """Add the flares of the frame's light sources (cd/m^2 in, cd/m^2 out).
+                blur=None, lim: float | None = None) -> tuple[np.ndarray, dict]:
+    """Add the flares of the frame's light sources (cd/m^2 in, cd/m^2 out): the
+    part of each pixel above ``lim`` cd/m^2 (default: ``threshold`` x L_wa, the
+    paper's test alone; ``effects/flare.py`` ``source_limit``).
 
     Returns the new frame and what was done: sources (pixels), pupil diameter,
     weights, the share of source energy that stayed inside the frame.
@@ -312,7 +314,7 @@ def apply_flare(rgb: np.ndarray, L_wa: float, L_waR: float, fov_deg: float,
     rgb = np.asarray(rgb, np.float64)
     h, w, _ = rgb.shape
     D = float(fl.pupil_diameter(0.5 * (L_wa + L_waR)))
-    S = fl.source_part(rgb, L_wa, threshold)
+    S = fl.source_part(rgb, L_wa, threshold) if lim is None else fl.source_part(rgb, 1.0, lim)
     n_src = int(np.count_nonzero(S.any(axis=-1)))
     info = {"sources": n_src, "pupil_mm": D, "weights": list(fl.flare_weights(D)),
             "method": method, "threshold": threshold}

@@ -9,9 +9,11 @@ effect                   slot       module
 ``acuity``               display    ``effects/acuity.py`` (Shaler 1937, D&D Sec. 7)
 =======================  =========  ==============================================
 
-*scene* effects change the scene (cd/m^2) before the operator measures it;
-*receptor* effects act on the cone signals (the schedule places them, see
-``chromatic.py``); *display* effects change the display-linear output.
+*scene* effects change the scene (cd/m^2) the operator maps: the optical ones (the
+flare, plugins) before it is metered, the Purkinje shift after the state step
+(``stages.py`` says why); *receptor* effects act on the cone signals (the schedule
+places them, see ``chromatic.py``); *display* effects change the display-linear
+output.
 
 Frames streamed in row bands (``Tonemapper.process_stream``, ``--max-memory``)
 get every built-in effect: the scene effects make each band from the rows
@@ -170,6 +172,8 @@ class Effects:
         self.user_illuminant = parse_illuminant(settings.illuminant) if settings.illuminant else None
         self._purkinje_dev = None
         self._flare_dev = None
+        #: What the run has said once (warnings not repeated per frame).
+        self.said: set = set()
         found = plugin_effects() if plugins else {}
         missing = [p for p in plugins if p not in found]
         if missing:
@@ -200,11 +204,12 @@ class Effects:
     def slot_plugins(self, slot: str):
         return [p for p in self.plugins if p.SLOT == slot]
 
-    def flare(self, rgb: np.ndarray, G_rod: float, G_cone: float):
+    def flare(self, rgb: np.ndarray, G_rod: float, G_cone: float, lim: float):
         """(new rgb or None, info) for one frame in cd/m^2 (``rgb`` may be a device image
-        where :meth:`flare_on_device`: the new one is then one too)."""
+        where :meth:`flare_on_device`: the new one is then one too); ``lim``: the
+        frame's source limit (``flare.source_limit``)."""
         self._make_flare_device()
-        new, info = _flare.run(self.s, rgb, G_rod, G_cone, self._blur, self._flare_dev)
+        new, info = _flare.run(self.s, rgb, G_rod, G_cone, lim, self._blur, self._flare_dev)
         if self._flare_dev is not None:
             self._flare_dev.discard()         # start()'s passes, where the plan skipped it
         w = self.weight("flare")
@@ -214,15 +219,15 @@ class Effects:
             info["weight"] = w
         return new, info
 
-    def start_flare(self, rgb, G_rod: float, G_cone: float, max_Y: float | None) -> None:
+    def start_flare(self, rgb, G_rod: float, G_cone: float, max_Y: float | None,
+                    lim: float) -> None:
         """Before the frame is planned: the first passes of its flare on the device,
-        where the frame has a source (``max_Y`` above the threshold) and the flare may
-        run (on, or ``auto`` for the plan to decide): the device makes them while the
-        host plans. :meth:`flare` goes on from them, or drops them."""
+        where the frame has a source (``max_Y`` above the source limit ``lim``) and the
+        flare may run (on, or ``auto`` for the plan to decide): the device makes them
+        while the host plans. :meth:`flare` goes on from them, or drops them."""
         self._make_flare_device()
-        if self._flare_dev is not None and max_Y is not None and \
-                max_Y > self.settings.flare_threshold * G_cone:
-            _flare.start_on_device(self.settings, rgb, G_rod, G_cone, self._flare_dev)
+        if self._flare_dev is not None and max_Y is not None and max_Y > lim:
+            _flare.start_on_device(self.settings, rgb, G_rod, G_cone, lim, self._flare_dev)
 
     def drop_started(self) -> None:
         """Drop :meth:`start_flare`'s passes a frame left (one that failed before its
@@ -241,13 +246,19 @@ class Effects:
         self._make_flare_device()
         return self._flare_dev is not None and self._flare_dev.fits(h, w)
 
-    def purkinje(self, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
-                 dt: float = 0.0, fresh: bool = True, preadapt=None):
-        if self._purkinje_skipped():          # the plan skips it: its levels go on
-            return _purkinje.follow(self.settings, G_rod, G_cone, extra, dt, fresh, preadapt)
+    def purkinje_advance(self, G_rod: float, G_cone: float, extra: dict | None, dt: float,
+                         fresh: bool, preadapt) -> dict:
+        """The Purkinje shift's time course over one frame (``purkinje.advance``): its
+        record, ``ran`` where :meth:`purkinje_shift` is to make the frame's pixels."""
+        skipped = self._purkinje_skipped()          # the plan's: its levels still advance
+        return _purkinje.advance(self.settings if skipped else self.s, G_rod, G_cone, extra,
+                                 dt, fresh, preadapt, self.weight("purkinje"), skipped)
+
+    def purkinje_shift(self, rgb, info: dict):
+        """(shifted rgb, info) of a frame whose :meth:`purkinje_advance` ran (on the
+        device, in place, where ``rgb`` is a device image)."""
         self._make_purkinje_device()
-        return _purkinje.run(self.s, rgb, G_rod, G_cone, extra, dt, fresh, preadapt,
-                             self._purkinje_dev, self.weight("purkinje"))
+        return _purkinje.shift(rgb, info, self._purkinje_dev)
 
     def purkinje_on_device(self) -> bool:
         """Whether the Purkinje shift runs on the device (then in place on a device
@@ -310,20 +321,19 @@ class Effects:
         return _acuity.report(self.s, G_rod, width)
 
     # -- frames in row bands (Tonemapper.process_stream) -------------------------------
-    def flare_stream(self, shape, G_rod: float, G_cone: float, rgb_rows, max_pixels: int,
-                     max_Y: float | None = None, block_pixels: int | None = None):
+    def flare_stream(self, shape, G_rod: float, G_cone: float, lim: float, rgb_rows,
+                     max_pixels: int, max_Y: float | None = None,
+                     block_pixels: int | None = None):
         """(:class:`~.flare.BandedFlare` or None, info); see :func:`.flare.stream`."""
-        return _flare.stream(self.s, shape, G_rod, G_cone, rgb_rows, max_pixels, self._blur,
-                             max_Y, block_pixels, self.weight("flare"))
+        return _flare.stream(self.s, shape, G_rod, G_cone, lim, rgb_rows, max_pixels,
+                             self._blur, max_Y, block_pixels, self.weight("flare"))
 
-    def purkinje_stream(self, G_rod: float, G_cone: float, extra: dict | None, dt: float,
-                        fresh: bool, preadapt, height: int):
-        """(:class:`~.purkinje.BandedPurkinje` or None, info); levels advanced."""
-        if self._purkinje_skipped():
-            return _purkinje.follow(self.settings, G_rod, G_cone, extra, dt, fresh, preadapt)
+    def purkinje_banded(self, info: dict, height: int):
+        """A :class:`~.purkinje.BandedPurkinje` for a frame whose shift ran, else None."""
+        if not info.get("ran"):
+            return None
         self._make_purkinje_device()
-        return _purkinje.stream(self.s, G_rod, G_cone, extra, dt, fresh, preadapt,
-                                self._purkinje_dev, height, self.weight("purkinje"))
+        return _purkinje.BandedPurkinje(info, self._purkinje_dev, height)
 
     def acuity_stream(self, sink, G_rod: float, shape, block_pixels: int | None = None):
         """(sink, info): ``sink`` behind a :class:`~.acuity.BandedAcuity` when it blurs."""

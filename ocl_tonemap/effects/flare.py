@@ -8,6 +8,8 @@ The model is ``models/spencer1995.py``; it is computed on the host by
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..backends import flare_exec as fx
@@ -21,53 +23,57 @@ NEEDS = ("adaptation levels", "blur")
 HELP = "glare of light sources (Spencer et al. 1995)"
 
 
-def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, blur=None, device=None):
-    """(new rgb or None, info) for one frame in cd/m^2; ``blur(img, taps, edge)``: the
-    device's blur for the host-driven pyramid; ``device``: the fast method made whole
-    on the device (``backends/opencl/flare.py``), used where the frame fits it."""
+def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, lim: float, blur=None,
+        device=None):
+    """(new rgb or None, info) for one frame in cd/m^2; ``lim``: the source limit
+    (``models/spencer1995.py`` source_limit); ``blur(img, taps, edge)``: the device's blur for the
+    host-driven pyramid; ``device``: the fast method made whole on the device
+    (``backends/opencl/flare.py``), used where the frame fits it."""
     if settings.flare == "off":
         return None, {"ran": False}
+    if not math.isfinite(lim):
+        return None, {"ran": False, "reason": "no light sources", "source_limit_cd": lim}
     h, w = rgb.shape[:2]
     if device is not None and settings.flare_method == "fast" and device.fits(h, w):
-        return _run_on_device(settings, rgb, G_rod, G_cone, device)
+        return _run_on_device(settings, rgb, G_rod, G_cone, lim, device)
     if settings.flare == "auto":
         Ymax = float(np.max(rgb.reshape(-1, 3) @ Y_WEIGHTS, initial=0.0))
-        if not Ymax > settings.flare_threshold * G_cone:
-            return None, {"ran": False, "reason": "no light sources"}
+        if not Ymax > lim:
+            return None, {"ran": False, "reason": "no light sources", "source_limit_cd": lim}
     dev = None if blur is None else (lambda img, taps: blur(img, taps, EDGE_ZERO))
     out, info = fx.apply_flare(rgb, G_cone, G_rod, settings.fov_deg, settings.flare_method,
-                               settings.flare_threshold, settings.flare_per_octave, dev)
+                               settings.flare_threshold, settings.flare_per_octave, dev, lim=lim)
     info["ran"] = info["sources"] > 0
     return out.astype(np.float32), info
 
 
 def device_plan(settings, shape, G_rod: float, G_cone: float):
-    """(pupil mm, source threshold cd/m^2, fast plan) of a frame's flare on the device."""
+    """(pupil mm, fast plan) of a frame's flare on the device."""
     h, w = (int(v) for v in shape[:2])
     D = float(fl.pupil_diameter(0.5 * (G_cone + G_rod)))
-    lim = settings.flare_threshold * max(float(G_cone), 0.0)
     plan = fl.fast_plan((h, w), settings.fov_deg / w, D, settings.flare_per_octave,
                         fit=stored_fit((h, w), settings.fov_deg / w, settings.flare_per_octave))
-    return D, lim, plan
+    return D, plan
 
 
-def start_on_device(settings, rgb, G_rod: float, G_cone: float, device) -> None:
+def start_on_device(settings, rgb, G_rod: float, G_cone: float, lim: float, device) -> None:
     """The first passes of the frame's flare on the device, enqueued before the frame is
     planned (``DeviceFlare.start``): :func:`run` goes on from them."""
-    if settings.flare != "off" and settings.flare_method == "fast" and \
-            device.fits(*rgb.shape[:2]):
-        _, lim, plan = device_plan(settings, rgb.shape, G_rod, G_cone)
+    if settings.flare != "off" and settings.flare_method == "fast" and math.isfinite(lim) \
+            and device.fits(*rgb.shape[:2]):
+        _, plan = device_plan(settings, rgb.shape, G_rod, G_cone)
         device.start(rgb, plan, lim)
 
 
-def _run_on_device(settings, rgb, G_rod: float, G_cone: float, device):
+def _run_on_device(settings, rgb, G_rod: float, G_cone: float, lim: float, device):
     """:func:`run` with the pyramid on the device: the same plan and info."""
-    D, lim, plan = device_plan(settings, rgb.shape, G_rod, G_cone)
+    D, plan = device_plan(settings, rgb.shape, G_rod, G_cone)
     out, sources, S_sum, F_sum = device.apply(rgb, plan, lim)
     if sources == 0 and settings.flare == "auto":
-        return None, {"ran": False, "reason": "no light sources"}
+        return None, {"ran": False, "reason": "no light sources", "source_limit_cd": lim}
     info = {"sources": sources, "pupil_mm": D, "weights": list(fl.flare_weights(D)),
-            "method": "fast", "threshold": settings.flare_threshold, "ran": sources > 0}
+            "method": "fast", "threshold": settings.flare_threshold, "source_limit_cd": lim,
+            "ran": sources > 0}
     if sources == 0:
         return None, info
     info["energy_in_frame"] = float(F_sum.sum() / max(S_sum.sum(), 1e-300))
@@ -112,9 +118,9 @@ class BandedFlare:
     it hold at most this many pixels; ``block_pixels``: flared rows are made this
     many pixels at a time (~100 bytes a pixel while they are made, 12 kept)."""
 
-    def __init__(self, settings, shape, G_rod: float, G_cone: float, rgb_rows,
+    def __init__(self, settings, shape, G_rod: float, G_cone: float, lim: float, rgb_rows,
                  max_pixels: int, blur=None, block_pixels: int | None = None):
-        self.s, self.shape, self.G_cone = settings, tuple(shape[:2]), float(G_cone)
+        self.s, self.shape, self.lim = settings, tuple(shape[:2]), float(lim)
         self.rgb_rows = rgb_rows
         self.blur = None if blur is None else (lambda img, taps: blur(img, taps, EDGE_ZERO))
         h, w = self.shape
@@ -136,8 +142,7 @@ class BandedFlare:
         out = np.empty(rgb.shape[:2] + (3,), np.float64)
         step = max(1, SOURCE_PART_PIXELS // max(1, rgb.shape[1]))
         for y in range(0, len(rgb), step):
-            out[y:y + step] = fl.source_part(rgb[y:y + step, :, :3], self.G_cone,
-                                             self.s.flare_threshold)
+            out[y:y + step] = fl.source_part(rgb[y:y + step, :, :3], 1.0, self.lim)
         return out
 
     def build(self) -> None:
@@ -200,25 +205,26 @@ class BandedFlare:
         return float(self.F_sum / max(self.S_sum, 1e-300))
 
 
-def stream(settings, shape, G_rod: float, G_cone: float, rgb_rows, max_pixels: int,
-           blur=None, max_Y: float | None = None, block_pixels: int | None = None,
-           weight: float = 1.0):
+def stream(settings, shape, G_rod: float, G_cone: float, lim: float, rgb_rows,
+           max_pixels: int, blur=None, max_Y: float | None = None,
+           block_pixels: int | None = None, weight: float = 1.0):
     """(:class:`BandedFlare` or None, info) for a frame in row bands: the info of
     :func:`run` (``energy_in_frame`` once the frame has been swept: see
     :meth:`BandedFlare.energy_in_frame`). ``max_Y``: the frame's largest luminance
     where known (skips the pass that looks for sources on ``auto``)."""
     if settings.flare == "off":
         return None, {"ran": False}
-    lim = settings.flare_threshold * G_cone
-    if settings.flare == "auto" and max_Y is not None and max_Y <= lim * (1.0 - 1e-5):
-        return None, {"ran": False, "reason": "no light sources"}
-    bf = BandedFlare(settings, shape, G_rod, G_cone, rgb_rows, max_pixels, blur, block_pixels)
+    if not math.isfinite(lim) or (settings.flare == "auto" and max_Y is not None
+                                  and max_Y <= lim * (1.0 - 1e-5)):
+        return None, {"ran": False, "reason": "no light sources", "source_limit_cd": lim}
+    bf = BandedFlare(settings, shape, G_rod, G_cone, lim, rgb_rows, max_pixels, blur,
+                     block_pixels)
     bf.weight = float(weight)
     bf.build()
     if settings.flare == "auto" and bf.sources == 0:
-        return None, {"ran": False, "reason": "no light sources"}
+        return None, {"ran": False, "reason": "no light sources", "source_limit_cd": lim}
     info = {"sources": bf.sources, "pupil_mm": bf.D, "weights": list(fl.flare_weights(bf.D)),
-            "method": "fast", "threshold": settings.flare_threshold,
+            "method": "fast", "threshold": settings.flare_threshold, "source_limit_cd": lim,
             "ran": bf.sources > 0}
     if settings.flare_method != "fast":
         info["streamed"] = "the fast method (exact needs the whole frame)"

@@ -72,38 +72,41 @@ def _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt):
     return lv, rod_sensitivity(lv)
 
 
-def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, extra: dict | None = None,
-        dt: float = 0.0, fresh: bool = True, preadapt=None, device=None, weight: float = 1.0):
-    """(new rgb or None, info): the kirk11 shift applied to chromaticity only (each
-    pixel keeps its Y), its strength from the shared receptor scheduler: the
-    adapted scotopic level and the rods' dark adaptation (``extra`` keeps the
-    levels in the adaptation state; without it, steady state at the frame).
-    ``weight``: the plan's weight, scaling the rods' share (blending in or out)."""
+def advance(settings, G_rod: float, G_cone: float, extra: dict | None = None, dt: float = 0.0,
+            fresh: bool = True, preadapt=None, weight: float = 1.0,
+            skipped: bool = False) -> dict:
+    """The shift's time course over one frame, part of the observer's state step
+    (``Tonemapper.integrate``): the shared receptor levels advanced toward the
+    frame's metering goals (G_rod, G_cone of the unchanged frame; ``extra`` keeps
+    them in the adaptation state, without it: steady state at the frame), and
+    whether and how strongly the frame is shifted. Returns the frame's info:
+    ``ran`` (then :func:`shift` makes the pixels), the levels, the rods'
+    sensitivity (dark adaptation x the plan's ``weight``), the rod gain.
+    ``skipped``: the plan skips the shift this frame (its levels still advance, so
+    that the shift comes back where a run that never skipped it would have it)."""
     if settings.purkinje == "off":
-        return None, {"ran": False}
+        return {"ran": False}
     lv, sens = _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt)
+    if skipped:
+        return {"ran": False, "reason": "plan", "A_rod": lv["A_rod"], "rod_sensitivity": sens}
     sens *= float(weight)
-    levels = {"A_rod": lv["A_rod"], "rod_sensitivity": sens}
-    # decided before the shift: on the device it is made in place
-    gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), lv["A_rod"])[2] * sens
+    k1, _, gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), lv["A_rod"])
+    k1, gain = k1 * sens, gain * sens
+    info = {"A_rod": float(lv["A_rod"]), "A_cone": float(lv["A_cone"]), "rod_sensitivity": sens,
+            "rod_gain": float(max(gain, 0.0)), "k1": float(k1)}
     if settings.purkinje == "auto" and gain <= PURKINJE_AUTO_GAIN:
-        return None, {"ran": False, "reason": "photopic", "rod_gain": float(max(gain, 0.0)),
-                      **levels}
+        return {"ran": False, "reason": "photopic", **info}
     if gain <= 0.0:                          # on, but no rod signal: nothing to shift
-        return None, {"ran": False, "reason": "no rod signal", "rod_gain": 0.0, **levels}
-    out, info = apply_purkinje(rgb, lv["A_rod"], lv["A_cone"], device, sens)
-    info.update(levels)
-    info["ran"] = True
-    return out, info
+        return {"ran": False, "reason": "no rod signal", **info}
+    return {"ran": True, **info}
 
 
-def follow(settings, G_rod: float, G_cone: float, extra: dict | None = None, dt: float = 0.0,
-           fresh: bool = True, preadapt=None):
-    """(None, info) for a frame the mechanism plan skips: the receptor levels still
-    advance (a few numbers), so that the shift comes back where a run that never
-    skipped it would have it."""
-    lv, sens = _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt)
-    return None, {"ran": False, "reason": "plan", "A_rod": lv["A_rod"], "rod_sensitivity": sens}
+def shift(rgb, info: dict, device=None):
+    """(shifted rgb, info) of a frame :func:`advance` shifts: each pixel's chromaticity
+    moved as the rods join, its photopic luminance kept (``rgb`` a device image:
+    shifted in place there)."""
+    out, sh = apply_purkinje(rgb, info["A_rod"], info["A_cone"], device, info["rod_sensitivity"])
+    return out, {**info, "fallback_fraction": sh["fallback_fraction"]}
 
 
 class BandedPurkinje:
@@ -111,13 +114,12 @@ class BandedPurkinje:
     once the frame's levels are known, so each band is shifted as the whole frame
     is; ``fallback_fraction`` is summed over the first sweep of the frame."""
 
-    def __init__(self, levels: dict, sensitivity: float, device, height: int):
-        self.lv, self.sens, self.device, self.h = levels, sensitivity, device, int(height)
+    def __init__(self, info: dict, device, height: int):
+        self.info, self.device, self.h = info, device, int(height)
         self._fb, self._swept = 0.0, 0
 
     def __call__(self, y0: int, rgb: np.ndarray) -> np.ndarray:
-        out, info = apply_purkinje(rgb, self.lv["A_rod"], self.lv["A_cone"], self.device,
-                                   self.sens)
+        out, info = shift(rgb, self.info, self.device)
         y1 = y0 + len(rgb)
         if y0 <= self._swept < y1:
             self._fb += info["fallback_fraction"] * (y1 - self._swept)
@@ -126,26 +128,3 @@ class BandedPurkinje:
 
     def fallback_fraction(self) -> float | None:
         return self._fb / self.h if self._swept >= self.h else None
-
-
-def stream(settings, G_rod: float, G_cone: float, extra: dict | None = None, dt: float = 0.0,
-           fresh: bool = True, preadapt=None, device=None, height: int = 1,
-           weight: float = 1.0):
-    """(:class:`BandedPurkinje` or None, info) for a frame in row bands: the levels
-    advanced as :func:`run` advances them, the shift left to the bands (the info's
-    ``fallback_fraction`` once every row has been shifted)."""
-    if settings.purkinje == "off":
-        return None, {"ran": False}
-    lv, sens = _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt)
-    sens *= float(weight)
-    k1, _, gain = ko.kappas(ko.KirkSettings(kappa="adaptive"), lv["A_rod"])
-    k1, gain = k1 * sens, gain * sens
-    info = ({"rod_gain": 0.0, "fallback_fraction": 0.0} if gain <= 0.0 else
-            {"rod_gain": float(gain), "k1": float(k1)})
-    info.update({"A_rod": lv["A_rod"], "rod_sensitivity": sens})
-    if settings.purkinje == "auto" and info["rod_gain"] <= PURKINJE_AUTO_GAIN:
-        return None, {"ran": False, "reason": "photopic", **info}
-    if gain <= 0.0:                          # on, but no rod signal: nothing to shift
-        return None, {"ran": False, "reason": "no rod signal", **info}
-    info["ran"] = True
-    return BandedPurkinje(lv, sens, device, height), info

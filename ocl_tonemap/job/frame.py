@@ -79,7 +79,7 @@ def frame_input(run: RunSetup, tm: Tonemapper, fr, path) -> FrameInput:
 
 def map_frame(tm: Tonemapper, fin: FrameInput, time_s: float | None,
               frame_number: int | None = None, encoding=None, measure_only: bool = False,
-              dt: float | None = None):
+              dt: float | None = None, weights: dict | None = None):
     """The one per-frame step of every entry: ``fin`` through the observer at
     ``time_s`` (or ``dt`` after the last frame; measure -> integrate -> apply). Returns the
     :class:`~ocl_tonemap.pipeline.FrameResult` (display-linear light, or code values of
@@ -88,7 +88,7 @@ def map_frame(tm: Tonemapper, fin: FrameInput, time_s: float | None,
     return tm.process_frame(fin.pixels, dt=dt, time_s=time_s, frame_number=frame_number,
                             luminance_scale=fin.scale, illuminant=fin.illuminant,
                             wavelengths=fin.wavelengths, premultiplied=fin.premultiplied,
-                            encoding=encoding, measure_only=measure_only)
+                            encoding=encoding, measure_only=measure_only, weights=weights)
 
 
 @dataclass

@@ -106,7 +106,7 @@ class WorkingBands:
 
 
 def stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t_prev,
-                  measure_only: bool = False):
+                  measure_only: bool = False, weights: dict | None = None):
     """One frame read, mapped and written in bands of ``rows`` rows; returns (time, info,
     fps). ``measure_only``: its statistics only, (time, FrameStats, fps, illuminant
     hint), nothing written (``shot/passes.py``)."""
@@ -160,7 +160,7 @@ def stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t
             if measure_only:
                 stats = tm.process_stream(source, None, time_s=t, frame_number=f,
                                           luminance_scale=scale, illuminant=fin.illuminant,
-                                          measure_only=True)
+                                          measure_only=True, weights=weights)
                 return t, stats, fps, fin.illuminant
             info = tm.process_stream(source, sink, time_s=t, frame_number=f,
                                      luminance_scale=scale, illuminant=fin.illuminant,

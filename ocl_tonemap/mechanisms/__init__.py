@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import math
 
-from . import planner
+from ..models import spencer1995 as fl
+from . import planner, predict
 from .analysis import analyse, block_stride, patches_of, signature
 
 
@@ -28,6 +29,7 @@ class MechanismPlan:
         self.gated = [m for m, mode in self.offer.items() if mode == "auto"]
         #: An analysis is made where an effect may run (its illuminant estimate too).
         self.active = settings.any
+        self._limit = None              # flare_limit's last (levels, limit)
 
     def backend_sources(self, h: int, w: int, lim: float):
         """The source part's block means from the backend (None where it cannot)."""
@@ -35,18 +37,39 @@ class MechanismPlan:
             return None
         return self.backend.source_proxy((h, w), block_stride(h, w), lim)
 
-    def flare_limit(self, G_cone: float) -> float:
-        """The flare's source threshold, cd/m^2, where the plan predicts from it (else 0)."""
-        if "flare" in self.gated or self.settings.flare == "on":
-            return self.settings.flare_threshold * G_cone
-        return 0.0
+    def white_luminance(self, G_rod: float, G_cone: float, lo: float = 0.0) -> float:
+        """Where an observer adapted to these levels runs out of display: the scene
+        luminance of a uniform neutral region it shows at display white (the
+        operator's own model, ``Operator.white_luminance_at``, else pattanaik00's at
+        the same levels: ``predict.DisplayResponse``'s stand-in)."""
+        own = self.op.white_luminance_at(G_rod, G_cone, lo)
+        if own is not None:
+            return own
+        resp = predict.DisplayResponse(self.op, self.display, G_rod, G_cone)
+        return resp.op.white_luminance(resp.params, lo)
 
-    def sources_ahead(self, h: int, w: int, G_cone: float, predicts: bool) -> None:
+    def flare_limit(self, G_rod: float, G_cone: float) -> float:
+        """The flare's source limit, cd/m^2, where the plan predicts the flare (else 0):
+        ``spencer1995.source_limit`` with the display's white for a steady observer at
+        the frame's levels (state-free, so that a shot's measure pass predicts what the
+        serial run does; the flare itself takes the observer's current state)."""
+        if not ("flare" in self.gated or self.settings.flare == "on"):
+            return 0.0
+        key = (float(G_rod), float(G_cone))
+        if self._limit is None or self._limit[0] != key:
+            k = self.settings.flare_threshold
+            self._limit = (key, fl.source_limit(G_cone, k,
+                                                self.white_luminance(G_rod, G_cone, k * G_cone)))
+        return self._limit[1]
+
+    def sources_ahead(self, h: int, w: int, G_rod: float, G_cone: float, predicts: bool) -> None:
         """Have the backend start the source proxy :meth:`frame` will read, where the
         frame's plan ``predicts`` (its predictions not reused from the last frame), so
         that work enqueued meanwhile runs before the plan waits for it."""
-        lim = self.flare_limit(G_cone)
-        if self.active and self.gated and predicts and lim > 0 and self.backend is not None:
+        if not (self.active and self.gated and predicts and self.backend is not None):
+            return
+        lim = self.flare_limit(G_rod, G_cone)
+        if 0 < lim < math.inf:
             self.backend.source_proxy_ahead((h, w), block_stride(h, w), lim)
 
     def proxy_stride(self, h: int, w: int) -> int:
@@ -64,14 +87,15 @@ class MechanismPlan:
         G_rod, G_cone = levels.goal
         patches = patches_of(get_rows, h, w, scale) if self.gated else []
         an = analyse(levels.proxy, G_rod, G_cone, w, h, self.display, patches)
-        an.flare_limit = self.flare_limit(G_cone)
+        an.flare_limit = self.flare_limit(G_rod, G_cone)
+        an.max_Y = levels.max_Y
         prev = (extra or {}).get(planner.STATE_KEY) or {}
         if prev.get("G_cone") and dt > 0:
             an.adapting = abs(math.log10(max(an.G_cone, 1e-12) / max(prev["G_cone"], 1e-12))) / dt
         sig = signature(an) if self.gated else None
 
         def predict() -> dict:
-            if an.flare_limit > 0:
+            if 0 < an.flare_limit < math.inf:
                 an.sources_proxy = self.backend_sources(h, w, an.flare_limit)
             p = planner.predictions(an, self.op, self.display, self.settings, self.gated)
             return {k: round(min(float(v), 1e9), 6) for k, v in p.items()}   # JSON: no inf

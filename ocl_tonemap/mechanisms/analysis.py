@@ -88,6 +88,7 @@ class SceneAnalysis:
     patches: list = field(repr=False, default_factory=list)
     sources_proxy: np.ndarray | None = field(repr=False, default=None)
     flare_limit: float = 0.0         # the flare's source threshold, cd/m^2 (where it runs)
+    max_Y: float | None = None       # the frame's largest luminance, where the metering knows it
     pixel_memo: list = field(repr=False, default_factory=list)   # predict.patch_pixels'
 
     def as_dict(self) -> dict:

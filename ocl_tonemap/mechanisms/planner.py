@@ -102,7 +102,7 @@ def predictions(an, operator, display, settings, gated) -> dict:
     out = {}
     levels = flared = None
     if "flare" in gated or settings.flare == "on":
-        d, flared = predict.flare(an, resp, settings.fov_deg, settings.flare_threshold)
+        d, flared = predict.flare(an, resp, settings.fov_deg)
         if flared is not None and not resp.own:
             # a stand-in response cannot see what a local operator makes of the veil
             # (it lifts a dark tunnel mouth that the stand-in shows black): any
@@ -116,8 +116,7 @@ def predictions(an, operator, display, settings, gated) -> dict:
             levels = predict.flared_levels(an, flared)
             resp = predict.DisplayResponse(operator, display, *levels)
     if "purkinje" in gated:
-        out["purkinje"] = predict.purkinje(an, resp, levels,
-                                           None if levels is None else flared)
+        out["purkinje"] = predict.purkinje(an, resp, None if levels is None else flared)
     if "acuity" in gated:
         G = an.G_rod if levels is None else levels[0]
         out["acuity"] = predict.acuity(an, resp, settings.fov_deg, settings.paper, G)

@@ -13,11 +13,14 @@ are in docs/models.md ("The mechanism plan").
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..models import spencer1995 as fl
 from ..models.convolution import EDGE_CLAMP, blur_reference, gaussian_taps
 from ..models.ictcp import delta_e_itp, rgb709_to_ictcp
+from ..models.metering import LOG_FLOOR
 from ..models.photometry import Y_WEIGHTS, scotopic_luminance
 from ..models.shaler1937 import acuity_info
 from ..operators.base import FrameStats
@@ -74,30 +77,30 @@ def p99(a, b) -> float:
     return float(np.percentile(d, QUANTILE)) if len(d) else 0.0
 
 
-def purkinje(an, resp: DisplayResponse, levels=None, pixels=None) -> float:
+def purkinje(an, resp: DisplayResponse, pixels=None) -> float:
     """The Purkinje shift at the frame's scotopic level, rods fully sensitive, as the
     run makes it: its strength from the levels metered before the flare, on the
     flared pixels where the flare runs (``pixels``, the flared proxy), shown at the
-    levels the operator then meters (``resp``, at ``levels``)."""
+    levels the operator meters (``resp``: the flared frame's where the flare runs).
+    The shift comes after the metering, so it does not move them."""
     from ..effects.purkinje import apply_purkinje
     P = sampled(an.proxy if pixels is None else pixels)
     sample = [P]
     if an.patches:           # single pixels too: block means hide a texture's darks
         sample.append(sampled(patch_pixels(an, None if pixels is None else pixels)))
     P = np.concatenate(sample)
-    G_rod, G_cone = levels or (an.G_rod, an.G_cone)
     shifted, info = apply_purkinje(P, an.G_rod, an.G_cone)
     if info["rod_gain"] <= 0.0:
         return 0.0
-    shifted = np.asarray(shifted, np.float64)
-    # the operator meters the shifted frame: its scotopic level moves with the shift
-    moved = resp.at(G_rod * _gm(scotopic_luminance(shifted)) / _gm(scotopic_luminance(P)),
-                    G_cone * _gm(shifted @ Y_WEIGHTS) / _gm(P @ Y_WEIGHTS))
-    return p99(resp.ictcp(P), moved.ictcp(shifted))
+    return p99(resp.ictcp(P), resp.ictcp(np.asarray(shifted, np.float64)))
 
 
 def _gm(a) -> float:
-    return float(np.exp(np.mean(np.log(np.maximum(a, 1e-12)))))
+    """The log-average as the metering takes it: over the values above its floor
+    (``models/metering.py``: exact zeros, a black border, do not pull it down)."""
+    a = np.asarray(a, np.float64)
+    a = a[a > LOG_FLOOR]
+    return float(np.exp(np.mean(np.log(a)))) if a.size else LOG_FLOOR
 
 
 def patch_pixels(an, flared=None) -> np.ndarray:
@@ -126,19 +129,24 @@ def patch_pixels(an, flared=None) -> np.ndarray:
     return out
 
 
-def flare(an, resp: DisplayResponse, fov_deg: float, threshold: float):
+def flare(an, resp: DisplayResponse, fov_deg: float):
     """The flare of the frame's sources, exact method at the proxy's pixel angle:
     (p99 Delta E, the flared proxy or None). The sources are the block means of each
-    pixel's source part where the backend made them (``an.sources_proxy``: a lamp
+    pixel's source part (above the analysis's ``flare_limit``) where the backend made them (``an.sources_proxy``: a lamp
     smaller than a block keeps its flux), else the source part of the proxy
     (``Backend.source_proxy``: frames in bands)."""
     from ..backends.flare_exec import apply_flare, convolve_exact_cached
     P = an.proxy
     S = an.sources_proxy
+    lim = an.flare_limit
+    if not (0.0 < lim < np.inf):
+        return 0.0, None
     if S is None:
-        if not (float((P @ Y_WEIGHTS).max(initial=0.0)) > threshold * an.G_cone):
-            return 0.0, None
-        out, _ = apply_flare(P, an.G_cone, an.G_rod, fov_deg, "exact", threshold)
+        if not (float((P @ Y_WEIGHTS).max(initial=0.0)) > lim):
+            # sources smaller than a block (a lamp the block means hide) where the
+            # metering saw a pixel beyond the limit: not predictable here, so it runs
+            return (math.inf if an.max_Y is not None and an.max_Y > lim else 0.0), None
+        out, _ = apply_flare(P, an.G_cone, an.G_rod, fov_deg, "exact", lim=lim)
     else:
         if not np.any(S > 0):
             return 0.0, None

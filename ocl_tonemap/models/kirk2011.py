@@ -253,7 +253,7 @@ def anchor_gain(Y_out: np.ndarray, L_wa: float, A_cone: float) -> float:
     entering a tunnel, brighter (dazzle) leaving it. The range reduction maps every
     frame's base maximum to white whatever its level; without this a 0.1 cd/m^2
     scene was shown at 0.86x its daylight brightness."""
-    la = float(np.exp(np.mean(np.log(np.maximum(np.asarray(Y_out, np.float64), LOG_FLOOR)))))
+    la = logmean(Y_out)
     g = float(scene_key(A_cone)) / la
     return g * (max(L_wa, 1e-10) / max(A_cone, 1e-10)) ** TRANSIENT_N
 
@@ -320,8 +320,29 @@ def kappas(settings: KirkSettings, L_waR: float) -> tuple[float, float, float]:
     return KAPPA1 * k, KAPPA2 * k, k
 
 
-def logmean(x: np.ndarray) -> float:
-    return float(np.exp(np.mean(np.log(np.maximum(np.asarray(x, np.float64), LOG_FLOOR)))))
+def logmean(x: np.ndarray, lit: np.ndarray | None = None) -> float:
+    """exp(mean ln x) over the lit pixels (``lit``, default x above LOG_FLOOR: the
+    metering rule of ``models/metering.py``, exact zeros do not pull it down);
+    LOG_FLOOR where none is lit."""
+    x = np.asarray(x, np.float64)
+    lit = x > LOG_FLOOR if lit is None else np.asarray(lit, bool)
+    if not lit.any():
+        return LOG_FLOOR
+    return float(np.exp(np.mean(np.log(np.maximum(x[lit], LOG_FLOOR)))))
+
+
+def level_logmeans(q: np.ndarray) -> tuple[float, float]:
+    """(log-average of R, of L+M) of LMSR ``q``, over the pixels where either is
+    above LOG_FLOOR (the frame's levels; ``kirk11.cl`` kirk11_sums LOG_LEVELS)."""
+    q = np.asarray(q, np.float64)
+    R, LM = q[..., 3], q[..., 0] + q[..., 1]
+    lit = np.maximum(R, LM) > LOG_FLOOR
+    return logmean(R, lit), logmean(LM, lit)
+
+
+def mean_exp(log_sum: float, count: float) -> float:
+    """exp(log_sum / count) of device sums over ``count`` lit pixels (LOG_FLOOR: none)."""
+    return math.exp(log_sum / count) if count > 0 else LOG_FLOOR
 
 
 def compose_reference(src_rgb, shift_rgb, w, logY, base, settings: KirkSettings,

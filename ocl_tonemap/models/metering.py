@@ -3,9 +3,15 @@
 Rods are metered on scotopic luminance Y', cones on photopic Y. Modes:
 
 ``logmean`` (default)
-    exp(mean(ln(max(L, floor)))), floor = 1e-6 cd/m^2 (absolute threshold).
+    exp(mean(ln L)) over the *lit* pixels: those whose photopic or scotopic
+    luminance is above the floor, 1e-6 cd/m^2 (the absolute threshold of
+    vision). Pixels at or below it (exact zeros: black borders, letterboxes, a
+    masked-out half) carry no weight in any statistic but ``max``: light the eye
+    cannot sense does not pull its adaptation down (a half-black field of 100
+    cd/m^2 meters 100, not the 0.01 that ln(1e-6) as a value would give). A
+    frame with no lit pixel meters the floor (logmean) or 0 (mean).
 ``mean``
-    arithmetic mean.
+    arithmetic mean (of the lit pixels).
 ``max``
     maximum.
 ``centre[:mean]``
@@ -22,7 +28,7 @@ Rods are metered on scotopic luminance Y', cones on photopic Y. Modes:
     negatives and NaN as 0), resized to the frame; log-mean unless ``:mean``.
     Durand & Dorsey 2000, Sec. 4.1's weight texture.
 ``percentile:P``
-    the P-th percentile (0-100). The reference is exact; the device bins
+    the P-th percentile (0-100) of the luminances above the floor. The reference is exact; the device bins
     log10 L in ``HIST_BINS`` bins over [HIST_LO, HIST_HI) and interpolates,
     so it is within one bin (0.0049 decades, 1.1%).
 
@@ -154,18 +160,20 @@ def weights(spec: MeteringSpec, width: int, height: int, y0: int = 0, rows: int 
 
 
 def _statistic(stat: str, sw, swl, swln, mx):
-    if sw <= 0:
-        return 0.0
-    if stat == "mean":
-        return swl / sw
+    """``sw``: the lit pixels' weight; ``swl``, ``swln``: their sums of w L, w ln L."""
     if stat == "max":
         return mx
+    if sw <= 0:                       # nothing lit: darkness
+        return LOG_FLOOR if stat == "logmean" else 0.0
+    if stat == "mean":
+        return swl / sw
     return math.exp(swln / sw)
 
 
 @dataclass
 class MeterSums:
-    """Accumulated metering sums of one frame (possibly over several bands)."""
+    """Accumulated metering sums of one frame (possibly over several bands), over
+    its lit pixels (photopic or scotopic luminance above :data:`LOG_FLOOR`)."""
 
     sums: np.ndarray           # [sum w, sum wY, sum w lnY, sum wY', sum w lnY', max Y, max Y']
     hist_Y: np.ndarray | None = None
@@ -189,7 +197,8 @@ class MeterSums:
 
 
 def histogram_percentile(hist: np.ndarray, p: float) -> float:
-    """Percentile from a log10 histogram, linear within the bin (in log10)."""
+    """Percentile from a log10 histogram of the luminances above the floor (the
+    device counts only those), linear within the bin (in log10)."""
     h = np.asarray(hist, np.float64)
     total = h.sum()
     if total <= 0:
@@ -206,14 +215,19 @@ def histogram_percentile(hist: np.ndarray, p: float) -> float:
     return 10.0 ** (HIST_LO + (b + min(max(frac, 0.0), 1.0)) * width)
 
 
+def lit(Y: np.ndarray, Ys: np.ndarray) -> np.ndarray:
+    """The pixels metering counts: photopic or scotopic luminance above the floor."""
+    return np.maximum(Y, Ys) > LOG_FLOOR
+
+
 # --- float64 reference ----------------------------------------------------------
 
 def reference_sums(Y: np.ndarray, Ys: np.ndarray, spec: MeteringSpec, width: int, height: int,
                    y0: int = 0, mask: np.ndarray | None = None) -> MeterSums:
     rows = Y.shape[0]
-    w = weights(spec, width, height, y0, rows, mask)
     Y = np.asarray(Y, np.float64)
     Ys = np.asarray(Ys, np.float64)
+    w = weights(spec, width, height, y0, rows, mask) * lit(Y, Ys)
     sums = np.array([w.sum(), (w * Y).sum(), (w * np.log(np.maximum(Y, LOG_FLOOR))).sum(),
                      (w * Ys).sum(), (w * np.log(np.maximum(Ys, LOG_FLOOR))).sum(),
                      Y.max(initial=0.0), Ys.max(initial=0.0)])
@@ -222,11 +236,15 @@ def reference_sums(Y: np.ndarray, Ys: np.ndarray, spec: MeteringSpec, width: int
 
 def reference_goal(Y: np.ndarray, Ys: np.ndarray, spec: MeteringSpec,
                    mask: np.ndarray | None = None) -> tuple[float, float]:
-    """(G_rod, G_cone) of a whole frame, float64; percentiles exact; ``mask`` as
-    :func:`weights`."""
+    """(G_rod, G_cone) of a whole frame, float64; percentiles exact (of the
+    luminances above the floor); ``mask`` as :func:`weights`."""
     h, w = Y.shape
     if spec.mode == "percentile":
-        return (float(np.percentile(Ys, spec.percentile)), float(np.percentile(Y, spec.percentile)))
+        def pct(L):
+            L = np.asarray(L, np.float64)
+            L = L[L > LOG_FLOOR]
+            return float(np.percentile(L, spec.percentile)) if L.size else 0.0
+        return pct(Ys), pct(Y)
     return reference_sums(Y, Ys, spec, w, h, 0, mask).goal(spec)
 
 

@@ -165,6 +165,19 @@ def psf_kernel(shape: tuple[int, int], deg_per_px: float, D: float) -> np.ndarra
                      for c in range(3)])
 
 
+def source_limit(L_wa: float, threshold: float = DEFAULT_THRESHOLD,
+                 shown: float | None = None) -> float:
+    """The luminance (cd/m^2) above which a pixel is a light source: the paper's test,
+    ``threshold`` x the adaptation level (7, Radiance's findglare), and beyond what
+    the display can show the observer (``shown``: the scene luminance its state
+    maps to display white, where known; inf: nothing is). Durand & Dorsey restrict
+    flares to light sources (Sec. 6.2); a field the display shows within its range
+    is not one: the viewer's own eye makes its glare from the screen, and adding
+    it again would count it twice (docs/models.md, "Flare")."""
+    lim = threshold * max(float(L_wa), 0.0)
+    return lim if shown is None else max(lim, float(shown))
+
+
 def source_part(rgb: np.ndarray, L_wa: float, threshold: float = DEFAULT_THRESHOLD) -> np.ndarray:
     """The part of each pixel that is a light source: rgb max(0, 1 - threshold L_wa / Y)."""
     rgb = np.asarray(rgb, np.float64)

@@ -38,12 +38,12 @@ stages or per-pixel state name a schedule per backend (``schedules``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
 
-from ..models.photometry import RepairCounts
+from ..models.photometry import RepairCounts, neutral_scotopic_ratio
 
 #: Kinds of stage.
 STAGE_KINDS = ("colour", "reduction", "state", "pointwise", "neighbourhood")
@@ -111,6 +111,8 @@ class FrameStats:
     values : operator-specific scalars (JSON-able).
     planes : per-pixel adaptation inputs (backend arrays or buffers).
     handle : the backend's resident frame (private to the schedule that made it).
+    scene_goal : (G_rod, G_cone) of the run's ``--metering`` on the frame, where the
+        effects need it (the operator's own goals may be local: ledda04, kirk11).
     """
 
     width: int
@@ -122,6 +124,7 @@ class FrameStats:
     values: dict = field(default_factory=dict)
     planes: dict = field(default_factory=dict)
     handle: Any = None
+    scene_goal: tuple | None = None
 
 
 @dataclass
@@ -233,6 +236,13 @@ class Operator:
         return None
 
     # -- display model helpers --------------------------------------------------------------
+    def white_luminance_at(self, G_rod: float, G_cone: float, lo: float = 0.0) -> float | None:
+        """Where an observer adapted to a frame's levels runs out of display: the
+        luminance (cd/m^2, >= ``lo``) of a uniform neutral region that its map shows at
+        the display's white or beyond (:func:`white_luminance`); None where the
+        operator has no model of it (the mechanism plan then takes pattanaik00's)."""
+        return None
+
     def plot_curves(self, state, Ls: np.ndarray):
         """Display-linear output of neutral greys ``Ls`` (cd/m^2) under ``state``, or
         None for operators with no single curve (local adaptation)."""
@@ -277,10 +287,59 @@ class ModelOperator(Operator):
     #: (``colour/export.py`` samples it for an OCIO export).
     export_blocker = None
 
+    def white_luminance_at(self, G_rod: float, G_cone: float, lo: float = 0.0) -> float:
+        stats = FrameStats(1, 1, float(G_rod), float(G_cone))
+
+        class _Steady:
+            values = self.steady_state(stats)
+        return self.white_luminance(self.params(_Steady, stats), lo)
+
+    def white_luminance(self, params, lo: float = 0.0) -> float:
+        """The scene luminance (cd/m^2) from which a neutral grey is shown at the
+        display's white or beyond under the frame's ``params``: :func:`white_luminance`
+        of the map before its highlight shoulder."""
+        return white_luminance(lambda L: self.map_reference(
+            np.repeat(L[:, None], 3, axis=1), L, L * NEUTRAL_SCOTOPIC, replace(params, raw=True)),
+            float(params.white_signal), lo)
+
     def colour_axes(self, p) -> np.ndarray:
         """The 3x3 matrix M of the axes v = M rgb (working cd/m^2) along which the raw
         map's output channels cross zero (``colour/lattice.py``); identity here."""
         return np.eye(3)
+
+
+#: Neutral Y'/Y (a grey of Y cd/m^2 has Y' = this x Y; models/photometry.py).
+NEUTRAL_SCOTOPIC = neutral_scotopic_ratio()
+#: white_luminance searches up to the scene ceiling (the bad-value policy's 1e10).
+WHITE_SEARCH_TOP = 1.0e10
+#: ... on a grid of this many points a decade (then linear in log L between two).
+WHITE_SEARCH_PER_DECADE = 64
+
+
+def white_luminance(shown, white: float, lo: float = 0.0) -> float:
+    """The smallest scene luminance L >= ``lo`` (cd/m^2) whose neutral grey
+    ``shown(L)`` (display-linear RGB of an array of luminances, before any
+    highlight shoulder) reaches ``white`` in a channel: where the display runs out
+    of range for this observer. Searched on a log grid from max(lo, 1e-6) up to
+    1e10 cd/m^2, interpolated in log L between the two grid points around it;
+    ``lo`` itself where it is already beyond white, inf where nothing up to 1e10
+    is (a map that keeps every light within the display). Monotone maps only."""
+    a = math.log10(max(float(lo), 1.0e-6))
+    b = math.log10(WHITE_SEARCH_TOP)
+    if a >= b:
+        return math.inf
+    n = max(2, int(math.ceil((b - a) * WHITE_SEARCH_PER_DECADE)) + 1)
+    x = np.linspace(a, b, n)
+    out = np.max(np.asarray(shown(10.0 ** x), np.float64), axis=-1)
+    above = np.flatnonzero(out >= white)
+    if above.size == 0:
+        return math.inf
+    k = int(above[0])
+    if k == 0:
+        return float(max(lo, 10.0 ** a))
+    y0, y1 = out[k - 1], out[k]
+    t = (white - y0) / (y1 - y0) if y1 > y0 else 1.0
+    return float(10.0 ** (x[k - 1] + min(max(t, 0.0), 1.0) * (x[k] - x[k - 1])))
 
 
 @dataclass(frozen=True)

@@ -170,3 +170,24 @@ class Ledda04(Operator):
 
     def plot_curves(self, state, Ls):
         return None                       # no single curve: each pixel has its own
+
+    def white_luminance_at(self, G_rod: float, G_cone: float, lo: float = 0.0) -> float:
+        """A uniform region of L cd/m^2 in a frame of log-averages (G_cone, G_rod),
+        steady: each of its pixels adapted to its blended level (``blend_levels``:
+        the bilateral level of a uniform region is L), Eqs. 11-13 before the
+        shoulder. Local adaptation shows far more than a global map: with the
+        default strength 0.5, a region needs about the square of the global ratio."""
+        import numpy as np
+        from ..models import ledda2004 as L
+        from .base import white_luminance
+        s = self.settings.strength
+        sd, white, _ = self.frame_mapping(G_cone, G_rod)
+
+        def shown(Lc):
+            Ic = L.blend_levels(Lc, G_cone, s)
+            Ir = L.blend_levels(Lc * self.rod_ratio, G_rod, s)
+            rgb = np.repeat(Lc[:, None], 3, axis=1)
+            return L.map_reference(rgb, Lc * self.rod_ratio, Ic, L.sigma_of(Ic, L.BETA_CONE),
+                                   L.sigma_of(Ir, L.BETA_ROD), sd, self.display.unit_cd,
+                                   white, 0.0)
+        return white_luminance(shown, white, lo)

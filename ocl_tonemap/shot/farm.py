@@ -149,14 +149,12 @@ def _user() -> str:
     return re.sub(r"[^A-Za-z0-9_]+", "_", u) or "render"
 
 
-def _check_splittable(opts) -> None:
-    """Refuse, at submission, a run the passes cannot split (``Tonemapper.check_measure_only``),
-    checked on the float64 reference backend (no OpenCL needed to submit)."""
+def _check_options(opts) -> None:
+    """Refuse, at submission, options the run would refuse (the observer made on the
+    float64 reference backend: no OpenCL needed to submit). Every effect splits."""
     from ..pipeline import Tonemapper
-    tm = Tonemapper(opts.operator, "reference", options=opts.operator_options,
-                    effects=opts.effects, quality=opts.quality)
-    tm.leave_out_unsplittable()            # as the passes do (passes.split_options)
-    tm.check_measure_only()
+    Tonemapper(opts.operator, "reference", options=opts.operator_options,
+               effects=opts.effects, quality=opts.quality)
 
 
 def write_template(fmt: str, opts, run_tokens: list[str], job_file: str,
@@ -169,7 +167,7 @@ def write_template(fmt: str, opts, run_tokens: list[str], job_file: str,
         raise ValueError("--chunk-frames must be >= 1")
     store = store or passes.default_store(opts)
     name = _name(opts, name)
-    _check_splittable(opts)
+    _check_options(opts)
     if fmt == "openjd":
         doc = openjd_template(opts, run_tokens, store, chunk, name, command)
         try:

@@ -23,11 +23,12 @@ through uncompressed EXR, the reference backend's float64 planes through .npz;
 the reference backend's per-pixel *state* keyframes are float32, so ledda04 on
 that backend is within 1e-6 instead).
 
-Not split: effects that change the pixels before they are metered from their own
-time course (``--purkinje``, chromatic adaptation on the scene for operators
-without receptor gains) -- ``Tonemapper.check_measure_only`` refuses them with
-the serial alternative when they are asked for (``on``); on ``auto`` (the
-default model) the passes leave them out (:func:`split_options`, said once).
+Every effect splits: a frame is metered as it is, before the effects
+(``Tonemapper.measure``), so its statistics never depend on the state; the
+effects' own time courses (the Purkinje shift's receptor levels, chromatic
+adaptation's illuminant, the mechanism plan's weights) are part of the state the
+integrate pass advances, from the scene goals and predictions each frame's
+statistics carry.
 
 The mechanism plan (``mechanisms/``) is split as the state is: the measure pass
 stores each frame's predictions, the integrate pass advances the weights over
@@ -155,6 +156,8 @@ def stats_document(stats: FrameStats, illuminant, hint, t: float, held: bool, in
     return {"time_s": float(t), "held": bool(held), "input": os.path.basename(inp),
             "width": int(stats.width), "height": int(stats.height),
             "G_rod": float(stats.G_rod), "G_cone": float(stats.G_cone),
+            "scene_goal": None if stats.scene_goal is None else [float(g) for g in
+                                                                   stats.scene_goal],
             "repairs": stats.repairs.as_dict(), "values": _enc(dict(stats.values)),
             "illuminant": _enc(illuminant), "illuminant_hint": _enc(hint)}
 
@@ -171,10 +174,12 @@ def stats_from_document(doc: dict, planes, schedule) -> tuple[FrameStats, object
 
 def _stats_from_document(doc: dict, planes, schedule) -> tuple[FrameStats, object]:
     illum = _dec(doc.get("illuminant"))
+    goal = doc.get("scene_goal")
     stats = FrameStats(int(doc["width"]), int(doc["height"]), float(doc["G_rod"]),
                        float(doc["G_cone"]), RepairCounts(**doc.get("repairs", {})),
                        (lambda: illum) if illum is not None else None,
-                       _dec(doc.get("values") or {}))
+                       _dec(doc.get("values") or {}),
+                       scene_goal=None if goal is None else (float(goal[0]), float(goal[1])))
     if planes is not None:
         stats = schedule.stats_from_planes(stats, planes)
     return stats, _dec(doc.get("illuminant_hint"))
@@ -204,39 +209,21 @@ def _shot_constants(opts, jobs, run, tm, store: ShotStore):
     return fps, auto
 
 
-def split_options(opts):
-    """``opts`` with the effects the passes cannot split switched off where they are on
-    ``auto`` (``Tonemapper.leave_out_unsplittable``); those asked for ``on`` stay, for
-    ``check_measure_only`` to refuse."""
-    from ..pipeline import Tonemapper
-    tm = Tonemapper(opts.operator, "reference", options=opts.operator_options,
-                    effects=opts.effects, quality=opts.quality)
-    left = tm.leave_out_unsplittable()
-    if not left:
-        return opts
-    log.info("shot passes: %s left out (their own time course changes the frame before "
-             "it is metered; a serial run has them)", ", ".join(left))
-    return dataclasses.replace(opts, effects=tm.effects.settings)
-
-
 def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
     """The measure pass over the frames of ``chunk`` (all: None): each frame's
     statistics into the store; frames already there are skipped unless ``redo``
     (a retried task does not measure them again) unless ``redo`` or the input file
     changed since (size, modification time); new statistics invalidate an earlier
     integrate. Returns the frames measured."""
-    opts = split_options(opts)
     jobs = shot_jobs(opts)
     todo = chunk_jobs(jobs, chunk)
     state = load_state_in(opts)
     run, tm = setup_run(opts, state)
-    tm.check_measure_only()
     store = ShotStore(store_path)
     fps, auto = _shot_constants(opts, jobs, run, tm, store)
     store.open(_settings(opts), [j[0] for j in jobs], fps, auto)
     if auto is not None:
         run.calibrator.auto_scale = auto
-    want_illum = tm.effects.s.chromatic_adaptation != "off"
     done = []
     for f, inp, outp, held in todo:
         try:
@@ -246,32 +233,45 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
             input_stat = None                     # (read_frame names the problem)
         if not redo and input_stat is not None and store.stats_current(f, input_stat):
             continue                              # measured from this very file
-        try:
-            rows = stream_rows(opts, tm, inp, f)
-            streamed = stream_frame(run, tm, inp, outp, f, held, rows, fps, None,
-                                     measure_only=True) if rows else None
-            if streamed is not None:
-                t, stats, _, hint = streamed
-            else:
-                fr = read_frame(inp, f, opts.channels)
-                t, _ = frame_time(fr, f, held, fps, None)
-                fin = frame_input(run, tm, fr, inp)
-                hint = fin.illuminant
-                stats = map_frame(tm, fin, t, f, measure_only=True)
-            illum = stats.illuminant() if (want_illum and stats.illuminant) else None
-            doc = stats_document(stats, illum, hint, t, held, inp)
-            doc["input_stat"] = input_stat
-            plan = tm._frame_plan
-            if plan:
-                doc["plan"] = {"predicted": plan["predicted_dE_p99"],
-                               "G_cone": plan["analysis"]["G_cone"], "sig": plan.get("sig")}
-            store.write_stats(f, doc, tm.schedule.stats_planes(stats))
-        except FrameError:
-            raise
-        except Exception as exc:
-            raise FrameError(inp, f, exc) from exc
+        measure_frame(opts, run, tm, store, f, inp, outp, held, fps, input_stat)
         done.append(f)
     return done
+
+
+def measure_frame(opts, run, tm, store: ShotStore, f, inp, outp, held, fps, input_stat,
+                  weights: dict | None = None, plan: dict | None = None) -> None:
+    """One frame's statistics into the store: as the serial run measures it (read,
+    whole or streamed, its optical effects -- the flare -- with the plan's weights of
+    the frame itself, or ``weights``; ``plan``: the stored plan record to keep, where
+    the frame is measured again by the integrate pass)."""
+    try:
+        rows = stream_rows(opts, tm, inp, f)
+        streamed = stream_frame(run, tm, inp, outp, f, held, rows, fps, None,
+                                measure_only=True, weights=weights) if rows else None
+        if streamed is not None:
+            t, stats, _, hint = streamed
+        else:
+            fr = read_frame(inp, f, opts.channels)
+            t, _ = frame_time(fr, f, held, fps, None)
+            fin = frame_input(run, tm, fr, inp)
+            hint = fin.illuminant
+            stats = map_frame(tm, fin, t, f, measure_only=True, weights=weights)
+        want_illum = tm.effects.settings.chromatic_adaptation != "off"
+        illum = stats.illuminant() if (want_illum and stats.illuminant) else None
+        doc = stats_document(stats, illum, hint, t, held, inp)
+        doc["input_stat"] = input_stat
+        rec = tm.frame_plan
+        doc["flare_metered"] = rec.get("flare_metered")
+        if plan is not None:
+            doc["plan"] = plan
+        elif rec.get("predicted_dE_p99") is not None:
+            doc["plan"] = {"predicted": rec["predicted_dE_p99"],
+                           "G_cone": rec["analysis"]["G_cone"], "sig": rec.get("sig")}
+        store.write_stats(f, doc, tm.schedule.stats_planes(stats))
+    except FrameError:
+        raise
+    except Exception as exc:
+        raise FrameError(inp, f, exc) from exc
 
 
 # -- 2. integrate ---------------------------------------------------------------------------
@@ -286,32 +286,57 @@ def detect_cuts(docs: list[dict], frames: list[int]) -> list[int]:
     return out
 
 
-def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None) -> None:
-    """The serial run's state step over stored statistics, frame by frame;
-    ``after(k, frame)`` once each frame's state is final (its mapping frozen in ``tm``:
-    ``Tonemapper.last_mapping``)."""
+def _flare_weight(tm) -> float:
+    """The flare's weight in the frame the serial run meters, from the plan's weights
+    just advanced (``pipeline.metered_weight``'s)."""
+    fx = tm.effects
+    return float(fx.weight("flare")) if fx.s.flare != "off" else 0.0
+
+
+def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None, remeasure=None) -> None:
+    """The serial run's state step over stored statistics, frame by frame, in the
+    serial run's order (the plan's weights, then the observer and the effects);
+    ``after(k, frame, effects)`` once each frame's state is final (its mapping frozen
+    in ``tm``: ``Tonemapper.last_mapping``; ``effects``: the frame's effect records).
+
+    A frame's statistics were measured with its flare at the weight of the frame's
+    own plan (the measure pass knows no state); where the serial run's plan weighs
+    it otherwise (a ramp, hysteresis: a few frames where the flare comes and goes),
+    ``remeasure(k, frame, weights)`` measures it again with the serial weights
+    (the integrate pass); without it such a frame is an error."""
     cuts = set(cuts or ())
     for k, (f, _inp, _outp, _held) in enumerate(jobs):
         doc, planes = store.read_stats(f)
-        stats, hint = stats_from_document(doc, planes, tm.schedule)
         if f in cuts and tm.adapted:
             tm.reset_adaptation()
         if auto is not None:
             tm.remember(AUTO_SCALE_KEY, float(auto))
         time_s, dt, fresh = tm.frame_clock(None, float(doc["time_s"]))
-        tm.freeze_mapping(stats, *tm.integrate(stats, time_s, f, dt, fresh, hint, {}))
+        tm.effects.begin_frame(None)
+        weights = None
         if doc.get("plan"):
-            tm.advance_plan(doc["plan"]["predicted"], doc["plan"]["G_cone"], dt, fresh,
-                            doc["plan"].get("sig"))
+            weights = tm.advance_plan(doc["plan"]["predicted"], doc["plan"]["G_cone"], dt,
+                                      fresh, doc["plan"].get("sig"))
+        metered = doc.get("flare_metered")
+        if metered is not None and metered != _flare_weight(tm):
+            if remeasure is None:
+                raise ValueError(f"frame {f}'s statistics were measured with another flare "
+                                 f"weight than the integrated plan's: run the integrate "
+                                 f"pass again")
+            remeasure(k, f, weights)
+            doc, planes = store.read_stats(f)
+            tm.effects.begin_frame(weights)
+        stats, hint = stats_from_document(doc, planes, tm.schedule)
+        eff: dict = {}
+        tm.freeze_mapping(stats, *tm.integrate(stats, time_s, f, dt, fresh, hint, eff))
         if after is not None:
-            after(k, f)
+            after(k, f, eff)
 
 
 def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
     """The integrate pass: the state after every frame of the shot into the store
     (local operators: per-pixel keyframes every ``keyframe_every`` frames and at
     the last). Needs every frame measured. Returns the integrate record."""
-    opts = split_options(opts)
     jobs = shot_jobs(opts)
     frames = [j[0] for j in jobs]
     store = ShotStore(store_path)
@@ -332,19 +357,32 @@ def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
     cuts = sorted(set(cuts or ()))
     state = load_state_in(opts)
     o = dataclasses.replace(opts, cuts=cuts)
-    _, tm = setup_run(o, state)
+    run, tm = setup_run(o, state)
+    if man.get("luminance_scale_auto") is not None:
+        run.calibrator.auto_scale = man["luminance_scale_auto"]
     local = bool(tm.op.state.planes)
     every = max(1, int(keyframe_every or DEFAULT_KEYFRAME_EVERY)) if local else 1
     keyframes = []
+    again = []
+
+    def remeasure(k, f, weights):
+        _, inp, outp, held = jobs[k]
+        doc, _ = store.read_stats(f)
+        measure_frame(opts, run, tm, store, f, inp, outp, held, man["fps"],
+                      doc.get("input_stat"), weights or {}, doc.get("plan"))
+        again.append(f)
     n = len(jobs)
 
-    def after(k, f):
+    def after(k, f, _eff):
         key = (k + 1) % every == 0 or k + 1 == n
         store.write_state(f, tm.state if (local and key) else tm.scalar_state())
         if key:
             keyframes.append(f)
-    _advance(tm, store, jobs, cuts, man.get("luminance_scale_auto"), after)
-    doc = {"frames": frames, "keyframes": keyframes, "cuts": cuts,
+    _advance(tm, store, jobs, cuts, man.get("luminance_scale_auto"), after, remeasure)
+    if again:
+        log.info("integrate: %d frame(s) measured again with the plan's flare weight "
+                 "(its ramps): %s", len(again), ", ".join(map(str, again[:20])))
+    doc = {"frames": frames, "keyframes": keyframes, "cuts": cuts, "measured_again": again,
            "cut_rule": f"|log10 G_cone jump| > {CUT_LOG10_JUMP}" if opts.cuts == "detect"
            else ("given" if cuts else "none"), "per_pixel": local}
     store.write_integrated(doc)
@@ -376,7 +414,6 @@ def start_state(opts, store: ShotStore, jobs, k0: int, integ: dict):
 def _integrated(opts, store_path: str):
     """(options, jobs, store, manifest, integrate record) of a shot whose integrate
     pass is done over the same frames."""
-    opts = split_options(opts)
     jobs = shot_jobs(opts)
     frames = [j[0] for j in jobs]
     store = ShotStore(store_path)
@@ -405,13 +442,13 @@ def export(opts, store_path: str, chunk=None) -> tuple:
     ex = OcioExport(opts.ocio_export, run.colour, tm, jobs[0][0], opts.ocio_export_size)
     spent = {"read": 0.0, "export": 0.0}
 
-    def after(k, f):
+    def after(k, f, eff):
         _, inp, _, _ = todo[k]
         t0 = time.perf_counter()
         fr = read_frame(inp, f, opts.channels)
         fin = frame_input(run, tm, fr, inp)
         t1 = time.perf_counter()
-        ex.add_frame(f, fin.pixels, fin.scale, {}, run.input_colour(fr, inp))
+        ex.add_frame(f, fin.pixels, fin.scale, eff, run.input_colour(fr, inp))
         spent["read"] += t1 - t0
         spent["export"] += time.perf_counter() - t1
     _advance(tm, store, todo, integ["cuts"], man.get("luminance_scale_auto"), after)

@@ -124,15 +124,16 @@ def test_fast_flare_made_whole_on_the_device_is_the_reference(rt, shape, fov, L)
     rgb[h // 2, w // 3] = 3e4 * L
     rgb[-1, -1] = 2e3 * L
     s = EffectSettings(flare="on", fov_deg=fov)
-    ref, ri = F.run(s, rgb.astype(np.float64), L, L)
-    got, gi = F.run(s, rgb, L, L, None, dev)
+    lim = fl.source_limit(L)
+    ref, ri = F.run(s, rgb.astype(np.float64), L, L, lim)
+    got, gi = F.run(s, rgb, L, L, lim, None, dev)
     assert got.dtype == np.float32 and got.shape == rgb.shape
     assert np.max(np.abs(got - ref) / ref) < 2e-6
     assert gi["sources"] == ri["sources"] >= 1 and gi["pupil_mm"] == ri["pupil_mm"]
     assert gi["energy_in_frame"] == pytest.approx(ri["energy_in_frame"], rel=1e-6)
     dark = np.full((h, w, 3), 0.5 * L, np.float32)
-    assert F.run(s, dark, L, L, None, dev)[0] is None
-    assert F.run(EffectSettings(flare="auto", fov_deg=fov), dark, L, L, None, dev)[0] is None
+    assert F.run(s, dark, L, L, lim, None, dev)[0] is None
+    assert F.run(EffectSettings(flare="auto", fov_deg=fov), dark, L, L, lim, None, dev)[0] is None
 
 @pytest.mark.parametrize("shape", [(120, 203), (61, 96)])
 def test_fast_flare_on_the_device_where_sources_are_few_is_the_reference(rt, shape):
@@ -152,9 +153,9 @@ def test_fast_flare_on_the_device_where_sources_are_few_is_the_reference(rt, sha
                  (h - 1, w - 1), (h - 1, 0), (0, w - 1), (h // 2, w - 5)]:
         rgb[y, x] = [3e3, 2e3, 1e3]
     s = EffectSettings(flare="on", fov_deg=20.0)
-    ref, ri = F.run(s, rgb.astype(np.float64), 1.0, 1.0)
+    ref, ri = F.run(s, rgb.astype(np.float64), 1.0, 1.0, fl.source_limit(1.0))
     for _ in range(2):
-        got, gi = F.run(s, rgb, 1.0, 1.0, None, dev)
+        got, gi = F.run(s, rgb, 1.0, 1.0, fl.source_limit(1.0), None, dev)
         assert np.max(np.abs(got - ref) / ref) < 2e-6
         assert gi["sources"] == ri["sources"] == 11
 
@@ -178,14 +179,15 @@ def test_flare_started_before_the_plan_goes_on_to_the_same_frame(rt):
     img = DeviceImage(be.rt, cl.Buffer(be.rt.context, cl.mem_flags.READ_ONLY
                                        | cl.mem_flags.COPY_HOST_PTR, hostbuf=rgb), rgb.shape)
     s = EffectSettings(flare="on", fov_deg=50.0)
-    ref = np.array(F.run(s, img, 1.0, 1.0, None, dev)[0])
-    F.start_on_device(s, img, 1.0, 1.0, dev)
+    lim = fl.source_limit(1.0)
+    ref = np.array(F.run(s, img, 1.0, 1.0, lim, None, dev)[0])
+    F.start_on_device(s, img, 1.0, 1.0, lim, dev)
     assert dev._started is not None
-    assert np.array_equal(np.array(F.run(s, img, 1.0, 1.0, None, dev)[0]), ref)
+    assert np.array_equal(np.array(F.run(s, img, 1.0, 1.0, lim, None, dev)[0]), ref)
     assert dev._started is None
-    F.start_on_device(s, img, 1.0, 3.0, dev)          # another threshold
-    assert np.array_equal(np.array(F.run(s, img, 1.0, 1.0, None, dev)[0]), ref)
-    F.start_on_device(s, img, 1.0, 1.0, dev)
+    F.start_on_device(s, img, 1.0, 1.0, 3.0 * lim, dev)          # another source limit
+    assert np.array_equal(np.array(F.run(s, img, 1.0, 1.0, lim, None, dev)[0]), ref)
+    F.start_on_device(s, img, 1.0, 1.0, lim, dev)
     dev.discard()
     assert dev._started is None
     assert not [n for n in be._pool if n.startswith(("flare:S", "flare:acc"))]

@@ -110,8 +110,11 @@ def test_pattanaik00_purkinje_streams(tmp_path, extra):
         np.testing.assert_allclose(b.get_pixels(oiio.FLOAT), a.get_pixels(oiio.FLOAT), **TOL)
         pa, pb = _effects(a)["purkinje"], _effects(b)["purkinje"]
         assert pa["ran"] and pb["ran"]
-        for key in ("rod_gain", "A_rod", "fallback_fraction"):
+        for key in ("rod_gain", "A_rod"):
             assert pb[key] == pytest.approx(pa[key], rel=1e-5, abs=1e-9), key
+        # the shift comes after the metering pass: its gamut fallbacks are known once
+        # the bands are made, after the streamed file's header is written
+        assert "fallback_fraction" in pa and "fallback_fraction" not in pb
 
 
 @pytest.mark.requires_opencl
@@ -200,10 +203,11 @@ def test_banded_flare_on_the_device_is_the_whole_frames(rt, shape, fov):
     for edges in (False, True):
         rgb = _lamps(h, w, seed=4, edges=edges).astype(np.float32)
         s = EffectSettings(flare="on", fov_deg=fov)
-        whole, _ = F.run(s, rgb, 1.5, 1.5, blur)
+        lim = fl.source_limit(1.5)
+        whole, _ = F.run(s, rgb, 1.5, 1.5, lim, blur)
         for rows in (17, 64):
-            bf, info = F.stream(s, shape, 1.5, 1.5, lambda a, b: rgb[a:b], rows * w, blur,
-                                None, rows * w)
+            bf, info = F.stream(s, shape, 1.5, 1.5, lim, lambda a, b: rgb[a:b], rows * w,
+                                blur, None, rows * w)
             assert info["ran"] and bf.plan.split >= 1
             got = np.concatenate([bf.rows(y, min(h, y + rows)) for y in range(0, h, rows)])
             np.testing.assert_array_equal(got, whole)

@@ -377,7 +377,7 @@ def test_the_purkinje_shift_in_bands_is_the_shift_whole(rt, monkeypatch):
                     hostbuf=np.ascontiguousarray(rgb))
     img = DeviceImage(rt, buf, rgb.shape)
     on_dev, info_d = apply_purkinje(img, 0.02, 0.01, dev)
-    assert on_dev is img                       # in place
+    assert on_dev.buffer is img.buffer and on_dev is not img    # in place, a new frame
     np.testing.assert_allclose(np.asarray(on_dev), whole, rtol=4e-6, atol=0)
     assert info_d["fallback_fraction"] == info["fallback_fraction"]
     monkeypatch.setattr(KirkDevice, "SHIFT_BAND", 7)

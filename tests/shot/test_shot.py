@@ -37,12 +37,12 @@ def _read(path):
 
 
 def _serial(d, pattern, op, name="serial", **kw):
+    """One serial run with the defaults (every effect on auto: the plan's)."""
     out = d / op / name / "o.####.exr"
     if not out.parent.exists():
         out.parent.mkdir(parents=True)
-        # the effects the passes split (passes.split_options: Purkinje on auto left out)
-        run_job(passes.split_options(JobOptions(pattern, str(out), operator=op,
-                                                checkpoint=False, out_bits="float", **kw)))
+        run_job(JobOptions(pattern, str(out), operator=op, checkpoint=False, out_bits="float",
+                           **kw))
     return out
 
 
@@ -204,14 +204,41 @@ def test_a_changed_input_is_measured_again_and_integrate_must_follow(shot, tmp_p
         passes.apply(o, store)
 
 
+@pytest.fixture(scope="module")
+def dusk_shot(tmp_path_factory):
+    """The tunnel drive at a thousandth of its light (sunlit road 5, tunnel road 0.005
+    cd/m^2): the observer crosses the mesopic range, so the plan turns the Purkinje
+    shift, the acuity blur and the lamps' flare on and off within the shot."""
+    from ocl_tonemap.sample import write_tunnel_sequence
+    d = tmp_path_factory.mktemp("dusk")
+    pattern, frames = write_tunnel_sequence(str(d / "scene"), 48, 27, 30.0, 2.0)
+    return d, pattern, frames
+
+
+def _effects(path, frames):
+    return [json.loads(oiio.ImageBuf(frame_path(str(path), f)).spec().getattribute(
+        "ocltm:effects") or "{}") for f in frames]
+
+
 @pytest.mark.requires_opencl
-def test_state_dependent_scene_effects_are_refused(shot, tmp_path):
+@pytest.mark.parametrize("model", ["auto", "full"])
+@pytest.mark.parametrize("op", OPERATORS)
+def test_split_equals_serial_across_the_mesopic_range(dusk_shot, op, model):
+    """With the defaults (``--model auto``) and with every effect on (``full``): the
+    passes give the serial run's frames bit for bit where the Purkinje shift (its own
+    receptor levels), chromatic adaptation and the plan's ramps run, which change the
+    frame after its metering from their own time course."""
     from ocl_tonemap.effects import EffectSettings
-    d, pattern, frames = shot
-    o = JobOptions(pattern, str(tmp_path / "o.####.exr"), checkpoint=False,
-                   effects=EffectSettings.for_operator("pattanaik00", purkinje="on"))
-    with pytest.raises(ValueError, match="--purkinje.*--state-in"):
-        passes.measure(o, passes.default_store(o))
+    d, pattern, frames = dusk_shot
+    kw = dict(luminance_scale=1e-3)
+    if model == "full":
+        kw["effects"] = EffectSettings.for_operator(op, "full")
+    ser = _serial(d, pattern, op, f"serial-{model}", **kw)
+    if op != "kirk11":      # (kirk11 models the shift itself)
+        ran = [e.get("purkinje", {}).get("ran", False) for e in _effects(ser, frames)]
+        assert any(ran), "the Purkinje shift never ran: the shot does not test it"
+    out, _ = _split(d, pattern, op, 13, f"split-{model}", **kw)
+    _same_frames(ser, out, frames)
 
 
 @pytest.mark.requires_opencl
@@ -346,4 +373,49 @@ def test_opencue_spec_follows_the_dtd_and_runs(shot, tmp_path):
             assert argv[0] == "ocl-tonemap"
             _run(exe + argv[1:] + ["-q"])
     ser = _serial(d, pattern, "pattanaik00", "serial12", frames=frames)
+    _same_frames(ser, out, frames)
+
+
+@pytest.fixture(scope="module")
+def lamp_fade(tmp_path_factory):
+    """A dim street (~0.5 cd/m^2) with a small lamp that brightens from 6 to 24 cd/m^2
+    over a second, through the flare's source limit, and fades again: the plan's flare
+    comes in and goes out with its ramps and hysteresis, frames where its weight is
+    neither the frame's own 0 nor 1."""
+    from ocl_tonemap.imageio import frame_path
+    d = tmp_path_factory.mktemp("lampfade")
+    pattern = str(d / "scene" / "lamp.####.exr")
+    os.makedirs(d / "scene")
+    rng = np.random.default_rng(3)
+    base = (0.5 * 10.0 ** rng.uniform(-0.5, 0.5, (36, 64, 1)) * np.ones((1, 1, 3)))
+    frames = list(range(1, 61))
+    for f in frames:
+        t = (f - 1) / 29.0
+        img = base.copy()
+        img[10:13, 30:33] = np.array([1.0, 0.8, 0.5]) * 6.0 * 10.0 ** (0.6 * min(t, 2.0 - t))
+        spec = oiio.ImageSpec(64, 36, 3, oiio.FLOAT)
+        spec.attribute("whiteLuminance", 1.0)
+        spec.attribute("FramesPerSecond", oiio.TypeDesc("rational"), (30, 1))
+        buf = oiio.ImageBuf(spec)
+        buf.set_pixels(oiio.ROI(0, 64, 0, 36, 0, 1, 0, 3), img.astype(np.float32))
+        assert buf.write(frame_path(pattern, f))
+    return d, pattern, frames
+
+
+@pytest.mark.requires_opencl
+@pytest.mark.parametrize("op", ["pattanaik00", "durand00"])
+def test_flare_ramps_split_as_the_serial_run(lamp_fade, op):
+    """The flare changes the light that is metered, with the plan's weight of the frame
+    (ramps, hysteresis); the measure pass knows only the frame's own: the integrate
+    pass measures the frames where the serial plan weighs the flare otherwise again,
+    and the frames are the serial run's bit for bit."""
+    d, pattern, frames = lamp_fade
+    ser = _serial(d, pattern, op)
+    plans = [json.loads(oiio.ImageBuf(frame_path(str(ser), f)).spec().getattribute(
+        "ocltm:plan_detail")) for f in frames]
+    ramp = [f for f, p in zip(frames, plans) if 0.0 < (p.get("flare_metered") or 0.0) < 1.0]
+    assert ramp, "the flare never ramped: the shot does not test the ramps"
+    out, store = _split(d, pattern, op, 7, "split")
+    again = ShotStore(store).integrated()["measured_again"]
+    assert set(ramp) <= set(again)
     _same_frames(ser, out, frames)

@@ -18,7 +18,8 @@ import numpy as np
 from ...models.bilateral import RangeKernel, spatial_radius
 from ...models.durand2002 import compression
 from ...models.display import SHOULDER_KNEE
-from ...models.kirk2011 import SIGMA_RANGE_LOG10, anchor_gain, display_matrix, model_scale
+from ...models.kirk2011 import (SIGMA_RANGE_LOG10, anchor_gain, display_matrix, mean_exp,
+                                model_scale)
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
 from ..base import NoPixelState
@@ -52,19 +53,19 @@ class KirkSchedule(NoPixelState):
         if len(bands) == 1 and isinstance(frame.pixels, (np.ndarray, DeviceImage)):
             q, src, repairs = self.dev.lmsr_band(be, frame.pixels, frame.scale, frame.wavelengths,
                                                  True)
-            sum_r, sum_lm = self.dev.sums(q, n, self.dev.LOG_LEVELS)     # kirk2011.logmean
-            return FrameStats(w, h, math.exp(sum_r / n), math.exp(sum_lm / n),
+            sum_r, sum_lm, lit = self.dev.sums(q, n, self.dev.LOG_LEVELS)  # level_logmeans
+            return FrameStats(w, h, mean_exp(sum_r, lit), mean_exp(sum_lm, lit),
                               repairs if isinstance(repairs, RepairCounts) else RepairCounts(),
                               handle=(frame.pixels, q, src))
         repairs = RepairCounts()
-        sum_lm = sum_r = 0.0
+        sum_lm = sum_r = lit = 0.0
         for y0, nr in bands:                               # the frame's levels, per band
             qb, _, rc = self.dev.lmsr_band(be, frame.pixels[y0:y0 + nr], frame.scale,
                                            frame.wavelengths, True)
             repairs += rc
-            r, lm = self.dev.sums(qb, nr * w, self.dev.LOG_LEVELS)
-            sum_r, sum_lm = sum_r + r, sum_lm + lm
-        return FrameStats(w, h, float(np.exp(sum_r / n)), float(np.exp(sum_lm / n)), repairs,
+            r, lm, k = self.dev.sums(qb, nr * w, self.dev.LOG_LEVELS)
+            sum_r, sum_lm, lit = sum_r + r, sum_lm + lm, lit + k
+        return FrameStats(w, h, mean_exp(sum_r, lit), mean_exp(sum_lm, lit), repairs,
                           handle=_Banded(frame))
 
     def integrate(self, state, stats, dt: float, fresh: bool) -> None:
@@ -79,13 +80,14 @@ class KirkSchedule(NoPixelState):
         q_ = be.rt.queue
         h, w = stats.height, stats.width
         n = h * w
-        resident = isinstance(stats.handle, tuple) and stats.handle[0] is frame.pixels
-        if not resident:
+        if not isinstance(stats.handle, tuple):
             return self._apply_banded(frame, stats, sink, encoding)
         D = frame.display_primaries if frame.display_primaries is not None else np.eye(3)
         M = display_matrix(D)
         area = model_scale()
-        _, q, src = stats.handle
+        px, q, src = stats.handle
+        if px is not frame.pixels:      # a frame the scene effects changed after metering
+            q, src, _ = dev.lmsr_band(be, frame.pixels, frame.scale, frame.wavelengths, False)
         gsz, wg = (round_up(n, 64),), (64,)
         shifted, wbuf, logY, fb = dev.shift(q, n, area, v["k1"], v["k2"], v["rod_gain"],
                                             s.shift_xyz, M, D, s.paper)
@@ -121,16 +123,16 @@ class KirkSchedule(NoPixelState):
         return res
 
     # -- Kirk11.finish on the device ---------------------------------------------------------
-    def _gain(self, out, n: int, stats, log_sum: float | None = None) -> float:
+    def _gain(self, out, n: int, stats, log_sum: tuple | None = None) -> float:
         """``anchor_gain`` of the composed frame (``out``, n pixels; or the whole frame's
-        ``log_sum`` of a banded one); 1 in the paper mode."""
+        (log sum, lit pixels) of a banded one); 1 in the paper mode."""
         op = self.op
         if op.s.paper:
             return 1.0
         if log_sum is None:
             u = op.display.white_cd / op.display.unit_cd
-            log_sum = self.dev.sums(out, n, self.dev.LOG_OUTPUT, 1.0 / u)[0]
-        return anchor_gain(np.array([math.exp(log_sum / n)]), stats.G_cone,
+            log_sum = self.dev.sums(out, n, self.dev.LOG_OUTPUT, 1.0 / u)[::2]
+        return anchor_gain(np.array([mean_exp(*log_sum)]), stats.G_cone,
                            stats.values["levels"]["A_cone"])
 
     def _finish(self, out, n: int, gain: float) -> None:
@@ -245,8 +247,8 @@ class KirkSchedule(NoPixelState):
 
         gain = 1.0
         if not s.paper:                         # the frame's log-average for the anchor
-            log_sum = sum(dev.sums(compose(y0, nr), nr * w, dev.LOG_OUTPUT, 1.0 / u)[0]
-                          for y0, nr in bands)
+            log_sum = np.sum([dev.sums(compose(y0, nr), nr * w, dev.LOG_OUTPUT, 1.0 / u)[::2]
+                              for y0, nr in bands], axis=0)
             gain = self._gain(None, n, stats, log_sum)
         res = be.output_array(h, w, encoding) if sink is None else None
         for y0, nr in bands:
@@ -260,9 +262,13 @@ class KirkSchedule(NoPixelState):
                 sink(y0, band)
         return res
 
-    def summary(self, stats, params) -> dict:
+    def summary(self, stats, params, frame=None) -> dict:
         """The frame's record; a banded frame streamed to a sink is summarised before
-        its apply, so the shift pass runs here then."""
-        if "w_mean" not in stats.values and isinstance(stats.handle, _Banded):
-            self._shift_pass(stats.handle.frame, stats)
+        its apply, so the shift pass runs here then, on the frame to be mapped
+        (``frame``: where scene effects changed it after its metering)."""
+        if isinstance(stats.handle, _Banded):
+            if frame is not None and frame.pixels is not stats.handle.frame.pixels:
+                stats.handle.frame, stats.handle.found = frame, None
+            if "w_mean" not in stats.values:
+                self._shift_pass(stats.handle.frame, stats)
         return self.op.summary(params, stats)

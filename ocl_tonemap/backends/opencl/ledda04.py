@@ -331,7 +331,9 @@ class LeddaSchedule(PixelStateMixin):
         be, op = self.backend, self.op
         q = be.rt.queue
         h, w = stats.height, stats.width
-        _, bands, banded, halo = stats.handle
+        px, bands, banded, halo = stats.handle
+        if not banded and px is not frame.pixels:   # changed by scene effects after metering
+            be.to_working(frame.pixels, frame.scale, count=False)
         sd, white, knee = op.frame_mapping(stats.values["global_cone"], stats.values["global_rod"])
         stats.values["sigma_disp"] = sd
         strength, lgc, _ = self._frame_scalars(stats)

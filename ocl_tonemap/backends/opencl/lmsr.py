@@ -82,14 +82,16 @@ class KirkDevice:
     #: kirk11_sums modes
     LOG_LEVELS, PLANE, LOG_OUTPUT = 0, 1, 2
 
-    def sums(self, x, n: int, mode: int, inv_u: float = 1.0) -> tuple[float, float]:
+    def sums(self, x, n: int, mode: int, inv_u: float = 1.0) -> tuple[float, float, float]:
         """kirk11_sums over ``n`` pixels of ``x``, added in float64: LOG_LEVELS (LMSR):
-        (sum ln max(R, f), sum ln max(L+M, f)), as ``kirk2011.logmean``; PLANE:
-        (sum x, 0); LOG_OUTPUT (display-linear RGB): (sum ln max(Y inv_u, f), 0), as
-        ``anchor_gain`` (f: ``kirk2011.LOG_FLOOR``). Only the groups' records come back."""
+        (sum ln R, sum ln (L+M), pixels lit), as ``kirk2011.logmean``; PLANE: (sum x, 0,
+        n); LOG_OUTPUT (display-linear RGB): (sum ln (Y inv_u), 0, pixels lit), as
+        ``anchor_gain``. Lit: above ``kirk2011.LOG_FLOOR`` (R or L+M; Y inv_u), the
+        only pixels summed (the metering rule of ``models/metering.py``). Only the
+        groups' records come back."""
         cl = self.cl
         if n <= 0:
-            return 0.0, 0.0
+            return 0.0, 0.0, 0.0
         wg = self.SUM_WG
         groups = max(1, min(self.SUM_GROUPS, -(-n // (4 * wg))))
         self._k_sums(self.rt.queue, (groups * wg,), (wg,), x, np.int32(n), np.int32(mode),
@@ -97,7 +99,7 @@ class KirkDevice:
         host = np.empty((groups, 4), np.float32)
         cl.enqueue_copy(self.rt.queue, host, self._partial)
         t = host.astype(np.float64).sum(axis=0)
-        return float(t[0]), float(t[1])
+        return float(t[0]), float(t[1]), float(t[2])
 
     #: base_histogram: at most this many work-items, each a stretch of >= HIST_MIN_RUN
     HIST_ITEMS, HIST_MIN_RUN = 16384, 64
@@ -134,7 +136,8 @@ class KirkDevice:
         """Eqs. 10-13 and 15 (the gamut map, D = I) on working RGB (cd/m^2), each pixel
         scaled back to its source's photopic Y (kernels/kirk11.cl purkinje_rgb):
         ``(shifted, fallback share)``. ``rgb`` a :class:`~.image.DeviceImage`: shifted in
-        place on the device (the same image comes back); a host array: through one
+        place on the device (a new image of the same buffer comes back: another frame
+        to the stages' residency checks); a host array: through one
         buffer of :data:`SHIFT_BAND` pixels, kept for the next frame."""
         from .image import DeviceImage
         cl, q_ = self.cl, self.rt.queue
@@ -149,7 +152,7 @@ class KirkDevice:
         n = h * w
         if isinstance(rgb, DeviceImage):
             run(rgb.buffer, n)
-            res = rgb
+            res = DeviceImage(rgb.rt, rgb.buffer, rgb.shape)    # another frame, same buffer
         else:
             res = np.ascontiguousarray(rgb, np.float32).reshape(n, 3).copy()
             nb = 12 * min(self.SHIFT_BAND, max(n, 1))

@@ -70,7 +70,7 @@ class DeviceMeter:
         cl.enqueue_fill_buffer(q, self.hist, np.int32(0), 0, HIST_BINS * 4)
         groups = max(1, min(self.GROUPS, -(-n // 256)))
         self._k_hist(q, (groups * 256,), (256,), buf, np.int32(n), np.float32(HIST_LO),
-                     np.float32(HIST_HI), np.int32(HIST_BINS), self.hist,
+                     np.float32(HIST_HI), np.int32(HIST_BINS), np.float32(LOG_FLOOR), self.hist,
                      cl.LocalMemory(HIST_BINS * 4))
         h = np.empty(HIST_BINS, np.int32)
         cl.enqueue_copy(q, h, self.hist)

@@ -20,17 +20,21 @@ class KirkSchedule(NoPixelState):
     def __init__(self, backend, op):
         self.backend, self.op = backend, op
 
-    def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
-        from ...models import kirk2011 as K
+    @staticmethod
+    def _lmsr(frame):
+        """(working rgb or None for a spectral frame, LMSR, repairs) of ``frame``."""
         from ...models import lmsr
         if frame.wavelengths is not None:
             sp, repairs = sanitize(frame.pixels, frame.scale)
-            src, q = None, lmsr.spectral_to_lmsr(frame.wavelengths, sp)
-        else:
-            src, repairs = sanitize(frame.pixels[..., :3], frame.scale)
-            q = lmsr.rgb_to_lmsr(src)
+            return None, lmsr.spectral_to_lmsr(frame.wavelengths, sp), repairs
+        src, repairs = sanitize(frame.pixels[..., :3], frame.scale)
+        return src, lmsr.rgb_to_lmsr(src), repairs
+
+    def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
+        from ...models import kirk2011 as K
+        src, q, repairs = self._lmsr(frame)
         h, w = q.shape[:2]
-        return FrameStats(w, h, K.logmean(q[..., 3]), K.logmean(q[..., 0] + q[..., 1]), repairs,
+        return FrameStats(w, h, *K.level_logmeans(q), repairs,
                           handle=(frame.pixels, src, q))
 
     def integrate(self, state, stats, dt: float, fresh: bool) -> None:
@@ -40,7 +44,9 @@ class KirkSchedule(NoPixelState):
         from ...models import kirk2011 as K
         from ...models.bilateral import RangeKernel, bilateral_reference
         op, s, v = self.op, self.op.settings, stats.values
-        _, src, q = stats.handle
+        px, src, q = stats.handle
+        if px is not frame.pixels:      # a frame the scene effects changed after metering
+            src, q, _ = self._lmsr(frame)
         D = frame.display_primaries if frame.display_primaries is not None else np.eye(3)
         area = K.model_scale()
         q_hat, w = K.purkinje_shift(q, area, v["k1"], v["k2"], s.shift_xyz, v["rod_gain"],

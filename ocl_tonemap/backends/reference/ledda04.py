@@ -39,7 +39,13 @@ class LeddaSchedule(PixelStateMixin):
         rods = op.rods == "always" or I_c.min() < L.PHOTOPIC_FLOOR
         I_r = L.blend_levels(bilateral_reference(Ys, sig, LEDDA_RANGE), G_rod_g, s.strength) \
             if rods else np.maximum(I_c * op.rod_ratio, V_FLOOR)
-        return FrameStats(w, h, L.logmean(I_r), L.logmean(I_c), repairs,
+        # the log-averages of the levels as the device meters them (the lit rule of
+        # models/metering.py; no rods: I_A' from I_A)
+        G_rod, G_cone = met.reference_goal(I_c, I_r if rods else I_c,
+                                           met.MeteringSpec.parse("logmean"))
+        if not rods:
+            G_rod = max(G_cone * op.rod_ratio, V_FLOOR)
+        return FrameStats(w, h, G_rod, G_cone, repairs,
                           values={"global_cone": G_cone_g, "global_rod": G_rod_g, "sigma_px": sig,
                                   "rods": bool(rods), "bilateral": "exact (float64)"},
                           planes={"I_c": I_c, "I_r": I_r}, handle=(frame.pixels, rgb, Ys))
@@ -73,7 +79,10 @@ class LeddaSchedule(PixelStateMixin):
     def apply(self, frame, state, stats, params=None, gains=None, sink=None, encoding=None):
         from ...models import ledda2004 as L
         op = self.op
-        _, rgb, Ys = stats.handle
+        px, rgb, Ys = stats.handle
+        if px is not frame.pixels:      # a frame the scene effects changed after metering
+            rgb, _ = sanitize(frame.pixels[..., :3], frame.scale)
+            Ys = L.luminances(rgb, op.ward)[1]
         s_c, s_r = L.current_sigmas(self._host)
         sd, white, knee = op.frame_mapping(stats.values["global_cone"], stats.values["global_rod"])
         stats.values["sigma_disp"] = sd
