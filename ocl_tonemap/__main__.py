@@ -71,8 +71,9 @@ def _one_blas_thread() -> None:
 
 def entry() -> int:
     try:
-        from .interrupts import install
+        from .interrupts import install, ready
         install()
+        ready("handlers")
         _malloc_for_frames()
         _one_blas_thread()
         from .cli import main

@@ -62,3 +62,23 @@ def exit_code(exc: BaseException | None = None) -> int:
     if isinstance(exc, KeyboardInterrupt) or not received:
         return 130
     return 128 + received
+
+
+#: A test hook: where the command notes how far it got (``ready``), so that a test
+#: can send its signal at a known point instead of after a guessed delay.
+READY_ENV = "OCLTM_TEST_READY"
+
+
+def ready(what: str) -> None:
+    """Append ``what`` as a line to the file named by ``$OCLTM_TEST_READY`` (nothing
+    when it is not set): ``handlers`` once the signal handlers are in, ``written N``
+    once frame N's output and checkpoint are on disk."""
+    import os
+    path = os.environ.get(READY_ENV)
+    if not path:
+        return
+    try:
+        with open(path, "a", encoding="utf-8") as f:
+            f.write(what + "\n")
+    except OSError:
+        pass

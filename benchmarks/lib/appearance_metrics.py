@@ -401,3 +401,42 @@ def hue_shift_deg(out, scene_rgb, keep=None, min_in_chroma: float = 8.0,
     if not m.any():
         return float("nan")
     return float(np.median(hue_delta(h_out[m], h_in[m])))
+
+
+def _line_steps(g, k: float, floor: float):
+    """Where a neighbour difference along rows (and, transposed, columns) is at least
+    ``k`` x the median of the 9 differences around it (and at least ``k`` x ``floor``):
+    a step on otherwise smooth ground. (row mask, column mask)."""
+    from numpy.lib.stride_tricks import sliding_window_view
+    out = []
+    for axis in (1, 0):
+        d = np.abs(np.diff(g, axis=axis))
+        dd = d if axis == 1 else d.T
+        m = np.median(sliding_window_view(np.pad(dd, ((0, 0), (4, 4)), mode="edge"), 9,
+                                          axis=1), axis=-1)
+        s = dd >= k * np.maximum(m, floor)
+        out.append(s if axis == 1 else s.T)
+    return out
+
+
+def step_artefacts(codes, scene_rgb) -> float:
+    """The share of pixels where the display shows a step the scene does not have:
+    8-bit code values (H x W x 3) stepping by at least 3 codes where the 9 steps around
+    are at most a code, more than 2 pixels from any step of the scene's log luminance
+    (its own edges). The stepped rings and halos of a time course restarted pixel by
+    pixel on a smooth field (docs/models.md, ledda04's time course)."""
+    from numpy.lib.stride_tricks import sliding_window_view
+    g = np.asarray(codes, np.float64)[..., :3].mean(axis=2)
+    L = np.log10(np.maximum(luminance(scene_rgb), 1e-6))
+    sx, sy = _line_steps(g, 3.0, 1.0)
+    ex, ey = _line_steps(L, 3.0, 0.01)
+    edge = np.zeros(g.shape, bool)
+    edge[:, 1:] |= ex
+    edge[:, :-1] |= ex
+    edge[1:] |= ey
+    edge[:-1] |= ey
+    near = sliding_window_view(np.pad(edge, 2), (5, 5)).any(axis=(-1, -2))
+    art = np.zeros(g.shape, bool)
+    art[:, 1:] |= sx & ~near[:, 1:]
+    art[1:] |= sy & ~near[1:]
+    return float(art.mean())

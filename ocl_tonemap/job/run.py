@@ -13,6 +13,7 @@ import sys
 import time
 
 from .. import safeio
+from ..interrupts import ready
 from ..colour import ColourPipeline
 from ..imageio import FramePool, FrameError, is_sequence, read_frame
 from ..imagewrite import output_bits, write_frame
@@ -237,6 +238,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                     except Exception as exc:                      # noqa: BLE001
                         raise FrameError(ckpt, f, "cannot write the checkpoint: "
                                          f"{safeio.reason(exc)}") from None
+                ready(f"written {f}")
             io.write(write, after)
             if info.repairs.total:
                 log.warning("%s%s: repaired bad values (%s)", inp,
