@@ -205,12 +205,16 @@ def output_spec(in_spec, width, height, nch, ext, bits, colorspace, metadata,
     spec.channelnames = ("R", "G", "B", "A")[:nch]
     spec.alpha_channel = 3 if nch == 4 else -1
     spec.set_format(BITS_TYPES[bits])
+    # the input's tags of what its pixels were: none of them holds for the output's
     for k in ("whiteLuminance", "ocltm:timestamp", "chromaticities", "oiio:UnassociatedAlpha",
-              "adoptedNeutral"):
+              "adoptedNeutral", "oiio:ColorSpace", "colorInteropID", "CICP", "ICCProfile",
+              "oiio:Gamma", "oiio:BitsPerSample"):
         spec.erase_attribute(k)
     if nch == 4 and straight_alpha:
         spec.attribute("oiio:UnassociatedAlpha", 1)
     spec.attribute("oiio:ColorSpace", colorspace)
+    if ext in (".exr", ".sxr", ".mxr"):
+        spec.attribute("colorInteropID", colorspace)
     if chromaticities is not None:
         spec.attribute("chromaticities", oiio.TypeDesc("float[8]"),
                        tuple(float(v) for v in chromaticities))
@@ -220,6 +224,11 @@ def output_spec(in_spec, width, height, nch, ext, bits, colorspace, metadata,
         spec.attribute("png:compressionLevel", int(png_level))
         spec.attribute("png:filter", PNG_FILTERS[png_filter])
     for k, v in metadata.items():
+        if k == "FramesPerSecond":         # a rational, as OIIO reads it
+            from fractions import Fraction
+            r = Fraction(float(v)).limit_denominator(1001)
+            spec.attribute(k, oiio.TypeDesc("rational"), (r.numerator, r.denominator))
+            continue
         spec.attribute(k, v if isinstance(v, (str, int, float)) else json.dumps(v, sort_keys=True))
     if ext not in KEEPS_ATTRIBUTES:
         # TIFF, JPEG, DPX, .hdr drop attributes they have no tag for: ours go in the one

@@ -13,7 +13,7 @@ from .config import (  # noqa: F401
     BRADFORD, BUNDLED_NAMES, ColourError, InputColour, PLAIN_VIEWS,
     REC709_CHROMATICITIES, USE_DISPLAY_NAME, WORKING_CANDIDATES, apply_processor,
     builtin_config, bundled_config_path, chromaticities_to_working,
-    chromaticities_to_xyz, default_display, default_view, input_colorspace,
+    chromaticities_to_xyz, default_display, default_view, input_colorspace, interop_id,
     is_builtin_source, is_rec709, list_displays, load_config, resolve_config_source,
     resolve_input, working_space, xyz_to_chromaticities)
 from .table import (  # noqa: F401

@@ -240,6 +240,34 @@ def resolve_input(cfg: ocio.Config, path: str | None, file_cs: str | None,
                        "OIIO/OpenEXR convention; --iscolorspace to override", assumed=True)
 
 
+def interop_id(cfg: ocio.Config, name: str) -> str | None:
+    """The Color Interop Forum ID of the config's colourspace ``name``
+    (``lin_p3d65_scene``, ``pq_rec2020_display`` ...): its own (OCIO 2.5 and later), else
+    an alias of that form, else that of the colourspace of OCIO's built-in config that
+    the name or an alias names (OCIO 2.1-2.4 configs carry none); None where unknown."""
+    import re
+    cs = cfg.getColorSpace(name) if name else None
+    if cs is None:
+        return None
+    own = cs.getInteropID() if hasattr(cs, "getInteropID") else ""
+    if own:
+        return own.split(":")[-1]
+    names = [cs.getName(), *(cs.getAliases() if hasattr(cs, "getAliases") else [])]
+    for n in names:
+        if re.fullmatch(r"[a-z0-9]+_[a-z0-9]+_(scene|display)", n):
+            return n
+    try:
+        ref = builtin_config()
+    except Exception:  # noqa: BLE001 -- no built-in config (an old OCIO): unknown
+        return None
+    if ref is cfg:
+        return None
+    for n in names:
+        if ref.getColorSpace(n) is not None:
+            return interop_id(ref, ref.getColorSpace(n).getName())
+    return None
+
+
 def default_display(cfg: ocio.Config) -> str:
     return cfg.getDefaultDisplay()
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from .. import __version__
 from ..alpha import restore_alpha
+from ..colour.config import interop_id
 from ..imageio import illuminant_from_metadata
 from ..state import AUTO_SCALE_KEY
 from .setup import RunSetup
@@ -105,12 +106,16 @@ class Rendered:
 
 
 def output_metadata(run: RunSetup, tm: Tonemapper, fr, fin: FrameInput, info,
-                    extra: dict | None, linear: bool, alpha: bool):
-    """(metadata, output colourspace, chromaticities, whiteLuminance, straight alpha)
-    of a mapped frame (``info``: its :class:`~ocl_tonemap.pipeline.FrameInfo`)."""
+                    extra: dict | None, linear: bool, alpha: bool, fps: float | None = None):
+    """(metadata, output colour tag, chromaticities, whiteLuminance, straight alpha) of a
+    mapped frame (``info``: its :class:`~ocl_tonemap.pipeline.FrameInfo`; ``fps``: the
+    frame rate its time was taken at, written as ``FramesPerSecond``). The tag is the
+    output colourspace's colour interop ID where it has one (what OIIO writes to EXR's
+    ``colorInteropID`` and PNG's cICP), else its name in the config."""
     colour, disp = run.colour, tm.display
     t, scale = info.time_s, fin.scale
     out_cs = colour.linear_output()[0] if linear else colour.output_colorspace
+    tag = interop_id(colour.cfg, out_cs) or out_cs
     premult = fin.premultiplied
     meta = {
         "Software": f"ocl-tonemap {__version__}",
@@ -121,6 +126,7 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, fin: FrameInput, info,
         else "local (bilateral)",
         "ocltm:input_colorspace": fin.colour_text,
         "ocltm:output_colorspace": out_cs,
+        "ocltm:output_interop_id": tag,
         "ocltm:output_encoding": (f"display-linear light, 1.0 = {disp.unit_cd:g} cd/m^2"
                                   if linear else "display-encoded (OCIO display/view)"),
         "ocltm:view": f"{colour.display} / {colour.view}",
@@ -149,8 +155,10 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, fin: FrameInput, info,
                                "multiplied again" if premult else
                                ("straight (unassociated)" if fr.unassociated_alpha else
                                 "tone mapped as stored (--no-unpremult)"))
+    if fps:
+        meta["FramesPerSecond"] = float(fps)
     meta.update(extra or {})
-    return (meta, out_cs, colour.output_chromaticities(encoded=not linear),
+    return (meta, tag, colour.output_chromaticities(encoded=not linear),
             disp.unit_cd if linear else None, alpha and not premult)
 
 

@@ -24,7 +24,7 @@ from .checkpoint import (RunLock, check_state_paths, checkpoint_path, checkpoint
 from .frame import encode_pixels, frame_input, map_frame, output_metadata
 from .frames import frame_jobs, frame_time
 from .options import RUN_KEY, Interrupted, JobOptions, JobResult, output_is_linear, run_fingerprint
-from .setup import RunSetup, check_output_depth
+from .setup import RunSetup, check_output_depth, check_output_tag
 from .stream import read_whole, stream_frame, stream_rows
 
 log = logging.getLogger("ocl_tonemap")
@@ -165,6 +165,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         opts = resolved_backend(opts)              # the device probed behind the read
         run, tm = setup_run(opts, state)
         check_output_depth(opts, run.disp, jobs)
+        check_output_tag(run.colour, opts, jobs)
         exporter = None
         if opts.ocio_export:
             from ..colour.export import OcioExport
@@ -335,7 +336,7 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
                                run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,
-                               res.output.shape[2] == 4)
+                               res.output.shape[2] == 4, fps)
         spec = fr.spec          # write() keeps the header, not the frame: its pixels
     except FrameError:          # go back to the pool while it is written
         raise

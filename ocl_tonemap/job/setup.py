@@ -72,6 +72,29 @@ def _colour(cfg, opts: JobOptions) -> ColourPipeline:
     return colour
 
 
+#: Formats whose only colour tag OIIO writes is sRGB's.
+SRGB_TAG_ONLY = (".tif", ".tiff", ".jpg", ".jpeg", ".dpx")
+
+
+def check_output_tag(colour, opts: JobOptions, jobs) -> None:
+    """Display code values other than sRGB's in a format that can tag nothing else
+    (TIFF, JPEG and DPX through OIIO): say where the truth is (the output's
+    ImageDescription record), once."""
+    from pathlib import Path
+    from ..colour.config import interop_id
+    if not jobs or output_is_linear(opts, jobs[0][2]):
+        return
+    out = jobs[0][2]
+    if Path(out).suffix.lower() not in SRGB_TAG_ONLY:
+        return
+    tag = interop_id(colour.cfg, colour.output_colorspace) or colour.output_colorspace
+    if tag != "srgb_rec709_display":
+        log.warning("%s: %s carries no colour tag but sRGB's; its %s code values are "
+                    "named in its ImageDescription (ocltm:output_interop_id) only: use PNG "
+                    "(cICP) or EXR for a tag other tools read", out,
+                    Path(out).suffix[1:].upper(), tag)
+
+
 def check_output_depth(opts: JobOptions, disp, jobs) -> None:
     """An HDR (PQ/HLG) encoding in 8 bits bands visibly: say so."""
     from pathlib import Path

@@ -141,7 +141,7 @@ def stream_frame(run: RunSetup, tm: Tonemapper, inp, outp, f, held, rows, fps, t
             extra = {"ocltm:held_from": os.path.basename(inp)} if held else {}
             extra["ocltm:streamed"] = f"row bands of {rows}"
             meta, out_cs, chroma, white, straight = output_metadata(
-                run, tm, fr, fin, info, extra, linear, has_alpha)
+                run, tm, fr, fin, info, extra, linear, has_alpha, fps)
             writer = BandWriter(outp, fr.spec, 4 if has_alpha else 3, out_cs, meta,
                                 run.opts.out_bits, f, chroma, white, straight,
                                 run.opts.png_level, run.opts.png_filter)

@@ -210,3 +210,73 @@ def test_to_working_converts_acescg():
     px = np.array([[[0.2, 0.5, 0.1]]], np.float32)
     expect = cfg.getProcessor("ACEScg", "lin_rec709").getDefaultCPUProcessor().applyRGB([0.2, 0.5, 0.1])
     np.testing.assert_allclose(cp.to_working(px.copy(), "ACEScg")[0, 0], expect, rtol=1e-6)
+
+
+def _tags(path):
+    from ocl_tonemap.imagewrite import ocltm_metadata
+    inp = oiio.ImageInput.open(str(path))
+    sp = inp.spec()
+    out = {k: sp.getattribute(k) for k in ("oiio:ColorSpace", "colorInteropID", "CICP",
+                                            "chromaticities", "FramesPerSecond")}
+    out["ocltm"] = ocltm_metadata(sp)
+    inp.close()
+    return out
+
+
+@pytest.mark.requires_opencl
+@pytest.mark.parametrize("display, name, args, want", [
+    ("sRGB - Display", "lin.exr", [], "lin_rec709_scene"),
+    ("Display P3 - Display", "p3.exr", [], "lin_p3d65_scene"),
+    ("Rec.2100-PQ - Display", "pq.exr", [], "lin_rec2020_scene"),
+    ("sRGB - Display", "enc.exr", ["--encode"], "srgb_rec709_display"),
+    ("Display P3 - Display", "p3enc.exr", ["--encode"], "srgb_p3d65_display"),
+    ("sRGB - Display", "o.png", [], "srgb_rec709_display"),
+    ("Display P3 - Display", "p3.png", [], "srgb_p3d65_display"),
+    ("Rec.2100-PQ - Display", "pq.png", [], "pq_rec2020_display"),
+    ("Rec.2100-PQ - Display", "pq.tif", [], "pq_rec2020_display"),
+])
+def test_output_tags_are_true_to_the_data(tmp_path, display, name, args, want):
+    """Each output's colour tags say what its pixels hold, whatever the input's said
+    (the sample is tagged lin_rec709 and its tag was copied: a P3 EXR said
+    lin_rec709_scene, an --encode EXR too, a PNG beside its own sRGB tag): EXR's
+    colorInteropID and oiio:ColorSpace are the output's interop ID, its chromaticities
+    the display's primaries; PNG: sRGB for sRGB, cICP for P3 and PQ (OIIO reads the
+    sRGB chunk back as srgb_rec709_scene: the same encoding); TIFF keeps only an sRGB
+    tag in OIIO, so a PQ TIFF's is the ImageDescription record's
+    (ocltm:output_interop_id), and it carries no other."""
+    from ocl_tonemap.cli import main
+    from ocl_tonemap.sample import write_tunnel_sequence
+    pattern, frames = write_tunnel_sequence(str(tmp_path / "s"), 32, 18, 30.0, 0.1)
+    src = frame_path(pattern, frames[0])
+    out = tmp_path / name
+    assert main(["run", src, str(out), "-q", "--display", display, *args]) == 0
+    t = _tags(out)
+    assert t["ocltm"]["ocltm:output_interop_id"] == want
+    ext = out.suffix
+    if ext == ".exr":
+        assert t["oiio:ColorSpace"] == t["colorInteropID"] == want
+        prim = {"rec709": (0.64, 0.33), "p3d65": (0.68, 0.32), "rec2020": (0.708, 0.292)}
+        red = next(v for k, v in prim.items() if k in want)
+        assert t["chromaticities"][:2] == pytest.approx(red, abs=1e-3)
+    elif ext == ".png":
+        if want == "srgb_rec709_display":
+            assert t["oiio:ColorSpace"] == "srgb_rec709_scene" and t["CICP"] is None
+        else:
+            assert t["CICP"] is not None and t["oiio:ColorSpace"].split("_")[:2] == \
+                want.split("_")[:2]
+    else:
+        assert t["oiio:ColorSpace"] is None and t["colorInteropID"] is None
+
+
+@pytest.mark.requires_opencl
+def test_frames_per_second_is_the_runs(tmp_path):
+    """--fps 24 on a 30 fps sample: the outputs say 24 (they said the input's 30)."""
+    from ocl_tonemap.cli import main
+    from ocl_tonemap.sample import write_tunnel_sequence
+    pattern, frames = write_tunnel_sequence(str(tmp_path / "s"), 32, 18, 30.0, 0.1)
+    out = tmp_path / "o.####.exr"
+    assert main(["run", pattern, str(out), "-q", "--fps", "24", "--no-checkpoint"]) == 0
+    assert _tags(frame_path(str(out), frames[0]))["FramesPerSecond"] == (24, 1)
+    out2 = tmp_path / "p.####.exr"
+    assert main(["run", pattern, str(out2), "-q", "--no-checkpoint"]) == 0
+    assert _tags(frame_path(str(out2), frames[0]))["FramesPerSecond"] == (30, 1)
