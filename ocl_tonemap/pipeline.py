@@ -207,6 +207,17 @@ class Tonemapper:
         """Keep a JSON-able run value in the state's ``extra`` (saved and resumed)."""
         self._state.extra[key] = value
 
+    def set_field_of_view(self, fov_deg: float) -> None:
+        """The image's width in degrees for the spatial effects (flare, acuity), from
+        the next frame on (``--stills``: each Radiance picture's own VIEW)."""
+        from dataclasses import replace
+        s = self.effects.settings
+        if float(fov_deg) == s.fov_deg:
+            return
+        self.effects.settings = self.effects.s = replace(s, fov_deg=float(fov_deg))
+        self.plan = MechanismPlan(self.op, self.effects.settings, self.display, self.metering,
+                                  self.backend)
+
     def set_display_primaries(self, D) -> None:
         """Display linear RGB -> working RGB (3x3), for operators that solve for
         display values (kirk11, Eq. 14)."""

@@ -141,7 +141,7 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, fin: FrameInput, info,
         "ocltm:effects": json.dumps(info.effects, sort_keys=True, default=float),
         "ocltm:effects_ran": ",".join(k for k, v in info.effects.items() if v.get("ran")) or "none",
         "ocltm:fov": f"{tm.effects.settings.fov_deg:.6g} degrees ("
-                     f"{run.opts.fov_source or ('--fov' if run.opts.fov_given else 'default')})",
+                     f"{run.fov_note or run.opts.fov_source or ('--fov' if run.opts.fov_given else 'default')})",
     }
     if info.plan:
         meta["ocltm:plan"] = json.dumps(info.plan["weights"], sort_keys=True)

@@ -121,6 +121,28 @@ def view_from_header(opts: JobOptions) -> JobOptions:
                                fov_given=True, fov_source=f"Radiance VIEW: {what}")
 
 
+def still_view(tm: Tonemapper, run, inp: str, fr=None) -> None:
+    """``--stills`` with the field of view from the Radiance VIEW: each picture its own
+    (``view_from_header`` read the first's), a picture without one the default; said in
+    its ``ocltm:fov`` (``run.fov_note``)."""
+    from .. import radiance
+    from ..effects import DEFAULT_FOV
+    opts = run.opts                      # (with the first picture's VIEW: setup_run)
+    if not (opts.stills and opts.fov_source.startswith("Radiance VIEW")):
+        return
+    view = None
+    if fr is not None and fr.radiance is not None:
+        view = fr.radiance.view
+    elif radiance.is_radiance(inp):
+        try:
+            view = radiance.read_header(inp).view
+        except (radiance.HeaderError, OSError):
+            view = None                  # (the frame's read says it, naming the file)
+    fov, what = radiance.fov_for(view) if view is not None else (None, "no VIEW")
+    tm.set_field_of_view(fov if fov is not None else DEFAULT_FOV)
+    run.fov_note = f"Radiance VIEW: {what}" if fov is not None else f"default ({what})"
+
+
 def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -> JobResult:
     """The main job. Writes the state after every frame (``checkpoint_path``); SIGINT
     and SIGTERM end it after the frame in flight (:class:`Interrupted`).
@@ -216,11 +238,13 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                                      "would stream in row bands (--max-memory): give more")
                 if rows(k):
                     io.drain()                        # a streamed frame writes in bands
+                    still_view(tm, run, inp)
                     t, info, fps = stream_frame(run, tm, inp, outp, f, held, rows(k), fps,
                                                 t_prev)
                     write = None
                 else:
                     fr = io.read(k, lambda: read_frame(inp, f, opts.channels, io.pool))
+                    still_view(tm, run, inp, fr)
                     t, info, fps, write = _whole_frame(run, tm, fr, inp, outp, f, held, fps,
                                                        t_prev, exporter)
                     fr = None          # its array free for the frame after next (FramePool)

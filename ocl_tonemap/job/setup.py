@@ -30,6 +30,8 @@ class RunSetup:
         self.request = CalibrationRequest.parse(opts.luminance_scale)
         self.calibrator = Calibrator(self.request, (tm_state_extra or {}).get(AUTO_SCALE_KEY))
         self._said: set = set()
+        #: Where the frame's field of view came from, where it is its own (``--stills``).
+        self.fov_note = ""
 
     def once(self, level: int, msg: str, *args) -> None:
         key = (level, msg % args if args else msg)

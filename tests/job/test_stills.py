@@ -63,3 +63,36 @@ def test_state_flags_are_refused_with_stills(views, flag):
     r = _cli("run", views / "view.####.exr", views / "x" / "v.####.png", "--stills", *flag)
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and "--stills" in r.stderr, r.stderr
+
+
+def _hdr_with_view(path, view: str | None, seed: int):
+    """A Radiance picture (OIIO's writer) with ``VIEW= <view>`` put into its header."""
+    rng = np.random.default_rng(seed)
+    px = (10.0 ** rng.uniform(-1, 2, (24, 32, 1)) * np.ones((1, 1, 3))).astype(np.float32)
+    spec = oiio.ImageSpec(32, 24, 3, oiio.FLOAT)
+    buf = oiio.ImageBuf(spec)
+    buf.set_pixels(oiio.ROI(0, 32, 0, 24, 0, 1, 0, 3), px)
+    assert buf.write(str(path))
+    head, _, rest = path.read_bytes().partition(b"\n\n")
+    if view:
+        head += b"\nrpict -vtv " + view.encode() + b"\nVIEW= -vtv " + view.encode()
+    path.write_bytes(head + b"\n\n" + rest)
+
+
+def test_each_still_has_its_own_views_field_of_view(tmp_path):
+    """Radiance views in a --stills run: each picture's VIEW sets its own field of view
+    (the first one's was given to all), a picture without one the default."""
+    for k, view in ((1, "-vh 20 -vv 15"), (2, "-vh 90 -vv 70"), (3, None)):
+        _hdr_with_view(tmp_path / f"v.{k:04d}.hdr", view, k)
+    r = _cli("run", tmp_path / "v.####.hdr", tmp_path / "o" / "o.####.exr", "--stills",
+             "--operator", "durand00")
+    assert r.returncode == 0, r.stderr
+    fovs = []
+    for k in (1, 2, 3):
+        spec = oiio.ImageBuf(str(tmp_path / "o" / f"o.{k:04d}.exr")).spec()
+        fovs.append(spec.getattribute("ocltm:fov"))
+    from ocl_tonemap import radiance
+    for got, vh in zip(fovs[:2], (20, 90)):
+        want = radiance.fov_for(radiance.View("v", vh, 0.75 * vh))[0]
+        assert got.startswith(f"{want:.6g} degrees (Radiance VIEW: perspective -vh {vh}"), fovs
+    assert fovs[2].startswith("50 degrees (default"), fovs
