@@ -8,6 +8,7 @@ import os
 import sys
 
 from . import __version__
+from .cli_options import add_run_options, add_shot_options, operator_flags
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -17,151 +18,6 @@ def registry() -> dict:
     need none of them, nor NumPy)."""
     from .operators import registry as operators
     return operators()
-
-
-def _add_run_args(p: argparse.ArgumentParser) -> None:
-    from .backends.plan import QUALITY_NAMES
-    p.add_argument("--frames", help="frame range for sequence patterns: A-B, A-BxSTEP, or a list")
-    p.add_argument("--fps", type=float, help="frames per second, up to 1e6 (default: "
-                   "FramesPerSecond metadata, else 24)")
-    ops = registry()
-    p.add_argument("--operator", default="pattanaik00", choices=sorted(ops),
-                   help="the model (default pattanaik00): " + "; ".join(
-                       f"{n}: {c.description}" for n, c in ops.items()))
-    p.add_argument("--mode", choices=["default", "paper"],
-                   help="default: the operator as it looks right on photographs; paper: its "
-                   "paper taken literally (docs/models.md says where they differ)")
-    p.add_argument("--metering", default="logmean",
-                   help="logmean (default) | mean | max | centre[:mean] | spot:X,Y[,SIGMA] "
-                   "(X, Y: fractions 0..1 of the width and height from the top left; SIGMA: "
-                   "fraction of the width, default 0.02) | percentile:P (0..100) | "
-                   "mask:WEIGHTS.exr")
-    p.add_argument("--luminance-scale", metavar="S|auto:LEVEL",
-                   help="cd/m^2 of pixel value 1.0, or auto:LEVEL to put the first frame's "
-                   "log-average at LEVEL cd/m^2 (a number, or night 0.01, dusk 1, interior 30, "
-                   "overcast 500, daylight 5000; 1e-6..1e8) for files that carry no calibration "
-                   "(default: whiteLuminance, else camera EXIF exposure, else 179 for "
-                   "Radiance .hdr, else 1 with a warning)")
-    p.add_argument("--exposure", type=float, default=0.0, help="extra scale in stops (EV), "
-                   "-100..100")
-    p.add_argument("--colorconfig", help="OCIO config: file, ocio:// URI or 'ocl-tonemap' "
-                   "(default: $OCIO, else ocio://default)")
-    p.add_argument("--iscolorspace", help="input colourspace (default: file metadata, file "
-                   "rules, scene_linear)")
-    p.add_argument("--display", help="OCIO display (default: the config's default)")
-    p.add_argument("--view", help="OCIO view (default: the un-tone-mapped view)")
-    p.add_argument("--display-model", default="display", choices=["display", "paper-crt"],
-                   help="display observer: from the chosen display (default), or Pattanaik "
-                   "2000's CRT")
-    p.add_argument("--display-white", type=float, help="display white, cd/m^2 (default: 100 SDR, "
-                   "peak for HDR)")
-    p.add_argument("--display-peak", type=float, default=1000.0, help="HDR display peak, cd/m^2 "
-                   "(default 1000)")
-    p.add_argument("--display-black", type=float, help="display black, cd/m^2 (default: white/1000 "
-                   "for SDR, 0.005 for HDR)")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--unpremult", dest="unpremult", action="store_true", default=None,
-                   help="the input's colour is premultiplied by alpha: divide before tone "
-                   "mapping, multiply after (default: from the file, oiio:UnassociatedAlpha)")
-    g.add_argument("--no-unpremult", dest="unpremult", action="store_false",
-                   help="tone map the colour as stored")
-    p.add_argument("--encode", action="store_true",
-                   help="EXR/HDR outputs: display-encoded code values (tagged with the display "
-                   "colourspace) instead of display-linear light (the default for float outputs)")
-    p.add_argument("--display-encode", choices=["auto", "table", "ocio"], default=None,
-                   help="display encoding: table (the OCIO display/view baked into a table, "
-                   "applied on the OpenCL device), ocio (OCIO's CPU processor, the reference) "
-                   "or auto (default: the table with the OpenCL backend when it is within one "
-                   "10-bit code value of OCIO, else ocio)")
-    p.add_argument("--preadapt", help="initial adaptation: CD_M2 (fully adapted) or "
-                   "CD_M2:SECONDS (exposed that long from dark); CD_M2 0 (darkness) or "
-                   "1e-6..1e8, SECONDS 0..1e7 (an m suffix: minutes)")
-    p.add_argument("--state-in", help="start from this adaptation state: a state JSON, or an "
-                   "output frame of ocl-tonemap (its ocltm:state; global operators)")
-    p.add_argument("--state-out", help="write the adaptation state here, after every frame and "
-                   "at the end (default checkpoint: OUTPUT without frame number + .state.json)")
-    p.add_argument("--resume", action="store_true",
-                   help="continue an interrupted run from its checkpoint: frames up to the "
-                   "checkpoint's are kept, the rest rendered as one run would")
-    p.add_argument("--no-checkpoint", dest="checkpoint", action="store_false",
-                   help="do not write the state after every frame")
-    p.add_argument("--checkpoint-every", type=int, default=1, metavar="N",
-                   help="write the state every N frames (default 1; ledda04 at 1080p spends "
-                   "~0.3 s per checkpoint on its per-pixel planes); --resume re-renders the "
-                   "frames after the last one, identically")
-    p.add_argument("--cuts", metavar="FILE|detect",
-                   help="scene cuts: the observer starts afresh (fully adapted to the frame) "
-                   "at these frames; a file of frame numbers, or detect (from the shot's "
-                   "statistics, a jump of more than 1 log10 unit in the cone adaptation "
-                   "goal; needs the measure/integrate passes). Default: no cuts")
-    p.add_argument("--stills", action="store_true",
-                   help="the frames are independent stills (views of a room, a year of "
-                   "daylight renderings): each gets its own observer, adapted to it as a lone "
-                   "still is (with --preadapt: that), no state files; start-up paid once")
-    p.add_argument("--missing", choices=["error", "hold", "skip"], default="error",
-                   help="a frame missing inside a sequence: error (default, before any frame "
-                   "is processed), hold (repeat the previous frame at its time) or skip")
-    p.add_argument("--backend", default=None, choices=["opencl", "reference"],
-                   help="opencl (default) or reference (float64 NumPy)")
-    p.add_argument("--quality", choices=list(QUALITY_NAMES), default=None,
-                   help="the default of every speed/accuracy knob: draft (fastest: coarsest "
-                   "bilateral grid, tables), balanced (default), reference (float64, exact "
-                   "filters and flare, OCIO on the CPU); knobs given explicitly win")
-    p.add_argument("--device", help="OpenCL device: P:D index, gpu, cpu or a name substring")
-    p.add_argument("--out-bits", choices=["8", "16", "half", "float"],
-                   help="output sample type (default by extension: EXR half, TIFF 16, PNG/JPEG 8)")
-    p.add_argument("--max-memory", type=float, metavar="MIB",
-                   help="host memory budget: frames that would take more whole are read, "
-                   "mapped and written in row bands (every operator and effect; default: "
-                   "stream only frames larger than a quarter of the machine's memory)")
-    p.add_argument("--png-level", type=int, default=1, metavar="0-9",
-                   help="zlib level of PNG outputs (default 1: 3.5x faster to write than 6, "
-                   "files ~13%% larger)")
-    p.add_argument("--png-filter", choices=("sub", "none", "adaptive"), default="sub",
-                   help="PNG row filter (default sub: 1.6-3x faster to write than libpng's "
-                   "adaptive choice, files within -2%%..+15%%)")
-    p.add_argument("--serial-io", action="store_true",
-                   help="read, map and write each frame in turn on one thread (default: the "
-                   "next frame is read and the last one written while the device works)")
-    p.add_argument("--channels", metavar="R,G,B",
-                   help="input channels to use as R,G,B (or one name: luminance); default the "
-                   "R, G, B channels by name")
-    p.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
-    p.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
-    p.add_argument("--ocio-export", metavar="DIR",
-                   help="also write the observer as an OCIO view: DIR/<name>.ocio (OCIO 2.1 and "
-                   "later) and one CLF per frame, replayed by OCIO's tools, oiiotool and Nuke "
-                   "with the context variable FRAME (global operators, --flare off --acuity "
-                   "off; docs/ocio_export.md)")
-    p.add_argument("--ocio-export-size", default="auto", metavar="N|auto",
-                   help="nodes per axis of the exported LUTs: 17, 25, 33, 49 or 65 (33: ~3 MB "
-                   "of CLF a frame, 65: ~20 MB), or auto (default): 33, else 49, else 65 "
-                   "where a frame is not within 1 8-bit code (p99) and 3 (max) of the run")
-    p.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
-    _add_operator_args(p)
-    g = p.add_argument_group("mechanisms and effects (every operator)")
-    g.add_argument("--model", choices=["auto", "full", "none"],
-                   help="which mechanisms of vision a frame gets: auto (default) what the frame "
-                   "needs, within one JND (Delta E ITP p99) of full; full: every effect the "
-                   "operator can take; none: the operator alone. --mode paper implies none; "
-                   "an effect given on|off wins")
-    for name, what in (("flare", "glare of light sources (Spencer et al. 1995)"),
-                       ("acuity", "loss of acuity in the dark (Shaler 1937)"),
-                       ("chromatic-adaptation", "von Kries adaptation to the illuminant, tau 5 s"),
-                       ("purkinje", "rod colour shift of kirk11 on the scene's colours "
-                        "(Kirk & O'Brien 2011)")):
-        g.add_argument(f"--{name}", choices=["on", "off", "auto"], help=what)
-    g.add_argument("--fov", type=float, help="angular width of the image, degrees, 0..360 "
-                   "(default: a Radiance picture's VIEW, else 50)")
-    g.add_argument("--illuminant", help="illuminant for chromatic adaptation: x,y or a name "
-                   "(D65, D50, A, F2, F11, LED-B3 ...); default: EXR adoptedNeutral, else "
-                   "estimated from the frame")
-    g.add_argument("--flare-method", choices=["fast", "exact"],
-                   help="fast: Gaussians on a pyramid (default); exact: FFT of the full PSF")
-    g.add_argument("--flare-threshold", type=float,
-                   help="light sources are pixels above this x the adaptation level (default 7)")
-    g.add_argument("--flare-sampling", type=int, metavar="N",
-                   help="fast flare: Gaussians per octave (default 1)")
 
 
 def _options(a, input_, output, defer_backend: bool = False):
@@ -269,35 +125,6 @@ def _tier_options(a, tier) -> dict | None:
     return {**tier.options_for(declared), **given} or None
 
 
-def operator_flags() -> list:
-    """The command-line options of every registered operator, generated from their
-    option specs: [(Option, operators declaring it)], one entry per flag (``--mode``,
-    shared by all, is a run option). Given for another operator, a flag is ignored
-    with a warning (one rule for all of them)."""
-    out: dict = {}
-    for name, cls in registry().items():
-        for o in cls.options:
-            if not o.flag or o.flag == "--mode":
-                continue
-            if o.flag not in out:
-                out[o.flag] = (o, [])
-            out[o.flag][1].append(name)
-    return [(o, tuple(ops)) for o, ops in out.values()]
-
-
-def _add_operator_args(p: argparse.ArgumentParser) -> None:
-    groups: dict = {}
-    for o, ops in operator_flags():
-        title = ", ".join(ops)
-        if title not in groups:
-            groups[title] = p.add_argument_group(f"{title} options")
-        kw = {"help": o.help, "default": o.default}
-        for k in ("type", "choices", "metavar"):
-            if getattr(o, k) is not None:
-                kw[k] = getattr(o, k)
-        groups[title].add_argument(o.flag, dest=o.dest, **kw)
-
-
 def _ignored(flag: str, where: str, operator: str) -> None:
     log.warning("%s applies to %s: ignored for %s", flag, where, operator)
 
@@ -336,23 +163,6 @@ def _check_effect_flags(a, fx) -> None:
                         "--flare/--acuity/--chromatic-adaptation on|auto)", flag)
     if a.plot_frames and not a.plot:
         log.warning("--plot-frames applies to --plot: ignored")
-
-
-def _add_shot_args(g, chunk: bool = False, chunk_frames: bool = False,
-                   keyframes: bool = False) -> None:
-    g.add_argument("--store", help="the shot's statistics and states, a folder every worker "
-                   "sees (default: beside the output, OUTPUT without frame number + .shot)")
-    if chunk:
-        g.add_argument("--chunk", metavar="A-B",
-                       help="this task's frames (default: the whole shot, --frames)")
-    if chunk_frames:
-        g.add_argument("--chunk-frames", type=int, metavar="N",
-                       help="frames per task (and per-pixel keyframe interval); default: "
-                       "four tasks per worker (dask), 50 (farm)")
-    if keyframes:
-        g.add_argument("--keyframe-every", type=int, metavar="N",
-                       help="local operators: keep the per-pixel state every N frames "
-                       "(the apply chunk size; default 50)")
 
 
 #: Options of the shot commands that are not run options (farm-template drops them
@@ -396,7 +206,12 @@ ALL_COMMANDS = "*"
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with its errors in one line (``ocl-tonemap ERROR: ...``), exit 2."""
+    """argparse with its errors in one line (``ocl-tonemap ERROR: ...``), exit 2, and no
+    abbreviated flags (``--fram`` is an error, not ``--frames``)."""
+
+    def __init__(self, *args, **kw):
+        kw.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kw)
 
     def error(self, message):
         self.exit(2, f"ocl-tonemap ERROR: {message} (see {self.prog} --help)\n")
@@ -426,8 +241,10 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
 
     def run_args(p, name):
         if command in (ALL_COMMANDS, name):
-            _add_run_args(p)
-    p = sub.add_parser("run", help="tone map an image or a sequence")
+            add_run_options(p, shown=name == "run")
+    also = "; also every option of run (ocl-tonemap run --help)"
+    p = sub.add_parser("run", help="tone map an image or a sequence",
+                       usage="ocl-tonemap run [options] INPUT OUTPUT")
     p.add_argument("input", help="image or sequence pattern (shot.#.exr, shot.@@@@.exr, shot.%%04d.exr)")
     p.add_argument("output", help="output image or pattern (format by extension)")
     run_args(p, "run")
@@ -440,7 +257,7 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
                    help="TLS for a tls:// scheduler: a YAML or JSON file with ca, cert and key "
                    "(PEM paths, relative to the file), Dask's Security; without it, Dask's own "
                    "configuration (distributed.comm.tls.*, DASK_DISTRIBUTED__COMM__TLS__*)")
-    _add_shot_args(g, chunk_frames=True)
+    add_shot_options(g, chunk_frames=True)
     for name, what in (("measure", "pass 1: each frame's statistics into the shot store "
                         "(parallel over chunks)"),
                        ("integrate", "pass 2: the adaptation state through the whole shot "
@@ -450,17 +267,20 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
                        ("export", "pass 3 without pixels: the observer as an OCIO view "
                         "(--ocio-export DIR) from the integrated state; frames are read, "
                         "none mapped or written (parallel over chunks)")):
-        p = sub.add_parser(name, help=what)
+        p = sub.add_parser(name, help=what, description=what + also,
+                           usage=f"ocl-tonemap {name} [options] INPUT OUTPUT")
         p.add_argument("input", help="the shot's sequence pattern")
         p.add_argument("output", help="the output pattern (the store defaults to beside it)")
         run_args(p, name)
         g = p.add_argument_group(f"{name} pass")
-        _add_shot_args(g, chunk=name != "integrate", keyframes=name == "integrate")
+        add_shot_options(g, chunk=name != "integrate", keyframes=name == "integrate")
         if name == "measure":
             g.add_argument("--redo", action="store_true",
                            help="measure frames again even when their statistics are stored")
-    p = sub.add_parser("farm-template", help="write a render-farm job (OpenJD or OpenCue) "
-                       "that runs the shot as measure -> integrate -> apply")
+    what = "write a render-farm job (OpenJD or OpenCue) that runs the shot as measure -> " \
+        "integrate -> apply"
+    p = sub.add_parser("farm-template", help=what, description=what + also,
+                       usage="ocl-tonemap farm-template --format F -o JOB [options] INPUT OUTPUT")
     p.add_argument("input", help="the shot's sequence pattern")
     p.add_argument("output", help="the output pattern")
     run_args(p, "farm-template")
@@ -472,9 +292,10 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
     g.add_argument("--name", help="job name (default: from the output name)")
     g.add_argument("--command", default="ocl-tonemap",
                    help="the command the farm runs (default ocl-tonemap)")
-    _add_shot_args(g, chunk_frames=True)
-    p = sub.add_parser("simulate", help="a still image seen over time after pre-adaptation "
-                       "(one output per --at time)")
+    add_shot_options(g, chunk_frames=True)
+    what = "a still image seen over time after pre-adaptation (one output per --at time)"
+    p = sub.add_parser("simulate", help=what, description=what + also,
+                       usage="ocl-tonemap simulate --at T1,T2,... [options] INPUT OUTPUT")
     p.add_argument("input", help="one image")
     p.add_argument("output", help="output name (a _t<T>s suffix is added) or a frame pattern "
                    "(frames 1..n in --at order)")
@@ -494,7 +315,9 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
     p.add_argument("--size", default="320x180")
     p.add_argument("--seconds", type=float, default=8.0)
     p.add_argument("--fps", type=float, default=30.0)
-    p = sub.add_parser("demo", help="write the sample and run the main job on it")
+    what = "write the sample and run the main job on it"
+    p = sub.add_parser("demo", help=what, description=what + also,
+                       usage="ocl-tonemap demo [options] OUTDIR")
     p.add_argument("outdir")
     p.add_argument("--size", default="320x180")
     p.add_argument("--seconds", type=float, default=8.0)
@@ -596,9 +419,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None = None) -> int:
     a = build_parser(_command_of(sys.argv[1:] if argv is None else argv)).parse_args(argv)
-    level = logging.WARNING if a.quiet else (logging.INFO if a.verbose else logging.WARNING)
-    if a.verbose > 1:
-        level = logging.DEBUG
+    logging.addLevelName(25, "NOTE")    # what the user should know, not a fault
+    level = logging.WARNING if a.quiet else (logging.INFO if a.verbose else 25)
+    level = logging.DEBUG if a.verbose > 1 else level
     logging.basicConfig(level=level, format="ocl-tonemap %(levelname)s: %(message)s")
     if a.quiet:
         logging.getLogger("ocl_tonemap").setLevel(logging.ERROR)

@@ -280,3 +280,33 @@ def test_requires_opencl_fails_in_ci_and_skips_elsewhere(tmp_path, ci):
     else:
         assert r.returncode == 0 and "1 passed, 1 skipped" in r.stdout, r.stdout
     assert msg in r.stdout and "-bogus-flag" in r.stdout
+
+
+def test_the_compilers_chatter_is_dropped_and_a_slow_build_says_so_once(capfd):
+    """While a program builds, standard error (descriptor 2, where PoCL's clang prints
+    "5 warnings generated." and its diagnostics) is taken aside: the compiler's lines
+    are dropped, another thread's are written back after; a build still going after
+    its delay says the notice once, on the real standard error, at that moment."""
+    import os
+    import threading
+    import time
+    from ocl_tonemap.backends.opencl.driver import quiet_compiler
+    said = []
+
+    def notice():
+        said.append(time.perf_counter())
+        return "ocl-tonemap NOTE: building\n"
+    t0 = time.perf_counter()
+    with quiet_compiler(notice, 0.05):
+        os.write(2, b"5 warnings generated.\n")
+        os.write(2, b"input.cl:12:3: warning: unused variable 'x'\n")
+        os.write(2, b"   12 |   float x;\n")
+        threading.Thread(target=lambda: os.write(2, b"ocl-tonemap WARNING: a reader\n")).start()
+        time.sleep(0.3)
+    err = capfd.readouterr().err
+    assert "warnings generated" not in err and "unused variable" not in err and "12 |" not in err
+    assert "ocl-tonemap WARNING: a reader" in err
+    assert err.count("ocl-tonemap NOTE: building") == 1 and said[0] - t0 < 0.3
+    with quiet_compiler(notice, 5.0):             # a quick build: no notice
+        os.write(2, b"1 warning generated.\n")
+    assert capfd.readouterr().err == "" and len(said) == 1

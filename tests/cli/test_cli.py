@@ -328,3 +328,26 @@ def test_model_plan_in_metadata_verbose_and_plot(sample_dir, tmp_path, caplog):
     assert main(["run", frame_path(pattern, b), full, *common, "--model", "full", "-q"]) == 0
     spec = oiio.ImageBuf(full).spec()
     assert set(json.loads(spec.getattribute("ocltm:plan")).values()) == {1.0}
+
+
+def test_no_abbreviated_flags_and_a_grouped_help(capsys):
+    """``--fram 1-10`` is an error, not ``--frames`` (argparse's abbreviations are off);
+    ``run --help`` lists its options in groups, and the shot passes name their own
+    options and point to run's instead of repeating them."""
+    from ocl_tonemap.cli import main
+    from ocl_tonemap.cli_options import GROUPS
+    with pytest.raises(SystemExit) as e:
+        main(["run", "a.exr", "b.png", "--fram", "1-10"])
+    assert e.value.code == 2 and "--fram" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    out = capsys.readouterr().out
+    for _, title in GROUPS:
+        assert f"\n{title}:\n" in out, title
+    assert len(out.splitlines()) < 230
+    for cmd in ("measure", "integrate", "apply", "export", "farm-template", "simulate"):
+        with pytest.raises(SystemExit):
+            main([cmd, "--help"])
+        out = capsys.readouterr().out
+        assert "every option of run" in out and "--luminance-scale" not in out, cmd
+        assert len(out.splitlines()) < 40, cmd

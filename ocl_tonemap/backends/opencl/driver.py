@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
 from .constants import common_options, define_value  # noqa: F401 (define_value: runtime)
@@ -49,6 +50,64 @@ def cl_api():
     except ImportError as exc:  # pragma: no cover - dependency is required
         raise OpenCLUnavailable(f"pyopencl is not importable ({exc}); {INSTALL_HINT}") from exc
     return cl
+
+
+#: What an OpenCL compiler prints of itself while it builds (PoCL's clang: "5 warnings
+#: generated."; its diagnostics), not the program's or a user's concern: dropped.
+COMPILER_CHATTER = (r"^\d+ (warning|error)s? generated\.$", r"^\s*\d+ \| ", r"^\s*\|\s*\^",
+                    r"^<built-in>|^<stdin>|^input\.cl|^\S+\.cl:\d+:|^/tmp/\S+:\d+:",
+                    r"warning: |note: ")
+
+
+@contextmanager
+def quiet_compiler(notice=None, after_s: float = 1.0):
+    """The process's standard error (file descriptor 2, where a driver's compiler
+    writes) taken aside while a program builds; what is not the compiler's chatter
+    (:data:`COMPILER_CHATTER`; another thread's message) is written back after. A
+    failing build raises with the driver's build log, which pyopencl collects.
+    ``notice()``: called if the build is still going after ``after_s`` seconds (a
+    first run's compiles look like a hang), its line (if any) written to the real
+    standard error."""
+    import re
+    import sys
+    import tempfile
+    import threading
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):        # no descriptor 2 (an embedding): as it is
+        yield
+        return
+    timer = None
+
+    def say():
+        text = notice()
+        if text:
+            os.write(saved, text.encode())
+    if notice is not None:
+        timer = threading.Timer(after_s, say)
+        timer.daemon = True
+        timer.start()
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield
+        finally:
+            if timer is not None:
+                timer.cancel()
+                timer.join()
+            try:
+                sys.stderr.flush()
+            except (OSError, ValueError):
+                pass
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            text = tmp.read().decode(errors="replace")
+            keep = [ln for ln in text.splitlines()
+                    if ln.strip() and not any(re.search(p, ln) for p in COMPILER_CHATTER)]
+            if keep:
+                os.write(2, ("\n".join(keep) + "\n").encode())
 
 
 def kernel_dir() -> Path:

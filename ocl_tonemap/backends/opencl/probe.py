@@ -138,14 +138,15 @@ def first_error_line(text: str) -> str:
 def run_probe(device) -> Verdict:
     """Build and run the probe kernel on ``device`` (no cache)."""
     import numpy as np
-    from .driver import build_options, cl_api
+    from .driver import build_options, cl_api, quiet_compiler
     cl = cl_api()
     t0 = time.perf_counter()
     try:
         ctx = cl.Context([device])
         q = cl.CommandQueue(ctx)
-        prog = cl.Program(ctx, _source()).build(options=build_options(device),
-                                                devices=[device])
+        with quiet_compiler():
+            prog = cl.Program(ctx, _source()).build(options=build_options(device),
+                                                    devices=[device])
         x, want = _probe_inputs()
         mf = cl.mem_flags
         xb = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=x)

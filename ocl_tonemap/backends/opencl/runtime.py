@@ -15,6 +15,7 @@ a module cache; their device binaries are kept in the user's cache
 from __future__ import annotations
 
 import functools
+import time
 import logging
 import os
 from dataclasses import dataclass
@@ -25,7 +26,7 @@ log = logging.getLogger("ocl_tonemap")
 # the driver layer below the runtime (probe.py builds on it too); names kept here
 from .driver import (INSTALL_HINT, DeviceBroken, KernelBuildError,  # noqa: E402,F401
                      OpenCLUnavailable, build_options, cl_api, define_value, kernel_dir,
-                     vector_pixels)
+                     quiet_compiler, vector_pixels)
 
 
 @functools.lru_cache(maxsize=1)
@@ -364,17 +365,45 @@ def _build(context, device, files: tuple[str, ...], defines: tuple = ()):
                                                                  devices=[device])
         except (OSError, cl.Error):
             pass                        # absent or not loadable: build from source
+    key, t0 = (device.platform.name, device.name), time.perf_counter()
     try:
-        prog = cl.Program(context, src).build(options=opts, devices=[device])
+        with quiet_compiler(lambda: _building_notice(device, cached is not None),
+                            max(0.05, 1.0 - _build_spent.get(key, 0.0))):
+            prog = cl.Program(context, src).build(options=opts, devices=[device])
     except cl.Error as exc:
         from . import probe
         probe.forget(device)            # the next start probes the driver again
         raise KernelBuildError(
             f"OpenCL kernel build failed: kernels/{', kernels/'.join(files)} on "
             f"{probe.describe_driver(device)}: {probe.first_error_line(str(exc))}") from None
+    finally:
+        _build_spent[key] = _build_spent.get(key, 0.0) + time.perf_counter() - t0
     if cached is not None:
         _keep_binary(prog, cached)
     return prog
+
+
+#: A notice's level: between INFO and WARNING (the command line shows it, ``-q`` not).
+NOTE = 25
+_said_building: set = set()
+#: Seconds spent compiling per device in this process (the notice comes after 1 s).
+_build_spent: dict = {}
+
+
+def _building_notice(device, kept: bool) -> str | None:
+    """The line the builds say once they have taken a second (``quiet_compiler``), once
+    per device and process, where notices are shown: the first run on a device (a
+    driver or project update) spends seconds to a minute in the compiler, which would
+    otherwise look like a hang."""
+    key = (device.platform.name, device.name)
+    if key in _said_building or not log.isEnabledFor(NOTE):
+        return None
+    _said_building.add(key)
+    from ...resources import user_cache_dir
+    where = (f"first run only: later runs load them from {user_cache_dir() / 'programs'}"
+             if kept else "not kept: PYOPENCL_NO_CACHE is set")
+    return (f"ocl-tonemap NOTE: building the OpenCL kernels for {device.name.strip()} on "
+            f"{device.platform.name.strip()} ({where})\n")
 
 
 #: Programs kept in the user's cache (``programs/``) at most; the oldest go first.
