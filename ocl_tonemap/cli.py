@@ -302,6 +302,9 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
     p.add_argument("--at", required=True, help="elapsed times since the switch: T1,T2,... "
                    "seconds, or with an m suffix minutes (e.g. 1m,2m,4m,16m)")
     run_args(p, "simulate")
+    sub.add_parser("radiance-env", help="the shell lines that put Radiance's programs from "
+                   "pip install 'ocl-tonemap[radiance]' on PATH (eval \"$(ocl-tonemap "
+                   "radiance-env)\")")
     p = sub.add_parser("devices", help="list OpenCL devices, each probed: ok or broken")
     p.add_argument("--check", action="store_true",
                    help="exit 1 when no device works (scripts, CI)")
@@ -372,6 +375,21 @@ def _shot_command(a, argv: list[str]) -> int:
     return 0
 
 
+def _radiance_env() -> int:
+    """``export PATH=...`` and ``export RAYPATH=...`` for Radiance's programs of the
+    pyradiance wheel (``radiance.tools``), quoted for a POSIX shell."""
+    import shlex
+    from .radiance import tools
+    found = tools()
+    if found is None:
+        raise ValueError("Radiance's programs are not installed: pip install "
+                         "'ocl-tonemap[radiance]' (the pyradiance wheel)")
+    b, env = found
+    print(f"export PATH={shlex.quote(b)}:\"$PATH\"")
+    print(f"export RAYPATH={shlex.quote(env['RAYPATH'])}")
+    return 0
+
+
 def _devices(check: bool = False) -> int:
     """``devices``: every OpenCL device with its probe verdict, and which one a run
     takes by default."""
@@ -436,6 +454,8 @@ def _main(argv: list[str] | None = None) -> int:
             for d, views in list_displays(cfg):
                 print(f"{d}: {', '.join(views)}")
             return 0
+        if a.cmd == "radiance-env":
+            return _radiance_env()
         if a.cmd == "sample":
             from .sample import write_tunnel_sequence
             w, h = _size(a.size)
