@@ -321,24 +321,31 @@ def test_step_float4_kernel_equals_scalar_kernel(mode, shape):
 @pytest.mark.requires_opencl
 def test_no_stepped_rings_on_the_tunnel_drive_with_the_defaults():
     """The tunnel drive of the built-in sample (160x90) with ledda04's defaults, as a
-    user gets them: the display shows no step that the scene does not have
+    user gets them, on the device and on the float64 reference (``--quality
+    reference``): the display shows no step that the scene does not have
     (``appearance_metrics.step_artefacts`` on frames 60-130, the tunnel's mouth, lamps
-    and exit). Measured 0.5-0.7% (the wall-road line and the exit's rim, which the
-    scene's own edge finder misses, and faint arcs in the corners); the rings of
-    issue 45 -- chromatic adaptation's gains and the Purkinje shift changing the
-    frame before it was metered, each pixel's level drifting through the time
-    course's restart threshold on its own frame -- were 2.3% on average, 4.6% at
-    worst, there."""
+    and exit), and the two backends agree on every frame. Measured 0.5-0.7% (the
+    wall-road line and the exit's rim, which the scene's own edge finder misses, and
+    faint arcs in the corners); the rings of issue 45 -- chromatic adaptation's gains
+    and the Purkinje shift changing the frame before it was metered, each pixel's
+    level drifting through the time course's restart threshold on its own frame --
+    were 2.3% on average, 4.6% at worst, there. The reference once decided "rods or
+    not" on the blended levels and the device on the local ones: the rod goals then
+    differed by the neutral-ratio stand-in, the restarts fell on other frames and the
+    reference drew rings (5% on average, 13% at worst) the device did not."""
     from benchmarks.lib.appearance_metrics import step_artefacts
     from ocl_tonemap.colour import ColourPipeline, load_config
     from ocl_tonemap.sample import render_frame
     cp = ColourPipeline(load_config("ocl-tonemap"), "sRGB - Display")
-    tm = Tonemapper("ledda04", backend="opencl")
-    worst = []
+    tms = {b: Tonemapper("ledda04", backend=b) for b in ("opencl", "reference")}
+    worst = {b: [] for b in tms}
     for k in range(131):
         rgb = render_frame(k / 30.0, 160, 90, 8.0, ss=1).astype(np.float32)
-        out = tm.process(rgb, dt=1 / 30)
+        out = {b: tm.process(rgb, dt=1 / 30) for b, tm in tms.items()}
+        assert np.max(np.abs(out["opencl"] - out["reference"])) < TOL_OP, k
         if k >= 60 and k % 5 == 0:
-            codes = np.clip(cp.encode(np.ascontiguousarray(np.clip(out, 0, 1))), 0, 1) * 255
-            worst.append((step_artefacts(np.round(codes), rgb), k))
-    assert max(worst)[0] < 0.012, max(worst)
+            for b, o in out.items():
+                codes = np.clip(cp.encode(np.ascontiguousarray(np.clip(o, 0, 1))), 0, 1) * 255
+                worst[b].append((step_artefacts(np.round(codes), rgb), k))
+    for b in tms:
+        assert max(worst[b])[0] < 0.012, (b, max(worst[b]))

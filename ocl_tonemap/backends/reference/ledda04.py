@@ -35,8 +35,11 @@ class LeddaSchedule(PixelStateMixin):
         G_rod_g, G_cone_g = met.reference_goal(np.maximum(Y, V_FLOOR), np.maximum(Ys, V_FLOOR),
                                                met.MeteringSpec.parse("logmean"))
         sig = s.sigma_px(w, h)
-        I_c = L.blend_levels(bilateral_reference(Y, sig, LEDDA_RANGE), G_cone_g, s.strength)
-        rods = op.rods == "always" or I_c.min() < L.PHOTOPIC_FLOOR
+        local_c = bilateral_reference(Y, sig, LEDDA_RANGE)
+        I_c = L.blend_levels(local_c, G_cone_g, s.strength)
+        # rods where any pixel's local level is below photopic (before the blend with
+        # the global level, as the device decides it; docs/models.md "rods: auto")
+        rods = op.rods == "always" or local_c.min() < L.PHOTOPIC_FLOOR
         I_r = L.blend_levels(bilateral_reference(Ys, sig, LEDDA_RANGE), G_rod_g, s.strength) \
             if rods else np.maximum(I_c * op.rod_ratio, V_FLOOR)
         # the log-averages of the levels as the device meters them (the lit rule of
