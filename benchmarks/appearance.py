@@ -2,7 +2,7 @@
 
 One command:  python -m benchmarks.appearance [--quick] [--operators a,b]
                   [--images a,b] [--levels L,L|all] [--effects-off] [--size W]
-                  [--out DIR] [--photos DIR]
+                  [--out-dir DIR] [--out SHEETS] [--results DIR] [--photos DIR]
 
 Real photographs: eight Poly Haven HDRIs (CC0): six from the PyPI wheel
 viser==0.2.23 and a sunrise and a tungsten-lit interior from Debian's
@@ -18,14 +18,16 @@ of the same scene exposure-matched (log-average -> 0.18 of display white, no
 tone curve). Light sources (scene luminance > 30x the log-average) are left out
 of every measure.
 
-Writes:
-  benchmarks/results/appearance.md     metric tables (worst case over images), targets,
-                                        a table per photo for the sunset, sunrise, tungsten
-  benchmarks/results/appearance.json   the raw numbers
-  DIR/<image>.png                       contact sheet per image (rows: reference +
-                                        operators, columns: levels)
-  DIR/readme_sheet.png                  4 photos at their natural levels x operators
-(DIR defaults to benchmarks/results/appearance/.) Metrics: benchmarks/lib/appearance_metrics.py.
+Writes (OUT: --out-dir, default ./benchmark-results; the committed tables:
+--out-dir benchmarks/results; the rule: benchmarks/lib/outdir.py):
+  RESULTS/appearance.md     metric tables (worst case over images), targets,
+                            a table per photo for the sunset, sunrise, tungsten
+  RESULTS/appearance.json   the raw numbers
+  SHEETS/<image>.png        contact sheet per image (rows: reference +
+                            operators, columns: levels)
+  SHEETS/readme_sheet.png   4 photos at their natural levels x operators
+(RESULTS: --results, default OUT; SHEETS: --out, default OUT/appearance/.)
+Metrics: benchmarks/lib/appearance_metrics.py.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ import numpy as np
 from benchmarks.lib import appearance_metrics as am
 from benchmarks.lib import photos as ph
 from benchmarks.lib import scenes
+from benchmarks.lib.outdir import DEFAULT_DIR, add_out_args, repo_relative
 from benchmarks.lib.photos import load_photo
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -790,14 +793,18 @@ def main(argv=None) -> int:
     ap.add_argument("--images", help="comma list of photos (rooitou_park, blender_sunrise, "
                     "...) and scenes (tunnel, patches, lamp)")
     ap.add_argument("--size", type=int, help="photo width in pixels (default 512, --quick 256)")
-    ap.add_argument("--out", default=os.path.join(HERE, "results", "appearance"),
-                    help="folder of the contact sheets")
-    ap.add_argument("--results", default=os.path.join(HERE, "results"),
-                    help="folder of appearance.md / appearance.json")
+    add_out_args(ap)
+    ap.add_argument("--out", metavar="SHEETS", help="folder of the contact sheets "
+                    "(default: OUT-DIR/appearance)")
+    ap.add_argument("--results", metavar="DIR", help="folder of appearance.md / "
+                    "appearance.json (default: OUT-DIR)")
     ap.add_argument("--photos", help="photo cache folder (default $OCLTM_PHOTOS or "
                     "~/.cache/ocl-tonemap/photos)")
     ap.add_argument("--no-readme-sheet", action="store_true")
     a = ap.parse_args(argv)
+    base = a.out_dir or DEFAULT_DIR
+    a.results = a.results or base
+    a.out = a.out or os.path.join(base, "appearance")
     t0 = time.perf_counter()
     warnings.filterwarnings("ignore", module="colour")
     code = provenance()
@@ -881,7 +888,7 @@ def main(argv=None) -> int:
         "effects": ("every effect off" if a.effects_off else "the operator's default effects: "
                     + "; ".join(f"{op} " + ", ".join(f"{k} {v}" for k, v in e.items())
                                 for op, e in R.effects_seen.items())),
-        "sheets_dir": os.path.relpath(a.out, os.path.join(HERE, "..")),
+        "sheets_dir": repo_relative(a.out),
         "photo_size": ", ".join(sorted(photo_sizes)) or "-",
         "scene_size": ", ".join(sorted(scene_sizes)) or "-",
     }

@@ -1,7 +1,8 @@
 """Benchmark of the bilateral filters (exact vs grid) and of the ledda04 operator.
 
-One command:  python -m benchmarks.bench_bilateral [--quick]
-Writes benchmarks/results/bilateral_ledda04.md (and prints it).
+One command:  python -m benchmarks.bench_bilateral [--quick] [--out-dir DIR | --out FILE]
+Writes bilateral_ledda04.md into DIR (default ./benchmark-results; the committed one:
+--out-dir benchmarks/results) and prints it.
 
 Filters the photopic luminance of generated HDR scenes with Ledda's range
 kernel (sigma_g = 0.15 I_s) at 640x360, 1920x1080 and 3840x2160 for several
@@ -26,13 +27,13 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import platform
 import time
 
 import numpy as np
 
 from benchmarks.lib import scenes as sc
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.timing import timeit
 from ocl_tonemap.models import ledda2004 as L
 from ocl_tonemap.backends.opencl.bilateral import DeviceBilateral
@@ -106,8 +107,7 @@ def operator_psnr(img_band, Ic_ex, Ir_ex, Ic_fa, Ir_fa):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="640x360 only, fewer repetitions")
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results",
-                                                  "bilateral_ledda04.md"))
+    add_out_args(ap, "bilateral_ledda04.md")
     a = ap.parse_args()
     rt = get_runtime()
     b = Bench(rt)
@@ -225,8 +225,7 @@ def main():
     lines += ["", "`~`: exact time scaled from the rows compared (the brute force is linear in "
               "rows); errors measured on those rows.", ""]
     text = "\n".join(lines)
-    os.makedirs(os.path.dirname(a.out), exist_ok=True)
-    with open(a.out, "w") as fh:
+    with open(out_path(a, "bilateral_ledda04.md"), "w") as fh:
         fh.write(text)
     print(text)
 

@@ -1,7 +1,8 @@
 """Benchmark of durand00 and the effects: speed beside accuracy for every knob.
 
-One command:  python -m benchmarks.bench_durand [--quick]
-Writes benchmarks/results/durand00.md (and prints it).
+One command:  python -m benchmarks.bench_durand [--quick] [--out-dir DIR]
+Writes durand00.md into DIR (default ./benchmark-results; the committed one:
+--out-dir benchmarks/results) and prints it.
 
 Tables:
 1. durand00 per frame (effects off): OpenCL vs the float64 reference, error.
@@ -23,6 +24,7 @@ import platform
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.scenes import night_street_lamps
 from benchmarks.lib.timing import table, timeit
 from ocl_tonemap.models import durand2000 as dd
@@ -192,6 +194,7 @@ def bench_frame(sizes, reps):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="small sizes only")
+    add_out_args(ap)
     a = ap.parse_args()
     rt = get_runtime()
     reps = 3 if a.quick else 5
@@ -213,9 +216,7 @@ def main():
         bench_frame(big, reps),
     ]
     text = "\n".join(parts) + "\n"
-    out = os.path.join(os.path.dirname(__file__), "results", "durand00.md")
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    with open(out, "w") as fh:
+    with open(out_path(a, "durand00.md"), "w") as fh:
         fh.write(text)
     print(text)
 

@@ -1,7 +1,8 @@
 """Benchmark of kirk11: time per frame beside error, the Eq. 15 fallback rate and cost.
 
-One command:  python -m benchmarks.bench_kirk [--quick]
-Writes benchmarks/results/kirk11.md (and prints it).
+One command:  python -m benchmarks.bench_kirk [--quick] [--out-dir DIR]
+Writes kirk11.md into DIR (default ./benchmark-results; the committed one:
+--out-dir benchmarks/results) and prints it.
 
 1. Whole frame, RGB and spectral (31 channels) input, OpenCL with the fast and the
    exact bilateral, and the float64 reference (small size only: its brute-force
@@ -20,6 +21,7 @@ import platform
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.scenes import sine_texture, spectral_chart
 from benchmarks.lib.timing import table, timeit
 from ocl_tonemap.models import kirk2011 as ko
@@ -102,6 +104,7 @@ def bench_nnls(w, h, reps):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    add_out_args(ap)
     a = ap.parse_args()
     rt = get_runtime()
     reps = 3 if a.quick else 5
@@ -115,8 +118,7 @@ def main():
         "## 1. Whole frame\n", bench_frames(sizes, (160, 90), reps),
         f"\n## 2. Purkinje shift + Eq. 15 solve alone, {nw}x{nh}, fixed (paper) kappa\n",
         bench_nnls(nw, nh, reps), ""])
-    out = os.path.join(os.path.dirname(__file__), "results", "kirk11.md")
-    with open(out, "w") as fh:
+    with open(out_path(a, "kirk11.md"), "w") as fh:
         fh.write(text + "\n")
     print(text)
 

@@ -1,8 +1,10 @@
 """Peak memory and time per frame on huge frames: whole-frame against streamed.
 
     python -m benchmarks.bench_memory [--size 12000x8000] [--also 16000x16000] [--cases a,b]
+        [--out-dir DIR]
 
-Writes benchmarks/results/memory.md. Each run is a child ``ocl-tonemap run`` whose
+Writes memory.md into DIR (default ./benchmark-results; the committed one: --out-dir
+benchmarks/results). Each run is a child ``ocl-tonemap run`` whose
 peak resident set (ru_maxrss) is read after it exits; the frame is generated
 once as a half-float EXR (the tunnel sample) in a temporary folder.
 """
@@ -18,10 +20,10 @@ import time
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.scenes import exr_spec, tunnel
 from benchmarks.lib.timing import child_peak, table
 
-HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def make_frame(path: str, w: int, h: int) -> None:
@@ -61,6 +63,7 @@ def main() -> None:
     ap.add_argument("--budget", type=float, default=1024.0, help="--max-memory, MiB")
     ap.add_argument("--cases", default=None, help="labels of CASES to run, comma-separated "
                     "(default: all)")
+    add_out_args(ap)
     a = ap.parse_args()
     cases = [c for c in CASES if a.cases is None or c[0] in a.cases.split(",")]
     rows = []
@@ -91,7 +94,7 @@ def main() -> None:
                         if x.startswith("o.png.state"):
                             os.remove(os.path.join(d, x))
             print(f"(generated {size} in {gen:.0f} s)", flush=True)
-    out = os.path.join(HERE, "results", "memory.md")
+    out = out_path(a, "memory.md")
     with open(out, "w") as fh:
         fh.write("# Peak memory on huge frames\n\n")
         fh.write(f"Command: `python -m benchmarks.bench_memory --size {a.size}"

@@ -1,7 +1,8 @@
 """Benchmark of the pattanaik00 pipeline: OpenCL vs the float64 reference.
 
-One command:  python -m benchmarks.bench_pattanaik [--quick]
-Writes benchmarks/results/pattanaik00.md (and prints it).
+One command:  python -m benchmarks.bench_pattanaik [--quick] [--out-dir DIR | --out FILE]
+Writes pattanaik00.md into DIR (default ./benchmark-results; the committed one:
+--out-dir benchmarks/results) and prints it.
 
 For 640x360, 1920x1080 and 3840x2160 frames of a generated HDR scene:
 * ms/frame and MPix/s of the whole frame on the device path (upload, colour
@@ -25,6 +26,7 @@ import platform
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.scenes import sky_gradient
 from benchmarks.lib.timing import copy_bandwidth, timeit
 from ocl_tonemap.pipeline import Tonemapper
@@ -71,8 +73,7 @@ def pow_bench(rt, n=1 << 22):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer repetitions")
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results",
-                                                   "pattanaik00.md"))
+    add_out_args(ap, "pattanaik00.md")
     args = ap.parse_args()
     reps = 3 if args.quick else 7
     rt = get_runtime()
@@ -125,11 +126,11 @@ def main():
     for name, ms, mv, rel in pow_bench(rt):
         lines.append(f"| {name} | {ms:.2f} | {mv:.0f} | {rel:.1e} |")
     text = "\n".join(lines) + "\n"
-    os.makedirs(os.path.dirname(args.out), exist_ok=True)
-    tmp = args.out + ".tmp"
+    out = out_path(args, "pattanaik00.md")
+    tmp = out + ".tmp"
     with open(tmp, "w") as fh:
         fh.write(text)
-    os.replace(tmp, args.out)
+    os.replace(tmp, out)
     print(text)
 
 

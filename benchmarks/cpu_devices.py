@@ -12,8 +12,9 @@ Intel's CPU runtime from the ``intel-cpu`` extra) is decided from this table:
    ``pfsin | pfstmo_pattanaik00 | pfsout`` on the same frame, and, with ``--before
    REV``, the same command of that revision (a git worktree) for a before/after.
 
-One command:  python -m benchmarks.cpu_devices [--before REV] [--out FILE]
-Results: benchmarks/results/cpu_devices.md
+One command:  python -m benchmarks.cpu_devices [--before REV] [--out-dir DIR | --out FILE]
+Writes cpu_devices.md into DIR (default ./benchmark-results; the committed one:
+--out-dir benchmarks/results, i.e. benchmarks/results/cpu_devices.md).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.scenes import tunnel
 from benchmarks.lib.timing import child_peak
 
@@ -183,7 +185,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--before", help="a git revision to time the first frame of, for a "
                     "before/after")
-    ap.add_argument("--out", default=str(HERE / "results" / "cpu_devices.md"))
+    add_out_args(ap, "cpu_devices.md")
     ap.add_argument("--sections", default="1,2")
     a = ap.parse_args(argv)
     devs = cpu_devices()
@@ -192,13 +194,14 @@ def main(argv=None) -> int:
              f"Python {platform.python_version()}. Working CPU devices: "
              + (", ".join(f"{k} {d.name.strip()} on {d.platform.name.strip()} "
                           f"(driver {d.driver_version.strip()})" for k, d in devs) or "none"),
-             "", "`python -m benchmarks.cpu_devices` writes this file.", ""]
+             "", "`python -m benchmarks.cpu_devices --out-dir benchmarks/results` writes "
+             "this file.", ""]
     secs = a.sections.split(",")
     if "1" in secs:
         lines += section_devices(devs)
     if "2" in secs:
         lines += section_first_frame(devs, a.before)
-    Path(a.out).write_text("\n".join(lines) + "\n")
+    Path(out_path(a, "cpu_devices.md")).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0
 

@@ -3,7 +3,10 @@ each exported frame read back through the written config by OCIO and compared wi
 the frame's own mapping, per lattice size.
 
 One command:
-    python -m benchmarks.ocio_export_lut [--sizes 17,33,49,65] [--out benchmarks/results/ocio_export_lut.md]
+    python -m benchmarks.ocio_export_lut [--sizes 17,33,49,65] [--out-dir DIR | --out FILE]
+
+Writes ocio_export_lut.md into DIR (default ./benchmark-results; the committed one:
+``--out-dir benchmarks/results``).
 
 Scenes: the tunnel sample (320x180, 9 frames across the drive, the adaptation running
 through them), and real HDR photographs (480 wide; ``benchmarks/lib/photos.py``) at
@@ -24,17 +27,15 @@ it back through OCIO, and the CLF's size per frame.
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import tempfile
 import time
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.report import write_markdown
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEFAULT_OUT = os.path.join(HERE, "results", "ocio_export_lut.md")
 LEVELS = (3000.0, 100.0, 3.0, 0.03)
 PHOTOS = ("venice_sunset_1k.hdr", "blender_interior.exr", "potsdamer_platz_1k.hdr",
           "dikhololo_night_1k.hdr")
@@ -92,7 +93,7 @@ def main(argv=None) -> int:
     ap.add_argument("--sizes", default="17,33,49,65,auto")
     ap.add_argument("--operators", default="pattanaik00,durand00")
     ap.add_argument("--photos", default=",".join(PHOTOS))
-    ap.add_argument("--out", default=DEFAULT_OUT)
+    add_out_args(ap, "ocio_export_lut.md")
     a = ap.parse_args(argv)
     sizes = [s if s == "auto" else int(s) for s in a.sizes.split(",")]
     rows = []
@@ -122,7 +123,7 @@ def main(argv=None) -> int:
          "", "| scene | operator | lattice | worst p99 (8-bit) | worst max (8-bit) | within | "
          "max (10-bit) | p99 (half steps) | A matrix | B rgb | ms build | ms write | "
          "ms read-back | MB/frame | auto: each frame's lattice |", "|" + "---|" * 15]
-    write_markdown(a.out, L, rows)
+    write_markdown(out_path(a, "ocio_export_lut.md"), L, rows)
     return 0
 
 

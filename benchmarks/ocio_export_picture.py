@@ -3,7 +3,10 @@ writes it, the same frame replayed by oiiotool through the exported view, and th
 difference (x 32, so that one 8-bit code shows as 32).
 
 One command:
-    python -m benchmarks.ocio_export_picture [--frame 2] [--out docs/ocio_export.png]
+    python -m benchmarks.ocio_export_picture [--frame 2] [--out-dir DIR | --out FILE]
+
+Writes ocio_export.png into DIR (default ./benchmark-results); the README's picture is
+refreshed with ``--out docs/ocio_export.png``.
 
 It runs the real commands: ``ocl-tonemap sample`` (640x360, 8 s at 1 fps), ``ocl-tonemap
 run ... --flare off --acuity off --ocio-export``, ``oiiotool --frames ...
@@ -22,10 +25,8 @@ import tempfile
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.report import join, write_image
-
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEFAULT_OUT = os.path.join(HERE, "..", "docs", "ocio_export.png")
 
 
 def _run(cmd):
@@ -40,7 +41,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frame", type=int, default=2)
     ap.add_argument("--operator", default="pattanaik00")
-    ap.add_argument("--out", default=DEFAULT_OUT)
+    add_out_args(ap, "ocio_export.png")
     a = ap.parse_args(argv)
     oiiotool = shutil.which("oiiotool", path=os.path.dirname(sys.executable)) or "oiiotool"
     d = tempfile.mkdtemp(prefix="ocltm_pic_")
@@ -61,7 +62,7 @@ def main(argv=None) -> int:
             print(f"frame {n}: p99 {np.percentile(diff, 99):.0f}, max {diff.max()} 8-bit codes")
             if n == a.frame:
                 pic = join([run, rep, np.clip(diff * 32, 0, 255).astype(np.uint8)], gap=8)
-        print(f"wrote {write_image(a.out, pic)}")
+        print(f"wrote {write_image(out_path(a, 'ocio_export.png'), pic)}")
     finally:
         shutil.rmtree(d, ignore_errors=True)
     return 0

@@ -6,10 +6,12 @@ public API or its command line (``benchmarks/lib/human/``); docs/validation.md s
 each threshold is derived and why a model departs where it does.
 
 One command (matplotlib: ``pip install "ocl-tonemap[plot]"``):
-    python benchmarks/psychophysics.py [--out benchmarks/results/psychophysics.md]
+    python benchmarks/psychophysics.py [--out-dir DIR | --out FILE]
 
-Writes the table and, beside it, psychophysics_dark.png (the README's plot),
-psychophysics_acuity.png, psychophysics_tvi.png and psychophysics_purkinje.png.
+Writes psychophysics.md into DIR (default ./benchmark-results; the committed table:
+``--out-dir benchmarks/results``; the rule: ``benchmarks/lib/outdir.py``) and, beside
+it, psychophysics_dark.png (the README's plot), psychophysics_acuity.png,
+psychophysics_tvi.png and psychophysics_purkinje.png.
 """
 
 from __future__ import annotations
@@ -23,12 +25,12 @@ import numpy as np
 try:
     from benchmarks.lib.human import acuity, dark, purkinje, tvi
     from benchmarks.lib.human.data import HECHT_TD, load_hecht1937
+    from benchmarks.lib.outdir import add_out_args, link, out_path
 except ModuleNotFoundError:     # run as a file: its own folder is first on the path
     from lib.human import acuity, dark, purkinje, tvi
     from lib.human.data import HECHT_TD, load_hecht1937
+    from lib.outdir import add_out_args, link, out_path
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEFAULT_OUT = os.path.join(HERE, "results", "psychophysics.md")
 TD_COLOURS = {263.0: "#1b9e77", 3800.0: "#d95f02", 19500.0: "#7570b3", 38900.0: "#e7298a",
               400000.0: "#333333"}
 
@@ -192,8 +194,9 @@ def plots(out_dir, res_dark, acu, res_tvi, peaks, mes) -> list:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=DEFAULT_OUT)
+    add_out_args(ap, "psychophysics.md")
     a = ap.parse_args(argv)
+    out = out_path(a, "psychophysics.md")
     t0 = time.perf_counter()
     res_dark, crit = dark.run_all()
     print(f"dark adaptation: {time.perf_counter() - t0:.0f} s", flush=True)
@@ -204,19 +207,19 @@ def main(argv=None) -> int:
     peaks = purkinje.purkinje_peaks()
     mes = purkinje.mesopic_table()
     print(f"Purkinje: {time.perf_counter() - t0:.0f} s", flush=True)
-    out_dir = os.path.dirname(os.path.abspath(a.out))
-    os.makedirs(out_dir, exist_ok=True)
+    out_dir = os.path.dirname(os.path.abspath(out))
     names = [os.path.basename(p) for p in plots(out_dir, res_dark, acu, res_tvi, peaks, mes)]
     L = ["# The operators against measurements of people", "",
          "- command `python benchmarks/psychophysics.py`; this machine (2 cores, PoCL CPU "
          f"OpenCL); {time.perf_counter() - t0:.0f} s; what each experiment derives and why "
-         "a model departs: [docs/validation.md](../../docs/validation.md)",
+         "a model departs: [docs/validation.md]"
+         f"({link(out, 'docs/validation.md')})",
          "- plots: " + ", ".join(f"[{n}]({n})" for n in names), ""]
     L += dark_section(res_dark, crit) + acuity_section(acu) + tvi_section(res_tvi) + \
         purkinje_section(peaks, mes)
-    with open(a.out, "w") as fh:
+    with open(out, "w") as fh:
         fh.write("\n".join(L) + "\n")
-    print(f"wrote {a.out} in {time.perf_counter() - t0:.0f} s")
+    print(f"wrote {out} in {time.perf_counter() - t0:.0f} s")
     return 0
 
 

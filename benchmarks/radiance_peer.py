@@ -3,7 +3,10 @@ the tool lighting designers use to show a rendering as a person would see it: wh
 commands, time and peak memory, in the same run on the same machine.
 
 One command (Radiance from PyPI: ``pip install "ocl-tonemap[radiance]"``; ~6 min):
-    python -m benchmarks.radiance_peer [--out benchmarks/results/radiance_peer.md] [--repeat 3]
+    python -m benchmarks.radiance_peer [--out-dir DIR | --out FILE] [--repeat 3]
+
+Writes radiance_peer.md into DIR (default ./benchmark-results; the committed one:
+``--out-dir benchmarks/results``).
 
 Work (a night photograph with lamps at 0.5 cd/m^2 log-average, written as Radiance
 .hdr; ``benchmarks/lib/photos.py``):
@@ -31,11 +34,10 @@ import time
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.report import (compile_package, cpu_model, radiance_env, write_image,
                                    write_markdown)
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEFAULT_OUT = os.path.join(HERE, "results", "radiance_peer.md")
 PHOTO = "dikhololo_night_1k.hdr"
 LEVEL = 0.5                     # cd/m^2, log-average
 
@@ -81,7 +83,7 @@ def make_inputs(d: str) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--operators", default="durand00,pattanaik00")
-    ap.add_argument("--out", default=DEFAULT_OUT)
+    add_out_args(ap, "radiance_peer.md")
     ap.add_argument("--repeat", type=int, default=3,
                     help="runs of each command, interleaved with the peer's (medians)")
     a = ap.parse_args(argv)
@@ -141,7 +143,7 @@ def main(argv=None) -> int:
          "RGB + 300 MiB", "",
          "| work | operator (defaults) | ours s | pcond -h s | speed | ours peak | pcond peak "
          "| bound | memory |", "|---|---|---|---|---|---|---|---|---|"]
-    write_markdown(a.out, L, rows)
+    write_markdown(out_path(a, "radiance_peer.md"), L, rows)
     return 0
 
 

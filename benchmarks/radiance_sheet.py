@@ -2,7 +2,10 @@
 each operator with its defaults, for docs/radiance.md.
 
 One command (Radiance from PyPI: ``pip install "ocl-tonemap[radiance]"``):
-    python -m benchmarks.radiance_sheet [--out docs/sheets/radiance_pcond.jpg]
+    python -m benchmarks.radiance_sheet [--out-dir DIR | --out FILE]
+
+Writes radiance_pcond.jpg into DIR (default ./benchmark-results); docs/radiance.md's
+sheet is refreshed with ``--out docs/sheets/radiance_pcond.jpg``.
 
 Three scenes rendered here with ``rpict`` (no files needed): a room lit by one warm
 lamp (interior), a road at night with sodium-coloured luminaires every 30 m, and a
@@ -23,10 +26,9 @@ import tempfile
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.report import join, radiance_env, write_image
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEFAULT_OUT = os.path.join(HERE, "..", "docs", "sheets", "radiance_pcond.jpg")
 OPERATORS = ("pattanaik00", "ledda04", "durand00", "kirk11")
 SIZE = (480, 270)
 
@@ -169,7 +171,7 @@ def render(d: str, env: dict) -> dict:
 def main(argv=None) -> int:
     import OpenImageIO as oiio
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=DEFAULT_OUT)
+    add_out_args(ap, "radiance_pcond.jpg")
     a = ap.parse_args(argv)
     env = radiance_env()[1]
     d = tempfile.mkdtemp(prefix="ocltm_sheet_")
@@ -190,7 +192,8 @@ def main(argv=None) -> int:
                 cells.append(oiio.ImageBuf(png).get_pixels(oiio.UINT8)[..., :3])
             rows.append(join(cells))
             print(f"{name}: done", flush=True)
-        print(f"wrote {write_image(a.out, join(rows, axis=0), Compression='jpeg:88')}")
+        out = out_path(a, "radiance_pcond.jpg")
+        print(f"wrote {write_image(out, join(rows, axis=0), Compression='jpeg:88')}")
     finally:
         shutil.rmtree(d, ignore_errors=True)
     return 0

@@ -1,8 +1,9 @@
 """A shot on many workers: the serial run against measure -> integrate -> apply on Dask.
 
 One command:  python -m benchmarks.scale_out [--frames 600] [--size 1920x1080]
-              [--operators pattanaik00,ledda04] [--workers 1,2]
-Writes benchmarks/results/scale_out.md (and .json).
+              [--operators pattanaik00,ledda04] [--workers 1,2] [--out-dir DIR | --out FILE]
+Writes scale_out.md (and scale_out.json beside it) into DIR (default
+./benchmark-results; the committed ones: --out-dir benchmarks/results).
 
 The shot: the built-in tunnel drive, generated at the size asked (EXR half,
 cd/m^2, 30 fps; cached in $TMPDIR between runs). Each configuration is the real
@@ -31,10 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.scenes import exr_spec, tunnel
 from ocl_tonemap.shot.store import ShotStore
-
-HERE = Path(__file__).resolve().parent
 
 
 def _cli() -> list[str]:
@@ -95,7 +95,7 @@ def main() -> None:
     ap.add_argument("--size", default="1920x1080")
     ap.add_argument("--operators", default="pattanaik00,ledda04")
     ap.add_argument("--workers", default="1,2")
-    ap.add_argument("--out", default=str(HERE / "results" / "scale_out.md"))
+    add_out_args(ap, "scale_out.md")
     ap.add_argument("--keep", action="store_true", help="keep the outputs and stores")
     a = ap.parse_args()
     w, h = (int(v) for v in a.size.split("x"))
@@ -131,7 +131,7 @@ def main() -> None:
                   f"store/frame={row['store']}", flush=True)
         if not a.keep:
             shutil.rmtree(work, ignore_errors=True)
-    write_report(Path(a.out), rows, w, h, n)
+    write_report(Path(out_path(a, "scale_out.md")), rows, w, h, n)
 
 
 def write_report(path: Path, rows: list, w: int, h: int, n: int) -> None:

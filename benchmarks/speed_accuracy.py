@@ -1,9 +1,10 @@
 """Speed against accuracy of the quality tiers (``--quality draft|balanced|reference``)
 and of every speed/accuracy knob they are made of.
 
-One command:  python -m benchmarks.speed_accuracy [--quick]
-Writes benchmarks/results/speed_accuracy.md and the Pareto plot
-benchmarks/results/speed_accuracy.png (and prints the tables as it goes).
+One command:  python -m benchmarks.speed_accuracy [--quick] [--out-dir DIR | --out FILE]
+Writes speed_accuracy.md and, beside it, the Pareto plot speed_accuracy.png into DIR
+(default ./benchmark-results; the committed ones: --out-dir benchmarks/results) and
+prints the tables as it goes.
 
 1. Knob sweep (what the tiers are chosen from). For each operator and scene, at
    640x360 and 1920x1080: the three tiers, and every value of each knob the
@@ -69,6 +70,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.report import fmt_de, fmt_ms
 from benchmarks.lib.photos import load_photo
 from benchmarks.lib.scenes import tunnel
@@ -1117,7 +1119,7 @@ def main(argv=None) -> int:
                     help="comma list of the sections to run: tiers (the knob sweep, tiers "
                     "and Pareto plot), roofline, commands (default all; a long run can be "
                     "split over several commands, each with its own --out)")
-    ap.add_argument("--out", default=os.path.join(HERE, "results", "speed_accuracy.md"))
+    add_out_args(ap, "speed_accuracy.md")
     ap.add_argument("--roofline-child", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     ops = [o.strip() for o in (a.operators or ",".join(OPERATORS)).split(",") if o.strip()]
@@ -1178,8 +1180,8 @@ def main(argv=None) -> int:
     # -- report
     psize = (1920, 1080) if any(r.size == (1920, 1080) for r in all_rows) else \
         max(sweep_sizes or sizes, key=lambda s: s[0] * s[1])
-    png = os.path.splitext(a.out)[0] + ".png"
-    os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
+    out = out_path(a, "speed_accuracy.md")
+    png = os.path.splitext(out)[0] + ".png"
     prows = [r for r in all_rows if r.size == psize]
     if prows:
         plot(png, prows, psize)
@@ -1290,12 +1292,12 @@ def main(argv=None) -> int:
                else "No results (see the log).")
         lines += ["## 4. Whole command", "", why, ""]
     text = "\n".join(lines) + "\n"
-    tmp = a.out + ".tmp"
+    tmp = out + ".tmp"
     with open(tmp, "w") as fh:
         fh.write(text)
-    os.replace(tmp, a.out)
+    os.replace(tmp, out)
     print(text)
-    log(f"wrote {a.out}" + (f" and {png}" if prows else "")
+    log(f"wrote {out}" + (f" and {png}" if prows else "")
         + f" in {(time.perf_counter() - t_start) / 60:.1f} min")
     return 0
 

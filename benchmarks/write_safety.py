@@ -2,7 +2,10 @@
 fsyncs (the file, its folder) against the write itself and a whole frame's time.
 
 One command:
-    python -m benchmarks.write_safety [--size 1920x1080] [--reps 7] [--out benchmarks/results/write_safety.md]
+    python -m benchmarks.write_safety [--size 1920x1080] [--reps 7] [--out-dir DIR | --out FILE]
+
+Writes write_safety.md into DIR (default ./benchmark-results; the committed one:
+``--out-dir benchmarks/results``).
 
 Per output format (PNG 8-bit, EXR half zip, TIFF 16-bit, JPEG): the median of
 ``--reps`` of each step of ``imagewrite.write_frame`` on a tone-mapped photograph-like
@@ -11,8 +14,8 @@ writing to the temporary file, ``verify_written`` (header and last row read
 back), ``safeio.commit`` (fsync of the file, rename, fsync of the folder); and
 the whole frame (``Tonemapper.process_frame``, OpenCL, the default operator and
 model) for scale. The issue's target: read-back and fsyncs under 5% of a frame's
-time. Machines are noisy: compare the ratios. Writes go to the folder of
-``--out``'s results (a real disk, not tmpfs), the files removed after.
+time. Machines are noisy: compare the ratios. The timed writes go to the folder the
+results are written to (a real disk, not tmpfs), the files removed after.
 """
 
 from __future__ import annotations
@@ -26,8 +29,9 @@ import time
 import numpy as np
 import OpenImageIO as oiio
 
+from benchmarks.lib.outdir import add_out_args, out_path
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-DEFAULT_OUT = os.path.join(HERE, "results", "write_safety.md")
 FORMATS = ((".png", "8"), (".exr", "half"), (".tif", "16"), (".jpg", "8"))
 
 
@@ -59,8 +63,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="1920x1080")
     ap.add_argument("--reps", type=int, default=7)
-    ap.add_argument("--out", default=DEFAULT_OUT)
+    add_out_args(ap, "write_safety.md")
     a = ap.parse_args(argv)
+    out_file = out_path(a, "write_safety.md")
     w, h = (int(v) for v in a.size.lower().split("x"))
     from ocl_tonemap import imageio, imagewrite, safeio
     from ocl_tonemap.pipeline import Tonemapper
@@ -72,7 +77,7 @@ def main(argv=None) -> int:
     out = np.clip(tm.process_frame(scene, dt=1 / 30).output, 0, 1).astype(np.float32)
     spec_in = oiio.ImageSpec(w, h, 3, oiio.FLOAT)
     rows = []
-    d = tempfile.mkdtemp(dir=os.path.dirname(os.path.abspath(a.out)))
+    d = tempfile.mkdtemp(dir=os.path.dirname(os.path.abspath(out_file)))
     try:
         for ext, bits in FORMATS:
             path = os.path.join(d, f"frame{ext}")
@@ -127,8 +132,7 @@ def main(argv=None) -> int:
           "EXR gives back its last row (one chunk). The fsyncs' cost depends on the disk and "
           "on what else is being written; on a network file system it is larger. File "
           f"system of the run: {fs_type(d)}."]
-    os.makedirs(os.path.dirname(os.path.abspath(a.out)), exist_ok=True)
-    with open(a.out, "w") as fh:
+    with open(out_file, "w") as fh:
         fh.write("\n".join(L) + "\n")
     print("\n".join(L))
     return 0

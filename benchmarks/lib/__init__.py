@@ -1,5 +1,6 @@
 """Shared by the benchmark scripts and the tests; not part of the runtime package.
 
+* :mod:`.outdir`: where a benchmark writes (``--out-dir``, ``--out``; ./benchmark-results).
 * :mod:`.timing`: the timing rule, Markdown tables, copy bandwidth, a child's peak memory.
 * :mod:`.photos`: the Poly Haven photographs (fetched once from PyPI and Debian) and ``load_photo``.
 * :mod:`.scenes`: generated HDR scenes (the appearance scenes and the benchmarks' frames).
