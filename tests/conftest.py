@@ -29,6 +29,9 @@ def _in_ci() -> bool:
 def pytest_configure(config):
     config.addinivalue_line("markers", "requires_opencl: needs a working OpenCL device "
                             "(fails in CI, skips elsewhere, where none works)")
+    config.addinivalue_line("markers", "slow: left out of the README's test command "
+                            "(pyproject addopts -m 'not slow'); CI runs them after it "
+                            "with python -m pytest -q -m slow")
 
 
 def _device_line() -> str:

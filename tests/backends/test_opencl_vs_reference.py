@@ -67,7 +67,8 @@ def test_displays_agree(display):
 
 
 @pytest.mark.requires_opencl
-@pytest.mark.parametrize("shape", [(1, 1), (3, 7), (4099, 3), (3, 4099)])
+@pytest.mark.parametrize("shape", [(1, 1), (3, 7), pytest.param((4099, 3), marks=pytest.mark.slow),
+                                   pytest.param((3, 4099), marks=pytest.mark.slow)])
 def test_odd_sizes(shape):
     img = hdr_image(*shape, seed=3)
     run_both([img, img * 0.01], 0.05)

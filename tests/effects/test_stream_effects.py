@@ -262,6 +262,7 @@ def test_acuity_wider_than_a_band_through_the_api():
     np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-7)
 
 
+@pytest.mark.slow
 @pytest.mark.requires_opencl
 def test_streamed_effects_bound_memory(tmp_path):
     """2400x1600 (44 MiB as float32 RGB), durand00 with flare and acuity on: the

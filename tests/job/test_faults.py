@@ -212,6 +212,7 @@ def test_numbers_outside_their_physical_range_are_refused(seq, tmp_path, args, w
     assert not os.listdir(tmp_path)
 
 
+@pytest.mark.slow
 def test_many_channels_are_not_read(tmp_path):
     """A 1200x1200 EXR with 400 channels (R, G, B and 397 AOVs): only R, G, B are read;
     the run stays under 2 GiB (it took 5.5 GiB reading them all)."""

@@ -364,6 +364,7 @@ def _peak_rss_mb(args, small=None) -> float:
                                 *args[3:]])
 
 
+@pytest.mark.slow
 @pytest.mark.requires_opencl
 def test_streaming_bounds_memory(tmp_path):
     """A 2400x1600 frame (44 MiB as float32 RGB): whole, the run peaks at many times

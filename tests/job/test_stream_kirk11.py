@@ -50,6 +50,7 @@ def test_streamed_kirk11_equals_whole(tmp_path, extra):
             assert pb[k] == v, k
 
 
+@pytest.mark.slow
 @pytest.mark.requires_opencl
 def test_streamed_kirk11_bounds_memory(tmp_path):
     """A 2400x1600 frame (44 MiB as float32 RGB; ~1.3 GiB peak whole): streamed, no

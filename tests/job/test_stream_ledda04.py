@@ -109,6 +109,7 @@ def test_plane_store_spilled_equals_memory(tmp_path):
     disk.close()
 
 
+@pytest.mark.slow
 @pytest.mark.requires_opencl
 def test_streamed_ledda04_bounds_memory(tmp_path):
     """2400x1600 (44 MiB as float32 RGB): streamed, ledda04 stays under 3x the frame

@@ -39,6 +39,7 @@ def _still(op: str, rgb, backend="opencl", **kw):
     return r.output, r.info, tm
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mech", ["flare", "acuity", "purkinje"])
 def test_gate_bound_per_mechanism(mech):
     """Frames with the gate's choice against the same frames with ``mech`` forced on:
@@ -236,6 +237,7 @@ def test_predictions_reused_on_a_held_frame_and_made_again_when_it_changes():
     assert not tm.process_frame(texture, dt=1 / 30).info.plan["reused"]
 
 
+@pytest.mark.slow
 def test_fade_bound_holds_on_every_frame_kirk11():
     """The day-to-night fade of the benchmark (0.083 decade a frame at 30 fps)
     through kirk11: auto within 1 JND (p99 Delta E ITP) of full on every frame, the

@@ -293,6 +293,7 @@ def _farm_job(fmt, shot, tmp_path, chunk, *run_options):
     return frames, out, job_file
 
 
+@pytest.mark.slow
 @pytest.mark.requires_opencl
 def test_openjd_template_validates_and_runs_as_a_farm_would(shot, tmp_path):
     pytest.importorskip("openjd.model")
