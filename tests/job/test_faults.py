@@ -356,12 +356,20 @@ def test_a_signal_a_library_turned_into_an_import_error_while_the_parser_is_made
         cli.main(["run", "a.exr", "b.png"])
 
 
-def _started(args, ready_file):
+def _default_sigint():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _started(args, ready_file, sigint_ignored: bool = False):
     """The command in a process of its own, its readiness notes in ``ready_file``
-    (``interrupts.ready``, ``$OCLTM_TEST_READY``)."""
+    (``interrupts.ready``, ``$OCLTM_TEST_READY``), with SIGINT at its default as a
+    terminal starts it: a test run itself started in the background of a script
+    (``cmd &``, where the shell ignores SIGINT and its children inherit that) would
+    otherwise start a command that rightly ignores Ctrl-C (``sigint_ignored``)."""
     env = {**os.environ, "OCLTM_TEST_READY": str(ready_file)}
     return subprocess.Popen([sys.executable, "-m", "ocl_tonemap", *args],
-                            stderr=subprocess.PIPE, text=True, env=env)
+                            stderr=subprocess.PIPE, text=True, env=env,
+                            preexec_fn=None if sigint_ignored else _default_sigint)
 
 
 def _wait_for(p, ready_file, mark: str) -> bool:
@@ -396,6 +404,31 @@ def test_signals_exit_130_and_143_in_one_line(seq, tmp_path, mark):
             # mid-run: the line says where it stopped, the next one how to resume
             assert lines[1:] in ([], [lines[-1]]) and (len(lines) == 1 or
                                                        lines[1].strip().endswith("--resume")), err
+    assert not _temps(tmp_path)
+
+
+def test_a_command_started_with_sigint_ignored_keeps_ignoring_it(seq, tmp_path):
+    """``nohup``, ``cmd &`` in a script: SIGINT ignored when the command starts stays
+    ignored (as Python itself and every shell tool do); SIGTERM still stops it in one
+    line, 143."""
+    pattern, frames = seq
+    ready = tmp_path / "ready"
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        p = _started(["run", pattern, str(tmp_path / "o.####.png"), "-q",
+                      "--operator", "ledda04"], ready, sigint_ignored=True)
+    finally:
+        signal.signal(signal.SIGINT, old)
+    noted = _wait_for(p, ready, "written")
+    p.send_signal(signal.SIGINT)
+    noted_after = _wait_for(p, ready, f"written {frames[-1]}") if noted else False
+    if noted and p.poll() is None:
+        p.send_signal(signal.SIGTERM)
+    _, err = p.communicate()
+    assert "Traceback" not in err, err
+    if noted_after:                  # the SIGINT was ignored: every frame was written
+        assert p.returncode in (0, 143), (p.returncode, err)
+    assert p.returncode != 130, err
     assert not _temps(tmp_path)
 
 
