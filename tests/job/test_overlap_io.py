@@ -6,7 +6,7 @@ reported at its own frame, with the frames before it complete."""
 import json
 import os
 import shutil
-import time
+import threading
 
 import numpy as np
 import OpenImageIO as oiio
@@ -111,17 +111,19 @@ def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, mo
     pattern, frames = seq
     made, order = [], []
     real_read, real_setup = job_run.read_frame, job_run.setup_run
+    prepared = threading.Event()
 
     def read(path, frame=None, channels=None, pool=None):
         order.append(("read", frame))
         fr = real_read(path, frame, channels, pool)
         made.append(pool.made)
-        if frame == frames[0]:
-            time.sleep(0.5)           # a large first frame: still read when set up
+        if frame == frames[0]:        # a large first frame: still read when the kernels
+            prepared.wait(600)        # are made (the wait's limit: only against a hang)
         return fr
 
     def prepare(tm, key, stop):
         order.append(("prepare", stop()))
+        prepared.set()
         return real_prepare(tm, key, stop)
 
     def setup(*a, **k):
