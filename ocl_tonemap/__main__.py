@@ -69,7 +69,7 @@ def _one_blas_thread() -> None:
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
 
-def entry() -> int:
+def _entry() -> int:
     try:
         from .interrupts import install, ready
         install()
@@ -87,10 +87,23 @@ def entry() -> int:
         code = exit_code(exc)
     if code in (130, 143):
         _leave(code)
-    import signal                         # done: a signal now would only cut the exit short
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, signal.SIG_IGN)
+    from .interrupts import ignore_for_exit
+    ignore_for_exit()                     # done: a signal now would only cut the exit short
     return code
+
+
+def entry() -> int:
+    """The command, and a signal landing between its own handlers (as it returns, or
+    while an interrupted one reports): it leaves at once with 128 + the signal, no
+    traceback."""
+    try:
+        return _entry()
+    except BaseException as exc:          # noqa: BLE001
+        name = type(exc).__name__
+        if name not in ("KeyboardInterrupt", "Terminated"):
+            raise
+        _leave(getattr(exc, "signum", 2) + 128)
+        raise                             # (not reached)
 
 
 if __name__ == "__main__":

@@ -64,6 +64,41 @@ def exit_code(exc: BaseException | None = None) -> int:
     return 128 + received
 
 
+class held:
+    """SIGINT and SIGTERM held back (``pthread_sigmask``) over a few statements that
+    must not be cut in two (a run's lock file removed and closed); one that came
+    meanwhile is delivered as the block ends. A no-op off the main thread or where
+    the system has no signal masks."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __enter__(self):
+        import threading
+        self._old = None
+        if hasattr(signal, "pthread_sigmask") and \
+                threading.current_thread() is threading.main_thread():
+            self._old = signal.pthread_sigmask(signal.SIG_BLOCK, self.SIGNALS)
+        return self
+
+    def __exit__(self, *exc):
+        if self._old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, self._old)
+        return False
+
+
+def ignore_for_exit() -> None:
+    """SIGINT and SIGTERM ignored from now on (a command whose work is done: a signal
+    would only cut its exit short). One landing while they are set is dropped too."""
+    for _ in range(3):
+        try:
+            with held():
+                for sig in held.SIGNALS:
+                    signal.signal(sig, signal.SIG_IGN)
+            return
+        except (KeyboardInterrupt, Terminated):
+            continue
+
+
 #: A test hook: where the command notes how far it got (``ready``), so that a test
 #: can send its signal at a known point instead of after a guessed delay.
 READY_ENV = "OCLTM_TEST_READY"

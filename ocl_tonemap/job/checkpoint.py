@@ -59,13 +59,15 @@ class RunLock:
         raise FrameError(self.path, None, "cannot take the run's lock")
 
     def __exit__(self, *exc):
-        if self.fd is not None:
-            try:
-                os.unlink(self.path)
-            except OSError:
-                pass
-            os.close(self.fd)
-            self.fd = None
+        from ..interrupts import held
+        with held():                        # a signal now: after the lock is gone
+            if self.fd is not None:
+                try:
+                    os.unlink(self.path)
+                except OSError:
+                    pass
+                os.close(self.fd)
+                self.fd = None
         return False
 
 def checkpoint_path(opts: JobOptions) -> str:

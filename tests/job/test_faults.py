@@ -405,6 +405,40 @@ def test_signals_exit_130_and_143_in_one_line(seq, tmp_path, mark):
     assert not _temps(tmp_path)
 
 
+def test_a_signal_while_the_run_lock_goes_waits_until_it_is_gone(tmp_path):
+    """``interrupts.held``: a SIGTERM landing while the run's lock file is removed and
+    closed (``RunLock.__exit__``) is delivered after, so a run terminated as it ends
+    leaves no lock file; ``ignore_for_exit`` then drops signals for good."""
+    from ocl_tonemap.interrupts import held, ignore_for_exit
+    from ocl_tonemap.job.checkpoint import RunLock
+    got = []
+    old = signal.signal(signal.SIGTERM, lambda s, f: got.append(os.path.exists(lock.path)))
+    try:
+        lock = RunLock(str(tmp_path / "o.png.state.json"))
+        with lock:
+            assert os.path.exists(lock.path)
+            with held():
+                os.kill(os.getpid(), signal.SIGTERM)
+                assert got == []                  # held back
+            assert got == [True]                  # delivered as the block ended
+            got.clear()
+            real_unlink = os.unlink
+
+            def unlink_then_signal(p):            # the signal lands mid-__exit__
+                os.kill(os.getpid(), signal.SIGTERM)
+                real_unlink(p)
+            os.unlink = unlink_then_signal
+        os.unlink = real_unlink
+        assert got == [False] and not os.path.exists(lock.path)
+        ignore_for_exit()
+        os.kill(os.getpid(), signal.SIGTERM)      # ignored now
+        assert signal.getsignal(signal.SIGTERM) is signal.SIG_IGN
+    finally:
+        os.unlink = real_unlink if "real_unlink" in locals() else os.unlink
+        signal.signal(signal.SIGTERM, old)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def test_a_command_started_with_sigint_ignored_keeps_ignoring_it(seq, tmp_path):
     """``nohup``, ``cmd &`` in a script: SIGINT ignored when the command starts stays
     ignored (as Python itself and every shell tool do); SIGTERM still stops it in one
