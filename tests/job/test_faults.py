@@ -407,8 +407,10 @@ def test_signals_exit_130_and_143_in_one_line(seq, tmp_path, mark):
 
 def test_a_signal_while_the_run_lock_goes_waits_until_it_is_gone(tmp_path):
     """``interrupts.held``: a SIGTERM landing while the run's lock file is removed and
-    closed (``RunLock.__exit__``) is delivered after, so a run terminated as it ends
-    leaves no lock file; ``ignore_for_exit`` then drops signals for good."""
+    closed (``RunLock.__exit__``) is handed to its handler after, so a run terminated
+    as it ends leaves no lock file; ``ignore_for_exit`` then drops signals for good.
+    (``raise_signal``: the main thread's own, handled at once; another process's
+    signal may land on any thread, Python runs the handler in the main one.)"""
     from ocl_tonemap.interrupts import held, ignore_for_exit
     from ocl_tonemap.job.checkpoint import RunLock
     got = []
@@ -418,20 +420,20 @@ def test_a_signal_while_the_run_lock_goes_waits_until_it_is_gone(tmp_path):
         with lock:
             assert os.path.exists(lock.path)
             with held():
-                os.kill(os.getpid(), signal.SIGTERM)
+                signal.raise_signal(signal.SIGTERM)
                 assert got == []                  # held back
             assert got == [True]                  # delivered as the block ended
             got.clear()
             real_unlink = os.unlink
 
             def unlink_then_signal(p):            # the signal lands mid-__exit__
-                os.kill(os.getpid(), signal.SIGTERM)
+                signal.raise_signal(signal.SIGTERM)
                 real_unlink(p)
             os.unlink = unlink_then_signal
         os.unlink = real_unlink
         assert got == [False] and not os.path.exists(lock.path)
         ignore_for_exit()
-        os.kill(os.getpid(), signal.SIGTERM)      # ignored now
+        signal.raise_signal(signal.SIGTERM)       # ignored now
         assert signal.getsignal(signal.SIGTERM) is signal.SIG_IGN
     finally:
         os.unlink = real_unlink if "real_unlink" in locals() else os.unlink
