@@ -11,12 +11,21 @@ def _leave(code: int) -> None:
     removed by now; the interpreter's own shutdown would run the finalizers of
     whatever the signal cut short (a cache half made prints a traceback) and may
     re-raise the signal (exit -2 instead of 130)."""
+    release_locks()
     for f in (sys.stdout, sys.stderr):
         try:
             f.flush()
         except Exception:  # noqa: BLE001
             pass
     os._exit(code)
+
+
+def release_locks() -> None:
+    """The run locks a signal kept ``RunLock.__exit__`` from releasing (none when no
+    run was loaded)."""
+    ck = sys.modules.get("ocl_tonemap.job.checkpoint")
+    if ck is not None:
+        ck.release_held()
 
 
 #: The command's allocations of at least this many bytes are mapped from the system
@@ -89,6 +98,7 @@ def _entry() -> int:
         _leave(code)
     from .interrupts import ignore_for_exit
     ignore_for_exit()                     # done: a signal now would only cut the exit short
+    release_locks()
     return code
 
 

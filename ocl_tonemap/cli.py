@@ -425,6 +425,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _main(argv)
     except (KeyboardInterrupt, Terminated) as exc:
+        ck = sys.modules.get("ocl_tonemap.job.checkpoint")
+        if ck is not None:                # a lock whose release the signal cut short
+            ck.release_held()
         print("ocl-tonemap: interrupted; the frame in flight was discarded", file=sys.stderr)
         return exit_code(exc)
     except Exception:                     # a signal a library made its own error (NumPy's

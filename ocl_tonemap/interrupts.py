@@ -64,43 +64,12 @@ def exit_code(exc: BaseException | None = None) -> int:
     return 128 + received
 
 
-class held:
-    """SIGINT and SIGTERM held back over a few statements that must not be cut in two
-    (a run's lock file removed and closed): their handlers are swapped for one that
-    notes the signal, and the first one noted is handed to its own handler as the
-    block ends. (A signal mask would not do: the driver's and the readers' threads
-    take the signal and Python runs its handler in the main thread all the same.)
-    Off the main thread, or for a signal ignored or not Python's, a no-op."""
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-    def __enter__(self):
-        import threading
-        self._old, self.noted = {}, []
-        if threading.current_thread() is threading.main_thread():
-            for sig in self.SIGNALS:
-                h = signal.getsignal(sig)
-                if callable(h):
-                    self._old[sig] = signal.signal(sig, self._note)
-        return self
-
-    def _note(self, signum, frame):
-        self.noted.append(signum)
-
-    def __exit__(self, *exc):
-        for sig, h in self._old.items():
-            signal.signal(sig, h)
-        if self.noted:
-            self._old[self.noted[0]](self.noted[0], None)
-        return False
-
-
 def ignore_for_exit() -> None:
     """SIGINT and SIGTERM ignored from now on (a command whose work is done: a signal
     would only cut its exit short). One landing while they are set is dropped too."""
     for _ in range(3):
         try:
-            for sig in held.SIGNALS:
+            for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, signal.SIG_IGN)
             return
         except (KeyboardInterrupt, Terminated):

@@ -54,21 +54,37 @@ class RunLock:
                 os.ftruncate(fd, 0)
                 os.pwrite(fd, str(os.getpid()).encode(), 0)
                 self.fd = fd
+                _HELD.add(self)
                 return self
             os.close(fd)                        # removed by the run that just ended: again
         raise FrameError(self.path, None, "cannot take the run's lock")
 
     def __exit__(self, *exc):
-        from ..interrupts import held
-        with held():                        # a signal now: after the lock is gone
-            if self.fd is not None:
-                try:
-                    os.unlink(self.path)
-                except OSError:
-                    pass
-                os.close(self.fd)
-                self.fd = None
+        self.release()
         return False
+
+    def release(self) -> None:
+        """Remove the lock file and let the lock go (again: nothing)."""
+        if self.fd is not None:
+            try:
+                os.unlink(self.path)
+            except OSError:
+                pass
+            os.close(self.fd)
+            self.fd = None
+        _HELD.discard(self)
+
+
+#: The run locks this process holds: a signal landing as a run ends may cut
+#: ``RunLock.__exit__`` short; the command's last step releases what is left
+#: (:func:`release_held`), so no lock file outlives the run.
+_HELD: set = set()
+
+
+def release_held() -> None:
+    """Release every run lock still held (the command's exit, after a signal)."""
+    for lock in list(_HELD):
+        lock.release()
 
 def checkpoint_path(opts: JobOptions) -> str:
     """Where the state is checkpointed after every frame: ``--state-out``, else the
