@@ -64,14 +64,18 @@ class RunLock:
         return False
 
     def release(self) -> None:
-        """Remove the lock file and let the lock go (again: nothing)."""
+        """Remove the lock file and let the lock go; again, after a signal cut it short
+        anywhere, it does what is left (a second unlink or close: nothing)."""
         if self.fd is not None:
             try:
                 os.unlink(self.path)
             except OSError:
                 pass
-            os.close(self.fd)
-            self.fd = None
+            fd, self.fd = self.fd, None
+            try:
+                os.close(fd)
+            except OSError:
+                pass
         _HELD.discard(self)
 
 

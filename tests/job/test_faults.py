@@ -426,6 +426,19 @@ def test_a_signal_that_cuts_the_lock_release_short_leaves_no_lock_file(tmp_path,
     assert cut and os.path.exists(lock.path)
     checkpoint.release_held()
     assert not os.path.exists(lock.path) and not checkpoint._HELD
+    # cut short after the unlink and the close, before it forgot the descriptor
+    lock = checkpoint.RunLock(str(tmp_path / "o.png.state.json"))
+    real_close = os.close
+
+    def close(fd):
+        real_close(fd)
+        raise Terminated(signal.SIGTERM)
+    with pytest.raises(Terminated):
+        with lock:
+            monkeypatch.setattr(os, "close", close)
+    monkeypatch.setattr(os, "close", real_close)
+    checkpoint.release_held()                     # nothing left to do, no EBADF
+    assert not os.path.exists(lock.path) and not checkpoint._HELD
     monkeypatch.undo()
     old = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
     try:
