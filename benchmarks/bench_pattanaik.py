@@ -96,7 +96,7 @@ def main():
         be = tm.backend
         b = be.bufs
         from ocl_tonemap.models import pattanaik2000 as P
-        params = P.frame_params(tm._state, tm.display)
+        params = P.frame_params(tm.scalar_state(), tm.display)
 
         def kern(vector=True):
             be.run_pointwise(tm.op.kernel_call(params, vector), b["rgb"], b["Y"], b["Ys"],

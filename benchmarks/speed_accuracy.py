@@ -267,7 +267,7 @@ def knob_configs(op: str) -> list[Config]:
 
 
 def tier_of(cfg: Config):
-    from ocl_tonemap.backends.plan import QUALITY_TIERS
+    from ocl_tonemap.backends.quality import QUALITY_TIERS
     return QUALITY_TIERS[cfg.quality]
 
 
@@ -283,7 +283,7 @@ def backend_of(cfg: Config) -> str:
 def resolved_key(op: str, cfg: Config, w: int, h: int, col: Colour) -> tuple[str, str | None]:
     """(key, bilateral method): what the configuration computes, with defaults filled in
     and ``auto`` resolved (equal keys: the same work; the sweep runs one of them)."""
-    from ocl_tonemap.backends.plan import BilateralSpec
+    from ocl_tonemap.models.bilateral import BilateralSpec
     from ocl_tonemap.operators import get_operator
     declared = {o.name: o for o in get_operator(op).options}
     given = {**tier_of(cfg).options_for(declared), **dict(cfg.options)}
@@ -779,7 +779,7 @@ CMD_RUNS = (("pattanaik00", "draft", "auto"), ("pattanaik00", "balanced", "auto"
 
 def sample_sequence(w: int, h: int) -> tuple[str, list[int]]:
     """The 60-frame tunnel sample (30 fps, 2 s), rendered once into a cache folder."""
-    from ocl_tonemap.imageio import frame_path
+    from ocl_tonemap.patterns import frame_path
     from ocl_tonemap.sample import write_tunnel_sequence
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     d = os.path.join(base, "ocl-tonemap", "speed_accuracy", f"tunnel_{w}x{h}_60")
@@ -1045,7 +1045,7 @@ def diagnose(all_rows: list[Row], verdict) -> list[str]:
         knobs = [r for r in all_rows if r.op == op and f"{r.size[0]}x{r.size[1]}" == size
                  and r.cfg.knob != "tier" and r.worst(1) is not None]
         if tier == "draft":
-            from ocl_tonemap.backends.plan import QUALITY_TIERS
+            from ocl_tonemap.backends.quality import QUALITY_TIERS
             t = QUALITY_TIERS["draft"]
             mine = {f"{k}={v}" for k, v in t.operator_options} | \
                 {f"{k}={v}" for k, v in t.effects} | {f"display_encode={t.display_encode}"}

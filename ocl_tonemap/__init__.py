@@ -6,16 +6,16 @@ OpenCL, with a float64 NumPy reference, for OpenImageIO/OpenColorIO
 pipelines. See README.md; the Python API is :class:`Tonemapper`.
 """
 
-__version__ = "0.1.0"
+from .version import __version__
 
 #: The public names, imported on first use (``import ocl_tonemap`` stays cheap for the
 #: command line's quick paths: ``--version``, ``devices``).
 _LAZY = {"Tonemapper": ".pipeline", "AdaptationState": ".state", "DisplaySpec": ".models.display",
          "EffectSettings": ".effects", "MeteringSpec": ".models.metering",
-         "OcioExport": ".colour.export"}
+         "OcioExport": ".colour.export", "process_imagebuf": ".job.imagebuf"}
 
 __all__ = ["Tonemapper", "AdaptationState", "DisplaySpec", "EffectSettings", "MeteringSpec",
-           "OcioExport", "__version__"]
+           "OcioExport", "process_imagebuf", "__version__"]
 
 
 def __getattr__(name: str):

@@ -5,6 +5,8 @@ exits 130, SIGTERM 143, in one line, never a traceback."""
 import os
 import sys
 
+from .interrupts import Terminated, exit_code, ignore_for_exit, install, ready
+
 
 def _leave(code: int) -> None:
     """End an interrupted run at once: its files are closed and its temporaries
@@ -80,15 +82,13 @@ def _one_blas_thread() -> None:
 
 def _entry() -> int:
     try:
-        from .interrupts import install, ready
         install()
         ready("handlers")
         _malloc_for_frames()
         _one_blas_thread()
-        from .cli import main
+        from .cli import main             # lazy: after the handlers and the BLAS setting
         code = main()
     except BaseException as exc:          # noqa: BLE001 - only the two signals end here
-        from .interrupts import Terminated, exit_code
         if not isinstance(exc, (KeyboardInterrupt, Terminated)):
             raise
         print("ocl-tonemap: interrupted" if isinstance(exc, KeyboardInterrupt)
@@ -96,7 +96,6 @@ def _entry() -> int:
         code = exit_code(exc)
     if code in (130, 143):
         _leave(code)
-    from .interrupts import ignore_for_exit
     ignore_for_exit()                     # done: a signal now would only cut the exit short
     release_locks()
     return code

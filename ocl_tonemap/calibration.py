@@ -33,6 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .models.photometry import Y_WEIGHTS
+
 #: ISO 2720 reflected-light meter calibration constant K (cd s m^-2 ISO).
 METER_K = 12.5
 #: Scene-linear value a camera exposes a metered (mid-grey) surface to.
@@ -46,6 +48,19 @@ RADIANCE_EFFICACY = 179.0
 #: offices); an overcast day 10 000 lx; direct sun + sky ~90 000 lx.
 NAMED_LEVELS = {"night": 0.01, "dusk": 1.0, "interior": 30.0, "overcast": 500.0,
                 "daylight": 5000.0}
+
+#: The physical range of adaptation luminances a user gives (``--help`` states it),
+#: cd/m^2 (0: darkness; starlight is ~1e-4, the sun's disc ~1e9 but no eye adapts
+#: to it).
+ADAPT_LUMINANCE = (1e-6, 1e8)
+
+
+def check_luminance(L: float, flag: str, zero_ok: bool = True) -> float:
+    lo, hi = ADAPT_LUMINANCE
+    if not (math.isfinite(L) and ((zero_ok and L == 0) or lo <= L <= hi)):
+        raise ValueError(f"{flag} {L:g} cd/m^2 is outside {lo:g}..{hi:g} cd/m^2"
+                         + (" (or 0: darkness)" if zero_ok else ""))
+    return L
 
 
 @dataclass(frozen=True)
@@ -72,7 +87,6 @@ class CalibrationRequest:
                                  f"in cd/m^2 or one of {', '.join(NAMED_LEVELS)}")
             if lvl in NAMED_LEVELS:
                 return cls(auto_level=NAMED_LEVELS[lvl], auto_name=lvl)
-            from .job.options import check_luminance
             return cls(auto_level=check_luminance(_float(lvl, "--luminance-scale auto:"),
                                                   "--luminance-scale auto:", zero_ok=False))
         return cls(scale=_positive(_float(t, "--luminance-scale"), "--luminance-scale"))
@@ -137,7 +151,6 @@ class LogAverage:
         self.total, self.count = 0.0, 0
 
     def add(self, rgb: np.ndarray) -> "LogAverage":
-        from .models.photometry import Y_WEIGHTS
         flat = np.asarray(rgb)[..., :3].reshape(-1, 3)
         first = (-self.pos) % self.step
         Y = flat[first::self.step].astype(np.float64) @ Y_WEIGHTS

@@ -1,21 +1,22 @@
-"""The command line's options, in the groups its help shows them in: declared once,
-for every sub-command that takes them (``cli.py`` builds the sub-commands)."""
+"""The command line's options, in the groups its help shows them in. Each group
+declares its flags once, for every sub-command that takes them, and builds its
+part of the job's options (:func:`job_options`); the operators' and the effects'
+flags are made from their declared options (``Option``, ``EffectOption``), so a
+plugin's come with it."""
 
 from __future__ import annotations
 
 import argparse
+import logging
+import sys
+from typing import Callable, NamedTuple
 
-#: The run options' groups, in the order ``--help`` lists them.
-GROUPS = (("input", "input (which frames, from which files)"),
-          ("calibration", "calibration (what 1.0 of the input is, in cd/m^2)"),
-          ("operator", "operator and observer"),
-          ("effects", "mechanisms and effects (every operator)"),
-          ("display", "display (OCIO)"),
-          ("output", "output"),
-          ("run", "run (state, checkpoints, device, memory)"))
+from .patterns import parse_frames
+
+log = logging.getLogger("ocl_tonemap")
 
 
-class _Group:
+class _Shown:
     """An argument group, or the parser itself with every help suppressed (an option
     accepted but not listed)."""
 
@@ -28,144 +29,123 @@ class _Group:
         return self.target.add_argument(*args, **kw)
 
     def add_mutually_exclusive_group(self):
-        return _Group(self.target.add_mutually_exclusive_group(), self.shown)
+        return _Shown(self.target.add_mutually_exclusive_group(), self.shown)
+
+
+class Group(NamedTuple):
+    """One group of run options: ``flags(g)`` declares them on ``g``; ``build(a, tier)``
+    their part of :class:`~ocl_tonemap.job.options.JobOptions` from the parsed ``a``."""
+
+    key: str
+    title: str
+    flags: Callable
+    build: Callable
 
 
 def _registry() -> dict:
     """The operators (imported when the options are made: ``--version`` and ``devices``
     need none of them, nor NumPy)."""
-    from .operators import registry
+    from .operators import registry  # lazy: --help loads no NumPy
     return registry()
 
 
-def add_run_options(p: argparse.ArgumentParser, shown: bool = True) -> None:
-    """The options every run-like sub-command takes, in groups (:data:`GROUPS`);
-    ``shown`` False: accepted but left out of the sub-command's help (the shot passes
-    say "every option of run" instead of repeating them)."""
-    from .backends.plan import QUALITY_NAMES
-    G = {k: _Group(p.add_argument_group(t) if shown else p, shown) for k, t in GROUPS}
-    G["input"].add_argument("--frames", help="frame range for sequence patterns: A-B, A-BxSTEP, or a list")
-    G["input"].add_argument("--fps", type=float, help="frames per second, up to 1e6 (default: "
+def _ignored(flag: str, where: str, operator: str) -> None:
+    log.warning("%s applies to %s: ignored for %s", flag, where, operator)
+
+
+# -- input -----------------------------------------------------------------------------------
+def _input_flags(g) -> None:
+    g.add_argument("--frames", help="frame range for sequence patterns: A-B, A-BxSTEP, or a list")
+    g.add_argument("--fps", type=float, help="frames per second, up to 1e6 (default: "
                    "FramesPerSecond metadata, else 24)")
-    ops = _registry()
-    G["operator"].add_argument("--operator", default="pattanaik00", choices=sorted(ops),
-                   help="the model (default pattanaik00; README: the operators)")
-    G["operator"].add_argument("--mode", choices=["default", "paper"],
-                   help="default: the operator as it looks right on photographs; paper: its "
-                   "paper taken literally (docs/models.md says where they differ)")
-    G["operator"].add_argument("--metering", default="logmean",
-                   help="logmean (default) | mean | max | centre[:mean] | spot:X,Y[,SIGMA] | "
-                   "percentile:P | mask:WEIGHTS.exr (README: Metering)")
-    G["calibration"].add_argument("--luminance-scale", metavar="S|auto:LEVEL",
+    g.add_argument("--iscolorspace", help="input colourspace (default: file metadata, file "
+                   "rules, scene_linear)")
+    x = g.add_mutually_exclusive_group()
+    x.add_argument("--unpremult", dest="unpremult", action="store_true", default=None,
+                   help="the input's colour is premultiplied by alpha: divide before tone "
+                   "mapping, multiply after (default: from the file, oiio:UnassociatedAlpha)")
+    x.add_argument("--no-unpremult", dest="unpremult", action="store_false",
+                   help="tone map the colour as stored")
+    g.add_argument("--stills", action="store_true",
+                   help="independent stills: each frame its own observer, no state files")
+    g.add_argument("--missing", choices=["error", "hold", "skip"], default="error",
+                   help="a frame missing inside a sequence: error (default), hold or skip")
+    g.add_argument("--channels", metavar="R,G,B",
+                   help="input channels to use as R,G,B (or one name: luminance); default the "
+                   "R, G, B channels by name")
+
+
+def _input_build(a, tier) -> dict:
+    return {"frames": parse_frames(a.frames) if a.frames else None, "fps": a.fps,
+            "iscolorspace": a.iscolorspace, "unpremult": a.unpremult, "stills": a.stills,
+            "missing": a.missing,
+            "channels": [c.strip() for c in a.channels.split(",")] if a.channels else None}
+
+
+# -- calibration -----------------------------------------------------------------------------
+def _calibration_flags(g) -> None:
+    g.add_argument("--luminance-scale", metavar="S|auto:LEVEL",
                    help="cd/m^2 of pixel value 1.0, or auto:LEVEL (1e-6..1e8 cd/m^2, or night, "
                    "dusk, interior, overcast, daylight) for the first frame's log-average "
                    "(default: the file's calibration, else 1 with a warning)")
-    G["calibration"].add_argument("--exposure", type=float, default=0.0, help="extra scale in stops (EV), "
+    g.add_argument("--exposure", type=float, default=0.0, help="extra scale in stops (EV), "
                    "-100..100")
-    G["display"].add_argument("--colorconfig", help="OCIO config: file, ocio:// URI or 'ocl-tonemap' "
-                   "(default: $OCIO, else ocio://default)")
-    G["input"].add_argument("--iscolorspace", help="input colourspace (default: file metadata, file "
-                   "rules, scene_linear)")
-    G["display"].add_argument("--display", help="OCIO display (default: the config's default)")
-    G["display"].add_argument("--view", help="OCIO view (default: the un-tone-mapped view)")
-    G["display"].add_argument("--display-model", default="display", choices=["display", "paper-crt"],
-                   help="display observer: from the chosen display (default), or Pattanaik "
-                   "2000's CRT")
-    G["display"].add_argument("--display-white", type=float, help="display white, cd/m^2 (default: 100 SDR, "
-                   "peak for HDR)")
-    G["display"].add_argument("--display-peak", type=float, default=1000.0, help="HDR display peak, cd/m^2 "
-                   "(default 1000)")
-    G["display"].add_argument("--display-black", type=float, help="display black, cd/m^2 (default: white/1000 "
-                   "for SDR, 0.005 for HDR)")
-    g = G["input"].add_mutually_exclusive_group()
-    g.add_argument("--unpremult", dest="unpremult", action="store_true", default=None,
-                   help="the input's colour is premultiplied by alpha: divide before tone "
-                   "mapping, multiply after (default: from the file, oiio:UnassociatedAlpha)")
-    g.add_argument("--no-unpremult", dest="unpremult", action="store_false",
-                   help="tone map the colour as stored")
-    G["output"].add_argument("--encode", action="store_true",
-                   help="EXR/HDR outputs: display-encoded code values (tagged with the display "
-                   "colourspace) instead of display-linear light (the default for float outputs)")
-    G["display"].add_argument("--display-encode", choices=["auto", "table", "ocio"], default=None,
-                   help="auto (default: OCIO's display baked into a table on the device where "
-                   "within one 10-bit code), table or ocio (OCIO's CPU processor)")
-    G["operator"].add_argument("--preadapt", help="initial adaptation: CD_M2 (0 or 1e-6..1e8; fully adapted) or "
-                   "CD_M2:SECONDS (0..1e7, an m suffix: minutes; exposed that long from dark)")
-    G["run"].add_argument("--state-in", help="start from this adaptation state: a state JSON, or an "
-                   "output frame of ocl-tonemap (its ocltm:state; global operators)")
-    G["run"].add_argument("--state-out", help="write the adaptation state here (default: OUTPUT without frame number + "
-                   ".state.json)")
-    G["run"].add_argument("--resume", action="store_true",
-                   help="continue an interrupted run from its checkpoint, to the frames of one run")
-    G["run"].add_argument("--no-checkpoint", dest="checkpoint", action="store_false",
-                   help="do not write the state after every frame")
-    G["run"].add_argument("--checkpoint-every", type=int, default=1, metavar="N",
-                   help="write the state every N frames (default 1)")
-    G["run"].add_argument("--cuts", metavar="FILE|detect",
-                   help="scene cuts, where the observer starts afresh: a file of frame numbers, or "
-                   "detect (a jump of more than 1 log10 in the cone goal; shot passes)")
-    G["input"].add_argument("--stills", action="store_true",
-                   help="independent stills: each frame its own observer, no state files")
-    G["input"].add_argument("--missing", choices=["error", "hold", "skip"], default="error",
-                   help="a frame missing inside a sequence: error (default), hold or skip")
-    G["run"].add_argument("--backend", default=None, choices=["opencl", "reference"],
-                   help="opencl (default) or reference (float64 NumPy)")
-    G["run"].add_argument("--quality", choices=list(QUALITY_NAMES), default=None,
-                   help="draft, balanced (default) or reference: the default of every speed/accuracy "
-                   "knob (README: Speed or accuracy)")
-    G["run"].add_argument("--device", help="OpenCL device: P:D index, gpu, cpu or a name substring")
-    G["output"].add_argument("--out-bits", choices=["8", "16", "half", "float"],
-                   help="output sample type (default by extension: EXR half, TIFF 16, PNG/JPEG 8)")
-    G["run"].add_argument("--max-memory", type=float, metavar="MIB",
-                   help="host memory budget: larger frames are read, mapped and written in row "
-                   "bands (default: a quarter of the machine's memory)")
-    G["output"].add_argument("--png-level", type=int, default=1, metavar="0-9",
-                   help="zlib level of PNG outputs (default 1)")
-    G["output"].add_argument("--png-filter", choices=("sub", "none", "adaptive"), default="sub",
-                   help="PNG row filter (default sub)")
-    G["run"].add_argument("--serial-io", action="store_true",
-                   help="read, map and write each frame in turn (default: the next frame read and "
-                   "the last written while the device works)")
-    G["input"].add_argument("--channels", metavar="R,G,B",
-                   help="input channels to use as R,G,B (or one name: luminance); default the "
-                   "R, G, B channels by name")
-    G["output"].add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
-    G["output"].add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
-    G["output"].add_argument("--ocio-export", metavar="DIR",
-                   help="also write the observer as an OCIO view: DIR/<name>.ocio and a CLF per frame "
-                   "(docs/ocio_export.md)")
-    G["output"].add_argument("--ocio-export-size", default="auto", metavar="N|auto",
-                   help="nodes per axis of the exported LUTs: 17, 25, 33, 49, 65 or auto (default)")
-    G["run"].add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
-    add_operator_options(p, shown)
-    g = G["effects"]
-    g.add_argument("--model", choices=["auto", "full", "none"],
-                   help="auto (default): each frame the mechanisms it needs, within one JND of full; "
-                   "full: every effect; none: the operator alone")
-    for name, what in (("flare", "glare of light sources (Spencer et al. 1995)"),
-                       ("acuity", "loss of acuity in the dark (Shaler 1937)"),
-                       ("chromatic-adaptation", "von Kries adaptation to the illuminant, tau 5 s"),
-                       ("purkinje", "rod colour shift of kirk11 on the scene's colours "
-                        "(Kirk & O'Brien 2011)")):
-        g.add_argument(f"--{name}", choices=["on", "off", "auto"], help=what)
-    g.add_argument("--fov", type=float, help="angular width of the image, degrees, 0..360 "
-                   "(default: a Radiance picture's VIEW, else 50)")
-    g.add_argument("--illuminant", help="illuminant for chromatic adaptation: x,y or a name "
-                   "(D65, D50, A, F2, F11, LED-B3 ...); default: EXR adoptedNeutral, else "
-                   "estimated from the frame")
-    g.add_argument("--flare-method", choices=["fast", "exact"],
-                   help="fast: Gaussians on a pyramid (default); exact: FFT of the full PSF")
-    g.add_argument("--flare-threshold", type=float,
-                   help="light sources are pixels above this x the adaptation level (default 7)")
-    g.add_argument("--flare-sampling", type=int, metavar="N",
-                   help="fast flare: Gaussians per octave (default 1)")
+
+
+def _calibration_build(a, tier) -> dict:
+    return {"luminance_scale": a.luminance_scale, "exposure": a.exposure}
+
+
+# -- operator --------------------------------------------------------------------------------
+def _operator_flags(g) -> None:
+    g.add_argument("--operator", default="pattanaik00", choices=sorted(_registry()),
+                   help="the model (default pattanaik00; README: the operators)")
+    g.add_argument("--mode", choices=["default", "paper"],
+                   help="default: the operator as it looks right on photographs; paper: its "
+                   "paper taken literally (docs/models.md says where they differ)")
+    g.add_argument("--metering", default="logmean",
+                   help="logmean (default) | mean | max | centre[:mean] | spot:X,Y[,SIGMA] | "
+                   "percentile:P | mask:WEIGHTS.exr (README: Metering)")
+    g.add_argument("--preadapt", help="initial adaptation: CD_M2 (0 or 1e-6..1e8; fully "
+                   "adapted) or CD_M2:SECONDS (0..1e7, an m suffix: minutes; exposed that "
+                   "long from dark)")
+
+
+def _operator_build(a, tier) -> dict:
+    from .job.options import parse_preadapt  # lazy: the parser loads no OIIO
+    return {"operator": a.operator, "metering": a.metering,
+            "preadapt": parse_preadapt(a.preadapt) if a.preadapt else None,
+            "operator_options": _operator_options(a, tier)}
+
+
+def _operator_options(a, tier) -> dict | None:
+    """The operator's options given on the command line over the ``--quality`` tier's
+    (only those the chosen operator declares); a flag given for another operator is
+    ignored with a warning (one rule for all of them)."""
+    opts = {"mode": a.mode} if a.mode else {}
+    for o, ops in operator_flags():
+        v = getattr(a, o.dest)
+        if v is None or v == o.default:
+            continue
+        if o.check is not None:
+            o.check(v)
+        if a.operator not in ops:
+            _ignored(o.flag, " and ".join(ops), a.operator)
+            continue
+        opts[o.name] = o.convert(v) if o.convert else v
+    reg = _registry()
+    if reg[a.operator].metering == "local" and a.metering != "logmean":
+        metered = ", ".join(n for n, c in reg.items() if c.metering != "local")
+        _ignored("--metering", f"the global operators ({metered}); "
+                 f"{a.operator} adapts locally", a.operator)
+    declared = [o.name for o in reg[a.operator].options]
+    return {**tier.options_for(declared), **opts} or None
 
 
 def operator_flags() -> list:
-    """The command-line options of every registered operator, generated from their
-    option specs: [(Option, operators declaring it)], one entry per flag (``--mode``,
-    shared by all, is a run option). Given for another operator, a flag is ignored
-    with a warning (one rule for all of them)."""
+    """The command-line options of every registered operator, from their option specs:
+    [(Option, operators declaring it)], one entry per flag (``--mode``, shared by all,
+    is a run option)."""
     out: dict = {}
     for name, cls in _registry().items():
         for o in cls.options:
@@ -177,19 +157,202 @@ def operator_flags() -> list:
     return [(o, tuple(ops)) for o, ops in out.values()]
 
 
+def _add_declared(g, o, default=None) -> None:
+    """A flag made from a declared option (an operator's or an effect's)."""
+    kw = {"help": o.help, "default": default}
+    for k in ("type", "choices", "metavar"):
+        if getattr(o, k) is not None:
+            kw[k] = getattr(o, k)
+    g.add_argument(o.flag, dest=o.dest, **kw)
+
+
 def add_operator_options(p: argparse.ArgumentParser, shown: bool = True) -> None:
     """Each operator's own options (its ``Option`` specs), a group per operator set."""
     groups: dict = {}
     for o, ops in operator_flags():
         title = ", ".join(ops)
         if title not in groups:
-            groups[title] = _Group(p.add_argument_group(f"{title} options") if shown else p,
+            groups[title] = _Shown(p.add_argument_group(f"{title} options") if shown else p,
                                    shown)
-        kw = {"help": o.help, "default": o.default}
-        for k in ("type", "choices", "metavar"):
-            if getattr(o, k) is not None:
-                kw[k] = getattr(o, k)
-        groups[title].add_argument(o.flag, dest=o.dest, **kw)
+        _add_declared(groups[title], o, o.default)
+
+
+# -- effects ---------------------------------------------------------------------------------
+def _effect_flags(g) -> None:
+    from .effects.settings import options  # lazy: --help loads no NumPy
+    g.add_argument("--model", choices=["auto", "full", "none"],
+                   help="auto (default): each frame the mechanisms it needs, within one JND of "
+                   "full; full: every effect; none: the operator alone")
+    for o, _ in options().values():
+        _add_declared(g, o)
+
+
+def _effect_build(a, tier) -> dict:
+    """The effects asked for, over the ``--quality`` tier's defaults; a parameter given
+    for effects that are all off is ignored with a warning (one rule for all)."""
+    from .effects.settings import EffectSettings, options  # lazy: --help loads no NumPy
+    given = {k: getattr(a, o.dest) for k, (o, _) in options().items()}
+    fx = EffectSettings.for_operator(
+        a.operator, a.model or "auto", paper=a.mode == "paper",
+        **{**dict(tier.effects), **{k: v for k, v in given.items() if v is not None}})
+    for k, (o, owners) in options().items():
+        if k in owners or given[k] is None:
+            continue                        # a switch, or not given
+        if all(getattr(fx, e) == "off" for e in owners):
+            flags = "/".join("--" + e.replace("_", "-") for e in owners)
+            log.warning("%s applies to an effect that is off: ignored (switch it on with "
+                        "%s on|auto)", o.flag, flags)
+    return {"effects": fx, "fov_given": getattr(a, "fov", None) is not None}
+
+
+# -- display, output, run --------------------------------------------------------------------
+def _display_flags(g) -> None:
+    g.add_argument("--colorconfig", help="OCIO config: file, ocio:// URI or 'ocl-tonemap' "
+                   "(default: $OCIO, else ocio://default)")
+    g.add_argument("--display", help="OCIO display (default: the config's default)")
+    g.add_argument("--view", help="OCIO view (default: the un-tone-mapped view)")
+    g.add_argument("--display-model", default="display", choices=["display", "paper-crt"],
+                   help="display observer: from the chosen display (default), or Pattanaik "
+                   "2000's CRT")
+    g.add_argument("--display-white", type=float, help="display white, cd/m^2 (default: 100 "
+                   "SDR, peak for HDR)")
+    g.add_argument("--display-peak", type=float, default=1000.0, help="HDR display peak, "
+                   "cd/m^2 (default 1000)")
+    g.add_argument("--display-black", type=float, help="display black, cd/m^2 (default: "
+                   "white/1000 for SDR, 0.005 for HDR)")
+    g.add_argument("--display-encode", choices=["auto", "table", "ocio"], default=None,
+                   help="auto (default: OCIO's display baked into a table on the device where "
+                   "within one 10-bit code), table or ocio (OCIO's CPU processor)")
+
+
+def _display_build(a, tier) -> dict:
+    return {"colorconfig": a.colorconfig, "display": a.display, "view": a.view,
+            "display_model": a.display_model, "display_white": a.display_white,
+            "display_peak": a.display_peak, "display_black": a.display_black,
+            "display_encode": a.display_encode or tier.display_encode}
+
+
+def _output_flags(g) -> None:
+    g.add_argument("--encode", action="store_true",
+                   help="EXR/HDR outputs: display-encoded code values (tagged with the display "
+                   "colourspace) instead of display-linear light (the default for float outputs)")
+    g.add_argument("--out-bits", choices=["8", "16", "half", "float"],
+                   help="output sample type (default by extension: EXR half, TIFF 16, PNG/JPEG 8)")
+    g.add_argument("--png-level", type=int, default=1, metavar="0-9",
+                   help="zlib level of PNG outputs (default 1)")
+    g.add_argument("--png-filter", choices=("sub", "none", "adaptive"), default="sub",
+                   help="PNG row filter (default sub)")
+    g.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
+    g.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
+    g.add_argument("--ocio-export", metavar="DIR",
+                   help="also write the observer as an OCIO view: DIR/<name>.ocio and a CLF per "
+                   "frame (docs/ocio_export.md)")
+    g.add_argument("--ocio-export-size", default="auto", metavar="N|auto",
+                   help="nodes per axis of the exported LUTs: 17, 25, 33, 49, 65 or auto (default)")
+
+
+def _output_build(a, tier) -> dict:
+    from .job.options import parse_export_size  # lazy: the parser loads no OIIO
+    if a.plot_frames and not a.plot:
+        log.warning("--plot-frames applies to --plot: ignored")
+    return {"encode": a.encode, "out_bits": a.out_bits, "png_level": a.png_level,
+            "png_filter": a.png_filter, "plot": a.plot,
+            "plot_frames": [int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
+            "ocio_export": a.ocio_export, "ocio_export_size": parse_export_size(a.ocio_export_size)}
+
+
+def _run_flags(g) -> None:
+    from .backends.quality import QUALITY_NAMES  # lazy: --help loads no dataclasses
+    g.add_argument("--state-in", help="start from this adaptation state: a state JSON, or an "
+                   "output frame of ocl-tonemap (its ocltm:state; global operators)")
+    g.add_argument("--state-out", help="write the adaptation state here (default: OUTPUT "
+                   "without frame number + .state.json)")
+    g.add_argument("--resume", action="store_true",
+                   help="continue an interrupted run from its checkpoint, to the frames of one run")
+    g.add_argument("--no-checkpoint", dest="checkpoint", action="store_false",
+                   help="do not write the state after every frame")
+    g.add_argument("--checkpoint-every", type=int, default=1, metavar="N",
+                   help="write the state every N frames (default 1)")
+    g.add_argument("--cuts", metavar="FILE|detect",
+                   help="scene cuts, where the observer starts afresh: a file of frame numbers, "
+                   "or detect (a jump of more than 1 log10 in the cone goal; shot passes)")
+    g.add_argument("--backend", default=None, choices=["opencl", "reference"],
+                   help="opencl (default) or reference (float64 NumPy)")
+    g.add_argument("--quality", choices=list(QUALITY_NAMES), default=None,
+                   help="draft, balanced (default) or reference: the default of every "
+                   "speed/accuracy knob (README: Speed or accuracy)")
+    g.add_argument("--device", help="OpenCL device: P:D index, gpu, cpu or a name substring")
+    g.add_argument("--max-memory", type=float, metavar="MIB",
+                   help="host memory budget: larger frames are read, mapped and written in row "
+                   "bands (default: a quarter of the machine's memory)")
+    g.add_argument("--serial-io", action="store_true",
+                   help="read, map and write each frame in turn (default: the next frame read "
+                   "and the last written while the device works)")
+    g.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
+
+
+def _run_build(a, tier) -> dict:
+    from .job.options import parse_cuts  # lazy: the parser loads no OIIO
+    if a.max_band_pixels is not None and a.max_band_pixels < 1:
+        raise ValueError("--max-band-pixels must be >= 1")
+    return {"state_in": a.state_in, "state_out": a.state_out, "resume": a.resume,
+            "checkpoint": a.checkpoint, "checkpoint_every": a.checkpoint_every,
+            "cuts": parse_cuts(a.cuts), "device": a.device, "quality": tier.name,
+            "max_memory": a.max_memory, "overlap_io": not a.serial_io,
+            "max_band_pixels": a.max_band_pixels,
+            "progress": (not a.quiet) and (a.verbose > 0 or sys.stderr.isatty())}
+
+
+#: The run options' groups, in the order ``--help`` lists them.
+GROUPS = (
+    Group("input", "input (which frames, from which files)", _input_flags, _input_build),
+    Group("calibration", "calibration (what 1.0 of the input is, in cd/m^2)",
+          _calibration_flags, _calibration_build),
+    Group("operator", "operator and observer", _operator_flags, _operator_build),
+    Group("effects", "mechanisms and effects (every operator)", _effect_flags, _effect_build),
+    Group("display", "display (OCIO)", _display_flags, _display_build),
+    Group("output", "output", _output_flags, _output_build),
+    Group("run", "run (state, checkpoints, device, memory)", _run_flags, _run_build),
+)
+
+
+def add_run_options(p: argparse.ArgumentParser, shown: bool = True) -> None:
+    """The options every run-like sub-command takes, in groups (:data:`GROUPS`);
+    ``shown`` False: accepted but left out of the sub-command's help (the shot passes
+    say "every option of run" instead of repeating them)."""
+    made = {}
+    for grp in GROUPS:
+        made[grp.key] = _Shown(p.add_argument_group(grp.title) if shown else p, shown)
+    for grp in GROUPS:
+        grp.flags(made[grp.key])
+        if grp.key == "run":
+            add_operator_options(p, shown)
+
+
+def job_options(a, input_, output, defer_backend: bool = False):
+    """The run's :class:`~ocl_tonemap.job.options.JobOptions`, each group building its
+    part; ``defer_backend``: the backend "auto", probed by ``job.run.run_job``."""
+    from .job.options import JobOptions  # lazy: the parser loads no OIIO
+    from .backends.quality import quality_tier  # lazy: --help loads no dataclasses
+    tier = quality_tier(a.quality)
+    parts = {}
+    for grp in GROUPS:
+        parts.update(grp.build(a, tier))
+    return JobOptions(input=input_, output=output, backend=_backend(a, tier, defer_backend),
+                      **parts)
+
+
+def _backend(a, tier, defer: bool = False) -> str:
+    """The backend a run uses. ``--backend`` given: that one (a broken or missing
+    OpenCL device is then an error, as is a ``--device`` naming a broken one).
+    Otherwise OpenCL on the first working device, else the float64 reference with one
+    warning line (``backends.select.resolve_backend``; ``defer``: "auto", for the job
+    to resolve)."""
+    if a.backend:
+        return a.backend
+    name = "auto" if tier.backend == "opencl" else tier.backend
+    from .backends.select import resolve_backend  # lazy: --help loads no NumPy
+    return name if defer and name == "auto" else resolve_backend(name, a.device)
 
 
 def add_shot_options(g, chunk: bool = False, chunk_frames: bool = False,

@@ -1,18 +1,14 @@
-"""Image reads through OpenImageIO: frames, sequences, the formats' tables.
+"""Image reads through OpenImageIO: frames and the formats' tables.
 
-Sequence patterns follow oiiotool: a lone ``#`` is four digits of padding,
-``@`` one digit each, printf ``%04d``; a run of several ``#`` is one digit
-each (Nuke style, so ``####`` is also four). Only the channels a frame uses are
-read. Writes (temporary file, read back, fsync, rename): ``imagewrite.py``.
+Only the channels a frame uses are read. File-name patterns of a sequence:
+``patterns.py``; reads in row bands: ``imagebands.py``; writes (temporary file,
+read back, fsync, rename): ``imagewrite.py``.
 """
 
 from __future__ import annotations
 
-import functools
-import glob
 import math
 import os
-import re
 import sys
 import threading
 from dataclasses import dataclass
@@ -20,10 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 import OpenImageIO as oiio
 
-from . import safeio
+from . import radiance, safeio
+from .channels import MIN_SPECTRAL_CHANNELS, channel_runs, select_channels, spectral_channels
+from .models.lmsr import spectral_to_rgb
+from .models.photometry import xy_to_rgb
 
-
-_PAT = re.compile(r"(#+|@+|%0?(\d*)d)")
 
 #: Default output sample type by file extension.
 DEFAULT_BITS = {".exr": "half", ".tif": "16", ".tiff": "16", ".png": "8", ".jpg": "8",
@@ -66,98 +63,6 @@ def one_line(e: BaseException, kind: bool = False) -> str:
         mod = type(e).__module__
         text = f"{'' if mod in ('builtins', None) else mod.split('.')[0] + ' '}{name}: {text}"
     return text
-
-
-def is_sequence(pattern: str) -> bool:
-    return bool(_PAT.search(os.path.basename(pattern)))
-
-
-def without_frame_token(name: str) -> str:
-    """A file name with its frame-number tokens and the separator before each
-    removed (``shot.####.png`` -> ``shot.png``): names derived from a pattern."""
-    return re.sub(r"[._-]?" + _PAT.pattern, "", name)
-
-
-#: Frame numbers are within +-MAX_FRAME, padded to at most MAX_PAD digits, and a
-#: run renders at most MAX_FRAMES of them (a day at 30 fps is 2.6 M; bounded so
-#: that a typo cannot take the memory or the time of the machine).
-MAX_FRAME = 999_999_999
-MAX_PAD = 16
-MAX_FRAMES = 1_000_000
-
-
-def _digits(tok: str) -> int:
-    if tok[0] == "#":
-        n = 4 if len(tok) == 1 else len(tok)
-    elif tok[0] == "@":
-        n = len(tok)
-    else:
-        m = re.fullmatch(r"%0?(\d*)d", tok)
-        n = int(m.group(1)) if m and m.group(1) and len(m.group(1)) < 6 else \
-            (MAX_PAD + 1 if m and m.group(1) else 0)
-    if n > MAX_PAD:
-        raise ValueError(f"frame pattern {tok[:12]!r}: at most {MAX_PAD} digits of padding")
-    return n
-
-
-def frame_path(pattern: str, frame: int) -> str:
-    """The file name of ``frame`` in ``pattern`` (every token is replaced)."""
-    def rep(m):
-        n = _digits(m.group(0))
-        s = f"{abs(frame):0{n}d}" if n else str(abs(frame))
-        return ("-" if frame < 0 else "") + s
-    d, b = os.path.split(pattern)
-    return os.path.join(d, _PAT.sub(rep, b))
-
-
-def find_frames(pattern: str) -> list[int]:
-    """Frame numbers of the files on disk that match ``pattern``."""
-    d, b = os.path.split(pattern)
-    parts = _PAT.split(b)
-    # re.split with 2 groups yields [text, tok, sub, text, tok, sub, ...]
-    rx, gl = "", ""
-    i = 0
-    while i < len(parts):
-        if i % 3 == 0:
-            rx += re.escape(parts[i])
-            gl += glob.escape(parts[i])
-            i += 1
-        else:
-            n = _digits(parts[i])
-            rx += r"(-?\d{%d,})" % max(n, 1) if n else r"(-?\d+)"
-            gl += "*"
-            i += 2
-    rxc = re.compile(rx + r"\Z")
-    frames = set()
-    for p in glob.glob(os.path.join(glob.escape(d) if d else "", gl)):
-        m = rxc.match(os.path.basename(p))
-        if m:
-            frames.add(int(m.group(1)))
-    return sorted(frames)
-
-
-def parse_frames(text: str) -> list[int]:
-    """``"1001-1100"``, ``"1-10x2"`` or ``"1,5,9-12"`` -> frame numbers."""
-    out: list[int] = []
-    if len(text) > 100_000:
-        raise ValueError("--frames: more than 100 000 characters")
-    for part in text.split(","):
-        part = part.strip()
-        m = re.fullmatch(r"(-?\d{1,10})(?:-(-?\d{1,10})(?:x(\d{1,10}))?)?", part)
-        if not m:
-            raise ValueError(f"bad --frames {text[:80]!r} (use A-B, A-BxSTEP or a comma list)")
-        a = int(m.group(1))
-        b = int(m.group(2)) if m.group(2) is not None else a
-        step = int(m.group(3) or 1)
-        if b < a or step < 1:
-            raise ValueError(f"bad --frames range {part!r}")
-        if max(abs(a), abs(b)) > MAX_FRAME:
-            raise ValueError(f"--frames {part}: frame numbers are within +-{MAX_FRAME}")
-        if len(out) + (b - a) // step + 1 > MAX_FRAMES:
-            raise ValueError(f"--frames {text[:80]}: more than {MAX_FRAMES} frames in one run; "
-                             "split the shot")
-        out.extend(range(a, b + 1, step))
-    return out
 
 
 @dataclass
@@ -210,51 +115,6 @@ def oiio_error(text: str) -> str:
         if line and line not in seen:
             seen.append(line)
     return "; ".join(seen[:3]) or "unknown error"
-
-
-def select_channels(spec, channels: list[str] | None = None) -> tuple[list[int], str | None]:
-    """(indices of R, G, B [, alpha], note) for a file's channels.
-
-    R, G, B by name (``layer.R`` too) when the file has them; ``channels`` (names
-    or numbers, 1 or 3 of them; ``--channels``) otherwise or to override; one
-    channel is luminance (grey); three or more unnamed channels are taken in
-    order. Two channels (R, G without B; a UV map) are refused: there is no
-    honest way to make light of them. The note says what was assumed."""
-    names = list(spec.channelnames)
-    short = [n.split(".")[-1].upper() for n in names]
-    alpha = spec.alpha_channel if spec.alpha_channel >= 0 else (short.index("A") if "A" in short else -1)
-    note = None
-
-    def find(c):
-        if c.isdigit() and int(c) < len(names):
-            return int(c)
-        for i, n in enumerate(names):
-            if n == c or short[i] == c.upper():
-                return i
-        raise ValueError(f"--channels: the file has no channel {c!r} (it has {', '.join(names)})")
-
-    if channels:
-        idx = [find(c) for c in channels]
-        if len(idx) == 1:
-            idx = idx * 3
-        elif len(idx) != 3:
-            raise ValueError("--channels takes one name (luminance) or three (R,G,B)")
-        note = f"channels {', '.join(names[i] for i in dict.fromkeys(idx))} used as R, G, B"
-    elif all(c in short for c in "RGB"):
-        idx = [short.index(c) for c in "RGB"]
-    elif spec.nchannels == 1 or (len(short) >= 1 and short[0] == "Y" and "Y" in short
-                                 and spec.nchannels - (alpha >= 0) == 1):
-        idx = [short.index("Y") if "Y" in short else 0] * 3
-        note = f"1 channel ({names[idx[0]]}): taken as luminance"
-    elif spec.nchannels - (alpha >= 0) == 2 or spec.nchannels == 2:
-        raise ValueError(f"2 channels ({', '.join(names)}) are not a colour image; give the "
-                         "channels to use with --channels (one name for luminance, or R,G,B)")
-    else:
-        idx = [i for i in range(spec.nchannels) if i != alpha][:3]
-        note = f"no R, G, B channels: {', '.join(names[i] for i in idx)} used as R, G, B"
-    if alpha >= 0 and alpha not in idx:
-        idx.append(alpha)
-    return idx, note
 
 
 def max_frame_bytes() -> float:
@@ -352,13 +212,12 @@ def read_frame(path: str, frame: int | None = None, channels: list[str] | None =
     finally:
         if src != path:
             safeio.remove(src)
-    return as_radiance(fr, rad)
+    return radiance.as_read(fr, rad)
 
 
 def radiance_source(path: str, frame: int | None):
     """(header or None, the file OIIO reads) of a picture: a Radiance picture's header
     (``radiance.py``); an XYZE picture is read from a copy that says rgbe."""
-    from . import radiance
     if not radiance.is_radiance(path):
         return None, path
     try:
@@ -366,31 +225,6 @@ def radiance_source(path: str, frame: int | None):
     except (radiance.HeaderError, OSError) as exc:
         raise FrameError(path, frame, f"cannot read its Radiance header: {exc}") from None
     return rad, (radiance.rgbe_copy(path) if rad.xyze else path)
-
-
-def as_radiance(fr: Frame, rad) -> Frame:
-    """A Radiance picture's frame as Radiance's tools read it: divided by its EXPOSURE
-    and COLORCORR, its chromaticities from PRIMARIES (or XYZ, or Radiance's standard
-    primaries for a rendering) in place of OIIO's Rec.709 tag."""
-    if rad is None:
-        return fr
-    fr.radiance = rad
-    if fr.pixels.size:
-        fr.pixels = radiance_values(fr.pixels, rad)
-    chrom = rad.chromaticities
-    if chrom is not None:
-        fr.chromaticities, fr.colorspace = tuple(float(v) for v in chrom), None
-    return fr
-
-
-def radiance_values(pixels: np.ndarray, rad) -> np.ndarray:
-    """RGB (+alpha) of a Radiance picture divided by its EXPOSURE and COLORCORR."""
-    div = np.asarray(rad.colorcorr, np.float64) * rad.exposure
-    if np.all(div == 1.0):
-        return pixels
-    out = np.array(pixels, np.float32, copy=True)
-    out[..., :3] = (out[..., :3] / div).astype(np.float32)
-    return out
 
 
 def _extra_channels(path: str) -> bool:
@@ -494,7 +328,6 @@ def frame_from_pixels(spec, pix, fmt: str, path: str, frame: int | None,
     names = [n.split(".")[-1].upper() for n in spec.channelnames]
     from_spectrum = False
     if lam is not None and not all(c in names for c in "RGB"):
-        from .models.lmsr import spectral_to_rgb
         pix = spectral_to_rgb(lam, cube).astype(np.float32)     # working RGB, cd/m^2
         from_spectrum = True
     note = None
@@ -518,24 +351,6 @@ def frame_from_pixels(spec, pix, fmt: str, path: str, frame: int | None,
                  bool(spec.getattribute("oiio:UnassociatedAlpha") or 0), note)
 
 
-_SPECTRAL_CHANNEL = re.compile(r"^(?:S0\.)?(\d+(?:[.,]\d*)?)\s*nm$|^(\d{3}(?:[.,]\d*)?)$",
-                               re.IGNORECASE)
-#: Fewest wavelength-named channels that make a file spectral.
-MIN_SPECTRAL_CHANNELS = 4
-
-
-def spectral_channels(names) -> list[tuple[int, float]]:
-    """(index, wavelength nm) of the channels named by wavelength: the spectral
-    OpenEXR convention ``S0.<wl>nm`` (Fichet et al. 2021; a comma may stand for
-    the decimal point) or plain ``<wl>nm`` / ``<wl>`` names, sorted by wavelength."""
-    out = []
-    for i, n in enumerate(names):
-        m = _SPECTRAL_CHANNEL.match(n.strip())
-        if m:
-            out.append((i, float((m.group(1) or m.group(2)).replace(",", "."))))
-    return sorted(out, key=lambda t: t[1]) if len(out) >= MIN_SPECTRAL_CHANNELS else []
-
-
 def _spectral_part(spec, pix_all: np.ndarray, path: str, frame):
     chans = spectral_channels(spec.channelnames)
     if not chans:
@@ -546,22 +361,16 @@ def _spectral_part(spec, pix_all: np.ndarray, path: str, frame):
     return lam, np.ascontiguousarray(pix_all[..., [i for i, _ in chans]], np.float32)
 
 
-def same_file(a: str, b: str) -> bool:
+def illuminant_from_metadata(spec) -> np.ndarray | None:
+    """The EXR ``adoptedNeutral`` chromaticity (x, y) of a frame, as normalised RGB."""
+    if spec is None:
+        return None
+    v = spec.getattribute("adoptedNeutral")
     try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return os.path.abspath(a) == os.path.abspath(b)
-
-
-def channel_runs(idx) -> list[tuple[int, int]]:
-    """[chbegin, chend) runs of adjacent channels covering ``idx``."""
-    runs: list[list[int]] = []
-    for c in sorted(set(int(i) for i in idx)):
-        if runs and c == runs[-1][1]:
-            runs[-1][1] = c + 1
-        else:
-            runs.append([c, c + 1])
-    return [(a, b) for a, b in runs]
+        x, y = float(v[0]), float(v[1])
+        return xy_to_rgb(x, y)
+    except (TypeError, ValueError, IndexError):
+        return None
 
 
 class BandReader:
@@ -600,7 +409,7 @@ class BandReader:
                             tuple(float(v) for v in chrom)
                             if isinstance(chrom, (tuple, list)) and len(chrom) == 8 else None,
                             bool(spec.getattribute("oiio:UnassociatedAlpha") or 0), note)
-        as_radiance(self.header, self.rad)
+        radiance.as_read(self.header, self.rad)
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -624,7 +433,7 @@ class BandReader:
             0, 0, s.y + y0, s.y + y1, 0, cb, ce, oiio.FLOAT), y1 - y0, y0, y1))
 
     def _radiance(self, rows: np.ndarray) -> np.ndarray:
-        return rows if self.rad is None else radiance_values(rows, self.rad)
+        return rows if self.rad is None else radiance.divided(rows, self.rad)
 
     def _drop_copy(self) -> None:
         if getattr(self, "_src", self.path) != self.path:
@@ -653,38 +462,3 @@ class BandReader:
             self.inp.close()
             self.inp = None
         self._drop_copy()
-
-
-@functools.lru_cache(maxsize=8)
-def read_weight_mask(path: str, width: int, height: int) -> np.ndarray:
-    """A ``mask:`` metering weight image resized to (height, width), float32 weights >= 0."""
-    if not os.path.exists(path):
-        raise ValueError(f"metering mask {path}: no such file")
-    buf = oiio.ImageBuf(path)
-    if buf.has_error:
-        raise ValueError(f"metering mask {path}: cannot read: {buf.geterror().strip()}")
-    spec = buf.spec()
-    if (spec.width, spec.height) != (width, height):
-        buf = oiio.ImageBufAlgo.resize(buf, roi=oiio.ROI(0, width, 0, height, 0, 1, 0,
-                                                           spec.nchannels))
-    px = np.asarray(buf.get_pixels(oiio.FLOAT), np.float64).reshape(height, width, -1)
-    nc = px.shape[2]
-    colour = [i for i in range(nc) if i != spec.alpha_channel] or [0]
-    w = np.nan_to_num(px[..., colour[:3]].mean(axis=2), nan=0.0, posinf=0.0, neginf=0.0)
-    w = np.maximum(w, 0.0)
-    if not w.sum() > 0:
-        raise ValueError(f"metering mask {path}: no positive weight")
-    return w.astype(np.float32)
-
-
-def illuminant_from_metadata(spec) -> np.ndarray | None:
-    """The EXR ``adoptedNeutral`` chromaticity (x, y) of a frame, as normalised RGB."""
-    if spec is None:
-        return None
-    v = spec.getattribute("adoptedNeutral")
-    try:
-        x, y = float(v[0]), float(v[1])
-        from .models.photometry import xy_to_rgb
-        return xy_to_rgb(x, y)
-    except (TypeError, ValueError, IndexError):
-        return None

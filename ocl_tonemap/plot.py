@@ -12,6 +12,9 @@ import os
 
 import numpy as np
 
+from . import safeio
+from .mechanisms.planner import mechanisms
+
 
 
 def mapping_curve(op, state, display, L: np.ndarray) -> np.ndarray | None:
@@ -104,7 +107,6 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
         ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    from . import safeio
     tmp = safeio.temp_path(path)
     try:
         fig.savefig(tmp, dpi=110, format=os.path.splitext(path)[1][1:].lower() or "png")
@@ -119,10 +121,9 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
 def _plot_plan(ax, infos) -> None:
     """The mechanism plan's weights over time (``mechanisms/``), one line each,
     offset a little so that lines on top of each other stay visible."""
-    from .mechanisms.planner import MECHANISMS
     rows = [(i.time_s, i.plan["weights"]) for i in infos if i.plan]
     t = np.array([r[0] for r in rows])
-    present = [m for m in MECHANISMS if any(m in w for _, w in rows)]
+    present = [m for m in mechanisms() if any(m in w for _, w in rows)]
     for k, m in enumerate(present):
         w = np.array([r[1].get(m, np.nan) for r in rows])
         ax.step(t, w + 0.02 * k, where="post", label=m)

@@ -28,6 +28,10 @@ import shutil
 import tempfile
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from .safeio import regular_file
+
 #: Largest header read (bytes): Radiance headers are a few hundred bytes to a few KiB.
 HEADER_CAP = 1 << 16
 #: Radiance's standard primaries (ray/src/common/color.h STDPRIMS): rx ry gx gy bx by wx wy.
@@ -107,7 +111,6 @@ def is_radiance(path: str) -> bool:
 def read_header(path: str) -> RadianceHeader:
     """The header of the Radiance picture at ``path`` (:class:`HeaderError` when it is
     not one or its header does not end within :data:`HEADER_CAP` bytes)."""
-    from .safeio import regular_file
     regular_file(path, "a Radiance picture")
     with open(path, "rb") as fh:
         data = fh.read(HEADER_CAP)
@@ -242,3 +245,28 @@ def tools() -> tuple[str, dict] | None:
         return None
     env = {**os.environ, "PATH": b + os.pathsep + os.environ.get("PATH", ""), "RAYPATH": lib}
     return b, env
+
+
+def as_read(fr, rad):
+    """A Radiance picture's frame (``imageio.Frame``) as Radiance's tools read it: divided by its EXPOSURE
+    and COLORCORR, its chromaticities from PRIMARIES (or XYZ, or Radiance's standard
+    primaries for a rendering) in place of OIIO's Rec.709 tag."""
+    if rad is None:
+        return fr
+    fr.radiance = rad
+    if fr.pixels.size:
+        fr.pixels = divided(fr.pixels, rad)
+    chrom = rad.chromaticities
+    if chrom is not None:
+        fr.chromaticities, fr.colorspace = tuple(float(v) for v in chrom), None
+    return fr
+
+
+def divided(pixels: np.ndarray, rad) -> np.ndarray:
+    """RGB (+alpha) of a Radiance picture divided by its EXPOSURE and COLORCORR."""
+    div = np.asarray(rad.colorcorr, np.float64) * rad.exposure
+    if np.all(div == 1.0):
+        return pixels
+    out = np.array(pixels, np.float32, copy=True)
+    out[..., :3] = (out[..., :3] / div).astype(np.float32)
+    return out

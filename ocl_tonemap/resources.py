@@ -6,6 +6,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from .version import __version__
+
 
 def package_data_dir(name: str, probe: str) -> Path:
     """``ocl_tonemap/<name>`` in an installed wheel (where pyproject maps the
@@ -55,7 +57,6 @@ def cached_json(kind: str, key, compute):
     that cannot be written is not an error."""
     import hashlib
     import json
-    from . import __version__
     ident = json.dumps([kind, __version__, key], sort_keys=True, default=str)
     path = user_cache_dir() / kind / f"{hashlib.sha256(ident.encode()).hexdigest()[:32]}.json"
     try:

@@ -14,7 +14,10 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
+from .models import lmsr
+from .models.lmsr import spectral_to_rgb
 from .models.photometry import Y_WEIGHTS
+from .patterns import frame_path
 
 SPEED = 25.0                 # m/s (90 km/h)
 CAM_H = 1.2                  # eye height, m
@@ -110,7 +113,6 @@ def write_tunnel_sequence(out_dir: str, width: int = 320, height: int = 180, fps
                           seconds: float = 8.0, first_frame: int = 1,
                           name: str = "tunnel.####.exr") -> tuple[str, list[int]]:
     """Write the tunnel drive; returns (pattern path, frame numbers)."""
-    from .imageio import frame_path
     os.makedirs(out_dir, exist_ok=True)
     n = int(round(seconds * fps))
     frames = list(range(first_frame, first_frame + n))
@@ -137,7 +139,6 @@ def spectral_patches(illuminant: str = "A", luminance: float = 1.0,
     as spectral radiance (W sr^-1 m^-2 nm^-1) sampled at ``wavelengths`` (default
     400-700 nm every 10 nm), scaled so that the perfect white would have
     ``luminance`` cd/m^2. Returns (wavelengths, (24, N) spectra, patch names)."""
-    from .models import lmsr
     colour = lmsr.colour_module()
     lam = np.arange(400.0, 701.0, 10.0) if wavelengths is None else np.asarray(wavelengths)
     il = colour.SDS_ILLUMINANTS[illuminant]
@@ -156,7 +157,6 @@ def write_spectral_image(path: str, illuminant: str = "A", luminance: float = 1.
     cube = np.repeat(np.repeat(spectra.reshape(4, 6, -1), patch_px, 0), patch_px, 1)
     names = [f"S0.{w:g}nm" for w in lam]
     if with_rgb:
-        from .models.lmsr import spectral_to_rgb
         cube = np.concatenate([spectral_to_rgb(lam, cube), cube], axis=2)
         names = ["R", "G", "B"] + names
     h, w, n = cube.shape

@@ -17,6 +17,7 @@ of the built-in schedules (per-pixel state kept on the host, or none).
 
 from __future__ import annotations
 
+import importlib
 from contextlib import contextmanager
 from typing import Callable, NamedTuple, Protocol
 
@@ -130,6 +131,10 @@ class Backend(Protocol):
     def purkinje_device(self):
         """The Purkinje shift kernels on the device, or None."""
 
+    def acuity_encoding(self, encoding, h: int, w: int, taps, t: float, blur):
+        """``encoding`` with the acuity blur (``taps``, blended by ``t``) on the device
+        before it, or None where the backend cannot."""
+
 
 class HostBackend:
     """What a backend without a device answers: nothing on a device, frames whole."""
@@ -146,6 +151,9 @@ class HostBackend:
         return None
 
     def purkinje_device(self):
+        return None
+
+    def acuity_encoding(self, encoding, h: int, w: int, taps, t: float, blur):
         return None
 
     def source_proxy_ahead(self, shape, stride: int, lim: float) -> None:
@@ -227,3 +235,11 @@ class PixelStateMixin(ScheduleDefaults):
         if tuple(have) != tuple(shape):
             raise ValueError(f"per-pixel adaptation state is {have[1]}x{have[0]} but the frame "
                              f"is {shape[1]}x{shape[0]}; local adaptation needs one image size")
+
+
+def load_schedule(spec: str):
+    """``"package.module:Class"`` (relative names start at ocl_tonemap.backends)."""
+    mod, _, cls = spec.partition(":")
+    module = importlib.import_module(mod, "ocl_tonemap.backends") if mod.startswith(".") \
+        else importlib.import_module(mod)
+    return getattr(module, cls)

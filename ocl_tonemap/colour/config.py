@@ -40,6 +40,9 @@ from pathlib import Path
 import numpy as np
 import PyOpenColorIO as ocio
 
+from ..models.photometry import RGB709_TO_XYZ
+from ..resources import package_data_dir
+
 BUNDLED_NAMES = ("ocl-tonemap", "bundled")
 WORKING_CANDIDATES = ("lin_rec709", "Linear Rec.709 (sRGB)", "Utility - Linear - sRGB",
                       "lin_srgb", "Linear BT.709")
@@ -53,7 +56,6 @@ class ColourError(ValueError):
 
 
 def bundled_config_path() -> Path:
-    from ..resources import package_data_dir
     return package_data_dir("ocio_configs", "ocl_tonemap.ocio") / "ocl_tonemap.ocio"
 
 
@@ -154,7 +156,6 @@ def xyz_to_chromaticities(M: np.ndarray) -> tuple:
 def chromaticities_to_working(chrom) -> np.ndarray:
     """Matrix from RGB with these chromaticities to linear BT.709/D65, with a
     Bradford adaptation from the file's white to D65."""
-    from ..models.photometry import RGB709_TO_XYZ
     M = chromaticities_to_xyz(chrom)
     src_w = M.sum(axis=1)
     dst_w = RGB709_TO_XYZ.sum(axis=1)

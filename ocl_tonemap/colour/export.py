@@ -75,7 +75,7 @@ def export_blocker(tm) -> str | None:
         return (f"{names} {'are' if len(spatial) > 1 else 'is'} spatial (light spread across "
                 "the frame), not per-pixel; run with "
                 + " ".join(f"--{name} off" for name, _ in spatial))
-    plugins = [p.NAME for p in tm.effects.plugins]
+    plugins = [p.name for p in tm.effects.plugins]
     if plugins:
         return f"effect plugins ({', '.join(plugins)}) are not known to be per-pixel"
     return None

@@ -8,9 +8,11 @@ from __future__ import annotations
 import numpy as np
 import PyOpenColorIO as ocio
 
+from ..models.photometry import RGB709_TO_XYZ, Y_WEIGHTS
 from .config import (PLAIN_VIEWS, USE_DISPLAY_NAME, ColourError, InputColour, apply_processor,
                      builtin_config, default_display, default_view, working_space,
                      xyz_to_chromaticities)
+from .config import load_config
 from .table import DISPLAY_ENCODE_MODES, DisplayTable, cached_display_table
 
 class ColourPipeline:
@@ -21,7 +23,6 @@ class ColourPipeline:
         """``cfg``: an OCIO Config, or what ``--colorconfig`` takes (a file, an
         ``ocio://`` URI, ``ocl-tonemap``; None: ``$OCIO``, else ``ocio://default``)."""
         if cfg is None or isinstance(cfg, (str, bytes)) or hasattr(cfg, "__fspath__"):
-            from .config import load_config
             cfg = load_config(None if cfg is None else str(cfg if not isinstance(cfg, bytes)
                                                                else cfg.decode()))
         self.cfg = cfg
@@ -118,7 +119,6 @@ class ColourPipeline:
         the working space when the config has none."""
         if getattr(self, "_linear_out", None) is not None:
             return self._linear_out
-        from ..models.photometry import RGB709_TO_XYZ
         D = self.display_primaries()
         target = xyz_to_chromaticities(RGB709_TO_XYZ @ D)
         best = None
@@ -162,7 +162,6 @@ class ColourPipeline:
     def output_chromaticities(self, encoded: bool) -> tuple:
         """EXR chromaticities of what is written: the display's primaries (encoded
         output), or those of the linear output colourspace."""
-        from ..models.photometry import RGB709_TO_XYZ
         if encoded:
             return xyz_to_chromaticities(RGB709_TO_XYZ @ self.display_primaries())
         _, M = self.linear_output()
@@ -177,7 +176,6 @@ class ColourPipeline:
         codes = np.array([[[0.5, 0, 0], [0, 0.5, 0], [0, 0, 0.5], [0, 0, 0]]], np.float32)
         apply_processor(proc, codes)
         D = (codes[0, :3] - codes[0, 3]).T.astype(np.float64)
-        from ..models.photometry import Y_WEIGHTS
         y = float(Y_WEIGHTS @ D.sum(axis=1))
         if not (np.all(np.isfinite(D)) and y > 0):
             return np.eye(3)
@@ -228,6 +226,7 @@ class ColourPipeline:
                     f"{table.max_error * 1023:.3g} 10-bit code values: {table.describe()})")
                 return self.display_encode_note
             if table.kind != "identity":
+                # lazy: the device modules only for a device table
                 from ..backends.opencl.display import DeviceDisplayTable
                 self.device_table = DeviceDisplayTable(table, device=device)
         except Exception as exc:  # noqa: BLE001 -- auto: OCIO is always there
@@ -251,6 +250,7 @@ class ColourPipeline:
         cache = self.__dict__.setdefault("_device_encodings", {})
         enc = cache.get(bool(u8))
         if enc is None or enc.table is not table:
+            # lazy: the device modules only for a device table
             from ..backends.opencl.display import DeviceOutputEncoding
             cache[bool(u8)] = enc = DeviceOutputEncoding(table, u8)
         return enc

@@ -9,6 +9,9 @@ from dataclasses import dataclass
 import numpy as np
 import PyOpenColorIO as ocio
 
+from ..models.display import DISPLAY_LINEAR_MAX
+from ..resources import cache_write, user_cache_dir
+from ..version import __version__
 from .config import apply_processor
 
 #: One 10-bit code value: the error bound the baked display tables are held to.
@@ -72,7 +75,6 @@ def display_probe_set(n_random: int = 100_000, seed: int = 0, vmax: float | None
     near 0 and over the range), ``n_random`` triples with log-uniform peak in
     [1e-8, vmax] and random chromaticity (a tenth with a zero channel: saturated),
     and saturated colours (one channel at vmax/4..vmax, the others far below)."""
-    from ..models.display import DISPLAY_LINEAR_MAX
     vmax = float(DISPLAY_LINEAR_MAX if vmax is None else vmax)
     rng = np.random.default_rng(seed)
     v = np.concatenate([[0.0, vmax], np.logspace(-10, np.log10(vmax), n_axis),
@@ -241,7 +243,6 @@ def bake_display_table(proc, form: str = "auto", size_3d: int = 65,
     is separable after its leading matrix: found by probing, not by the transform's
     name), else the best 3D table of the shapers tried. Every table sample comes from
     OCIO's CPU processor of ``proc``; the self-check is against it too."""
-    from ..models.display import DISPLAY_LINEAR_MAX
     vmax = float(DISPLAY_LINEAR_MAX if vmax is None else vmax)
     if form not in ("auto", "1d", "3d"):
         raise ValueError(f"table form must be auto, 1d or 3d (got {form!r})")
@@ -298,9 +299,6 @@ def cached_display_table(proc, form: str = "auto", size_3d: int = 65,
     import dataclasses
     import hashlib
     import json
-    from .. import __version__
-    from ..models.display import DISPLAY_LINEAR_MAX
-    from ..resources import cache_write, user_cache_dir
     ident = json.dumps([proc.getCacheID(), form, size_3d, ocio.GetVersion(), __version__,
                         DISPLAY_LINEAR_MAX, SHAPER_EPS_1D, SHAPER_EPS_3D, NODES_PER_OCTAVE_1D,
                         CODE_10BIT])

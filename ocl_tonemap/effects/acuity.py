@@ -2,7 +2,7 @@
 2000, Sec. 7, Eqs. 9-11 with Shaler's Table 1).
 
 Slot: display. Needs: the adapted scotopic level; the field of view; a blur.
-The model is ``models/shaler1937.py``.
+The model is ``models/shaler1937.py``; :class:`Acuity` is the effect.
 """
 
 from __future__ import annotations
@@ -11,11 +11,8 @@ import numpy as np
 
 from ..models.convolution import EDGE_CLAMP, blur_axis_reference, gaussian_taps
 from ..models.shaler1937 import acuity_a_px, acuity_blend, acuity_info, apply_acuity
-
-NAME = "acuity"
-SLOT = "display"
-NEEDS = ("scotopic level", "field of view", "blur")
-HELP = "loss of acuity in the dark (Shaler 1937)"
+from .base import Effect
+from .flare import FOV_OPTION
 
 
 def _mode(settings) -> str:
@@ -132,3 +129,54 @@ def stream(settings, sink, G_rod: float, shape, blur_axis=None, block_pixels: in
     band = int(block_pixels or 0) // max(1, int(shape[1]))
     rows = min(4 * R, max(band, min(2 * R, 2 * band)))
     return BandedAcuity(sink, shape, taps, info["blend"] * float(weight), blur_axis, rows), info
+
+
+class Acuity(Effect):
+    """Acuity as an effect: display-linear frames blurred on the host or with the
+    device's blur; on the device before the display encoding where the backend can
+    (:meth:`encoding`); frames in bands through :class:`BandedAcuity` in front of
+    the sink."""
+
+    name = "acuity"
+    slot = "display"
+    help = "loss of acuity in the dark (Shaler 1937)"
+    gated = True
+    blends = True
+    capabilities = frozenset({"host", "device", "banded"})
+    options = (FOV_OPTION,)
+
+    def host(self, ctx, out):
+        res, info = run(self.fx.s, out, ctx.G_rod, self.fx.blur)
+        w = self.fx.weight(self.name)
+        if info.get("ran") and w < 1.0:
+            res = (out + w * (np.asarray(res, np.float32) - out)).astype(np.float32)
+            info["weight"] = w
+        return res, info
+
+    def needed(self, ctx, width: int) -> bool:
+        return needed(self.fx.s, ctx.G_rod, width)
+
+    def report(self, ctx, width: int) -> dict:
+        """The record of a frame left unblurred (:meth:`needed` False)."""
+        return report(self.fx.s, ctx.G_rod, width)
+
+    def encoding(self, ctx, encoding, h: int, w: int):
+        """(``encoding`` with the blur on the device before it, the frame's record) where
+        the backend can blur the frame where the operator leaves it
+        (``backend.acuity_encoding``), else (None, None): the blur of :meth:`host`
+        with the plan's weight, in float32 on the device."""
+        plan = blur_plan(self.fx.s, ctx.G_rod, w, self.fx.weight(self.name))
+        dev = self.fx.device_blur
+        if plan is None or dev is None:
+            return None, None
+        taps, t, info = plan
+        enc = self.fx.backend.acuity_encoding(encoding, h, w, taps, t, dev)
+        return (None, None) if enc is None else (enc, info)
+
+    def banded(self, ctx, sink, shape, block_pixels: int | None = None):
+        """(sink, info): ``sink`` behind a :class:`BandedAcuity` when it blurs."""
+        dev = self.fx.device_blur
+        pas = None if dev is None else \
+            (lambda im, taps, axis: dev.blur_axis(im, taps, EDGE_CLAMP, axis))
+        return stream(self.fx.s, sink, ctx.G_rod, shape, pas, block_pixels,
+                      self.fx.weight(self.name))

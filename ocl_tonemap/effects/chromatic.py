@@ -1,12 +1,13 @@
 """Chromatic adaptation: von Kries gains on the cone signals toward the illuminant,
 Durand & Dorsey 2000, Eq. 6, filtered in time with tau = 5 s (Sec. 3.4).
 
-Slot: receptor -- one slot: the schedule applies the gains to the cone signals
+Slot: seen, on the receptors: the schedule applies the gains to the cone signals
 before its per-pixel map where its map separates cones from rods (the pointwise
-operators), and to the working RGB before the operator otherwise (ledda04,
-kirk11). Needs: the frame's illuminant (user > EXR ``adoptedNeutral`` > estimate).
-State: the adapted illuminant (``AdaptationState.extra["illuminant_rgb"]``).
-The model is in ``models/durand2000.py``.
+operators: ``receptor_gains``), and they go on the working RGB after the state
+step otherwise (ledda04, kirk11). Needs: the frame's illuminant (user > EXR
+``adoptedNeutral`` > estimate). State: the adapted illuminant
+(``AdaptationState.extra["illuminant_rgb"]``). The model is in
+``models/durand2000.py``; :class:`ChromaticAdaptation` is the effect.
 """
 
 from __future__ import annotations
@@ -14,13 +15,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.durand2000 import (cct_duv, chromatic_step, degree_of_adaptation,
-                                 normalise_illuminant, partial_illuminant, plausible_illuminant,
-                                 von_kries_gains)
+                                 normalise_illuminant, parse_illuminant, partial_illuminant,
+                                 plausible_illuminant, von_kries_gains)
+from .base import Effect, EffectOption
 
-NAME = "chromatic_adaptation"
-SLOT = "receptor"
-NEEDS = ("illuminant",)
-HELP = "von Kries adaptation to the illuminant, tau 5 s"
 STATE_KEY = "illuminant_rgb"
 #: ``auto`` applies chromatic adaptation when a gain differs from 1 by more than this:
 #: a gain of 1.004 moved the plan's lamp-lit test scene by 1.2 Delta E ITP at p99
@@ -65,3 +63,62 @@ def run(settings, extra: dict, goal, source: str, dt: float, fresh: bool, preada
             "degree": D, "goal": [float(v) for v in goal],
             "illuminant": extra[STATE_KEY], "gains": [float(v) for v in g]}
     return (g if ran else None), info
+
+
+def _check_illuminant(v):
+    if v is not None:
+        parse_illuminant(v)
+
+
+class ChromaticAdaptation(Effect):
+    """Chromatic adaptation as an effect: the adapted illuminant advanced at the state
+    step (:meth:`advance`: the gains, for the schedule's cone signals where it takes
+    them), and the gains on the scene's working RGB after it otherwise (:meth:`host`,
+    pointwise, band by band for frames in bands). Not gated: it costs nothing, and
+    ``auto`` applies the degree of adaptation."""
+
+    name = "chromatic_adaptation"
+    mechanism = "chromatic-adaptation"
+    slot = "seen"
+    help = "von Kries adaptation to the illuminant, tau 5 s"
+    blends = True
+    capabilities = frozenset({"host", "banded"})
+    options = (
+        EffectOption("illuminant", "--illuminant", "illuminant for chromatic adaptation: "
+                     "x,y or a name (D65, D50, A, F2, F11, LED-B3 ...); default: EXR "
+                     "adoptedNeutral, else estimated from the frame",
+                     check=_check_illuminant, value=None),
+    )
+
+    def __init__(self, fx):
+        super().__init__(fx)
+        s = fx.settings
+        self.user_illuminant = parse_illuminant(s.illuminant) if s.illuminant else None
+
+    def illuminant_goal(self, frame_hint, estimate_fn):
+        """(normalised rgb, source): user value > frame metadata > estimate (the scene
+        analysis's bounded one; with ``paper``, the paper's: the backend's grey world
+        ``estimate_fn``)."""
+        est = estimate_fn
+        if self.fx.estimate is not None and not self.fx.s.paper:
+            est = lambda: self.fx.estimate[0]                 # noqa: E731
+        return illuminant_goal(self.user_illuminant, frame_hint, est)
+
+    def advance_gains(self, ctx, frame_hint, estimate_fn, L_A: float | None):
+        """Advance the illuminant state over the frame; (gains or None), the record in
+        ``ctx.eff``. ``L_A``: the adapting luminance of the degree of adaptation."""
+        goal, src = self.illuminant_goal(frame_hint, estimate_fn)
+        gains, ctx.eff[self.name] = run(self.fx.s, ctx.extra, goal, src, ctx.dt, ctx.fresh,
+                                        ctx.preadapt is not None, L_A)
+        return gains
+
+    def scene_gains(self, ctx):
+        """The gains on the scene's working RGB (float32), None where none apply."""
+        ca = ctx.eff.get(self.name) or {}
+        return np.asarray(ca["gains"], np.float32) if ca.get("ran") else None
+
+    def host(self, ctx, rgb):
+        g = self.scene_gains(ctx)
+        if g is None:
+            return None, ctx.eff.get(self.name) or {"ran": False}
+        return (np.asarray(rgb) * g).astype(np.float32), ctx.eff[self.name]

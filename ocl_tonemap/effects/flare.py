@@ -1,13 +1,15 @@
 """Flare: light sources scattered in the eye (Spencer et al. 1995, as Durand & Dorsey
 2000, Sec. 6 use it), added to the scene in cd/m^2 before tone mapping.
 
-Slot: scene. Needs: the frame's adaptation levels; on the device, a blur.
-The model is ``models/spencer1995.py``; it is computed on the host by
-``backends/flare_exec.py``, whole on the device by ``backends/opencl/flare.py``.
+Slot: optical (its veil adapts the eye: before the metering). Needs: the frame's
+adaptation levels and source limit; on the device, a blur. The model is
+``models/spencer1995.py``; it is computed on the host by ``backends/flare_exec.py``,
+whole on the device by ``backends/opencl/flare.py``; :class:`Flare` is the effect.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -16,11 +18,34 @@ from ..backends import flare_exec as fx
 from ..models import spencer1995 as fl
 from ..models.convolution import EDGE_ZERO
 from ..models.photometry import Y_WEIGHTS
+from ..resources import cached_json
+from .base import Effect, EffectOption, positive
 
-NAME = "flare"
-SLOT = "scene"
-NEEDS = ("adaptation levels", "blur")
-HELP = "glare of light sources (Spencer et al. 1995)"
+log = logging.getLogger("ocl_tonemap")
+#: Default angular width of the image, degrees (the paper's 50-degree example, Sec. 8).
+DEFAULT_FOV = 50.0
+
+
+def _check_fov(v):
+    if not (isinstance(v, (int, float)) and 0 < v <= 360):
+        raise ValueError(f"--fov must be above 0 and at most 360 degrees (a fisheye's "
+                         f"width; got {v})")
+
+
+def _check_method(v):
+    if v not in ("fast", "exact"):
+        raise ValueError(f"--flare-method must be fast or exact (got {v!r})")
+
+
+def _check_sampling(v):
+    if v not in (1, 2, 3, 4):
+        raise ValueError("--flare-sampling (Gaussians per octave) must be 1..4")
+
+
+#: The field of view, an option of the flare and of acuity (one option of both).
+FOV_OPTION = EffectOption("fov_deg", "--fov", "angular width of the image, degrees, 0..360 "
+                          "(default: a Radiance picture's VIEW, else 50)", type=float,
+                          check=_check_fov, value=DEFAULT_FOV)
 
 
 def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, lim: float, blur=None,
@@ -84,7 +109,6 @@ def stored_fit(shape, deg_per_px: float, per_octave: int) -> fl.GaussianFit:
     """:func:`~ocl_tonemap.models.spencer1995.fit_gaussians` for a frame size, kept in
     the user's cache (``resources.cached_json``): the fit is ~50 ms of every start of a
     run with flare, the same for every frame of that size and field of view."""
-    from ..resources import cached_json
     h, w = (int(v) for v in shape)
 
     def compute():
@@ -231,3 +255,110 @@ def stream(settings, shape, G_rod: float, G_cone: float, lim: float, rgb_rows,
     if bf.sources == 0:
         return None, info
     return bf, info
+
+
+class Flare(Effect):
+    """The flare as an effect: whole frames on the host or, with the fast method and
+    a device that holds the frame, whole on the device (its first passes started
+    before the frame is planned, :meth:`start`); frames in bands through
+    :class:`BandedFlare`. The plan's weight blends it in or out."""
+
+    name = "flare"
+    slot = "optical"
+    help = "glare of light sources (Spencer et al. 1995)"
+    gated = True
+    blends = True
+    capabilities = frozenset({"host", "device", "banded"})
+    options = (
+        FOV_OPTION,
+        EffectOption("flare_method", "--flare-method", "fast: Gaussians on a pyramid "
+                     "(default); exact: FFT of the full PSF", choices=("fast", "exact"),
+                     check=_check_method, value="fast"),
+        EffectOption("flare_threshold", "--flare-threshold", "light sources are pixels "
+                     "above this x the adaptation level (default 7)", type=float,
+                     check=positive("--flare-threshold"), value=fl.DEFAULT_THRESHOLD),
+        EffectOption("flare_per_octave", "--flare-sampling", "fast flare: Gaussians per "
+                     "octave (default 1)", type=int, metavar="N", check=_check_sampling,
+                     value=1),
+    )
+
+    def __init__(self, fx):
+        super().__init__(fx)
+        self._dev = None                # the fast method whole on the device, made on use
+
+    def _device(self):
+        s = self.fx.s
+        if s.flare != "off" and s.flare_method == "fast" and self._dev is None:
+            self._dev = self.fx.backend.flare_device()
+        return self._dev
+
+    def host(self, ctx, rgb):
+        """(new rgb or None, info) of a whole frame (``rgb`` a device image where
+        :meth:`on_device`: the new one is then one too)."""
+        dev = self._device()
+        new, info = run(self.fx.s, rgb, ctx.G_rod, ctx.G_cone, ctx.lim, self.fx.blur, dev)
+        if dev is not None:
+            dev.discard()                     # start()'s passes, where the plan skipped it
+        w = self.fx.weight(self.name)
+        if new is not None and w < 1.0:       # blended in or out (the plan's ramp)
+            old = np.asarray(rgb, np.float32)[..., :3]
+            new = (old + w * (np.asarray(new, np.float32) - old)).astype(np.float32)
+            info["weight"] = w
+        return new, info
+
+    device = host
+
+    def start(self, ctx, rgb) -> None:
+        """Before the frame is planned: its first passes on the device, where the frame
+        has a source (``max_Y`` above the source limit) and the flare may run (on, or
+        ``auto`` for the plan to decide): the device makes them while the host plans;
+        :meth:`host` goes on from them, or drops them."""
+        dev = self._device_for(self.fx.settings)
+        if dev is not None and ctx.max_Y is not None and ctx.max_Y > ctx.lim:
+            start_on_device(self.fx.settings, rgb, ctx.G_rod, ctx.G_cone, ctx.lim, dev)
+
+    def _device_for(self, settings):
+        if settings.flare != "off" and settings.flare_method == "fast" and self._dev is None:
+            self._dev = self.fx.backend.flare_device()
+        return self._dev
+
+    def drop_started(self) -> None:
+        """Drop :meth:`start`'s passes a frame left (one that failed before its flare)."""
+        if self._dev is not None:
+            self._dev.discard()
+
+    def on_device(self, h: int, w: int) -> bool:
+        """Whether this frame's flare runs whole on the device (the fast method, a device
+        that holds the frame): its working frame can stay there."""
+        dev = self._device()
+        return dev is not None and dev.fits(h, w)
+
+    def metered_weight(self, max_Y: float | None, lim: float) -> float | None:
+        """Its weight in the frame that is metered (the plan's: ramps and hysteresis
+        included), None where no pixel can be a source (then no weight changes the
+        frame): what a shot's integrate pass checks its statistics by."""
+        if self.asked == "off" or not (max_Y is None or max_Y > lim):
+            return None
+        return float(self.fx.weight(self.name)) if self.mode != "off" else 0.0
+
+    def banded(self, ctx, rows, max_pixels: int, block_pixels: int):
+        """The flare of a frame in row bands, before its metering pass: (a
+        :class:`BandedFlare` or None, functions to call once the metering pass has
+        swept the frame: the share of light kept in it). ``rows``: the working rows
+        (``pipeline/banded.py`` ``WorkingRows``)."""
+        fxr = self.fx
+        flare, ctx.eff["flare"] = stream(fxr.s, (rows.h, rows.w), ctx.G_rod, ctx.G_cone,
+                                         ctx.lim, rows.get, max_pixels, fxr.blur, ctx.max_Y,
+                                         block_pixels, fxr.weight(self.name))
+        if "streamed" in ctx.eff["flare"] and "streamed flare" not in fxr.said:
+            fxr.said.add("streamed flare")
+            log.warning("flare: streamed frames use --flare-method fast (the exact method's FFT "
+                        "needs the whole frame)")
+        if flare is None:
+            return None, []
+
+        def done(info=ctx.eff["flare"]):
+            e = flare.energy_in_frame()
+            if e is not None:
+                info["energy_in_frame"] = e
+        return flare, [done]

@@ -2,25 +2,23 @@
 operator: the scene's chromaticity shifted as rods add to the cone pathways, each
 pixel's photopic luminance kept (the operator models rod luminance itself).
 
-Slot: scene. Needs: the shared receptor levels (``models/pattanaik2000.py``: the
-adapted scotopic level and the rods' dark adaptation), kept in
+Slot: seen (after the state step: the metering sees the light, not the shift).
+Needs: the shared receptor levels (``models/pattanaik2000.py``: the adapted
+scotopic level and the rods' dark adaptation), kept in
 ``AdaptationState.extra["purkinje_levels"]``; on the device, kirk11's shift kernel.
+:class:`PurkinjeShift` is the effect.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..models import kirk2011 as ko
-from ..models import lmsr
+from ..models import kirk2011 as ko, lmsr
 from ..models.pattanaik2000 import (receptor_levels_advance, receptor_levels_preadapted,
                                     receptor_levels_steady, rod_sensitivity)
 from ..models.photometry import Y_WEIGHTS, neutral_scotopic_ratio
+from .base import Effect
 
-NAME = "purkinje"
-SLOT = "scene"
-NEEDS = ("receptor levels",)
-HELP = "rod colour shift of kirk11 on the scene's colours (Kirk & O'Brien 2011)"
 LEVELS_KEY = "purkinje_levels"
 
 #: ``auto`` skips the shift when rods carry less than this share (photopic frames).
@@ -128,3 +126,61 @@ class BandedPurkinje:
 
     def fallback_fraction(self) -> float | None:
         return self._fb / self.h if self._swept >= self.h else None
+
+
+class PurkinjeShift(Effect):
+    """The shift as an effect: its time course at the state step (:meth:`advance`,
+    also on frames the plan skips, so that it comes back where a run that never
+    skipped it would have it), then the pixels, on the device in place where it
+    has kirk11's kernel, pointwise band by band for frames in bands."""
+
+    name = "purkinje"
+    slot = "seen"
+    help = "rod colour shift of kirk11 on the scene's colours (Kirk & O'Brien 2011)"
+    gated = True
+    blends = True
+    capabilities = frozenset({"host", "device", "banded"})
+
+    def __init__(self, fx):
+        super().__init__(fx)
+        self._dev = None
+
+    def _device(self):
+        if self._dev is None:
+            self._dev = self.fx.backend.purkinje_device()
+        return self._dev
+
+    def on_device(self) -> bool:
+        """Whether the shift runs on the device (then in place on a device image: the
+        working frame can stay there)."""
+        return self.asked != "off" and self._device() is not None
+
+    def advance(self, ctx) -> None:
+        """Its receptor levels over the frame, toward the levels of the frame before its
+        optical effects (``ctx.G_rod``, ``ctx.G_cone``); the record in ``ctx.eff``."""
+        skipped = self.asked != "off" and self.mode == "off"    # the plan's: levels advance
+        ctx.eff[self.name] = advance(self.fx.settings if skipped else self.fx.s, ctx.G_rod,
+                                     ctx.G_cone, ctx.extra, ctx.dt, ctx.fresh, ctx.preadapt,
+                                     self.fx.weight(self.name), skipped)
+
+    def host(self, ctx, rgb):
+        info = ctx.eff[self.name]
+        if not info.get("ran"):
+            return None, info
+        return shift(rgb, info, self._device() if self.mode != "off" else None)
+
+    device = host
+
+    def banded(self, ctx, height: int):
+        """(a :class:`BandedPurkinje` for a frame whose shift runs, else None; the
+        function that records its gamut fallbacks once the bands are made)."""
+        info = ctx.eff[self.name]
+        if not info.get("ran"):
+            return None, []
+        band = BandedPurkinje(info, self._device() if self.mode != "off" else None, height)
+
+        def done():
+            fb = band.fallback_fraction()
+            if fb is not None:
+                info["fallback_fraction"] = fb
+        return band, [done]

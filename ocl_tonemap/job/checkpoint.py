@@ -7,9 +7,12 @@ import logging
 import os
 import re
 
-from ..imageio import FrameError, same_file, without_frame_token
+from ..imageio import FrameError
+
 from ..imagewrite import output_folder
+from ..patterns import same_file, without_frame_token
 from ..state import AdaptationState
+from ..state_files import load_state
 from .options import RUN_KEY, JobOptions, run_fingerprint
 
 log = logging.getLogger("ocl_tonemap")
@@ -110,7 +113,7 @@ def resume_point(opts: JobOptions, jobs, ckpt: str, operator: str):
     if not os.path.exists(ckpt):
         log.warning("--resume: no checkpoint %s; starting from the first frame", ckpt)
         return None, jobs
-    st = AdaptationState.load(ckpt)
+    st = load_state(ckpt)
     if st.operator != operator:
         raise ValueError(f"--resume: the checkpoint {ckpt} belongs to operator {st.operator!r}, "
                          f"not {operator!r}")
@@ -138,7 +141,7 @@ def load_state_in(opts: JobOptions) -> AdaptationState | None:
     """``--state-in``, without the settings of the run that wrote it (``RUN_KEY``)."""
     if not opts.state_in:
         return None
-    st = AdaptationState.load(opts.state_in)
+    st = load_state(opts.state_in)
     st.extra.pop(RUN_KEY, None)
     return st
 

@@ -12,11 +12,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .. import __version__
 from ..alpha import restore_alpha
 from ..colour.config import interop_id
 from ..imageio import illuminant_from_metadata
+from ..models.lmsr import spectral_to_rgb
 from ..state import AUTO_SCALE_KEY
+from ..version import __version__
 from .setup import RunSetup
 
 if TYPE_CHECKING:                                  # annotations only
@@ -70,7 +71,6 @@ def frame_input(run: RunSetup, tm: Tonemapper, fr, path) -> FrameInput:
     def working_rgb():
         if lam is None:
             return pix
-        from ..models.lmsr import spectral_to_rgb
         return spectral_to_rgb(lam, pix)
     scale, why = run.calibrate(fr, working_rgb)
     remember_auto(tm, run)

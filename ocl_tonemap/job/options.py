@@ -8,9 +8,12 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..backends.plan import quality_tier
+from ..backends.quality import quality_tier
+from ..calibration import check_luminance
 from ..imageio import LINEAR_FORMATS, PNG_FILTERS
 from ..models.photometry import RepairCounts
+from ..patterns import MAX_FRAME
+from ..safeio import read_text
 
 DEFAULT_FPS = 24.0
 #: What a gap in a sequence does (``--missing``).
@@ -120,19 +123,9 @@ class JobResult:
     export: str = ""                # the OCIO export's summary (--ocio-export)
 
 
-#: The physical ranges of what a user gives (``--help`` states them): adaptation
-#: luminance, cd/m^2 (0: darkness; starlight is ~1e-4, the sun's disc ~1e9 but no
-#: eye adapts to it), and durations, seconds (115 days).
-ADAPT_LUMINANCE = (1e-6, 1e8)
+#: The physical range of durations a user gives, seconds (115 days); that of
+#: adaptation luminances: ``calibration.ADAPT_LUMINANCE``.
 SECONDS_MAX = 1e7
-
-
-def check_luminance(L: float, flag: str, zero_ok: bool = True) -> float:
-    lo, hi = ADAPT_LUMINANCE
-    if not (math.isfinite(L) and ((zero_ok and L == 0) or lo <= L <= hi)):
-        raise ValueError(f"{flag} {L:g} cd/m^2 is outside {lo:g}..{hi:g} cd/m^2"
-                         + (" (or 0: darkness)" if zero_ok else ""))
-    return L
 
 
 def check_seconds(s: float, flag: str) -> float:
@@ -172,6 +165,38 @@ def parse_times(text: str) -> list[float]:
     return out
 
 
+def parse_export_size(text: str):
+    """``--ocio-export-size``: ``auto`` or a number of lattice nodes per axis."""
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError(f"--ocio-export-size must be auto or a number (got {text!r})") from None
+
+
+#: Largest --cuts file (a list of frame numbers), bytes.
+CUTS_CAP = 1 << 20
+
+
+def parse_cuts(text: str | None):
+    """``--cuts``: ``detect``, or a file of frame numbers (whitespace or commas; ``#``
+    starts a comment)."""
+    if text is None:
+        return None
+    if text.strip().lower() == "detect":
+        return "detect"
+    raw = read_text(text, "--cuts", CUTS_CAP)
+    body = " ".join(line.split("#", 1)[0] for line in raw.splitlines())
+    try:
+        cuts = sorted({int(v) for v in body.replace(",", " ").split()})
+    except ValueError:
+        raise ValueError(f"--cuts {text}: the file must hold frame numbers") from None
+    if any(abs(c) > MAX_FRAME for c in cuts):
+        raise ValueError(f"--cuts {text}: frame numbers are within +-{MAX_FRAME}")
+    return cuts
+
+
 #: AdaptationState.extra key of the settings a run's frames depend on (--resume checks).
 RUN_KEY = "run"
 
@@ -179,7 +204,6 @@ RUN_KEY = "run"
 def run_fingerprint(opts: JobOptions) -> dict:
     """The settings that decide a run's frames, kept in its checkpoint: a resumed
     run must use the same to give the same frames."""
-    import dataclasses
     fx = opts.effects
     return {"input": opts.input, "output": opts.output, "operator": opts.operator,
             "fps": opts.fps, "metering": opts.metering,
@@ -190,8 +214,8 @@ def run_fingerprint(opts: JobOptions) -> dict:
             "display_black": opts.display_black, "backend": opts.backend,
             "quality": opts.quality, "display_encode": opts.display_encode,
             "options": json.loads(json.dumps(opts.operator_options or {}, default=str)),
-            "effects": json.loads(json.dumps(dataclasses.asdict(fx), default=str))
-            if dataclasses.is_dataclass(fx) else None,
+            "effects": json.loads(json.dumps(fx.as_dict(), default=str))
+            if fx is not None else None,
             "missing": opts.missing, "channels": opts.channels, "unpremult": opts.unpremult,
             "encode": opts.encode, "out_bits": opts.out_bits,
             "cuts": opts.cuts if isinstance(opts.cuts, str) else

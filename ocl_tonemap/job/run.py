@@ -13,19 +13,26 @@ import sys
 import time
 
 from .. import safeio
-from ..interrupts import ready
+from ..backends.select import resolve_backend
 from ..colour import ColourPipeline
-from ..imageio import FramePool, FrameError, is_sequence, read_frame
-from ..imagewrite import output_bits, write_frame
-from ..pipeline import Tonemapper
+from ..colour.export import OcioExport
+from ..imageio import FramePool, FrameError, read_frame
+from ..imagewrite import ocltm_metadata, output_bits, write_frame
+from ..interrupts import Terminated, ready
+from ..models.photometry import RepairCounts
+from ..patterns import is_sequence
+from ..pipeline import FrameInfo, Tonemapper
+from ..plot import plot_adaptation
 from ..state import AdaptationState
+from ..state_files import save_state
+from .banded_io import read_whole, stream_frame, stream_rows
 from .checkpoint import (RunLock, check_state_paths, checkpoint_path, checkpoint_state,
                          load_state_in, remove_stale_temps, resume_point)
 from .frame import encode_pixels, frame_input, map_frame, output_metadata
-from .frames import frame_jobs, frame_time
 from .options import RUN_KEY, Interrupted, JobOptions, JobResult, output_is_linear, run_fingerprint
+from .sequence import frame_jobs, frame_time
 from .setup import RunSetup, check_output_depth, check_output_tag
-from .stream import read_whole, stream_frame, stream_rows
+from .views import still_view, view_from_header
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -69,13 +76,12 @@ def prepare_kernels(tm: Tonemapper, key: str, stop) -> None:
 
 
 def resolved_backend(opts: JobOptions) -> JobOptions:
-    """``opts`` with a backend of "auto" (``cli._options(defer_backend=True)``) resolved:
+    """``opts`` with a backend of "auto" (``cli_options.job_options(defer_backend=True)``) resolved:
     OpenCL on the first working device, else the reference with one warning."""
     if opts.backend != "auto":
         return opts
     import dataclasses
 
-    from ..backends import resolve_backend
     return dataclasses.replace(opts, backend=resolve_backend("auto", opts.device))
 
 
@@ -88,59 +94,6 @@ def check_stills(opts: JobOptions) -> None:
             raise ValueError(f"--stills: every frame is its own observer, with no state "
                              f"over time; {flag} has nothing to work on (run the frames "
                              "left again with --frames to finish an interrupted run)")
-
-
-def view_from_header(opts: JobOptions) -> JobOptions:
-    """The field of view from the first input's Radiance VIEW when ``--fov`` was not
-    given (``radiance.fov_for``); said once, and in every output's ``ocltm:fov``."""
-    import dataclasses
-
-    from .. import radiance
-    if opts.fov_given or not dataclasses.is_dataclass(opts.effects) or \
-            os.path.splitext(opts.input)[1].lower() not in radiance.SUFFIXES:
-        return opts                      # (no frame listing for inputs of other kinds)
-    try:
-        first = frame_jobs(opts)[0][1]
-    except Exception:                    # noqa: BLE001 -- the run itself says what is wrong
-        return opts
-    if not radiance.is_radiance(first):
-        return opts
-    try:
-        view = radiance.read_header(first).view
-    except (radiance.HeaderError, OSError):
-        return opts                      # (the frame's read says it, naming the file)
-    if view is None:
-        return opts
-    fov, what = radiance.fov_for(view)
-    if fov is None:
-        log.warning("%s: %s: the field of view stays --fov %g", first, what,
-                    opts.effects.fov_deg)
-        return opts
-    log.info("field of view %.4g degrees from the Radiance VIEW (%s)", fov, what)
-    return dataclasses.replace(opts, effects=dataclasses.replace(opts.effects, fov_deg=fov),
-                               fov_given=True, fov_source=f"Radiance VIEW: {what}")
-
-
-def still_view(tm: Tonemapper, run, inp: str, fr=None) -> None:
-    """``--stills`` with the field of view from the Radiance VIEW: each picture its own
-    (``view_from_header`` read the first's), a picture without one the default; said in
-    its ``ocltm:fov`` (``run.fov_note``)."""
-    from .. import radiance
-    from ..effects import DEFAULT_FOV
-    opts = run.opts                      # (with the first picture's VIEW: setup_run)
-    if not (opts.stills and opts.fov_source.startswith("Radiance VIEW")):
-        return
-    view = None
-    if fr is not None and fr.radiance is not None:
-        view = fr.radiance.view
-    elif radiance.is_radiance(inp):
-        try:
-            view = radiance.read_header(inp).view
-        except (radiance.HeaderError, OSError):
-            view = None                  # (the frame's read says it, naming the file)
-    fov, what = radiance.fov_for(view) if view is not None else (None, "no VIEW")
-    tm.set_field_of_view(fov if fov is not None else DEFAULT_FOV)
-    run.fov_note = f"Radiance VIEW: {what}" if fov is not None else f"default ({what})"
 
 
 def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -> JobResult:
@@ -190,7 +143,6 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         check_output_tag(run.colour, opts, jobs)
         exporter = None
         if opts.ocio_export:
-            from ..colour.export import OcioExport
             # the shot's first frame (a chunk of a shot's apply pass: the whole shot's)
             first = (done_before or (frame_jobs(opts) if chunk else jobs) or [(None,)])[0][0]
             exporter = OcioExport(opts.ocio_export, run.colour, tm, first,
@@ -259,7 +211,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
             def after(snap=snap, f=f):
                 if snap is not None:
                     try:
-                        snap.save(ckpt, checkpoint=True)
+                        save_state(snap, ckpt, checkpoint=True)
                     except Exception as exc:                      # noqa: BLE001
                         raise FrameError(ckpt, f, "cannot write the checkpoint: "
                                          f"{safeio.reason(exc)}") from None
@@ -289,9 +241,8 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         sys.stderr.write("\n")
     if opts.state_out:
         # with the run's settings, as every checkpoint: --resume from it checks them
-        checkpoint_state(tm, fingerprint).save(opts.state_out)
+        save_state(checkpoint_state(tm, fingerprint), opts.state_out)
     if opts.plot:
-        from ..plot import plot_adaptation
         # a resumed run's plot covers the whole shot: the frames before the resume
         # from their outputs' own records (ocltm:*)
         before = infos_from_outputs(done_before) if done_before else []
@@ -309,9 +260,6 @@ def infos_from_outputs(jobs) -> list:
 
     import OpenImageIO as oiio
 
-    from ..imagewrite import ocltm_metadata
-    from ..models.photometry import RepairCounts
-    from ..pipeline import FrameInfo
     out = []
     for f, _, outp, _ in jobs:
         inp = oiio.ImageInput.open(outp)
@@ -459,7 +407,6 @@ class _StopSignals:
 
     def _handler(self, signum, frame):
         if self.signum is not None:
-            from ..interrupts import Terminated
             raise Terminated(signum)
         self.signum = signum
 

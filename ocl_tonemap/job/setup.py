@@ -7,6 +7,8 @@ import logging
 from ..calibration import ASSUMED_HELP, CalibrationRequest, Calibrator
 from ..colour import (ColourPipeline, InputColour, is_builtin_source, load_config,
                       resolve_config_source, resolve_input)
+from ..colour.config import interop_id
+from ..imageio import DEFAULT_BITS, FrameError
 from ..models.display import display_for
 from ..state import AUTO_SCALE_KEY
 from .options import JobOptions, output_is_linear
@@ -83,7 +85,6 @@ def check_output_tag(colour, opts: JobOptions, jobs) -> None:
     (TIFF, JPEG and DPX through OIIO): say where the truth is (the output's
     ImageDescription record), once."""
     from pathlib import Path
-    from ..colour.config import interop_id
     if not jobs or output_is_linear(opts, jobs[0][2]):
         return
     out = jobs[0][2]
@@ -100,7 +101,6 @@ def check_output_tag(colour, opts: JobOptions, jobs) -> None:
 def check_output_depth(opts: JobOptions, disp, jobs) -> None:
     """An HDR (PQ/HLG) encoding in 8 bits bands visibly: say so."""
     from pathlib import Path
-    from ..imageio import DEFAULT_BITS, FrameError
     if not jobs:
         return
     out = jobs[0][2]

@@ -7,13 +7,16 @@ import logging
 import time
 from typing import TYPE_CHECKING
 
-from ..imageio import FrameError, is_sequence, read_frame, same_file
+from ..imageio import FrameError, read_frame
+
 from ..imagewrite import write_frame
-from ..state import AdaptationState
+from ..patterns import is_sequence, same_file
+from ..plot import plot_adaptation
+from ..state_files import load_state, save_state
 from .frame import frame_input, map_frame, render_output
-from .frames import simulate_outputs
 from .options import JobOptions, JobResult, output_is_linear
 from .run import setup_run
+from .sequence import simulate_outputs
 from .setup import RunSetup
 
 if TYPE_CHECKING:                                  # annotations only
@@ -47,7 +50,7 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
     if opts.plot and any(same_file(opts.plot, q) for q in (opts.input, opts.state_in,
                                                            opts.state_out) if q):
         raise FrameError(opts.plot, None, "--plot would overwrite a file of this run")
-    state = AdaptationState.load(opts.state_in) if opts.state_in else None
+    state = load_state(opts.state_in) if opts.state_in else None
     run, tm = setup_run(opts, state)
     fr = read_frame(opts.input, None, opts.channels)
     result = JobResult([], [])
@@ -76,9 +79,8 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
     except Exception as exc:
         raise FrameError(opts.input, None, exc) from exc
     if opts.state_out:
-        tm.state.save(opts.state_out)
+        save_state(tm.state, opts.state_out)
     if opts.plot:                       # the observer's course over the times asked for
-        from ..plot import plot_adaptation
         plot_adaptation(opts.plot, result.infos, tm, opts.plot_frames)
     result.seconds = time.perf_counter() - t_start
     return result

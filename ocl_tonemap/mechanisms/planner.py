@@ -22,13 +22,29 @@ from __future__ import annotations
 
 import math
 
+from ..effects.settings import registry
 from . import predict
 
-#: The mechanisms, in the order the plan lists them (``ocltm:plan``).
+#: The mechanisms of the operators and the built-in effects, in the order the plan
+#: lists them (``ocltm:plan``); installed effects follow (:func:`mechanisms`).
 MECHANISMS = ("rods", "purkinje", "acuity", "flare", "chromatic-adaptation", "local",
               "temporal")
-#: Gated mechanisms -> their effect (``EffectSettings`` field).
-GATED = {"purkinje": "purkinje", "acuity": "acuity", "flare": "flare"}
+#: The gated mechanisms whose predictions are made together here (the flare's veil
+#: moves the levels the others are predicted at); installed gated effects predict
+#: themselves (``Effect.predict``).
+JOINT = ("purkinje", "acuity", "flare")
+
+
+def gated() -> dict:
+    """Gated mechanisms -> their effect (``EffectSettings`` switch): the effects the
+    plan may skip, built-in and installed."""
+    return {cls.mechanism_name(): name for name, cls in registry().items() if cls.gated}
+
+
+def mechanisms() -> tuple:
+    """Every mechanism the plan can list, in order."""
+    return MECHANISMS + tuple(m for m in (cls.mechanism_name() for cls in registry().values())
+                              if m not in MECHANISMS)
 #: ``--model``: the plan (auto), every mechanism on (full), the operator alone (none).
 MODELS = ("auto", "full", "none")
 #: Delta E ITP budget of everything skipped on a frame (1 JND, BT.2124).
@@ -77,20 +93,18 @@ def offered(operator, settings) -> dict:
     """mechanism -> "auto" | "on" for the mechanisms this run can apply (absent: not
     offered or switched off). ``settings``: the run's ``EffectSettings``."""
     out = {"rods": "on", "temporal": "on"}
-    for mech, field in GATED.items():
-        mode = getattr(settings, field)
+    for name, cls in registry().items():
+        mode = getattr(settings, name)
         if mode != "off":
-            out[mech] = mode
+            out[cls.mechanism_name()] = mode if cls.gated else "on"
     if "purkinje" in operator.own_effects:
         out["purkinje"] = "on"              # its own model of the shift (kirk11: LMSR)
-    if settings.chromatic_adaptation != "off":
-        out["chromatic-adaptation"] = "on"
     if operator.metering == "local":
         out["local"] = "on"
-    return {m: out[m] for m in MECHANISMS if m in out}
+    return {m: out[m] for m in mechanisms() if m in out}
 
 
-def predictions(an, operator, display, settings, gated) -> dict:
+def predictions(an, operator, display, settings, gated_list) -> dict:
     """Predicted p99 Delta E ITP of each gated mechanism (full against none).
     Acuity, whose effect starts steeply (its blend goes from 0 to 1 within ~0.3
     decade of L_waR as the cutoff passes the display's Nyquist: 0 to 2.3 JND in one
@@ -101,27 +115,31 @@ def predictions(an, operator, display, settings, gated) -> dict:
     resp = predict.DisplayResponse(operator, display, an.G_rod, an.G_cone)
     out = {}
     levels = flared = None
-    if "flare" in gated or settings.flare == "on":
+    if "flare" in gated_list or settings.flare == "on":
         d, flared = predict.flare(an, resp, settings.fov_deg)
         if flared is not None and not resp.own:
             # a stand-in response cannot see what a local operator makes of the veil
             # (it lifts a dark tunnel mouth that the stand-in shows black): any
             # source's flare runs for ledda04 and kirk11
             d = math.inf
-        if "flare" in gated:
+        if "flare" in gated_list:
             out["flare"] = d
         # the flare runs for sure (on, or beyond the whole budget): the others are
         # predicted at the levels it leaves (its veil raises them)
         if flared is not None and (settings.flare == "on" or SAFETY * d > BUDGET):
             levels = predict.flared_levels(an, flared)
             resp = predict.DisplayResponse(operator, display, *levels)
-    if "purkinje" in gated:
+    if "purkinje" in gated_list:
         out["purkinje"] = predict.purkinje(an, resp, None if levels is None else flared)
-    if "acuity" in gated:
+    if "acuity" in gated_list:
         G = an.G_rod if levels is None else levels[0]
         out["acuity"] = predict.acuity(an, resp, settings.fov_deg, settings.paper, G)
         out["acuity"] = max(out["acuity"], predict.acuity(
             an, resp, settings.fov_deg, settings.paper, G * ACUITY_AHEAD))
+    own = gated()
+    for m in gated_list:
+        if m not in JOINT:                  # an installed effect's own prediction
+            out[m] = float(registry()[own[m]].predict(an, resp, settings))
     return out
 
 
@@ -134,7 +152,8 @@ def targets(offer: dict, predicted: dict, running: dict | None = None) -> dict:
     cost = {m: SAFETY * predicted.get(m, 0.0) / (HYSTERESIS if running.get(m, 0.0) > 0 else 1.0)
             for m, mode in offer.items() if mode == "auto"}
     spent = 0.0
-    for m in sorted(cost, key=lambda k: (cost[k], MECHANISMS.index(k))):
+    order = mechanisms()
+    for m in sorted(cost, key=lambda k: (cost[k], order.index(k))):
         if spent + cost[m] <= BUDGET:
             spent += cost[m]
             out[m] = 0.0

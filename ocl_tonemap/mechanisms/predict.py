@@ -17,13 +17,17 @@ import math
 
 import numpy as np
 
+from ..backends.flare_exec import apply_flare, convolve_exact_cached
+from ..effects.purkinje import apply_purkinje
 from ..models import spencer1995 as fl
 from ..models.convolution import EDGE_CLAMP, blur_reference, gaussian_taps
 from ..models.ictcp import delta_e_itp, rgb709_to_ictcp
 from ..models.metering import LOG_FLOOR
 from ..models.photometry import Y_WEIGHTS, scotopic_luminance
 from ..models.shaler1937 import acuity_info
-from ..operators.base import FrameStats
+from ..operators import get_operator
+from ..operators.base import FrameStats, ModelOperator
+from .analysis import block_stride
 
 #: The quantile of the frame's Delta E the budget bounds.
 QUANTILE = 99.0
@@ -40,8 +44,6 @@ class DisplayResponse:
     frame's levels (``op``: the run's operator, used where it maps pixel by pixel)."""
 
     def __init__(self, op, display, G_rod: float, G_cone: float):
-        from ..operators import get_operator
-        from ..operators.base import ModelOperator
         #: the operator's own response (else a stand-in: its predictions are less sure)
         self.own = isinstance(op, ModelOperator)
         self.op = op if self.own else get_operator("pattanaik00")({}, display)
@@ -83,7 +85,6 @@ def purkinje(an, resp: DisplayResponse, pixels=None) -> float:
     flared pixels where the flare runs (``pixels``, the flared proxy), shown at the
     levels the operator meters (``resp``: the flared frame's where the flare runs).
     The shift comes after the metering, so it does not move them."""
-    from ..effects.purkinje import apply_purkinje
     P = sampled(an.proxy if pixels is None else pixels)
     sample = [P]
     if an.patches:           # single pixels too: block means hide a texture's darks
@@ -112,7 +113,6 @@ def patch_pixels(an, flared=None) -> np.ndarray:
         if key is flared:
             return value
     out = []
-    from .analysis import block_stride
     s = block_stride(an.height, an.width)
     for y, x, patch in an.patches:
         px = np.asarray(patch, np.float64)
@@ -135,7 +135,6 @@ def flare(an, resp: DisplayResponse, fov_deg: float):
     pixel's source part (above the analysis's ``flare_limit``) where the backend made them (``an.sources_proxy``: a lamp
     smaller than a block keeps its flux), else the source part of the proxy
     (``Backend.source_proxy``: frames in bands)."""
-    from ..backends.flare_exec import apply_flare, convolve_exact_cached
     P = an.proxy
     S = an.sources_proxy
     lim = an.flare_limit

@@ -19,7 +19,7 @@ Implementations with one interface:
   bilateral grid (Paris & Durand 2006; Chen, Paris & Durand 2007) on z = ln I
   (ratio) or z = v (difference), with grid spacing sigma_s / q_s in space and
   sigma_z / q_r in z. ``q_s``, ``q_r`` are the speed/accuracy knob of the
-  per-frame plan (``backends/plan.py``; benchmarks/bench_bilateral.py measures it).
+  per-frame choice (:class:`BilateralSpec`, ``auto``; benchmarks/bench_bilateral.py measures it).
 
 Units: the signal is whatever is filtered (cd/m^2 for Ledda's I_A; log
 luminance for range reduction); sigma_spatial in pixels.
@@ -147,3 +147,37 @@ def bilateral_reference(v: np.ndarray, sigma_s: float, rk: RangeKernel = LEDDA_R
                 num += np.where(ok, wgt * vp, 0.0)
                 den += np.where(ok, wgt, 0.0)
     return num / den
+
+
+@dataclass(frozen=True)
+class BilateralSpec:
+    """How to filter: ``method`` exact | fast | auto, sigma_s in pixels, grid sampling.
+
+    ``auto`` uses the exact filter when it is cheap (sigma_s <= AUTO_EXACT_SIGMA
+    px: on PoCL the grid is slower than brute force at sigma_s = 4 px and 37x
+    faster at 12.8, see benchmarks/results/bilateral_ledda04.md) or the grid
+    would not fit in memory, and the grid otherwise.
+    """
+
+    method: str = "auto"
+    q_s: float = 2.0
+    q_r: float = 2.0
+
+    AUTO_EXACT_SIGMA = 5.0
+
+    def __post_init__(self):
+        if self.method not in ("exact", "fast", "auto"):
+            raise ValueError(f"bilateral method must be exact, fast or auto (got {self.method!r})")
+        if not (self.q_s >= 0.5 and self.q_r >= 0.5):
+            raise ValueError("bilateral sampling rates must be >= 0.5")
+
+    @classmethod
+    def parse(cls, method: str, sampling: str | None = None) -> "BilateralSpec":
+        if sampling:
+            try:
+                parts = [float(x) for x in sampling.split(",")]
+                q_s, q_r = (parts[0], parts[-1])
+            except ValueError:
+                raise ValueError(f"bad --bilateral-sampling {sampling!r}: use Q or QS,QR") from None
+            return cls(method, q_s, q_r)
+        return cls(method)

@@ -26,6 +26,8 @@ import math
 import numpy as np
 from dataclasses import dataclass, asdict
 
+from .photometry import Y_WEIGHTS
+
 #: Largest display-linear value written: 100 x the encoding unit, i.e.
 #: 10 000 cd/m^2, the PQ ceiling. Keeps half-float outputs finite.
 DISPLAY_LINEAR_MAX = 100.0
@@ -187,7 +189,6 @@ def apply_shoulder(rgb, white_signal: float, knee: float = SHOULDER_KNEE):
     rgb = np.asarray(rgb, np.float64)
     if not (0.0 < knee < 1.0):
         return rgb
-    from .photometry import Y_WEIGHTS
     c = np.maximum(rgb / white_signal, 0.0)
     Y = c @ Y_WEIGHTS
     m = np.max(c, axis=-1)

@@ -43,6 +43,7 @@ from .ferwerda1996 import (LA_FLOOR, adapted_cone_luminance, threshold_cone,  # 
                            threshold_rod)
 from .integrators import exponential_step
 from .photometry import RGB709_TO_XYZ, Y_WEIGHTS, neutral_scotopic_ratio, normalise_illuminant, xy_to_rgb
+from .planckian import CCT_Duv_to_uv, uv_to_CCT_Duv
 
 #: Light-adaptation time constants, Sec. 3.3 (Adelson 1982; Hayhoe et al. 1987), s.
 TAU_ROD, TAU_CONE = 0.4, 0.1
@@ -260,7 +261,6 @@ def plausible_illuminant(rgb) -> np.ndarray:
     """An illuminant estimate (working RGB) moved onto the band of real light
     sources around the Planckian locus (:data:`ESTIMATE_DUV_MAX`), normalised.
     CCT and Duv as Ohno 2013 defines them (:mod:`.planckian`)."""
-    from .planckian import CCT_Duv_to_uv
     v = normalise_illuminant(rgb)
     if not ((RGB709_TO_XYZ @ v).sum() > 0):
         return v
@@ -274,7 +274,6 @@ def plausible_illuminant(rgb) -> np.ndarray:
 
 def cct_duv(rgb) -> tuple[float, float]:
     """CCT (K) and Duv (Ohno 2013) of a working-RGB colour."""
-    from .planckian import uv_to_CCT_Duv
     XYZ = RGB709_TO_XYZ @ np.asarray(rgb, np.float64)
     if not (XYZ.sum() > 0):
         return 6504.0, 0.0

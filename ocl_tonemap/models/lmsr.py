@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .photometry import RGB709_TO_XYZ
+
 #: Peaks of the cone fundamentals in Kirk & O'Brien's units (Sec. 3.2).
 L_MAX, M_MAX, S_MAX = 0.637, 0.392, 1.606
 KM_PHOTOPIC, KM_SCOTOPIC = 683.0, 1700.0
@@ -97,7 +99,6 @@ def spectral_to_lmsr(wavelengths, spectra: np.ndarray) -> np.ndarray:
 def spectral_to_rgb(wavelengths, spectra: np.ndarray) -> np.ndarray:
     """(..., N) spectral radiance -> (..., 3) linear BT.709 in cd/m^2 (CIE 1931 2-degree),
     for operators that take RGB."""
-    from .photometry import RGB709_TO_XYZ
     W = np.linalg.inv(RGB709_TO_XYZ) @ spectrum_weights(wavelengths, xyz_cmfs())
     return np.asarray(spectra, np.float64) @ W.T
 

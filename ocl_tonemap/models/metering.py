@@ -144,7 +144,7 @@ def _centre_count(width: int, height: int) -> int:
 def weights(spec: MeteringSpec, width: int, height: int, y0: int = 0, rows: int | None = None,
             mask: np.ndarray | None = None):
     """Per-pixel metering weights (float64) for rows [y0, y0+rows); ``mask``: the
-    (height, width) weight image of ``mask:`` metering (``imageio.read_weight_mask``)."""
+    (height, width) weight image of ``mask:`` metering (``backends/weights.py``)."""
     rows = height - y0 if rows is None else rows
     mode, p0, p1, p2, w_in, w_out = spec.weight_params(width, height)
     if mode == 0:

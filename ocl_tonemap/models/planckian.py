@@ -34,6 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .lmsr import colour_module
+
 TABLE_FILE = Path(__file__).resolve().parent.parent / "data" / "planckian_locus.json"
 #: The table's temperatures: every MIRED_STEP mired from T_MAX down to T_MIN.
 T_MIN, T_MAX, MIRED_STEP = 1000.0, 100000.0, 0.5
@@ -48,7 +50,6 @@ def table_mireds() -> np.ndarray:
 def make_table() -> dict:
     """The locus table from colour-science (the reference; run by
     ``python -m ocl_tonemap.models.planckian`` to write :data:`TABLE_FILE`)."""
-    from .lmsr import colour_module
     colour = colour_module()
     mired = table_mireds()
     uv = colour.temperature.CCT_to_uv_Planck1900(1e6 / mired)

@@ -246,7 +246,6 @@ class Operator:
     def plot_curves(self, state, Ls: np.ndarray):
         """Display-linear output of neutral greys ``Ls`` (cd/m^2) under ``state``, or
         None for operators with no single curve (local adaptation)."""
-        from ..models.photometry import neutral_scotopic_ratio
         L = np.asarray(Ls, np.float64)
         p = self.params(state, None)
         rgb = np.repeat(L[:, None], 3, axis=1)

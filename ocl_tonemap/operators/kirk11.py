@@ -14,8 +14,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..backends.plan import BilateralSpec
 from ..models import lmsr
+from ..models.bilateral import BilateralSpec
 from ..models.display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, apply_shoulder
 from ..models.kirk2011 import (KAPPA1, KAPPA2, KirkSettings, anchor_gain, display_matrix,
                                kappas)

@@ -12,11 +12,12 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 
-from ..backends.plan import BilateralSpec
+from ..models import ledda2004 as L
+from ..models.bilateral import BilateralSpec
 from ..models.display import SHOULDER_KNEE
 from ..models.ledda2004 import (CHANGE_LOG10, LOCAL_STRENGTH, MODES, STATE_CHANNELS,
                                 anchored_sigma, display_sigma, neutral_rod_ratio)
-from .base import Operator, Option, Stage, StateSpec
+from .base import Operator, Option, Stage, StateSpec, white_luminance
 from .pattanaik00 import MODE_OPTION
 
 
@@ -178,8 +179,6 @@ class Ledda04(Operator):
         shoulder. Local adaptation shows far more than a global map: with the
         default strength 0.5, a region needs about the square of the global ratio."""
         import numpy as np
-        from ..models import ledda2004 as L
-        from .base import white_luminance
         s = self.settings.strength
         sd, white, _ = self.frame_mapping(G_cone, G_rod)
 

@@ -27,6 +27,11 @@ import os
 import sys
 import time
 
+from .. import safeio
+from ..backends.opencl.runtime import get_runtime
+from ..imageio import FrameError, one_line
+from ..job.options import JobResult
+from ..models.photometry import RepairCounts
 from . import passes
 
 log = logging.getLogger("ocl_tonemap")
@@ -52,7 +57,6 @@ class OpenCLWorker(_WorkerPlugin):
     def setup(self, worker=None):
         if self.pocl_threads:
             os.environ.setdefault("POCL_MAX_PTHREAD_COUNT", str(int(self.pocl_threads)))
-        from ..backends.opencl.runtime import get_runtime
         get_runtime(self.device)
 
 
@@ -75,7 +79,6 @@ def _worker_name() -> str:
 def _task(what: str, chunk, fn):
     """Run one task's pass; what fails comes back as one FrameError naming the pass,
     the frames and the worker (a FrameError of the pass keeps its file and frame)."""
-    from ..imageio import FrameError
     _worker_logging()
     try:
         return fn()
@@ -83,7 +86,6 @@ def _task(what: str, chunk, fn):
         raise FrameError(exc.path, exc.frame, f"{exc.why} ({what} on worker "
                          f"{_worker_name()})") from None
     except Exception as exc:  # noqa: BLE001 - the client shows it in one line
-        from ..imageio import one_line
         span = f"frames {chunk[0]}-{chunk[1]}" if chunk else "the shot"
         raise FrameError(f"{what} of {span}", None, f"{one_line(exc, True)} (on worker "
                          f"{_worker_name()})") from None
@@ -109,7 +111,6 @@ def load_security(path: str):
     ``ca``, ``cert`` and ``key`` (PEM files; relative paths from the file's folder)."""
     import json
 
-    from .. import safeio
     text = safeio.read_text(path, "--scheduler-security", 1 << 20)
     try:
         import yaml
@@ -183,10 +184,8 @@ def _gather(futures, what: str, progress: bool, t0: float):
             try:
                 out[fut.key] = fut.result()
             except Exception as exc:  # noqa: BLE001 - our tasks raise FrameError already
-                from ..imageio import FrameError
                 if isinstance(exc, FrameError):
                     raise
-                from ..imageio import one_line
                 raise RuntimeError(f"task {fut.key}: {one_line(exc, True)}") from None
             if progress:
                 sys.stderr.write(f"\r{what}: {k}/{n} task(s), {time.perf_counter() - t0:6.1f} s")
@@ -208,8 +207,6 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
     """The shot on Dask: measure -> integrate -> apply. Returns a
     :class:`~ocl_tonemap.job.options.JobResult` (frames, outputs, repairs, seconds)
     with the seconds of each pass in ``passes``."""
-    from ..models.photometry import RepairCounts
-    from ..job.options import JobResult
     t0 = time.perf_counter()
     if not (isinstance(workers, int) and workers >= 1):
         raise ValueError(f"--workers must be >= 1 (got {workers})")

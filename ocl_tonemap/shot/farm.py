@@ -28,6 +28,8 @@ import re
 import shlex
 from xml.sax.saxutils import escape, quoteattr
 
+from .. import safeio
+from ..pipeline import Tonemapper
 from . import passes
 
 OPENJD_VERSION = "jobtemplate-2023-09"
@@ -152,7 +154,6 @@ def _user() -> str:
 def _check_options(opts) -> None:
     """Refuse, at submission, options the run would refuse (the observer made on the
     float64 reference backend: no OpenCL needed to submit). Every effect splits."""
-    from ..pipeline import Tonemapper
     Tonemapper(opts.operator, "reference", options=opts.operator_options,
                effects=opts.effects, quality=opts.quality)
 
@@ -185,6 +186,5 @@ def write_template(fmt: str, opts, run_tokens: list[str], job_file: str,
         text = opencue_spec(opts, run_tokens, store, chunk, name, command)
     else:
         raise ValueError(f"unknown job format {fmt!r} (openjd | opencue)")
-    from .. import safeio
     safeio.write_text(job_file, text)
     return job_file

@@ -52,15 +52,18 @@ import re
 
 import numpy as np
 
-from ..imageio import BandReader, FrameError, is_sequence, read_frame, without_frame_token
-from ..models.photometry import RepairCounts
-from ..operators.base import FrameStats
+from ..imageio import BandReader, FrameError, read_frame
+
+from ..colour.export import OcioExport
+from ..job.banded_io import stream_frame, stream_rows
 from ..job.checkpoint import load_state_in
 from ..job.frame import frame_input, map_frame
-from ..job.frames import frame_jobs, frame_time
 from ..job.options import DEFAULT_FPS, run_fingerprint
 from ..job.run import run_job, setup_run
-from ..job.stream import stream_frame, stream_rows
+from ..job.sequence import frame_jobs, frame_time
+from ..models.photometry import RepairCounts
+from ..operators.base import FrameStats
+from ..patterns import is_sequence, without_frame_token
 from ..state import AUTO_SCALE_KEY
 from .store import ShotStore
 
@@ -74,7 +77,7 @@ DEFAULT_KEYFRAME_EVERY = 50
 
 # -- the shot and its chunks --------------------------------------------------------------
 def shot_jobs(opts):
-    """Every frame of the shot: ``job.frames.frame_jobs`` over ``--frames`` (inputs checked)."""
+    """Every frame of the shot: ``job.sequence.frame_jobs`` over ``--frames`` (inputs checked)."""
     if not is_sequence(opts.input):
         raise FrameError(opts.input, None, "measure/integrate/apply split a shot: the input "
                          "must be a frame sequence pattern (shot.####.exr)")
@@ -433,7 +436,6 @@ def export(opts, store_path: str, chunk=None) -> tuple:
     state and statistics, and exported. Returns (OcioExport, seconds per frame spent
     reading, seconds per frame exporting)."""
     import time
-    from ..colour.export import OcioExport
     opts, jobs, store, man, integ = _integrated(opts, store_path)
     todo = chunk_jobs(jobs, chunk)
     k0 = jobs.index(todo[0])

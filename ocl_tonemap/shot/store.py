@@ -27,8 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__, safeio
-from ..state import AdaptationState, plan_state_ok, read_planes, side_file, write_planes
+from .. import safeio
+from ..backends.planes import band_readable
+from ..state import AdaptationState, plan_state_ok
+from ..state_files import load_state, read_planes, save_state, side_file, write_planes
+from ..version import __version__
 
 STORE_FORMAT = "ocl-tonemap.shot-store/1"
 STATS_FORMAT = "ocl-tonemap.frame-stats/1"
@@ -139,7 +142,6 @@ class ShotStore:
             pass
 
     def _write_stat_planes(self, frame: int, planes) -> str:
-        from ..backends.planes import band_readable
         if not band_readable(planes) and any(np.asarray(v).dtype == np.float64
                                              for v in planes.values()):
             name = f"{frame:08d}.planes.npz"              # the float64 reference: exact
@@ -176,14 +178,14 @@ class ShotStore:
         return self.states_dir / f"{frame:08d}.json"
 
     def write_state(self, frame: int, state: AdaptationState) -> None:
-        state.save(self.state_path(frame), compression=PLANES_COMPRESSION)
+        save_state(state, self.state_path(frame), compression=PLANES_COMPRESSION)
 
     def read_state(self, frame: int) -> AdaptationState:
         p = self.state_path(frame)
         if not p.exists():
             raise ValueError(f"no adaptation state for frame {frame} in {self.path}: run "
                              "the integrate pass first")
-        return AdaptationState.load(p)
+        return load_state(p)
 
     @property
     def integrated_path(self) -> Path:

@@ -103,8 +103,8 @@ def test_driver_change_invalidates_the_cached_verdict(rt, tmp_path, monkeypatch)
     assert v.ok and not v.cached
     monkeypatch.setattr(probe, "device_record", record)
     # a project version change is a new key as well
-    import ocl_tonemap
-    monkeypatch.setattr(ocl_tonemap, "__version__", ocl_tonemap.__version__ + ".post1")
+    from ocl_tonemap import version
+    monkeypatch.setattr(version, "__version__", version.__version__ + ".post1")
     assert probe.cache_key(rt.device) != key
 
 

@@ -176,7 +176,7 @@ def test_vector_kernel_equals_scalar_kernel(rt, n):
     img = hdr_image(1, n, seed=n)
     tm.process(img)
     b = tm.backend.bufs
-    p = P.frame_params(tm._state, tm.display)
+    p = P.frame_params(tm.scalar_state(), tm.display)
     outs = []
     for vector in (True, False):
         tm.backend.run_pointwise(tm.op.kernel_call(p, vector=vector), b["rgb"], b["Y"],
@@ -225,7 +225,7 @@ def test_durand00_float4_kernel_equals_scalar_kernel(rt, n):
     img = hdr_image(1, n, seed=n, lo=-3, hi=6)              # highlights over the knee
     tm.process(img)
     b = tm.backend.bufs
-    call = tm.op.kernel_call(tm.op.params(tm._state, None))
+    call = tm.op.kernel_call(tm.op.params(tm.scalar_state(), None))
     assert call.kernel == "durand00_map4" and dict(call.params)["knee"] > 0
     outs = []
     for c in (call, dataclasses.replace(call, kernel="durand00_map", pixels_per_item=1)):

@@ -7,9 +7,9 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.backends.plan import QUALITY_NAMES, QUALITY_TIERS, quality_tier
+from ocl_tonemap.backends.quality import QUALITY_NAMES, QUALITY_TIERS, quality_tier
 from ocl_tonemap.cli import main
-from ocl_tonemap.imageio import frame_path
+from ocl_tonemap.patterns import frame_path
 from ocl_tonemap.pipeline import Tonemapper
 from ocl_tonemap.job.options import JobOptions
 

@@ -15,7 +15,7 @@ import pytest
 from ocl_tonemap import calibration as cal
 from ocl_tonemap import colour
 from ocl_tonemap.cli import main
-from ocl_tonemap.imageio import frame_path
+from ocl_tonemap.patterns import frame_path
 
 
 @pytest.fixture(autouse=True)

@@ -9,7 +9,8 @@ import pytest
 
 from ocl_tonemap import colour
 from ocl_tonemap import imageio
-from ocl_tonemap.imageio import FrameError, FramePool, find_frames, frame_path, read_frame
+from ocl_tonemap.imageio import FrameError, FramePool, read_frame
+from ocl_tonemap.patterns import find_frames, frame_path
 from ocl_tonemap.imagewrite import write_frame
 
 

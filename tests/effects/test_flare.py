@@ -228,20 +228,21 @@ def test_flared_frame_kept_on_the_device_equals_the_host_path(rt, op, monkeypatc
     the flare and the operator's colour stage: the same output, bit for bit, as when
     they cross to the host; with an alpha channel and with the Purkinje effect after
     the flare they do cross (the stages that follow work on host pixels)."""
-    from ocl_tonemap.effects import Effects
+    from ocl_tonemap.effects.flare import Flare
     from ocl_tonemap.backends.opencl.image import DeviceImage
     img = _lamp_scene().astype(np.float32) * 1e-2
     seen = []
-    real = Effects.flare
+    real = Flare.host
 
-    def spy(self, rgb, *a):
+    def spy(self, ctx, rgb):
         seen.append(isinstance(rgb, DeviceImage))
-        return real(self, rgb, *a)
-    monkeypatch.setattr(Effects, "flare", spy)
+        return real(self, ctx, rgb)
+    monkeypatch.setattr(Flare, "host", spy)
+    monkeypatch.setattr(Flare, "device", spy)
     fx_on = EffectSettings(flare="on")
     outs = []
     for on_device in (True, False):
-        monkeypatch.setattr(Effects, "flare_on_device",
+        monkeypatch.setattr(Flare, "on_device",
                             (lambda self, h, w: True) if on_device else
                             (lambda self, h, w: False))
         tm = Tonemapper(op, "opencl", effects=fx_on)

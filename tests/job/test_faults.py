@@ -16,7 +16,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.imageio import frame_path
+from ocl_tonemap.patterns import frame_path
 from ocl_tonemap.sample import write_tunnel_sequence
 
 
@@ -569,7 +569,7 @@ def test_simulate_plots_and_labels_its_times_in_order(seq, tmp_path):
 
 
 def test_a_resumed_runs_plot_covers_the_whole_shot(seq, tmp_path):
-    from ocl_tonemap.imageio import find_frames
+    from ocl_tonemap.patterns import find_frames
     from ocl_tonemap.job.run import infos_from_outputs
     pattern, frames = seq
     out = str(tmp_path / "o.####.exr")

@@ -167,7 +167,7 @@ def seq_state(tmp_path_factory):
 def test_fuzzed_state_files(seq_state, tmp_path_factory, capsys, edits):
     import json
     import shutil
-    from ocl_tonemap.imageio import frame_path
+    from ocl_tonemap.patterns import frame_path
     d, pattern, state, _, frames = seq_state
     work = tmp_path_factory.mktemp("s")
     side = state["extra"].get("pixel_state")

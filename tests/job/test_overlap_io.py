@@ -13,7 +13,7 @@ import OpenImageIO as oiio
 import pytest
 
 from ocl_tonemap.cli import main
-from ocl_tonemap.imageio import frame_path
+from ocl_tonemap.patterns import frame_path
 from ocl_tonemap.sample import write_tunnel_sequence
 
 
@@ -136,14 +136,13 @@ def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, mo
     def prefetch(self, key, fn):
         order.append(("prefetch", key))
         return real_prefetch(self, key, fn)
-    from ocl_tonemap import backends
-    real_resolve, real_prefetch = backends.resolve_backend, job_run._FrameIO.prefetch
+    real_resolve, real_prefetch = job_run.resolve_backend, job_run._FrameIO.prefetch
     real_prepare = job_run.prepare_kernels
     monkeypatch.setattr(job_run, "prepare_kernels", prepare)
     monkeypatch.setattr(job_run._FrameIO, "prefetch", prefetch)
     monkeypatch.setattr(job_run, "read_frame", read)
     monkeypatch.setattr(job_run, "setup_run", setup)
-    monkeypatch.setattr(backends, "resolve_backend", resolve)
+    monkeypatch.setattr(job_run, "resolve_backend", resolve)
     out = str(tmp_path / "o.####.png")
     assert main(["run", pattern, out, "-q"]) == 0
     # the OpenCL device is probed (cli: "auto") and the run set up behind the read

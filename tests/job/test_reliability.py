@@ -17,7 +17,7 @@ import OpenImageIO as oiio
 import pytest
 
 from ocl_tonemap.cli import main
-from ocl_tonemap.imageio import frame_path
+from ocl_tonemap.patterns import frame_path
 from ocl_tonemap.sample import write_tunnel_sequence
 
 OPERATORS = ("pattanaik00", "ledda04", "durand00", "kirk11")
@@ -264,7 +264,7 @@ def test_help_names_every_metering_and_the_defaults(capsys):
 
 
 def test_api_dtypes_and_shapes(rt):
-    from ocl_tonemap import Tonemapper
+    from ocl_tonemap import Tonemapper, process_imagebuf
     tm = Tonemapper("pattanaik00")
     u8 = np.full((4, 6, 3), 255, np.uint8)
     f = np.ones((4, 6, 3), np.float32)
@@ -281,13 +281,13 @@ def test_api_dtypes_and_shapes(rt):
 
 def test_process_imagebuf_is_the_clis_front_door(tmp_path, rt):
     """The same calibration, colour and metadata as the command line."""
-    from ocl_tonemap import Tonemapper
+    from ocl_tonemap import Tonemapper, process_imagebuf
     from ocl_tonemap.imageio import FrameError
     pix = np.random.default_rng(1).uniform(0.1, 2.0, (6, 8, 3)).astype(np.float32)
     p = _exr(tmp_path / "in.exr", pix, None, whiteLuminance=300.0)
     cli_out = tmp_path / "o.exr"
     assert main(["run", p, str(cli_out), "--out-bits", "float", "-q"]) == 0
-    res = Tonemapper("pattanaik00").process_imagebuf(oiio.ImageBuf(p))
+    res = process_imagebuf(Tonemapper("pattanaik00"), oiio.ImageBuf(p))
     cli = oiio.ImageBuf(str(cli_out))
     np.testing.assert_allclose(res.get_pixels(oiio.FLOAT), cli.get_pixels(oiio.FLOAT), rtol=1e-6)
     for k in ("ocltm:luminance_scale", "ocltm:luminance_scale_source", "ocltm:input_colorspace",
@@ -299,7 +299,7 @@ def test_process_imagebuf_is_the_clis_front_door(tmp_path, rt):
         cfg.getColorSpace(cli.spec().getattribute("oiio:ColorSpace")).getName()
     assert res.spec().getattribute("ocltm:luminance_scale") == 300.0
     with pytest.raises(FrameError, match="cannot read"):
-        Tonemapper("pattanaik00").process_imagebuf(oiio.ImageBuf(str(tmp_path / "nope.exr")))
+        process_imagebuf(Tonemapper("pattanaik00"), oiio.ImageBuf(str(tmp_path / "nope.exr")))
 
 
 # --- frames larger than the memory budget: streamed in row bands -----------------------

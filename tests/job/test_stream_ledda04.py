@@ -11,7 +11,7 @@ import pytest
 
 from ocl_tonemap.backends.planes import PlaneStore, UniformPlanes, read_rows
 from ocl_tonemap.cli import main
-from ocl_tonemap.state import AdaptationState
+from ocl_tonemap.state_files import load_state
 
 from job.test_reliability import STREAM_SLACK_MB, _big, _exr, _peak_rss_mb
 
@@ -67,7 +67,7 @@ def test_streamed_ledda04_sequence_carries_state_and_resumes(tmp_path):
     for f in (1, 2, 3):
         np.testing.assert_allclose(_pix(tmp_path / "s" / f"o.{f:04d}.exr"),
                                    _pix(tmp_path / "w" / f"o.{f:04d}.exr"), **TOL)
-    a, b = AdaptationState.load(tmp_path / "w.json"), AdaptationState.load(tmp_path / "s.json")
+    a, b = load_state(tmp_path / "w.json"), load_state(tmp_path / "s.json")
     assert set(a.pixels) == set(b.pixels)
     for k in a.pixels:
         np.testing.assert_allclose(b.pixels[k], a.pixels[k], rtol=1e-3, atol=1e-6, err_msg=k)

@@ -163,7 +163,7 @@ def test_plan_is_resumed_with_the_state():
 def test_opencl_proxy_equals_reference_across_bands():
     """The device's block sums (metering.cl:block_sums) give the reference's proxy,
     whole and in row bands whose edges cut blocks."""
-    from ocl_tonemap.backends import make_backend
+    from ocl_tonemap.backends.select import make_backend
     rgb = _scene("lamps", 1.0)[:101, :157]
     ref = met.block_means(np.asarray(rgb, np.float64), 9)
     for bands in (None, 157 * 13):

@@ -8,7 +8,8 @@ import pytest
 
 from ocl_tonemap.models import kirk2011 as ko
 from ocl_tonemap.models import lmsr
-from ocl_tonemap.imageio import read_frame, spectral_channels
+from ocl_tonemap.imageio import read_frame
+from ocl_tonemap.channels import spectral_channels
 from ocl_tonemap.models.numerics import nnls
 from ocl_tonemap.pipeline import Tonemapper
 from ocl_tonemap.sample import spectral_patches, write_spectral_image

@@ -7,7 +7,7 @@ import pytest
 
 from conftest import hdr_image
 from ocl_tonemap.models import ledda2004 as L
-from ocl_tonemap.state import AdaptationState
+from ocl_tonemap.state_files import load_state, save_state
 from ocl_tonemap.backends.opencl.bilateral import DeviceBilateral
 from ocl_tonemap.models.bilateral import LEDDA_RANGE, RangeKernel, bilateral_reference
 from ocl_tonemap.pipeline import Tonemapper
@@ -242,10 +242,10 @@ def test_state_side_file_roundtrip(tmp_path):
     one = Tonemapper("ledda04", "opencl", model="none")
     for t, k in ((0, 1.0), (1, 1e-3)):
         one.process(img * k, time_s=t)
-    one.state.save(tmp_path / "s.json")
+    save_state(one.state, tmp_path / "s.json")
     assert (tmp_path / "s.pixels.exr").exists()
     final = one.process(img * 1e-3, time_s=30)
-    st = AdaptationState.load(tmp_path / "s.json")
+    st = load_state(tmp_path / "s.json")
     assert set(st.pixels) == set(L.STATE_CHANNELS)
     two = Tonemapper("ledda04", "opencl", state=st, model="none")
     assert np.array_equal(two.process(img * 1e-3, time_s=30), final)

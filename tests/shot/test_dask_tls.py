@@ -15,7 +15,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.imageio import frame_path
+from ocl_tonemap.patterns import frame_path
 
 pytest.importorskip("distributed")
 x509 = pytest.importorskip("cryptography.x509")

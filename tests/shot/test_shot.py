@@ -13,7 +13,9 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.imageio import FrameError, frame_path
+from ocl_tonemap.imageio import FrameError
+
+from ocl_tonemap.patterns import frame_path
 from ocl_tonemap.job.options import JobOptions
 from ocl_tonemap.job.run import run_job
 from ocl_tonemap.shot import passes
@@ -383,7 +385,7 @@ def lamp_fade(tmp_path_factory):
     over a second, through the flare's source limit, and fades again: the plan's flare
     comes in and goes out with its ramps and hysteresis, frames where its weight is
     neither the frame's own 0 nor 1."""
-    from ocl_tonemap.imageio import frame_path
+    from ocl_tonemap.patterns import frame_path
     d = tmp_path_factory.mktemp("lampfade")
     pattern = str(d / "scene" / "lamp.####.exr")
     os.makedirs(d / "scene")

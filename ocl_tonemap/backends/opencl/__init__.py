@@ -1,32 +1,35 @@
 """The OpenCL backend: float32 kernels (``kernels/*.cl``) on one device.
 
 Frames larger than ``max_band_pixels`` are processed in row bands
-(``plan.row_bands``): the measure pass meters every band (sums add up exactly as
+(``bands.row_bands``): the measure pass meters every band (sums add up exactly as
 for one band), the apply pass maps each band. A frame that fits stays resident
 between the passes. One pool of working buffers serves every schedule.
 """
 
 from __future__ import annotations
 
-import numpy as np
-
 from contextlib import contextmanager
+
+import numpy as np
 
 from ...models import metering as met
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats, Operator
-from ..base import Levels, NoPixelState
-from ..plan import row_bands
+from ..bands import row_bands
+from ..base import Levels, NoPixelState, load_schedule
+from .convolution import DeviceBlur
+from .display import BlurredOutputEncoding
+from .flare import DeviceFlare
 from .image import DeviceImage
-from .metering import DeviceMeter
-from .runtime import get_runtime, index_defines, round_up
+from .lmsr import KirkDevice
+from .metering import DeviceMeter, MeteringPasses
+from .runtime import describe_device, get_runtime, index_defines, round_up
 
 
-class OpenCLBackend:
+class OpenCLBackend(MeteringPasses):
     """Float32 OpenCL kernels (kernels/*.cl)."""
 
     name = "opencl"
-    ILLUM_GROUPS = 64
 
     def __init__(self, device: str | None = None, max_band_pixels: int | None = None):
         self.rt = get_runtime(device)
@@ -51,18 +54,15 @@ class OpenCLBackend:
         self._pool: dict = {}
 
     def describe(self) -> str:
-        from .runtime import describe_device
         return describe_device(self.rt.device)
 
     def schedule(self, op):
         spec = op.schedules.get(self.name)
         if spec:
-            from .. import load_schedule
             return load_schedule(spec)(self, op)
         if type(op).kernel_call is Operator.kernel_call:
             # no kernel: the float64 map on the host (the one place a backend lends
             # another's schedule)
-            from .. import load_schedule
             return load_schedule(".reference:PointwiseSchedule")(self, op)
         return PointwiseSchedule(self, op)
 
@@ -85,7 +85,6 @@ class OpenCLBackend:
         """The separable blur on the device (effects: flare, acuity): ``.blur(img, taps,
         edge)`` and ``.blur_axis``, in bands of at most ``max_pixels`` (default: the
         backend's band size now)."""
-        from .convolution import DeviceBlur
         return DeviceBlur(self.rt, max_pixels or self.max_band_pixels)
 
     def acuity_encoding(self, encoding, h: int, w: int, taps, t: float, blur):
@@ -94,7 +93,6 @@ class OpenCLBackend:
         or None where the frame is mapped in more than one band (then the host blurs the
         display-linear frame). Its scratch is a spent frame of the colour stage, or the
         pool's until the end of the frame."""
-        from .display import BlurredOutputEncoding
         if encoding is None or blur is None or len(self.bands(h, w)) != 1:
             return None
 
@@ -110,7 +108,6 @@ class OpenCLBackend:
 
     def flare_device(self):
         """The fast flare on the device (``effects/flare.py``)."""
-        from .flare import DeviceFlare
         return DeviceFlare(self.rt, self.buffer, self.release, self._spare_frame)
 
     def _spare_frame(self, nbytes: int):
@@ -125,7 +122,6 @@ class OpenCLBackend:
 
     def purkinje_device(self):
         """kirk11's shift kernels for the Purkinje effect on other operators."""
-        from .lmsr import KirkDevice
         return KirkDevice(self.rt)
 
     # -- buffers -----------------------------------------------------------------------
@@ -218,108 +214,8 @@ class OpenCLBackend:
             setattr(rc, k, int(v))
         return rc
 
-    def _illuminant_sums(self, n: int) -> np.ndarray:
-        """Device sums (Y r, Y g, Y b, Y Y) over the resident band (float64 on the host)."""
-        import pyopencl as cl
-        out = self.buffer("illum", self.ILLUM_GROUPS * 4 * 4)
-        wg = 64
-        groups = max(1, min(self.ILLUM_GROUPS, -(-n // wg)))
-        self._illum(self.rt.queue, (groups * wg,), (wg,), self.bufs["rgb"], self.bufs["Y"],
-                    np.int32(n), out, cl.LocalMemory(wg * 4 * 4))
-        part = np.empty((groups, 4), np.float32)
-        cl.enqueue_copy(self.rt.queue, part, out)
-        return part.astype(np.float64).sum(axis=0)
-
     def bands(self, h: int, w: int, halo: int = 0):
         return row_bands(h, w, self.max_band_pixels, halo)
-
-    def _block_sums(self, w: int, nr: int, y0: int, s: int, into: np.ndarray,
-                    lim: float = 0.0, wait: bool = True):
-        """Add the band's block sums (``metering.cl:block_sums``; ``lim`` > 0: of the
-        source part) into ``into`` (block rows x block columns x 4, float64); ``wait``
-        False: their read is only enqueued, and the function returned adds them once
-        it has come."""
-        import pyopencl as cl
-        bw = into.shape[1]
-        by0, by1 = y0 // s, (y0 + nr - 1) // s + 1
-        n = (by1 - by0) * bw
-        out = self.buffer("blocks", n * 16)
-        self._blocks(self.rt.queue, (round_up(n, 64),), None, self.bufs["rgb"], np.int32(w),
-                     np.int32(nr), np.int32(y0), np.int32(s), np.int32(bw), np.int32(by0),
-                     np.int32(by1 - by0), np.float32(lim), out)
-        part = np.empty((by1 - by0, bw, 4), np.float32)
-        ev = cl.enqueue_copy(self.rt.queue, part, out, is_blocking=wait)
-
-        def add():
-            ev.wait()
-            into[by0:by1] += part
-        if not wait:
-            return add
-        add()
-        return None
-
-    def meter_pass(self, pixels, scale, spec, illuminant: bool, keep_rgb: np.ndarray | None,
-                   proxy_stride: int = 0):
-        """Colour stage + metering over the bands (+ illuminant sums, + the working
-        rgb copied to ``keep_rgb``, + block sums of ``proxy_stride``): (bands, repairs,
-        (G_rod, G_cone), illuminant sums, the largest working luminance, the proxy)."""
-        import pyopencl as cl
-        h, w, _ = pixels.shape
-        bands = self.bands(h, w)
-        repairs = RepairCounts()
-        sums = None
-        illum = np.zeros(4)
-        self._resident = None
-        self._ahead = None
-        stride = int(proxy_stride)
-        blocks = np.zeros((-(-h // stride), -(-w // stride), 4)) if stride else None
-        for y0, nr in bands:
-            repairs += self.to_working(pixels[y0:y0 + nr], scale, count=True)
-            b = self.bufs
-            s = self.meter.band_sums(b["Y"], b["Ys"], nr * w, w, h, y0, spec)
-            if sums is None:
-                sums = s
-            else:
-                sums.add(s)
-            if illuminant:
-                illum += self._illuminant_sums(nr * w)
-            if stride:
-                self._block_sums(w, nr, y0, stride, blocks)
-            if keep_rgb is not None:
-                cl.enqueue_copy(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
-        proxy = None if blocks is None else blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)
-        return bands, repairs, sums.goal(spec), illum, float(sums.sums[5]), proxy
-
-    def source_proxy(self, shape, stride: int, lim: float) -> np.ndarray | None:
-        """Block means of the flare's source part of the frame the last :meth:`working`
-        made, where it is still whole on the device (one band); else None."""
-        h, w = int(shape[0]), int(shape[1])
-        if self._resident != (h, w):
-            return None
-        ahead, self._ahead = self._ahead, None
-        if ahead is not None and ahead[0] == (h, w, int(stride), float(lim)):
-            blocks = ahead[1]
-            ahead[2]()
-        else:
-            blocks = np.zeros((-(-h // stride), -(-w // stride), 4))
-            self._block_sums(w, h, 0, int(stride), blocks, float(lim))
-        return blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)
-
-    def source_proxy_ahead(self, shape, stride: int, lim: float) -> None:
-        h, w = int(shape[0]), int(shape[1])
-        self._ahead = None
-        if self._resident == (h, w):
-            blocks = np.zeros((-(-h // stride), -(-w // stride), 4))
-            self._ahead = ((h, w, int(stride), float(lim)), blocks,
-                           self._block_sums(w, h, 0, int(stride), blocks, float(lim), False))
-
-    def scene_levels(self, source, scale: float, spec: met.MeteringSpec,
-                     illuminant: bool, proxy_stride: int = 0) -> Levels:
-        """:meth:`meter_pass` over a band source (nothing kept)."""
-        _, repairs, G, illum, max_Y, proxy = self.meter_pass(source, scale, spec, illuminant,
-                                                             None, proxy_stride)
-        return Levels(None, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y,
-                      proxy)
 
     def working_rows(self, pixels: np.ndarray, scale: float) -> np.ndarray:
         """The colour stage of some rows, brought back: working RGB in cd/m^2."""

@@ -2,7 +2,7 @@
 and the bilateral grid (Paris & Durand 2006; Chen, Paris & Durand 2007).
 
 The float64 reference is ``models/bilateral.py``; which of the two runs, and at
-what grid sampling, is the plan's choice (``backends/plan.py``).
+what grid sampling, is the operator's option (``models/bilateral.py`` ``BilateralSpec``).
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ import numpy as np
 
 from ...models.bilateral import (LEDDA_RANGE, SUPPORT, RangeKernel, prepare_signal,
                                  spatial_radius, spatial_weights)
-from ..plan import BilateralSpec, row_bands
+from ...models.bilateral import BilateralSpec
+from ..bands import row_bands
 from .runtime import round_up
 
 # --- the bilateral grid, shared geometry ---------------------------------------------

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...models.convolution import EDGE_ZERO
-from ..plan import row_bands
+from ..bands import row_bands
 from .runtime import round_up
 
 

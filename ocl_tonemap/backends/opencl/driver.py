@@ -10,6 +10,8 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
+from ...resources import package_data_dir
+from . import icd
 from .constants import common_options, define_value  # noqa: F401 (define_value: runtime)
 
 
@@ -39,7 +41,6 @@ class KernelBuildError(OpenCLUnavailable):
 
 @functools.lru_cache(maxsize=None)
 def cl_api():
-    from . import icd
     icd.register()                      # before the ICD loader's first look
     try:
         import warnings
@@ -112,7 +113,6 @@ def quiet_compiler(notice=None, after_s: float = 1.0):
 
 def kernel_dir() -> Path:
     """Folder holding the OpenCL sources (``*.cl`` and ``common.h``)."""
-    from ...resources import package_data_dir
     return package_data_dir("kernels", "common.h")
 
 

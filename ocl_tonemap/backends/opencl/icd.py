@@ -22,6 +22,8 @@ import os
 import sys
 from pathlib import Path
 
+from ...resources import user_cache_dir
+
 #: The system's vendors folder (``OCLTM_SYSTEM_ICD_DIR`` overrides it: tests).
 SYSTEM_VENDORS = "/etc/OpenCL/vendors"
 #: The name of the ``.icd`` this module writes for Intel's CPU runtime.
@@ -34,7 +36,6 @@ _done = False
 
 
 def cache_dir() -> Path:
-    from ...resources import user_cache_dir
     return user_cache_dir()
 
 

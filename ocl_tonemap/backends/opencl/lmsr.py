@@ -9,13 +9,13 @@ import math
 
 import numpy as np
 
-from ...models import kirk2011 as K
-from ...models import lmsr
+from ...models import kirk2011 as K, lmsr
 from ...models.bilateral import RangeKernel
 from ...models.durand2002 import BASE_HIST_BINS, BASE_HIST_HI, BASE_HIST_LO, BaseRange, base_hist_edges
 from ...models.kirk2011 import RHO, SIGMA_RANGE_LOG10, subset_solvers, white_norm
 from ...models.photometry import RepairCounts
 from .bilateral import DeviceBilateral
+from .image import DeviceImage
 from .runtime import round_up
 
 
@@ -139,7 +139,6 @@ class KirkDevice:
         place on the device (a new image of the same buffer comes back: another frame
         to the stages' residency checks); a host array: through one
         buffer of :data:`SHIFT_BAND` pixels, kept for the next frame."""
-        from .image import DeviceImage
         cl, q_ = self.cl, self.rt.queue
         params = self._shift_params(area, k1, k2, gain, M, xyz)
         fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))

@@ -6,8 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...imageio import read_weight_mask
 from ...models.metering import HIST_BINS, HIST_HI, HIST_LO, LOG_FLOOR, MeteringSpec, MeterSums
+from ...models.photometry import RepairCounts
+from ..base import Levels
+from ..weights import read_weight_mask
+from .runtime import round_up
 
 
 class DeviceMeter:
@@ -75,3 +78,112 @@ class DeviceMeter:
         h = np.empty(HIST_BINS, np.int32)
         cl.enqueue_copy(q, h, self.hist)
         return h.astype(np.int64)
+
+
+class MeteringPasses:
+    """The metering passes of :class:`~.OpenCLBackend` (a mixin): the colour stage and
+    the metering over a frame's bands, the illuminant's sums and the block means the
+    flare's source proxy reads. It uses the backend's ``rt``, ``meter``, ``bufs``,
+    ``buffer``, ``bands``, ``to_working`` and the ``_resident`` / ``_ahead`` marks."""
+
+    ILLUM_GROUPS = 64
+
+    def _illuminant_sums(self, n: int) -> np.ndarray:
+        """Device sums (Y r, Y g, Y b, Y Y) over the resident band (float64 on the host)."""
+        import pyopencl as cl
+        out = self.buffer("illum", self.ILLUM_GROUPS * 4 * 4)
+        wg = 64
+        groups = max(1, min(self.ILLUM_GROUPS, -(-n // wg)))
+        self._illum(self.rt.queue, (groups * wg,), (wg,), self.bufs["rgb"], self.bufs["Y"],
+                    np.int32(n), out, cl.LocalMemory(wg * 4 * 4))
+        part = np.empty((groups, 4), np.float32)
+        cl.enqueue_copy(self.rt.queue, part, out)
+        return part.astype(np.float64).sum(axis=0)
+
+    def _block_sums(self, w: int, nr: int, y0: int, s: int, into: np.ndarray,
+                    lim: float = 0.0, wait: bool = True):
+        """Add the band's block sums (``metering.cl:block_sums``; ``lim`` > 0: of the
+        source part) into ``into`` (block rows x block columns x 4, float64); ``wait``
+        False: their read is only enqueued, and the function returned adds them once
+        it has come."""
+        import pyopencl as cl
+        bw = into.shape[1]
+        by0, by1 = y0 // s, (y0 + nr - 1) // s + 1
+        n = (by1 - by0) * bw
+        out = self.buffer("blocks", n * 16)
+        self._blocks(self.rt.queue, (round_up(n, 64),), None, self.bufs["rgb"], np.int32(w),
+                     np.int32(nr), np.int32(y0), np.int32(s), np.int32(bw), np.int32(by0),
+                     np.int32(by1 - by0), np.float32(lim), out)
+        part = np.empty((by1 - by0, bw, 4), np.float32)
+        ev = cl.enqueue_copy(self.rt.queue, part, out, is_blocking=wait)
+
+        def add():
+            ev.wait()
+            into[by0:by1] += part
+        if not wait:
+            return add
+        add()
+        return None
+
+    def meter_pass(self, pixels, scale, spec, illuminant: bool, keep_rgb: np.ndarray | None,
+                   proxy_stride: int = 0):
+        """Colour stage + metering over the bands (+ illuminant sums, + the working
+        rgb copied to ``keep_rgb``, + block sums of ``proxy_stride``): (bands, repairs,
+        (G_rod, G_cone), illuminant sums, the largest working luminance, the proxy)."""
+        import pyopencl as cl
+        h, w, _ = pixels.shape
+        bands = self.bands(h, w)
+        repairs = RepairCounts()
+        sums = None
+        illum = np.zeros(4)
+        self._resident = None
+        self._ahead = None
+        stride = int(proxy_stride)
+        blocks = np.zeros((-(-h // stride), -(-w // stride), 4)) if stride else None
+        for y0, nr in bands:
+            repairs += self.to_working(pixels[y0:y0 + nr], scale, count=True)
+            b = self.bufs
+            s = self.meter.band_sums(b["Y"], b["Ys"], nr * w, w, h, y0, spec)
+            if sums is None:
+                sums = s
+            else:
+                sums.add(s)
+            if illuminant:
+                illum += self._illuminant_sums(nr * w)
+            if stride:
+                self._block_sums(w, nr, y0, stride, blocks)
+            if keep_rgb is not None:
+                cl.enqueue_copy(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
+        proxy = None if blocks is None else blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)
+        return bands, repairs, sums.goal(spec), illum, float(sums.sums[5]), proxy
+
+    def source_proxy(self, shape, stride: int, lim: float) -> np.ndarray | None:
+        """Block means of the flare's source part of the frame the last :meth:`working`
+        made, where it is still whole on the device (one band); else None."""
+        h, w = int(shape[0]), int(shape[1])
+        if self._resident != (h, w):
+            return None
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead[0] == (h, w, int(stride), float(lim)):
+            blocks = ahead[1]
+            ahead[2]()
+        else:
+            blocks = np.zeros((-(-h // stride), -(-w // stride), 4))
+            self._block_sums(w, h, 0, int(stride), blocks, float(lim))
+        return blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)
+
+    def source_proxy_ahead(self, shape, stride: int, lim: float) -> None:
+        h, w = int(shape[0]), int(shape[1])
+        self._ahead = None
+        if self._resident == (h, w):
+            blocks = np.zeros((-(-h // stride), -(-w // stride), 4))
+            self._ahead = ((h, w, int(stride), float(lim)), blocks,
+                           self._block_sums(w, h, 0, int(stride), blocks, float(lim), False))
+
+    def scene_levels(self, source, scale: float, spec: MeteringSpec,
+                     illuminant: bool, proxy_stride: int = 0) -> Levels:
+        """:meth:`meter_pass` over a band source (nothing kept)."""
+        _, repairs, G, illum, max_Y, proxy = self.meter_pass(source, scale, spec, illuminant,
+                                                             None, proxy_stride)
+        return Levels(None, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y,
+                      proxy)

@@ -24,7 +24,11 @@ import os
 import time
 from dataclasses import dataclass
 
+from ... import version
+from ...resources import cache_write
 from . import icd
+from .constants import common_options
+from .driver import build_options, cl_api, kernel_dir, quiet_compiler
 
 PROBE_KERNEL = r"""
 __kernel void ocltm_probe(__global const float4 *x, __global float4 *partial,
@@ -64,14 +68,12 @@ def _probe_inputs():
 
 
 def _source() -> str:
-    from .driver import kernel_dir
     return (kernel_dir() / "common.h").read_text() + PROBE_KERNEL
 
 
 def _source_key() -> str:
     """The probe's source and the model constants common.h gets as build options
     (:mod:`.constants`): the verdict is asked again when either changes."""
-    from .constants import common_options
     return "\n".join([_source(), *common_options()])
 
 
@@ -90,8 +92,7 @@ def device_record(device) -> dict:
 
 
 def cache_key(device) -> str:
-    from ... import __version__
-    parts = {**device_record(device), "project": __version__,
+    parts = {**device_record(device), "project": version.__version__,
              "probe": hashlib.sha256(_source_key().encode()).hexdigest(),
              "env": _pocl_env(), "form": CACHE_VERSION}
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
@@ -120,7 +121,6 @@ def _store(key: str, rec: dict | None) -> None:
             return
     else:
         doc[key] = rec
-    from ...resources import cache_write
     cache_write(path, json.dumps(doc, indent=1, sort_keys=True).encode())
 
 
@@ -138,7 +138,6 @@ def first_error_line(text: str) -> str:
 def run_probe(device) -> Verdict:
     """Build and run the probe kernel on ``device`` (no cache)."""
     import numpy as np
-    from .driver import build_options, cl_api, quiet_compiler
     cl = cl_api()
     t0 = time.perf_counter()
     try:

@@ -15,18 +15,20 @@ a module cache; their device binaries are kept in the user's cache
 from __future__ import annotations
 
 import functools
-import time
 import logging
 import os
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
-log = logging.getLogger("ocl_tonemap")
-
+from ...resources import cache_write, user_cache_dir
+from . import probe
 # the driver layer below the runtime (probe.py builds on it too); names kept here
-from .driver import (INSTALL_HINT, DeviceBroken, KernelBuildError,  # noqa: E402,F401
+from .driver import (INSTALL_HINT, DeviceBroken, KernelBuildError,  # noqa: F401
                      OpenCLUnavailable, build_options, cl_api, define_value, kernel_dir,
                      quiet_compiler, vector_pixels)
+
+log = logging.getLogger("ocl_tonemap")
 
 
 @functools.lru_cache(maxsize=1)
@@ -125,7 +127,6 @@ def choose_device(spec: str | None = None):
     :class:`DeviceBroken`; without one, broken devices are skipped with a warning
     and :class:`OpenCLUnavailable` says when none works.
     """
-    from . import probe
     devices = list_devices()
     if not devices:
         raise OpenCLUnavailable(INSTALL_HINT)
@@ -206,7 +207,6 @@ class Runtime:
                 return
         except OSError:
             pass
-        from ...resources import cache_write
         if cache_write(path, data):
             try:                            # the most recent RUN_LISTS lists are kept
                 old = sorted(path.parent.glob("run-*.json"), key=lambda p: p.stat().st_mtime)
@@ -283,7 +283,6 @@ def _journal_path(device, key: str) -> Path | None:
     if os.environ.get("PYOPENCL_NO_CACHE"):
         return None
     import hashlib
-    from ...resources import user_cache_dir
     h = hashlib.sha256("\0".join([_device_key(device), key]).encode())
     return user_cache_dir() / "programs" / f"run-{h.hexdigest()[:32]}.json"
 
@@ -371,7 +370,6 @@ def _build(context, device, files: tuple[str, ...], defines: tuple = ()):
                             max(0.05, 1.0 - _build_spent.get(key, 0.0))):
             prog = cl.Program(context, src).build(options=opts, devices=[device])
     except cl.Error as exc:
-        from . import probe
         probe.forget(device)            # the next start probes the driver again
         raise KernelBuildError(
             f"OpenCL kernel build failed: kernels/{', kernels/'.join(files)} on "
@@ -399,7 +397,6 @@ def _building_notice(device, kept: bool) -> str | None:
     if key in _said_building or not log.isEnabledFor(NOTE):
         return None
     _said_building.add(key)
-    from ...resources import user_cache_dir
     where = (f"first run only: later runs load them from {user_cache_dir() / 'programs'}"
              if kept else "not kept: PYOPENCL_NO_CACHE is set")
     return (f"ocl-tonemap NOTE: building the OpenCL kernels for {device.name.strip()} on "
@@ -418,19 +415,16 @@ def program_cache_path(device, src: str, opts: list) -> Path | None:
     if os.environ.get("PYOPENCL_NO_CACHE"):
         return None
     import hashlib
-    from ...resources import user_cache_dir
     h = hashlib.sha256("\0".join([_device_key(device), src, *opts]).encode())
     return user_cache_dir() / "programs" / f"{h.hexdigest()[:40]}.bin"
 
 
 @functools.lru_cache(maxsize=None)
 def _device_key(device) -> str:
-    from . import probe
     return probe.cache_key(device)
 
 
 def _keep_binary(prog, path: Path) -> None:
-    from ...resources import cache_write
     try:
         binary = prog.get_info(cl_api().program_info.BINARIES)[0]
         if not binary:

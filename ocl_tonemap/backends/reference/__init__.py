@@ -4,17 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...models import durand2000
-from ...models import metering as met
+from ...models import durand2000, metering as met
 from ...models.photometry import photopic_luminance, sanitize, scotopic_luminance
+from ...models.spencer1995 import source_part
 from ...operators.base import FrameStats
-from ..base import HostBackend, Levels, NoPixelState
+from ..base import HostBackend, Levels, load_schedule, NoPixelState
 
 
 def _mask(spec: met.MeteringSpec, w: int, h: int):
     if spec.mode != "mask":
         return None
-    from ...imageio import read_weight_mask
+    from ..weights import read_weight_mask  # lazy: OIIO only for a mask file
     return read_weight_mask(spec.mask, w, h)
 
 
@@ -31,7 +31,6 @@ class ReferenceBackend(HostBackend):
     def schedule(self, op):
         spec = op.schedules.get(self.name)
         if spec:
-            from .. import load_schedule
             return load_schedule(spec)(self, op)
         return PointwiseSchedule(self, op)
 
@@ -55,7 +54,6 @@ class ReferenceBackend(HostBackend):
         rgb = self._last_rgb
         if rgb is None or rgb.shape[:2] != tuple(shape[:2]):
             return None
-        from ...models.spencer1995 import source_part
         return met.block_means(source_part(rgb, 1.0, lim), int(stride))
 
     def scene_levels(self, source, scale: float, spec: met.MeteringSpec,

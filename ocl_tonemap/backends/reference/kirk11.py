@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...models import durand2000
+from ...models import durand2000, kirk2011 as K, lmsr
+from ...models.bilateral import RangeKernel, bilateral_reference
 from ...models.photometry import sanitize
 from ...operators.base import FrameStats
 from ..base import NoPixelState
@@ -23,7 +24,6 @@ class KirkSchedule(NoPixelState):
     @staticmethod
     def _lmsr(frame):
         """(working rgb or None for a spectral frame, LMSR, repairs) of ``frame``."""
-        from ...models import lmsr
         if frame.wavelengths is not None:
             sp, repairs = sanitize(frame.pixels, frame.scale)
             return None, lmsr.spectral_to_lmsr(frame.wavelengths, sp), repairs
@@ -31,7 +31,6 @@ class KirkSchedule(NoPixelState):
         return src, lmsr.rgb_to_lmsr(src), repairs
 
     def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
-        from ...models import kirk2011 as K
         src, q, repairs = self._lmsr(frame)
         h, w = q.shape[:2]
         return FrameStats(w, h, *K.level_logmeans(q), repairs,
@@ -41,8 +40,6 @@ class KirkSchedule(NoPixelState):
         self.op.integrate(state, stats, dt, fresh)
 
     def apply(self, frame, state, stats, params=None, gains=None, sink=None, encoding=None):
-        from ...models import kirk2011 as K
-        from ...models.bilateral import RangeKernel, bilateral_reference
         op, s, v = self.op, self.op.settings, stats.values
         px, src, q = stats.handle
         if px is not frame.pixels:      # a frame the scene effects changed after metering

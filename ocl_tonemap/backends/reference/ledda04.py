@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...models import metering as met
+from ...models import ledda2004 as L, metering as met
+from ...models.bilateral import LEDDA_RANGE, V_FLOOR, bilateral_reference
+from ...models.ledda2004 import STATE_CHANNELS
 from ...models.photometry import sanitize
 from ...operators.base import FrameStats
 from ..base import PixelStateMixin
@@ -20,14 +22,11 @@ class LeddaSchedule(PixelStateMixin):
     encodes_output = False
 
     def __init__(self, backend, op):
-        from ...models.ledda2004 import STATE_CHANNELS
         self.backend, self.op = backend, op
         self.planes = STATE_CHANNELS
         self._host = None
 
     def measure(self, frame, spec=None, want_illuminant: bool = False) -> FrameStats:
-        from ...models import ledda2004 as L
-        from ...models.bilateral import LEDDA_RANGE, V_FLOOR, bilateral_reference
         op, s = self.op, self.op.settings
         h, w = frame.pixels.shape[:2]
         rgb, repairs = sanitize(frame.pixels[..., :3], frame.scale)
@@ -62,7 +61,6 @@ class LeddaSchedule(PixelStateMixin):
         return stats
 
     def integrate(self, state, stats, dt: float, fresh: bool) -> None:
-        from ...models import ledda2004 as L
         op = self.op
         shape = (stats.height, stats.width)
         self.check_shape(fresh, shape)
@@ -80,7 +78,6 @@ class LeddaSchedule(PixelStateMixin):
                         "logmean_I_A_rod": float(stats.G_rod)}
 
     def apply(self, frame, state, stats, params=None, gains=None, sink=None, encoding=None):
-        from ...models import ledda2004 as L
         op = self.op
         px, rgb, Ys = stats.handle
         if px is not frame.pixels:      # a frame the scene effects changed after metering

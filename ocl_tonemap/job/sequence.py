@@ -6,7 +6,9 @@ import logging
 import math
 import os
 
-from ..imageio import FrameError, find_frames, frame_path, is_sequence, same_file
+from ..imageio import FrameError
+
+from ..patterns import find_frames, frame_path, is_sequence, same_file
 from .options import DEFAULT_FPS, JobOptions
 
 log = logging.getLogger("ocl_tonemap")

@@ -10,11 +10,12 @@ import numpy as np
 
 from ..alpha import restore_alpha, straight_colour
 from ..calibration import LogAverage
-from ..imageio import BandReader, FrameError, illuminant_from_metadata
+from ..channels import spectral_channels
+from ..imageio import BandReader, FrameError, illuminant_from_metadata, max_frame_bytes
 from ..imagewrite import BandWriter
 from .frame import FrameInput, output_metadata, remember_auto
-from .frames import frame_time
 from .options import JobOptions, output_is_linear
+from .sequence import frame_time
 from .setup import RunSetup
 
 if TYPE_CHECKING:                                  # annotations only
@@ -60,7 +61,6 @@ def read_whole(opts: JobOptions, inp: str) -> bool:
 def _over_budget(opts: JobOptions, inp: str):
     """(the file's spec, the budget in bytes) when the frame would take more than the
     budget whole, else (None, budget)."""
-    from ..imageio import max_frame_bytes, spectral_channels
     budget = opts.max_memory * 2**20 if opts.max_memory else max_frame_bytes()
     if opts.max_memory is None and not os.path.exists(inp):
         return None, budget

@@ -1,57 +1,10 @@
-"""The per-frame plan: how a frame's stages are executed, not what they compute.
-
-Row bands and their halos (frames larger than the device takes at once), the
-bilateral filter's method (exact brute force or the grid) and sampling, and
-look-up tables are decided here, in one place, for every operator.
-"""
+"""``--quality``: one speed/accuracy setting of every knob (the backend, the bilateral
+filter's method and sampling, the flare's method, the display transform's tables),
+measured against ``reference`` in ``benchmarks/speed_accuracy.py``."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-
-def row_bands(height: int, width: int, max_pixels: int, halo: int = 0) -> list[tuple[int, int]]:
-    """(first row, rows) of the bands that split a ``height`` x ``width`` frame so that a
-    band plus ``halo`` rows above and below holds at most ``max_pixels`` pixels
-    (at least one row per band)."""
-    rows = max(1, min(height, max_pixels // max(width, 1) - 2 * halo))
-    return [(y0, min(rows, height - y0)) for y0 in range(0, height, rows)]
-
-
-@dataclass(frozen=True)
-class BilateralSpec:
-    """How to filter: ``method`` exact | fast | auto, sigma_s in pixels, grid sampling.
-
-    ``auto`` uses the exact filter when it is cheap (sigma_s <= AUTO_EXACT_SIGMA
-    px: on PoCL the grid is slower than brute force at sigma_s = 4 px and 37x
-    faster at 12.8, see benchmarks/results/bilateral_ledda04.md) or the grid
-    would not fit in memory, and the grid otherwise.
-    """
-
-    method: str = "auto"
-    q_s: float = 2.0
-    q_r: float = 2.0
-
-    AUTO_EXACT_SIGMA = 5.0
-
-    def __post_init__(self):
-        if self.method not in ("exact", "fast", "auto"):
-            raise ValueError(f"bilateral method must be exact, fast or auto (got {self.method!r})")
-        if not (self.q_s >= 0.5 and self.q_r >= 0.5):
-            raise ValueError("bilateral sampling rates must be >= 0.5")
-
-    @classmethod
-    def parse(cls, method: str, sampling: str | None = None) -> "BilateralSpec":
-        if sampling:
-            try:
-                parts = [float(x) for x in sampling.split(",")]
-                q_s, q_r = (parts[0], parts[-1])
-            except ValueError:
-                raise ValueError(f"bad --bilateral-sampling {sampling!r}: use Q or QS,QR") from None
-            return cls(method, q_s, q_r)
-        return cls(method)
-
-
 
 
 @dataclass(frozen=True)

@@ -1,14 +1,18 @@
-"""Frames in row bands, never whole in memory (``Tonemapper.process_stream``): the
-working rows of a band source through the backend's colour stage, the scene
-effects band by band, and the sink that keeps a band's alpha."""
+"""Frames in row bands, never whole in memory (``Tonemapper.process_stream``): the same
+flow as a whole frame (``frame.py``), band by band -- the working rows of a band
+source through the backend's colour stage (:class:`WorkingRows`), the optical and
+seen effects on them (:class:`SceneBands`: the flare made from the source's rows
+around each band before the metering pass, the Purkinje shift and chromatic gains
+on the bands' way to the operator), the display effects on the display bands on
+their way to the sink, which keeps a band's alpha (:func:`alpha_sink`)."""
 
 from __future__ import annotations
 
-import logging
-
 import numpy as np
 
-log = logging.getLogger("ocl_tonemap")
+from ..effects import FrameContext
+from ..operators.base import Frame
+from .results import FrameInfo, check_scale
 
 
 #: Effects that reach across band edges (flare, acuity) work on this many bands' pixels
@@ -96,7 +100,7 @@ class SceneBands:
 
 def alpha_sink(source, sink):
     """``sink`` behind a check that the source still holds the alpha of the band
-    the sink gets (``job/stream.py`` ``WorkingBands.alpha``: that of the last band read):
+    the sink gets (``job/banded_io.py`` ``WorkingBands.alpha``: that of the last band read):
     effects that read rows around a band, or send bands on later, read it again."""
     if source.shape[2] != 4 or not callable(getattr(source, "alpha", None)):
         return sink
@@ -110,55 +114,73 @@ def alpha_sink(source, sink):
     return out
 
 
-def stream_flare(fx, rows: WorkingRows, levels, lim: float, eff: dict, band_px: int):
-    """The flare of a frame in row bands (``Tonemapper.process_stream``), before its
-    metering pass: (a ``BandedFlare`` or None, functions to call once the metering
-    pass has swept the frame: the share of light kept in it). ``fx``: the run's
-    ``Effects``; ``levels``: the source's scene pass; ``lim``: the source limit."""
-    G_rod, G_cone = levels.goal
-    flare, eff["flare"] = fx.flare_stream((rows.h, rows.w), G_rod, G_cone, lim, rows.get,
-                                          band_px, levels.max_Y, STREAM_EFFECT_BANDS * band_px)
-    if "streamed" in eff["flare"] and "streamed flare" not in fx.said:
-        fx.said.add("streamed flare")
-        log.warning("flare: streamed frames use --flare-method fast (the exact method's FFT "
-                    "needs the whole frame)")
-    if flare is None:
-        return None, []
+def run_banded(graph, source, sink, dt, time_s, frame_number, luminance_scale, illuminant,
+               measure_only: bool, start, weights: dict | None):
+    """One frame in row bands (``Tonemapper.process_stream`` says what it is given and
+    returns): its :class:`FrameInfo`, or its :class:`FrameStats` with ``measure_only``."""
+    check_scale(luminance_scale)
+    obs, fx = graph.observer, graph.effects
+    if measure_only:
+        step_dt, fresh = 0.0, True
+    else:
+        time_s, step_dt, fresh = obs.clock(dt, time_s)
+    graph.begin_frame()
+    h, w = source.shape[:2]
+    frame = metered = Frame(source, luminance_scale, None, graph.primaries)
+    eff: dict = {}
+    levels, sweep = None, []
+    band_px = int(graph.backend.max_band_pixels or h * w)
+    if graph.plan.active:          # the source's levels and proxy: nothing kept
+        levels = graph.backend.scene_levels(source, luminance_scale, graph.metering,
+                                            graph.own_chroma() and graph.grey_world(),
+                                            graph.plan.proxy_stride(h, w))
+        ctx = FrameContext(*levels.goal, eff=eff, lim=graph.source_limit(levels),
+                           max_Y=levels.max_Y, frame=frame_number)
+        graph.begin_plan(levels, frame, step_dt, fresh, measure_only, weights)
+        rows = WorkingRows(graph.backend, source, luminance_scale, max(1, band_px // max(w, 1)))
+        graph.record["flare_metered"] = fx.metered_weights(levels.max_Y, ctx.lim)
+        bands, sweep = fx.optical_banded(ctx, rows, band_px, STREAM_EFFECT_BANDS * band_px)
+        if bands is not None:
+            metered = Frame(SceneBands(rows, bands), 1.0, None, graph.primaries)
+    stats = graph.measure(metered)
+    for finish in sweep:          # what the measure pass's sweep added up
+        finish()
+    graph.scene_stats(stats, levels)
+    if measure_only:
+        return stats
+    params, gains = graph.integrate(stats, time_s, frame_number, step_dt, fresh, illuminant, eff)
+    work, after = metered, []
+    if levels is not None:
+        work, after = _seen(graph, metered, levels, eff, frame_number)
+    dctx = FrameContext(stats.G_rod, stats.G_cone, eff=eff, frame=frame_number, width=w)
+    out = fx.display_banded(dctx, alpha_sink(source, sink), (h, w), STREAM_EFFECT_BANDS * band_px)
+    info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
+                     levels.repairs if metered is not frame else stats.repairs,
+                     obs.scalars.copy(), graph.schedule.summary(stats, params, work), eff,
+                     graph.record)
+    if start is not None:
+        start(info)
+    graph.apply(work, stats, params, gains, out)
+    if not getattr(out, "done", True):     # a BandedAcuity sink counts its rows
+        raise RuntimeError(f"the schedule sent rows up to {out.got} of {h}")
+    for finish in after:          # what the bands' sweep added up
+        finish()
+    return info
 
-    def done(info=eff["flare"]):
-        e = flare.energy_in_frame()
-        if e is not None:
-            info["energy_in_frame"] = e
-    return flare, [done]
 
-
-def stream_seen(fx, metered, levels, eff: dict, own_chroma: bool, primaries):
-    """The effects after the state step of a frame in row bands: (the frame to map,
-    ``metered`` where nothing changes it, with the Purkinje shift and chromatic gains
-    on the scene band by band; functions to call once its bands have been made:
-    the shift's gamut fallbacks)."""
-    from .operators.base import Frame
-    ca = eff.get("chromatic_adaptation") or {}
-    gains = np.asarray(ca["gains"], np.float32) if (own_chroma and ca.get("ran")) else None
-    purk = fx.purkinje_banded(eff["purkinje"], metered.shape[0])
-    if purk is None and gains is None:
-        return metered, []
-
-    def per_band(y0, rgb):
-        if purk is not None:
-            rgb = purk(y0, rgb)
-        return rgb if gains is None else (rgb * gains).astype(np.float32)
+def _seen(graph, metered: Frame, levels, eff: dict, frame_number):
+    """The seen effects of a frame in row bands: (the frame to map, ``metered`` where
+    nothing changes it, with them on the scene band by band; functions to call once
+    its bands have been made)."""
+    fx = graph.effects
+    ctx = FrameContext(*levels.goal, eff=eff, frame=frame_number)
+    per_band, after = fx.seen_banded(ctx, metered.shape[0], graph.own_chroma())
+    if per_band is None:
+        return metered, after
     src = metered.pixels
     if not isinstance(src, SceneBands):
         # the source itself: its rows through the colour stage first
         src = SceneBands(WorkingRows(fx.backend, src, metered.scale,
                                      max(1, (fx.backend.max_band_pixels or src.shape[0] *
                                              src.shape[1]) // max(src.shape[1], 1))))
-    after = []
-    if purk is not None:
-        def done(info=eff["purkinje"]):
-            fb = purk.fallback_fraction()
-            if fb is not None:
-                info["fallback_fraction"] = fb
-        after.append(done)
-    return Frame(SceneBands(src, None, per_band), 1.0, None, primaries), after
+    return Frame(SceneBands(src, None, per_band), 1.0, None, graph.primaries), after
