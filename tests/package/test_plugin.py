@@ -5,30 +5,15 @@ and it runs on both backends, its kernel within float32 of its reference."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-EXAMPLE = ROOT / "examples" / "exposure_operator"
-
-
 @pytest.fixture(scope="module")
-def plugin_env(tmp_path_factory):
-    """The example installed (pip, no build isolation) into its own folder; an
-    environment whose Python sees it."""
-    target = tmp_path_factory.mktemp("plugin")
-    r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps",
-                        "--no-build-isolation", "--target", str(target), str(EXAMPLE)],
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(target), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
-    return env
+def plugin_env(install_example):
+    return install_example("exposure_operator")
 
 
 def _py(env, code: str):
