@@ -15,7 +15,6 @@ import time
 from .. import safeio
 from ..backends.select import resolve_backend
 from ..colour import ColourPipeline
-from ..colour.export import OcioExport
 from ..imageio import FramePool, FrameError, read_frame
 from ..imagewrite import ocltm_metadata, output_bits, write_frame
 from ..interrupts import Terminated, ready
@@ -143,6 +142,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         check_output_tag(run.colour, opts, jobs)
         exporter = None
         if opts.ocio_export:
+            from ..colour.export import OcioExport  # lazy: only with --ocio-export (~30 ms)
             # the shot's first frame (a chunk of a shot's apply pass: the whole shot's)
             first = (done_before or (frame_jobs(opts) if chunk else jobs) or [(None,)])[0][0]
             exporter = OcioExport(opts.ocio_export, run.colour, tm, first,
