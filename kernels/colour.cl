@@ -147,6 +147,18 @@ __kernel void apply_gains(__global float *rgb, __global float *Y, const int n,
     Y[i] = M_YR * r + M_YG * g + M_YB * b;
 }
 
+/* Chromatic gains on a frame held on the device (effects/chromatic.py, the seen
+ * slot for ledda04 and kirk11): rgb *= g in place, the float32 products of the host's
+ * (np.float32 rgb * gains), so the frame need not cross to the host and back. */
+__kernel void scale_rgb(__global float *rgb, const int n,
+                        const float gr, const float gg, const float gb)
+{
+    const int i = get_global_id(0);
+    if (i >= n) return;
+    __global float *p = rgb + 3 * (size_t)i;
+    p[0] = p[0] * gr; p[1] = p[1] * gg; p[2] = p[2] * gb;
+}
+
 /* Spectral radiance to LMSR in one pass (kirk11, Eq. 8; host side
  * backends/opencl/kirk11.py lmsr_band): each value through the bad-value policy and
  * the scale (repair_and_scale, counted), then q = W v, channel by channel in the order

@@ -84,6 +84,9 @@ def run(a, argv) -> int:
     if not a.quiet:
         rep = f"; repaired values: {res.repairs.summary()}" if res.repairs.total else ""
         print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s{rep}")
+        moved = res.transfers()
+        if moved:
+            print(f"host <-> device per frame: {moved}")
         if res.export:
             print(res.export)
     return 0

@@ -131,6 +131,14 @@ class Backend(Protocol):
     def purkinje_device(self):
         """The Purkinje shift kernels on the device, or None."""
 
+    def transfers(self):
+        """Host <-> device transfers so far in this thread (``opencl.transfers.Transfers``:
+        a frame's are the difference across it), or None without a device."""
+
+    def scale_image(self, img, gains):
+        """A device image's RGB times ``gains`` (float32, in place; the image back), or
+        None where the backend holds no frame on a device."""
+
     def acuity_encoding(self, encoding, h: int, w: int, taps, t: float, blur):
         """``encoding`` with the acuity blur (``taps``, blended by ``t``) on the device
         before it, or None where the backend cannot."""
@@ -151,6 +159,12 @@ class HostBackend:
         return None
 
     def purkinje_device(self):
+        return None
+
+    def scale_image(self, img, gains):
+        return None
+
+    def transfers(self):
         return None
 
     def acuity_encoding(self, encoding, h: int, w: int, taps, t: float, blur):

@@ -82,7 +82,7 @@ class ChromaticAdaptation(Effect):
     slot = "seen"
     help = "von Kries adaptation to the illuminant, tau 5 s"
     blends = True
-    capabilities = frozenset({"host", "banded"})
+    capabilities = frozenset({"host", "device", "banded"})
     options = (
         EffectOption("illuminant", "--illuminant", "illuminant for chromatic adaptation: "
                      "x,y or a name (D65, D50, A, F2, F11, LED-B3 ...); default: EXR "
@@ -122,3 +122,17 @@ class ChromaticAdaptation(Effect):
         if g is None:
             return None, ctx.eff.get(self.name) or {"ran": False}
         return (np.asarray(rgb) * g).astype(np.float32), ctx.eff[self.name]
+
+    def device(self, ctx, img):
+        """The gains in place on a frame held on the device (the same float32 products
+        as :meth:`host`; the frame does not cross to the host and back)."""
+        g = self.scene_gains(ctx)
+        if g is None:
+            return None, ctx.eff.get(self.name) or {"ran": False}
+        out = self.fx.backend.scale_image(img, g)
+        return (self.host(ctx, img)[0] if out is None else out), ctx.eff[self.name]
+
+    def on_device(self) -> bool:
+        """The gains alone keep no frame on the device (only a frame the flare or the
+        Purkinje shift left there gets them there)."""
+        return False

@@ -122,6 +122,21 @@ class JobResult:
     seconds: float = 0.0
     export: str = ""                # the OCIO export's summary (--ocio-export)
 
+    def transfers(self) -> str:
+        """Host <-> device transfers per frame, the mean over the frames that made any
+        (the run's report; "" without a device)."""
+        moved = [i.transfers for i in self.infos if getattr(i, "transfers", None)]
+        return transfers_line(moved)
+
+
+def transfers_line(moved: list) -> str:
+    """"up X MiB in N calls, down ..." of frames' transfer dicts (their mean)."""
+    if not moved:
+        return ""
+    mean = {k: sum(m[k] for m in moved) / len(moved) for k in moved[0]}
+    return (f"up {mean['up_bytes'] / 2**20:.2f} MiB in {mean['up_calls']:.3g} calls, "
+            f"down {mean['down_bytes'] / 2**20:.2f} MiB in {mean['down_calls']:.3g} calls")
+
 
 #: The physical range of durations a user gives, seconds (115 days); that of
 #: adaptation luminances: ``calibration.ADAPT_LUMINANCE``.

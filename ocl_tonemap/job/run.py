@@ -28,7 +28,8 @@ from .banded_io import read_whole, stream_frame, stream_rows
 from .checkpoint import (RunLock, check_state_paths, checkpoint_path, checkpoint_state,
                          load_state_in, remove_stale_temps, resume_point)
 from .frame import encode_pixels, frame_input, map_frame, output_metadata
-from .options import RUN_KEY, Interrupted, JobOptions, JobResult, output_is_linear, run_fingerprint
+from .options import (RUN_KEY, Interrupted, JobOptions, JobResult, output_is_linear,
+                      run_fingerprint, transfers_line)
 from .sequence import frame_jobs, frame_time
 from .setup import RunSetup, check_output_depth, check_output_tag
 from .views import still_view, view_from_header
@@ -221,6 +222,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                 log.warning("%s%s: repaired bad values (%s)", inp,
                             "" if f is None else f" frame {f}", info.repairs.summary())
             _say_plan(info, f, inp, said)
+            _say_transfers(info, f, inp, said)
             result.repairs += info.repairs
             result.frames.append(f)
             result.outputs.append(outp)
@@ -433,6 +435,16 @@ def _progress(done: int, total: int, elapsed: float) -> None:
     sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames "
                      f"{rate:5.1f} fps")
     sys.stderr.flush()
+
+
+def _say_transfers(info, f, inp, said: dict) -> None:
+    """``-v``: the frame's host <-> device transfers where their calls change."""
+    t = info.transfers
+    if not t or said.get("t") == (t["up_calls"], t["down_calls"]):
+        return
+    log.info("%s%s: host <-> device %s", inp, "" if f is None else f" frame {f}",
+             transfers_line([t]))
+    said["t"] = (t["up_calls"], t["down_calls"])
 
 
 def _say_plan(info, f, inp, said: dict) -> None:

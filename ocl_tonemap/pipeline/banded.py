@@ -12,7 +12,7 @@ import numpy as np
 
 from ..effects import FrameContext
 from ..operators.base import Frame
-from .results import FrameInfo, check_scale
+from .results import FrameInfo, check_scale, transfers_since
 
 
 #: Effects that reach across band edges (flare, acuity) work on this many bands' pixels
@@ -125,6 +125,7 @@ def run_banded(graph, source, sink, dt, time_s, frame_number, luminance_scale, i
     else:
         time_s, step_dt, fresh = obs.clock(dt, time_s)
     graph.begin_frame()
+    moved = graph.backend.transfers()
     h, w = source.shape[:2]
     frame = metered = Frame(source, luminance_scale, None, graph.primaries)
     eff: dict = {}
@@ -152,7 +153,8 @@ def run_banded(graph, source, sink, dt, time_s, frame_number, luminance_scale, i
     work, after = metered, []
     if levels is not None:
         work, after = _seen(graph, metered, levels, eff, frame_number)
-    dctx = FrameContext(stats.G_rod, stats.G_cone, eff=eff, frame=frame_number, width=w)
+    dctx = FrameContext(stats.G_rod, stats.G_cone, eff=eff, frame=frame_number,
+                        time_s=float(time_s), width=w)
     out = fx.display_banded(dctx, alpha_sink(source, sink), (h, w), STREAM_EFFECT_BANDS * band_px)
     info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
                      levels.repairs if metered is not frame else stats.repairs,
@@ -165,6 +167,7 @@ def run_banded(graph, source, sink, dt, time_s, frame_number, luminance_scale, i
         raise RuntimeError(f"the schedule sent rows up to {out.got} of {h}")
     for finish in after:          # what the bands' sweep added up
         finish()
+    info.transfers = transfers_since(graph.backend, moved)
     return info
 
 

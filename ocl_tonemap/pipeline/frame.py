@@ -20,7 +20,7 @@ from ..effects import FrameContext
 from ..effects.runner import changed_frame
 from ..operators import registry
 from ..operators.base import Frame, FrameStats
-from .results import FrameInfo, FrameResult
+from .results import FrameInfo, FrameResult, transfers_since
 
 
 class FrameGraph:
@@ -167,6 +167,7 @@ class FrameGraph:
         else:
             time_s, step_dt, fresh = self.observer.clock(dt, time_s)
         reused = self.begin_frame(rgb_in)
+        moved = self.backend.transfers()
         fx = self.effects
         eff: dict = {}
         levels = self.working(frame) if rgb_in else None
@@ -197,7 +198,7 @@ class FrameGraph:
             if changed:
                 work = changed_frame(metered, rgb, self.primaries)
         dctx = FrameContext(stats.G_rod, stats.G_cone, eff=eff, frame=frame_number,
-                            width=stats.width)
+                            time_s=float(time_s), width=stats.width)
         encoding, done = fx.display_encoding(dctx, encoding, self.schedule.encodes_output,
                                              stats.height, stats.width)
         out = self.apply(work, stats, params, gains, encoding=encoding)
@@ -207,7 +208,8 @@ class FrameGraph:
         repairs = levels.repairs if metered is not frame else stats.repairs
         info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
                          repairs, self.observer.scalars.copy(),
-                         self.schedule.summary(stats, params), eff, self.record)
+                         self.schedule.summary(stats, params), eff, self.record,
+                         transfers_since(self.backend, moved))
         return FrameResult(out, None, info, encoding is not None)
 
 

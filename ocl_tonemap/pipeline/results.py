@@ -27,6 +27,15 @@ class FrameInfo:
     effects: dict = field(default_factory=dict)
     #: The frame's mechanism plan: weights (mechanism -> 0..1), predictions, analysis.
     plan: dict = field(default_factory=dict)
+    #: Host <-> device transfers of the frame (calls and bytes each way; None: no device).
+    transfers: dict | None = None
+
+
+def transfers_since(backend, before) -> dict | None:
+    """The transfers ``backend`` made since its count ``before`` (``backend.transfers()``),
+    as a dict; None for a backend without a device."""
+    now = backend.transfers()
+    return None if now is None or before is None else (now - before).as_dict()
 
 
 @dataclass

@@ -24,6 +24,7 @@ from .image import DeviceImage
 from .lmsr import KirkDevice
 from .metering import DeviceMeter, MeteringPasses
 from .runtime import describe_device, get_runtime, index_defines, round_up
+from .transfers import Transfers, counted, host_buffer, transfer
 
 
 class OpenCLBackend(MeteringPasses):
@@ -36,6 +37,7 @@ class OpenCLBackend(MeteringPasses):
         self.meter = DeviceMeter(self.rt)
         self._colour = self.rt.kernel("colour.cl", "scene_to_working4")
         self._gains = self.rt.kernel("colour.cl", "apply_gains")
+        self._scale = None             # colour.cl:scale_rgb, made when first used
         self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
         self._blocks = self.rt.kernel("metering.cl", "block_sums")
         self._resident = None          # (h, w) of the working frame whole in bufs["rgb"]
@@ -124,6 +126,23 @@ class OpenCLBackend(MeteringPasses):
         """kirk11's shift kernels for the Purkinje effect on other operators."""
         return KirkDevice(self.rt)
 
+    def transfers(self) -> Transfers:
+        """Host <-> device transfers so far in this thread (``transfers.py``)."""
+        return counted()
+
+    def scale_image(self, img: DeviceImage, gains) -> DeviceImage:
+        """``img``'s RGB times ``gains`` in place (``colour.cl:scale_rgb``): chromatic
+        gains on a frame that stays on the device. A new image of the same buffer comes
+        back (another frame to the schedules' residency checks: its colour stage runs
+        again)."""
+        g = np.asarray(gains, np.float32)
+        n = img.shape[0] * img.shape[1]
+        if self._scale is None:
+            self._scale = self.rt.kernel("colour.cl", "scale_rgb")
+        self._scale(self.rt.queue, (round_up(n, 64),), (64,), img.buffer, np.int32(n),
+                    g[0], g[1], g[2])
+        return DeviceImage(img.rt, img.buffer, img.shape)
+
     # -- buffers -----------------------------------------------------------------------
     def buffer(self, name: str, nbytes: int):
         """A named device buffer of at least ``nbytes`` from the pool (grown as needed)."""
@@ -141,9 +160,7 @@ class OpenCLBackend(MeteringPasses):
             del self._pool[name]
 
     def constant(self, arr: np.ndarray):
-        import pyopencl as cl
-        return cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                         hostbuf=np.ascontiguousarray(arr, np.float32))
+        return host_buffer(self.rt.context, np.ascontiguousarray(arr, np.float32))
 
     def _buffers(self, npix: int, channels: int):
         need = npix * max(channels, 3)
@@ -175,9 +192,8 @@ class OpenCLBackend(MeteringPasses):
         """Bring ``n`` pixels of a per-pixel kernel's RGB output (``buf``) back into
         ``dst`` (C-contiguous rows of :meth:`output_array`), through the device display
         encoding when one is given (then only code values cross to the host)."""
-        import pyopencl as cl
         if encoding is None:
-            cl.enqueue_copy(self.rt.queue, dst, buf)
+            transfer(self.rt.queue, dst, buf)
         else:
             encoding.fetch(self.rt.queue, buf, n, dst)
 
@@ -196,7 +212,7 @@ class OpenCLBackend(MeteringPasses):
             if band.buffer != b["src"]:            # (already there: _spare_frame)
                 band.copy_to(q, b["src"])
         else:
-            cl.enqueue_copy(q, b["src"], np.ascontiguousarray(band, np.float32))
+            transfer(q, b["src"], np.ascontiguousarray(band, np.float32))
         cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)
         self._colour(q, (round_up(self.rt.pixel_items(n, 4), 64),), (64,), b["src"],
                      np.int32(channels), np.int32(n), np.float32(scale), b["rgb"], b["Y"],
@@ -206,9 +222,8 @@ class OpenCLBackend(MeteringPasses):
     def read_repairs(self, counts) -> RepairCounts:
         """The repair counts a colour kernel left in ``counts`` (8 int32, RepairCounts.KEYS
         first)."""
-        import pyopencl as cl
         c = np.empty(8, np.int32)
-        cl.enqueue_copy(self.rt.queue, c, counts)
+        transfer(self.rt.queue, c, counts)
         rc = RepairCounts()
         for k, v in zip(RepairCounts.KEYS, c):
             setattr(rc, k, int(v))
@@ -219,10 +234,9 @@ class OpenCLBackend(MeteringPasses):
 
     def working_rows(self, pixels: np.ndarray, scale: float) -> np.ndarray:
         """The colour stage of some rows, brought back: working RGB in cd/m^2."""
-        import pyopencl as cl
         self.to_working(pixels, scale, count=False)
         out = np.empty(pixels.shape[:2] + (3,), np.float32)
-        cl.enqueue_copy(self.rt.queue, out, self.bufs["rgb"])
+        transfer(self.rt.queue, out, self.bufs["rgb"])
         return out
 
     def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec,
@@ -281,7 +295,6 @@ class PointwiseSchedule(NoPixelState):
     def apply(self, frame, state, stats, params, gains=None, sink=None, encoding=None):
         """Map every band (re-reading it unless the frame is the resident one); with
         ``sink(y0, band)`` bands go there and None is returned."""
-        import pyopencl as cl
         be = self.backend
         h, w, _ = frame.pixels.shape
         resident = stats.handle is not None and stats.handle[0] is frame.pixels
@@ -303,6 +316,6 @@ class PointwiseSchedule(NoPixelState):
                 be.fetch_output(out[y0:y0 + nr], dst, n, encoding)
             else:
                 band = np.empty((nr, w, 3), np.float32)
-                cl.enqueue_copy(be.rt.queue, band, dst)
+                transfer(be.rt.queue, band, dst)
                 sink(y0, band)
         return out

@@ -17,6 +17,7 @@ from ...models.bilateral import (LEDDA_RANGE, SUPPORT, RangeKernel, prepare_sign
 from ...models.bilateral import BilateralSpec
 from ..bands import row_bands
 from .runtime import round_up
+from .transfers import host_buffer, transfer
 
 # --- the bilateral grid, shared geometry ---------------------------------------------
 
@@ -103,9 +104,7 @@ class DeviceBilateral:
 
     # -- helpers -------------------------------------------------------------
     def _const(self, arr: np.ndarray):
-        cl = self._cl
-        return cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                         hostbuf=np.ascontiguousarray(arr, np.float32))
+        return host_buffer(self.rt.context, np.ascontiguousarray(arr, np.float32))
 
     def choose(self, spec: BilateralSpec, sigma_s: float, width: int, height: int) -> str:
         if spec.method != "auto":
@@ -147,7 +146,7 @@ class DeviceBilateral:
         self._minmax(self.rt.queue, (gsz,), (wg,), v_buf, np.int32(n),
                      np.int32(1 if rk.ratio else 0), self._mm, cl.LocalMemory(2 * wg * 4))
         part = np.empty(2 * (gsz // wg), np.float32)
-        cl.enqueue_copy(self.rt.queue, part, self._mm)
+        transfer(self.rt.queue, part, self._mm)
         return float(part[0::2].min()), float(part[1::2].max())
 
     def begin_grid(self, geom: GridGeometry):
@@ -260,8 +259,7 @@ class DeviceBilateral:
         out = np.empty_like(v)
 
         def upload(a, b):
-            return cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                             hostbuf=np.ascontiguousarray(v[a:b]))
+            return host_buffer(self.rt.context, np.ascontiguousarray(v[a:b]))
         geom = None
         if method != "exact":
             lo, hi = np.inf, -np.inf
@@ -282,7 +280,7 @@ class DeviceBilateral:
                 self.exact(vb, ob, w, b - a, a, y0, nr, sigma_s, rk)
             else:
                 self.slice(vb, ob, w, b - a, a, y0, nr, geom, rk)
-            cl.enqueue_copy(self.rt.queue, out[y0:y0 + nr], ob)
+            transfer(self.rt.queue, out[y0:y0 + nr], ob)
         return out
 
     def filter(self, v: np.ndarray, sigma_s: float, rk: RangeKernel = LEDDA_RANGE,
@@ -292,12 +290,12 @@ class DeviceBilateral:
         v = np.ascontiguousarray(prepare_signal(v, rk), np.float32)
         h, w = v.shape
         mf = cl.mem_flags
-        vb = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=v)
+        vb = host_buffer(self.rt.context, v)
         ob = cl.Buffer(self.rt.context, mf.READ_WRITE, v.nbytes)
         if method == "exact":
             self.exact(vb, ob, w, h, 0, 0, h, sigma_s, rk)
         else:
             self.fast(vb, ob, w, h, sigma_s, rk, q_s, q_r)
         out = np.empty_like(v)
-        cl.enqueue_copy(self.rt.queue, out, ob)
+        transfer(self.rt.queue, out, ob)
         return out

@@ -9,6 +9,7 @@ import numpy as np
 from ...models.convolution import EDGE_ZERO
 from ..bands import row_bands
 from .runtime import round_up
+from .transfers import host_buffer, transfer
 
 
 class DeviceBlur:
@@ -34,19 +35,16 @@ class DeviceBlur:
     def _prepare(self, img, taps):
         """(float32 image, its (H, W, C) planes view, tap radius, tap buffer or None
         when the taps are one weight)."""
-        import pyopencl as cl
         a = np.asarray(img, np.float32)
         planes = a[..., None] if a.ndim == 2 else a
         R = len(taps) - 1
         if R == 0:
             return a, planes, R, None
-        tap_buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                            hostbuf=np.asarray(taps, np.float32))
+        tap_buf = host_buffer(self.rt.context, np.asarray(taps, np.float32))
         return a, planes, R, tap_buf
 
     def blur(self, img: np.ndarray, taps: np.ndarray, edge: int = EDGE_ZERO) -> np.ndarray:
         """Blur each plane of an (H, W[, C]) float array; returns float32 of the same shape."""
-        import pyopencl as cl
         a, planes, R, tap_buf = self._prepare(img, taps)
         if tap_buf is None:
             return np.array(a, np.float32) * np.float32(taps[0])
@@ -60,7 +58,7 @@ class DeviceBlur:
                 a0, a1 = max(0, y0 - R), min(h, y1 + R)       # band plus halo rows
                 bh = a1 - a0
                 src, tmp = self._buffers(bh * w)
-                cl.enqueue_copy(q, src, plane[a0:a1])
+                transfer(q, src, plane[a0:a1])
                 gs = (round_up(w, 16), round_up(bh, 4))
                 self._k(q, gs, (16, 4), src, tmp, np.int32(w), np.int32(bh), tap_buf,
                         np.int32(R), np.int32(0), np.int32(edge))
@@ -69,7 +67,7 @@ class DeviceBlur:
                 self._k(q, gs, (16, 4), tmp, src, np.int32(w), np.int32(bh), tap_buf,
                         np.int32(R), np.int32(1), np.int32(edge))
                 band = np.empty((bh, w), np.float32)
-                cl.enqueue_copy(q, band, src)
+                transfer(q, band, src)
                 out[y0:y1, :, c] = band[y0 - a0:y1 - a0]
         return out[..., 0] if a.ndim == 2 else out
 
@@ -79,7 +77,6 @@ class DeviceBlur:
         y) on each plane of an (H, W[, C]) array, float32 out: x then y gives
         :meth:`blur`'s values, so a frame's rows can be blurred along x as they
         come and along y once the rows below them have come (streamed acuity)."""
-        import pyopencl as cl
         a, planes, R, tap_buf = self._prepare(img, taps)
         if tap_buf is None:
             return np.array(a, np.float32) * np.float32(taps[0])
@@ -94,12 +91,12 @@ class DeviceBlur:
                 a0, a1 = max(0, y0 - halo), min(h, y1 + halo)
                 bh = a1 - a0
                 src, tmp = self._buffers(bh * w)
-                cl.enqueue_copy(q, src, plane[a0:a1])
+                transfer(q, src, plane[a0:a1])
                 gs = (round_up(w, 16), round_up(bh, 4))
                 self._k(q, gs, (16, 4), src, tmp, np.int32(w), np.int32(bh), tap_buf,
                         np.int32(R), np.int32(axis), np.int32(edge))
                 band = np.empty((bh, w), np.float32)
-                cl.enqueue_copy(q, band, tmp)
+                transfer(q, band, tmp)
                 out[y0:y1, :, c] = band[y0 - a0:y1 - a0]
         return out[..., 0] if a.ndim == 2 else out
 
@@ -108,13 +105,11 @@ class DeviceBlur:
         h x w interleaved float RGB on the device), clamped edges, blended in place:
         buf + t (blur - buf) (``kernels/convolution.cl`` acuity_rgb_x, _y_blend; the
         reference: ``models/shaler1937.apply_acuity``). ``tmp``: 12 h w bytes."""
-        import pyopencl as cl
         if self._k_rgb is None:
             self._k_rgb = (self.rt.kernel("convolution.cl", "acuity_rgb_x"),
                            self.rt.kernel("convolution.cl", "acuity_rgb_y_blend"))
         R = len(taps) - 1
-        tap_buf = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                            hostbuf=np.asarray(taps, np.float32))
+        tap_buf = host_buffer(self.rt.context, np.asarray(taps, np.float32))
         q, (kx, ky) = self.rt.queue, self._k_rgb
         gs = (round_up(self.rt.pixel_items(h * w, 4), 64),)      # four pixels an item on CPUs
         kx(q, gs, (64,), buf, tmp, np.int32(w), np.int32(h), tap_buf, np.int32(R))

@@ -13,6 +13,7 @@ import threading
 import numpy as np
 
 from .runtime import get_runtime, round_up
+from .transfers import host_buffer, transfer
 
 _WG = 64
 
@@ -39,14 +40,13 @@ class DeviceDisplayTable:
         par[13] = table.s_lo
         par[14] = (table.size - 1) / (table.s_hi - table.s_lo)
         self._e_eps = np.int32(round(np.log2(table.eps)) + 127)
-        mf = cl.mem_flags
-        self._par = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=par)
+        self._par = host_buffer(ctx, par)
         lut = np.asarray(table.table, np.float32)
         if table.kind == "1d":      # kernels/display.cl: per channel, (value, step) pairs
             step = np.vstack([lut[1:], lut[-1:]]) - lut          # float32, as the kernel did
             lut = np.stack([lut, step], axis=-1).transpose(1, 0, 2)
         lut = np.ascontiguousarray(lut, np.float32).reshape(-1)
-        self._lut = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=lut)
+        self._lut = host_buffer(ctx, lut)
         self._lock = threading.Lock()
         self._bufs: dict = {}
 
@@ -80,7 +80,6 @@ class DeviceDisplayTable:
         float32 array of the same shape; channels after RGB copied as they are).
         ``u8``: 8-bit code values (uint8), quantised as OIIO quantises float when it
         writes an 8-bit file (C = 3 or 4: a 4th channel quantised too)."""
-        import pyopencl as cl
         x = np.asarray(pixels)
         if x.ndim < 1 or x.shape[-1] < 3:
             raise ValueError(f"display encoding needs RGB pixels (got shape {x.shape})")
@@ -98,7 +97,7 @@ class DeviceDisplayTable:
             return out
         with self._lock:
             src = self._buffer("src", x.nbytes)
-            cl.enqueue_copy(self.queue, src, x, is_blocking=False)
+            transfer(self.queue, src, x, is_blocking=False)
             self._encode_enqueued(self.queue, src, n, c, out, u8)
         return out
 
@@ -119,7 +118,6 @@ class DeviceDisplayTable:
     def _encode_enqueued(self, queue, src, n: int, c: int, out: np.ndarray, u8: bool) -> None:
         """The kernels on ``queue`` from ``src`` (n pixels of c floats) into ``out``
         (blocking download). Call with the lock held."""
-        import pyopencl as cl
         dst = self._buffer("dst", out.nbytes)
         size = np.int32(self.table.size)
         start = 0
@@ -132,7 +130,7 @@ class DeviceDisplayTable:
             self._kernel(u8, False)(queue, (n - start,), None, src, dst, np.int32(n),
                                     np.int32(c), np.int32(c), self._par, self._e_eps, size,
                                     self._lut, global_offset=(start,))
-        cl.enqueue_copy(queue, out, dst, is_blocking=True)
+        transfer(queue, out, dst, is_blocking=True)
 
     def release(self) -> None:
         """Drop the frame buffers (they are made again on the next :meth:`encode`)."""

@@ -16,6 +16,7 @@ from .. import flare_exec as fx
 from .flare_level0 import FlareLevel0
 from .image import DeviceImage
 from .runtime import round_up
+from .transfers import host_buffer, transfer
 
 #: Bytes of device memory per pixel of the frame, at most (the pyramid written out:
 #: source part, accumulator and blur scratch as float4, 4/3 of the frame each, the
@@ -65,18 +66,15 @@ class DeviceFlare(FlareLevel0):
         return self._pool(f"flare:{name}", max(int(nbytes), 16))
 
     def _tap_buf(self, sigma: float):
-        import pyopencl as cl
         key = float(sigma)
         if key not in self._taps:
             t = np.asarray(gaussian_taps(sigma), np.float32)
-            self._taps[key] = (cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY
-                                         | cl.mem_flags.COPY_HOST_PTR, hostbuf=t), len(t) - 1)
+            self._taps[key] = (host_buffer(self.rt.context, t), len(t) - 1)
         return self._taps[key]
 
     def _partials(self, buf, groups: int) -> np.ndarray:
-        import pyopencl as cl
         p = np.empty((groups, 4), np.float32)
-        cl.enqueue_copy(self.rt.queue, p, buf)
+        transfer(self.rt.queue, p, buf)
         return p.astype(np.float64).sum(axis=0)
 
     def start(self, rgb, plan: fl.FastPlan, lim: float) -> None:
@@ -151,7 +149,6 @@ class DeviceFlare(FlareLevel0):
         (then read where it is, and the flared frame is a DeviceImage too: it does not
         come to the host); ``lim``: the source threshold, cd/m^2 (threshold x L_wa).
         Goes on from :meth:`start`'s passes where they are of this frame."""
-        import pyopencl as cl
         q, k, L = self.rt.queue, self._k, self.local
         resident = isinstance(rgb, DeviceImage)
         if not resident:
@@ -169,7 +166,7 @@ class DeviceFlare(FlareLevel0):
                 d_rgb = rgb.buffer
             else:
                 d_rgb = self._buf("rgb", 12 * n)
-                cl.enqueue_copy(q, d_rgb, rgb)
+                transfer(q, d_rgb, rgb)
             S, stored, fused, part, groups, occ, downs = self._first_passes(
                 d_rgb, (h, w), plan, lim, False)
         ssum = self._partials(part, groups)
@@ -203,7 +200,7 @@ class DeviceFlare(FlareLevel0):
                     k["flare_add"](q, (round_up(hh * ww, L),), (L,), a, ring,
                                    np.int32(hh * ww))
                 else:
-                    cl.enqueue_copy(q, a, ring)
+                    transfer(q, a, ring)
                 have = True
             acc = a if have else None
         d_out = self._spare(12 * n) if resident and self._spare is not None else None
@@ -224,7 +221,7 @@ class DeviceFlare(FlareLevel0):
             out = DeviceImage(self.rt, d_out, (h, w, 3))
         else:
             out = np.empty((h, w, 3), np.float32)
-            cl.enqueue_copy(q, out, d_out)
+            transfer(q, out, d_out)
         return out, sources, ssum[:3], fsum[:3]
 
     def _release_scratch(self) -> None:
@@ -234,13 +231,12 @@ class DeviceFlare(FlareLevel0):
 
     def _ring(self, S_buf, hh: int, ww: int, deg_per_px: float, w3: float):
         """w3 f3 * S on a level (host FFT of its few thousand samples), on the device."""
-        import pyopencl as cl
         lv = np.empty((hh, ww, 4), np.float32)
-        cl.enqueue_copy(self.rt.queue, lv, S_buf)
+        transfer(self.rt.queue, lv, S_buf)
         ring = np.zeros((hh, ww, 4), np.float32)
         for c in range(3):
             ring[..., c] = w3 * fx.fftconvolve_same(lv[..., c].astype(np.float64), None,
                                                     fx.ring_kernel_fft((hh, ww), deg_per_px, c))
         buf = self._buf("ring", ring.nbytes)
-        cl.enqueue_copy(self.rt.queue, buf, ring)
+        transfer(self.rt.queue, buf, ring)
         return buf

@@ -10,6 +10,7 @@ from ...models import spencer1995 as fl
 from ...models.convolution import gaussian_taps
 from .. import flare_exec as fx
 from .runtime import round_up
+from .transfers import host_buffer
 
 
 class FlareLevel0:
@@ -33,7 +34,6 @@ class FlareLevel0:
         """(kernels, weights buffer, count, largest radius) of level 0's Gaussians: the
         kernels built per set of widths (a frame size's), the weights (the pupil's)
         made per frame."""
-        import pyopencl as cl
         gs = plan.by_level.get(0, [])
         key = tuple(float(sc) for sc, _ in gs)
         if key not in self._level0_kernels:
@@ -51,8 +51,7 @@ class FlareLevel0:
             self._level0_kernels[key] = ({n: self.rt.kernel("flare.cl", n, defines)
                                           for n in self.LEVEL0_KERNELS}, R)
         kern, R = self._level0_kernels[key]
-        wts = cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                        hostbuf=np.asarray([wk for _, wk in gs] or [0.0], np.float32))
+        wts = host_buffer(self.rt.context, np.asarray([wk for _, wk in gs] or [0.0], np.float32))
         return kern, wts, len(gs), R
 
     def _finish0(self, d_rgb, lim: float, acc1, stored, plan, h: int, w: int, d_out, occ):

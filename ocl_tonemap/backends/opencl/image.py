@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .transfers import transfer
+
 
 class DeviceImage:
     """``shape`` (H, W, 3) float32 pixels in ``buffer`` on ``rt``'s device."""
@@ -31,9 +33,8 @@ class DeviceImage:
         return 4 * self.shape[0] * self.shape[1] * 3
 
     def __array__(self, dtype=None, copy=None):
-        import pyopencl as cl
         out = np.empty(self.shape, np.float32)
-        cl.enqueue_copy(self.rt.queue, out, self.buffer)
+        transfer(self.rt.queue, out, self.buffer)
         return out if dtype is None else out.astype(dtype, copy=False)
 
     def __getitem__(self, key):
@@ -49,5 +50,4 @@ class DeviceImage:
 
     def copy_to(self, queue, dst) -> None:
         """Copy the pixels into device buffer ``dst`` (device to device)."""
-        import pyopencl as cl
-        cl.enqueue_copy(queue, dst, self.buffer, byte_count=self.nbytes)
+        transfer(queue, dst, self.buffer, byte_count=self.nbytes)

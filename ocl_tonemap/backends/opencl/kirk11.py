@@ -26,6 +26,7 @@ from ..base import NoPixelState
 from .image import DeviceImage
 from .lmsr import KirkDevice
 from .runtime import round_up
+from .transfers import transfer
 
 class _Banded:
     """The handle of a frame beyond one device band (or a band source reading its
@@ -74,7 +75,6 @@ class KirkSchedule(NoPixelState):
     def apply(self, frame, state, stats, params=None, gains=None, sink=None, encoding=None):
         """Eqs. 10-16, the base layer and the composition; with ``sink(y0, band)`` the
         display-linear bands go there and None is returned."""
-        import pyopencl as cl
         be, dev, op = self.backend, self.dev, self.op
         s, v = op.settings, stats.values
         q_ = be.rt.queue
@@ -109,13 +109,13 @@ class KirkSchedule(NoPixelState):
                        np.int32(1 if blend else 0), out, np.int32(0 if s.paper else 1))
         self._finish(out, n, self._gain(out, n, stats))
         nfb = np.empty(1, np.int32)
-        cl.enqueue_copy(q_, nfb, fb)
+        transfer(q_, nfb, fb)
         v.update(model_scale=area, w_mean=dev.sums(wbuf, n, dev.PLANE)[0] / n,
                  fallback_fraction=float(nfb[0]) / n,
                  input="spectral" if frame.wavelengths is not None else "rgb")
         if sink is not None:
             res = np.empty((h, w, 3), np.float32)
-            cl.enqueue_copy(q_, res, out)
+            transfer(q_, res, out)
             sink(0, res)
             return None
         res = be.output_array(h, w, encoding)
@@ -159,7 +159,6 @@ class KirkSchedule(NoPixelState):
         """Pass 1 of a banded frame: the shift per band, reduced to the summary (w_mean of
         Eq. 16, the share of Eq. 15's fallback) and the range of log10 Y (the grid's z
         axis). Made once per frame and levels (the summary may ask first)."""
-        import pyopencl as cl
         v, q_ = stats.values, self.backend.rt.queue
         key = (v["k1"], v["k2"], v["rod_gain"])
         memo = stats.handle if isinstance(stats.handle, _Banded) and \
@@ -172,7 +171,7 @@ class KirkSchedule(NoPixelState):
         for y0, nr in self.backend.bands(h, w):
             _, _, wb, lb, fb = self._shift_rows(frame, v, y0, y0 + nr)
             c = np.empty(1, np.int32)
-            cl.enqueue_copy(q_, c, fb)
+            transfer(q_, c, fb)
             w_sum += self.dev.sums(wb, nr * w, self.dev.PLANE)[0]
             nfb += int(c[0])
             zl, zh = self.dev.bil.z_range(lb, nr * w, rk)
@@ -192,7 +191,6 @@ class KirkSchedule(NoPixelState):
         -> its min and max (Durand & Dorsey 2002's compression); (4, default mode) the
         composition -> the log-average for ``anchor_gain``; (5) the composition and
         ``Kirk11.finish`` on the device (:meth:`_finish`) -> ``sink`` or the output."""
-        import pyopencl as cl
         be, dev, op = self.backend, self.dev, self.op
         s, v = op.settings, stats.values
         q_ = be.rt.queue
@@ -258,7 +256,7 @@ class KirkSchedule(NoPixelState):
                 be.fetch_output(res[y0:y0 + nr], out, nr * w, encoding)
             else:
                 band = np.empty((nr, w, 3), np.float32)
-                cl.enqueue_copy(q_, band, out)
+                transfer(q_, band, out)
                 sink(y0, band)
         return res
 

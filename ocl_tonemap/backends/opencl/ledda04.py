@@ -25,6 +25,7 @@ from ..planes import PlaneStore, UniformPlanes, read_rows
 from .bilateral import Z_IDENTITY, DeviceBilateral
 from .ledda04_state import LeddaPixelState
 from .runtime import round_up
+from .transfers import transfer
 
 #: Model constants of kernels/ledda04.cl, given as build options (never retyped);
 #: DISPLAY_LINEAR_MAX and the other shared ones come with every program (constants.py).
@@ -88,7 +89,6 @@ class LeddaSchedule(LeddaPixelState):
         """Banded frames (and streamed ones, whose rows are read again for each pass)
         take three passes before the state step: the global log-averages with the
         z ranges, the grid splat (grid filter only), the local levels."""
-        import pyopencl as cl
         be, op, s = self.backend, self.op, self.op.settings
         q = be.rt.queue
         h, w = frame.pixels.shape[:2]
@@ -169,8 +169,8 @@ class LeddaSchedule(LeddaPixelState):
                 sums.add(sb)
             if banded:
                 lv = np.empty((2, nr, w), np.float32)
-                cl.enqueue_copy(q, lv[0], ic)
-                cl.enqueue_copy(q, lv[1], ir)
+                transfer(q, lv[0], ic)
+                transfer(q, lv[1], ir)
                 planes.write(y0, lv)
             else:
                 planes = {"I_c": ic, "I_r": ir}
@@ -228,13 +228,13 @@ class LeddaSchedule(LeddaPixelState):
             if banded:
                 st = be.buffer("ledda_state_band", nstate * n * 4)
                 if not init:
-                    cl.enqueue_copy(q, st, read_rows(src, self.planes, y0, y0 + nr))
+                    transfer(q, st, read_rows(src, self.planes, y0, y0 + nr))
             elif self._dev is not None:
                 st = self._dev[0]                   # resident from the last frame
             else:
                 st = cl.Buffer(be.rt.context, cl.mem_flags.READ_WRITE, nstate * n * 4)
                 if not init:
-                    cl.enqueue_copy(q, st, read_rows(self._host, self.planes, 0, h))
+                    transfer(q, st, read_rows(self._host, self.planes, 0, h))
             rods = stats.values["rods"]
             items = be.rt.pixel_items(n, 4) if self._step_vector else n
             self._k_step(q, (round_up(items, 64),), (64,), ic, ir, i32(0 if rods else 1),
@@ -243,7 +243,7 @@ class LeddaSchedule(LeddaPixelState):
                          strength, lgc, lgr)
             if banded:
                 planes = np.empty((nstate, nr, w), np.float32)
-                cl.enqueue_copy(q, planes, st)
+                transfer(q, planes, st)
                 dst.write(y0, planes)
             else:
                 self._dev, self._host = (st, (h, w)), None
@@ -252,7 +252,7 @@ class LeddaSchedule(LeddaPixelState):
                 src.close()
             self._host = dst
         nres = np.empty(1, np.int32)
-        cl.enqueue_copy(q, nres, counts)
+        transfer(q, nres, counts)
         stats.values["restarted_fraction"] = float(nres[0]) / (h * w) if not init else 0.0
         stats.values["sigma_disp"] = op.frame_mapping(stats.values["global_cone"],
                                                       stats.values["global_rod"])[0]
@@ -263,7 +263,6 @@ class LeddaSchedule(LeddaPixelState):
     def apply(self, frame, state, stats, params=None, gains=None, sink=None, encoding=None):
         """``ledda04_map4`` per band (rows re-read for banded frames); with
         ``sink(y0, band)`` the bands go there and None is returned."""
-        import pyopencl as cl
         be, op = self.backend, self.op
         q = be.rt.queue
         h, w = stats.height, stats.width
@@ -282,7 +281,7 @@ class LeddaSchedule(LeddaPixelState):
                 be.to_working(frame.pixels[y0:y0 + nr], frame.scale, count=False)
                 ic, _ = self._band_levels(stats, y0, nr, rods=False)
                 st = be.buffer("ledda_state_band", nstate * n * 4)
-                cl.enqueue_copy(q, st, read_rows(self._host, self.planes, y0, y0 + nr))
+                transfer(q, st, read_rows(self._host, self.planes, y0, y0 + nr))
             else:
                 ic, st = stats.planes["I_c"], self._dev[0]
             items = be.rt.pixel_items(n, 4) if self._map_vector else n
@@ -294,7 +293,7 @@ class LeddaSchedule(LeddaPixelState):
                 be.fetch_output(out[y0:y0 + nr], dst, n, encoding)
             else:
                 band = np.empty((nr, w, 3), np.float32)
-                cl.enqueue_copy(q, band, dst)
+                transfer(q, band, dst)
                 sink(y0, band)
         return out
 

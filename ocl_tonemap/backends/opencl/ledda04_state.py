@@ -9,6 +9,7 @@ import numpy as np
 from ...operators.base import FrameStats
 from ..base import PixelStateMixin
 from ..planes import PlaneStore, band_readable, read_rows
+from .transfers import transfer
 
 
 class LeddaPixelState(PixelStateMixin):
@@ -21,10 +22,9 @@ class LeddaPixelState(PixelStateMixin):
         authoritative and resident for the next frame); state spilled to a file
         (streamed frames) comes as that band-readable store, valid until the next frame."""
         if self._dev is not None:
-            import pyopencl as cl
             buf, (h, w) = self._dev
             a = np.empty((len(self.planes), h, w), np.float32)
-            cl.enqueue_copy(self.backend.rt.queue, a, buf)
+            transfer(self.backend.rt.queue, a, buf)
             return {k: np.array(a[i]) for i, k in enumerate(self.planes)}
         return super().pixel_state()
 
@@ -45,15 +45,14 @@ class LeddaPixelState(PixelStateMixin):
         """The per-pixel adaptation inputs ``integrate`` reads (I_A, I_A'; float32):
         host copies, or the band store of a banded frame. I_A' is zero where the
         frame needed no rods (the step then takes it from I_A, as here)."""
-        import pyopencl as cl
         planes = stats.planes
         if band_readable(planes):
             return planes
         h, w = stats.height, stats.width
         out = {"I_c": np.empty((h, w), np.float32), "I_r": np.zeros((h, w), np.float32)}
-        cl.enqueue_copy(self.backend.rt.queue, out["I_c"], planes["I_c"])
+        transfer(self.backend.rt.queue, out["I_c"], planes["I_c"])
         if stats.values["rods"]:
-            cl.enqueue_copy(self.backend.rt.queue, out["I_r"], planes["I_r"])
+            transfer(self.backend.rt.queue, out["I_r"], planes["I_r"])
         return out
 
     def stats_from_planes(self, stats, planes) -> FrameStats:
@@ -67,15 +66,14 @@ class LeddaPixelState(PixelStateMixin):
     # -- integrate: a band's levels --------------------------------------------------
     def _band_levels(self, stats, y0, nr, rods: bool = True):
         """(Ic, Ir) device buffers of one band: resident, or uploaded from the planes."""
-        import pyopencl as cl
         planes = stats.planes
         if band_readable(planes) or isinstance(planes.get("I_c"), np.ndarray):
             be = self.backend
             n = nr * stats.width
             lv = read_rows(planes, ("I_c", "I_r"), y0, y0 + nr)
             bc, br = be.buffer("ledda_Ic", n * 4), be.buffer("ledda_Ir", n * 4)
-            cl.enqueue_copy(be.rt.queue, bc, lv[0])
+            transfer(be.rt.queue, bc, lv[0])
             if rods:
-                cl.enqueue_copy(be.rt.queue, br, lv[1])
+                transfer(be.rt.queue, br, lv[1])
             return bc, br
         return planes["I_c"], planes["I_r"]

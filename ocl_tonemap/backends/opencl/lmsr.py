@@ -17,6 +17,7 @@ from ...models.photometry import RepairCounts
 from .bilateral import DeviceBilateral
 from .image import DeviceImage
 from .runtime import round_up
+from .transfers import host_buffer, transfer
 
 
 #: purkinje_rgb's work-group size.
@@ -60,8 +61,7 @@ class KirkDevice:
         cl = self.cl
         mf = cl.mem_flags
         if host is not None:
-            return cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                             hostbuf=np.ascontiguousarray(host, np.float32))
+            return host_buffer(self.rt.context, np.ascontiguousarray(host, np.float32))
         return cl.Buffer(self.rt.context, mf.READ_WRITE, max(int(nbytes), 4))
 
     def shift(self, q, n: int, area, k1, k2, gain, xyz, M, D, paper: bool = False):
@@ -97,7 +97,7 @@ class KirkDevice:
         self._k_sums(self.rt.queue, (groups * wg,), (wg,), x, np.int32(n), np.int32(mode),
                      np.float32(inv_u), self._partial, cl.LocalMemory(wg * 16))
         host = np.empty((groups, 4), np.float32)
-        cl.enqueue_copy(self.rt.queue, host, self._partial)
+        transfer(self.rt.queue, host, self._partial)
         t = host.astype(np.float64).sum(axis=0)
         return float(t[0]), float(t[1]), float(t[2])
 
@@ -139,7 +139,7 @@ class KirkDevice:
         place on the device (a new image of the same buffer comes back: another frame
         to the stages' residency checks); a host array: through one
         buffer of :data:`SHIFT_BAND` pixels, kept for the next frame."""
-        cl, q_ = self.cl, self.rt.queue
+        q_ = self.rt.queue
         params = self._shift_params(area, k1, k2, gain, M, xyz)
         fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
 
@@ -160,12 +160,12 @@ class KirkDevice:
                 band = self._band = self._buf(nb)
             for a in range(0, n, self.SHIFT_BAND):
                 m = min(self.SHIFT_BAND, n - a)
-                cl.enqueue_copy(q_, band, res[a:a + m])
+                transfer(q_, band, res[a:a + m])
                 run(band, m)
-                cl.enqueue_copy(q_, res[a:a + m], band)
+                transfer(q_, res[a:a + m], band)
             res = res.reshape(h, w, 3)
         nfb = np.empty(1, np.int32)
-        cl.enqueue_copy(q_, nfb, fb)
+        transfer(q_, nfb, fb)
         return res, float(nfb[0]) / max(n, 1)
 
     def lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
@@ -187,7 +187,7 @@ class KirkDevice:
         nc = band.shape[2]
         cube = np.ascontiguousarray(band, np.float32)
         src = backend.buffer("kirk:cube", cube.nbytes)
-        cl.enqueue_copy(q_, src, cube)
+        transfer(q_, src, cube)
         counts = backend.buffer("counts", 8 * 4)
         cl.enqueue_fill_buffer(q_, counts, np.int32(0), 0, 8 * 4)
         Wt = np.ascontiguousarray(lmsr.spectrum_weights(wavelengths).T, np.float32)
@@ -229,5 +229,5 @@ class DeviceBaseRange:
         hist = None
         if not self.acc.exact and self.n:
             hist = np.empty(BASE_HIST_BINS, np.int32)
-            self.dev.cl.enqueue_copy(self.dev.rt.queue, hist, self.dev._hist)
+            transfer(self.dev.rt.queue, hist, self.dev._hist)
         return self.acc.add_counts(hist, self.lo, self.hi, self.n).result()

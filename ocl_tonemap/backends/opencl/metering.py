@@ -11,6 +11,7 @@ from ...models.photometry import RepairCounts
 from ..base import Levels
 from ..weights import read_weight_mask
 from .runtime import round_up
+from .transfers import host_buffer, transfer
 
 
 class DeviceMeter:
@@ -34,14 +35,11 @@ class DeviceMeter:
         self._mask_buf = None
 
     def _mask(self, spec: MeteringSpec, width: int, height: int):
-        import pyopencl as cl
         if spec.mode != "mask":
             return self._no_mask
         key = (spec.mask, width, height)
         if key != self._mask_key:
-            self._mask_buf = cl.Buffer(self.rt.context,
-                                       cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                       hostbuf=read_weight_mask(spec.mask, width, height))
+            self._mask_buf = host_buffer(self.rt.context, read_weight_mask(spec.mask, width, height))
             self._mask_key = key
         return self._mask_buf
 
@@ -60,7 +58,7 @@ class DeviceMeter:
         self._k_final(q, (self.WG,), (self.WG,), self.partial, np.int32(groups), self.result,
                       scratch)
         out = np.empty(8, np.float32)
-        cl.enqueue_copy(q, out, self.result)
+        transfer(q, out, self.result)
         ms = MeterSums(out[:7].astype(np.float64))
         if spec.mode == "percentile":
             ms.hist_Y = self._histogram(y_buf, n)
@@ -76,7 +74,7 @@ class DeviceMeter:
                      np.float32(HIST_HI), np.int32(HIST_BINS), np.float32(LOG_FLOOR), self.hist,
                      cl.LocalMemory(HIST_BINS * 4))
         h = np.empty(HIST_BINS, np.int32)
-        cl.enqueue_copy(q, h, self.hist)
+        transfer(q, h, self.hist)
         return h.astype(np.int64)
 
 
@@ -97,7 +95,7 @@ class MeteringPasses:
         self._illum(self.rt.queue, (groups * wg,), (wg,), self.bufs["rgb"], self.bufs["Y"],
                     np.int32(n), out, cl.LocalMemory(wg * 4 * 4))
         part = np.empty((groups, 4), np.float32)
-        cl.enqueue_copy(self.rt.queue, part, out)
+        transfer(self.rt.queue, part, out)
         return part.astype(np.float64).sum(axis=0)
 
     def _block_sums(self, w: int, nr: int, y0: int, s: int, into: np.ndarray,
@@ -106,7 +104,6 @@ class MeteringPasses:
         source part) into ``into`` (block rows x block columns x 4, float64); ``wait``
         False: their read is only enqueued, and the function returned adds them once
         it has come."""
-        import pyopencl as cl
         bw = into.shape[1]
         by0, by1 = y0 // s, (y0 + nr - 1) // s + 1
         n = (by1 - by0) * bw
@@ -115,7 +112,7 @@ class MeteringPasses:
                      np.int32(nr), np.int32(y0), np.int32(s), np.int32(bw), np.int32(by0),
                      np.int32(by1 - by0), np.float32(lim), out)
         part = np.empty((by1 - by0, bw, 4), np.float32)
-        ev = cl.enqueue_copy(self.rt.queue, part, out, is_blocking=wait)
+        ev = transfer(self.rt.queue, part, out, is_blocking=wait)
 
         def add():
             ev.wait()
@@ -130,7 +127,6 @@ class MeteringPasses:
         """Colour stage + metering over the bands (+ illuminant sums, + the working
         rgb copied to ``keep_rgb``, + block sums of ``proxy_stride``): (bands, repairs,
         (G_rod, G_cone), illuminant sums, the largest working luminance, the proxy)."""
-        import pyopencl as cl
         h, w, _ = pixels.shape
         bands = self.bands(h, w)
         repairs = RepairCounts()
@@ -153,7 +149,7 @@ class MeteringPasses:
             if stride:
                 self._block_sums(w, nr, y0, stride, blocks)
             if keep_rgb is not None:
-                cl.enqueue_copy(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
+                transfer(self.rt.queue, keep_rgb[y0:y0 + nr], b["rgb"])
         proxy = None if blocks is None else blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)
         return bands, repairs, sums.goal(spec), illum, float(sums.sums[5]), proxy
 
