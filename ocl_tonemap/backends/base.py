@@ -131,6 +131,17 @@ class Backend(Protocol):
     def purkinje_device(self):
         """The Purkinje shift kernels on the device, or None."""
 
+    def device_image(self, arr):
+        """A device array (``pyopencl.array.Array``) as the backend's frame on its device;
+        None for anything else (a host backend raises for a device array)."""
+
+    def device_output(self):
+        """What makes a frame's output stay on the device (passed where a display encoding
+        would be), or None."""
+
+    def device_array(self, pixels):
+        """Host pixels as a device array (one upload)."""
+
     def transfers(self):
         """Host <-> device transfers so far in this thread (``opencl.transfers.Transfers``:
         a frame's are the difference across it), or None without a device."""
@@ -166,6 +177,18 @@ class HostBackend:
 
     def transfers(self):
         return None
+
+    def device_image(self, arr):
+        if type(arr).__module__.startswith("pyopencl"):
+            raise ValueError("a device array (pyopencl.array.Array) needs the OpenCL "
+                             "backend: Tonemapper(..., backend='opencl')")
+        return None
+
+    def device_output(self):
+        return None
+
+    def device_array(self, pixels):
+        raise ValueError("device arrays need the OpenCL backend")
 
     def acuity_encoding(self, encoding, h: int, w: int, taps, t: float, blur):
         return None

@@ -20,7 +20,7 @@ from ..base import Levels, NoPixelState, load_schedule
 from .convolution import DeviceBlur
 from .display import BlurredOutputEncoding
 from .flare import DeviceFlare
-from .image import DeviceImage
+from .image import DeviceArrayOutput, DeviceImage, device_image
 from .lmsr import KirkDevice
 from .metering import DeviceMeter, MeteringPasses
 from .runtime import describe_device, get_runtime, index_defines, round_up
@@ -126,6 +126,22 @@ class OpenCLBackend(MeteringPasses):
         """kirk11's shift kernels for the Purkinje effect on other operators."""
         return KirkDevice(self.rt)
 
+    def device_image(self, arr):
+        """A ``pyopencl.array.Array`` frame as a device image (``image.device_image``),
+        None for anything else."""
+        return device_image(self.rt, arr)
+
+    def device_output(self):
+        """The output left on the device, as a ``pyopencl.array.Array``."""
+        return DeviceArrayOutput(self.rt)
+
+    def device_array(self, pixels: np.ndarray):
+        """Host pixels as a ``pyopencl.array.Array`` (one upload)."""
+        import pyopencl.array as cla
+        out = cla.empty(self.rt.queue, pixels.shape, np.float32)
+        transfer(self.rt.queue, out.base_data, np.ascontiguousarray(pixels, np.float32))
+        return out
+
     def transfers(self) -> Transfers:
         """Host <-> device transfers so far in this thread (``transfers.py``)."""
         return counted()
@@ -183,10 +199,12 @@ class OpenCLBackend(MeteringPasses):
 
     # -- the output -------------------------------------------------------------------------
     @staticmethod
-    def output_array(h: int, w: int, encoding=None) -> np.ndarray:
-        """The host array a frame's output comes back into: display-linear float32, or
-        code values of ``encoding`` (a ``display.DeviceOutputEncoding``)."""
-        return np.empty((h, w, 3), np.float32 if encoding is None else encoding.dtype)
+    def output_array(h: int, w: int, encoding=None):
+        """The array a frame's output comes back into: display-linear float32 on the
+        host, or ``encoding``'s (a ``display.DeviceOutputEncoding``: code values on the
+        host; an ``image.DeviceArrayOutput``: display-linear on the device)."""
+        return np.empty((h, w, 3), np.float32) if encoding is None else \
+            encoding.array(h, w)
 
     def fetch_output(self, dst: np.ndarray, buf, n: int, encoding=None) -> None:
         """Bring ``n`` pixels of a per-pixel kernel's RGB output (``buf``) back into

@@ -152,6 +152,10 @@ class DeviceOutputEncoding:
         """Encode ``n`` pixels of ``src`` (display-linear RGB on the device) into ``out``."""
         self.table.encode_buffer(queue, src, n, out.reshape(-1), self.u8)
 
+    def array(self, h: int, w: int) -> np.ndarray:
+        """Where a frame's code values come back: a host array."""
+        return np.empty((h, w, 3), self.dtype)
+
 
 class BlurredOutputEncoding:
     """A :class:`DeviceOutputEncoding` with the loss-of-acuity blur before it, on the
@@ -160,9 +164,12 @@ class BlurredOutputEncoding:
     no display-linear frame is fetched, blurred and blended on the host (a 4K still's
     acuity ~1.2 s and ~400 MiB of float64 temporaries)."""
 
-    def __init__(self, inner: DeviceOutputEncoding, blur, n: int):
+    def __init__(self, inner, blur, n: int):
         self.inner, self.blur, self.n = inner, blur, int(n)
         self.dtype = inner.dtype
+
+    def array(self, h: int, w: int):
+        return self.inner.array(h, w)
 
     def fetch(self, queue, src, n: int, out: np.ndarray) -> None:
         if n != self.n:               # a band: the blur needs its neighbours' rows

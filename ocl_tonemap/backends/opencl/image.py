@@ -38,11 +38,18 @@ class DeviceImage:
         return out if dtype is None else out.astype(dtype, copy=False)
 
     def __getitem__(self, key):
-        """The whole frame's rows (``[0:H]``, ``[:]``) are this image; anything else comes
-        from the host copy."""
-        if isinstance(key, slice) and key.step in (None, 1) and \
-                range(*key.indices(self.shape[0])) == range(self.shape[0]):
-            return self
+        """The whole frame's rows (``[0:H]``, ``[:]``) are this image; other rows
+        (``[a:b]``) come to the host alone (the plan's patches: no whole frame);
+        anything else from the host copy."""
+        if isinstance(key, slice) and key.step in (None, 1):
+            rows = range(*key.indices(self.shape[0]))
+            if rows == range(self.shape[0]):
+                return self
+            out = np.empty((len(rows),) + self.shape[1:], np.float32)
+            if len(rows):
+                transfer(self.rt.queue, out, self.buffer,
+                         src_offset=rows.start * self.shape[1] * 3 * 4)
+            return out
         return np.asarray(self)[key]
 
     def __len__(self) -> int:
@@ -51,3 +58,41 @@ class DeviceImage:
     def copy_to(self, queue, dst) -> None:
         """Copy the pixels into device buffer ``dst`` (device to device)."""
         transfer(queue, dst, self.buffer, byte_count=self.nbytes)
+
+
+def device_image(rt, arr) -> DeviceImage | None:
+    """A ``pyopencl.array.Array`` of working RGB (H x W x 3 float32, C order, on
+    ``rt``'s context) as a :class:`DeviceImage` of its memory (read, never written);
+    None where ``arr`` is no device array."""
+    import pyopencl.array as cla
+    if not isinstance(arr, cla.Array):
+        return None
+    if arr.context.int_ptr != rt.context.int_ptr:
+        raise ValueError("a device array must be on the backend's OpenCL context "
+                         "(Tonemapper(...).backend.device_runtime().context)")
+    if arr.ndim != 3 or arr.shape[2] != 3 or arr.dtype != np.float32 or \
+            not arr.flags.c_contiguous or arr.offset:
+        raise ValueError(f"a device array is H x W x 3 float32, C order (got {arr.shape} "
+                         f"{arr.dtype})")
+    return DeviceImage(rt, arr.base_data, arr.shape)
+
+
+class DeviceArrayOutput:
+    """A frame's display-linear output left on the device: the schedules' output goes
+    into a new ``pyopencl.array.Array`` (device to device) in place of a host array.
+    It stands where a display encoding would (``fetch``, ``array``, ``dtype``), so the
+    acuity blur on the device composes with it."""
+
+    dtype = np.dtype(np.float32)
+
+    def __init__(self, rt):
+        self.rt = rt
+
+    def array(self, h: int, w: int):
+        import pyopencl.array as cla
+        return cla.empty(self.rt.queue, (h, w, 3), np.float32)
+
+    def fetch(self, queue, src, n: int, out) -> None:
+        """Copy ``n`` pixels of RGB from device buffer ``src`` into ``out`` (a row slice
+        of :meth:`array`'s array)."""
+        transfer(queue, out.base_data, src, byte_count=12 * n, dst_offset=out.offset)
