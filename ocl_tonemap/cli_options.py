@@ -286,8 +286,12 @@ def _run_flags(g) -> None:
                    help="host memory budget: larger frames are read, mapped and written in row "
                    "bands (default: a quarter of the machine's memory)")
     g.add_argument("--serial-io", action="store_true",
-                   help="read, map and write each frame in turn (default: the next frame read "
+                   help="read, map and write each frame in turn (default: the next frames read "
                    "and the last written while the device works)")
+    g.add_argument("--threads", type=int, metavar="N",
+                   help="threads that decode and encode frames beside the device's work (half "
+                   "read ahead, half write behind; default: the machine's cores, at least 2); "
+                   "memory: about (2 + N) frames")
     g.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
 
 
@@ -295,11 +299,13 @@ def _run_build(a, tier) -> dict:
     from .job.options import parse_cuts  # lazy: the parser loads no OIIO
     if a.max_band_pixels is not None and a.max_band_pixels < 1:
         raise ValueError("--max-band-pixels must be >= 1")
+    if a.threads is not None and not 1 <= a.threads <= 1024:
+        raise ValueError("--threads must be 1 to 1024")
     return {"state_in": a.state_in, "state_out": a.state_out, "resume": a.resume,
             "checkpoint": a.checkpoint, "checkpoint_every": a.checkpoint_every,
             "cuts": parse_cuts(a.cuts), "device": a.device, "quality": tier.name,
             "max_memory": a.max_memory, "overlap_io": not a.serial_io,
-            "max_band_pixels": a.max_band_pixels,
+            "threads": a.threads, "max_band_pixels": a.max_band_pixels,
             "progress": (not a.quiet) and (a.verbose > 0 or sys.stderr.isatty())}
 
 

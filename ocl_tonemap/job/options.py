@@ -78,6 +78,7 @@ class JobOptions:
     checkpoint: bool = True         # write the state after every frame ...
     checkpoint_every: int = 1       # ... or every N frames (local operators: per-pixel planes)
     overlap_io: bool = True         # read the next frame and write the last one beside the work
+    threads: int | None = None      # --threads: decode/encode threads (None: the machine's cores)
     display_encode: str | None = None   # auto | table (device) | ocio (CPU); None: the tier's
     quality: str | None = None      # --quality: draft | balanced (None) | reference
     cuts: list[int] | str | None = None  # --cuts: frames where the eyes start afresh, or "detect"

@@ -15,7 +15,7 @@ import time
 from .. import safeio
 from ..backends.select import resolve_backend
 from ..colour import ColourPipeline
-from ..imageio import FramePool, FrameError, read_frame
+from ..imageio import FrameError, read_frame
 from ..imagewrite import ocltm_metadata, output_bits, write_frame
 from ..interrupts import Terminated, ready
 from ..models.photometry import RepairCounts
@@ -30,6 +30,7 @@ from .checkpoint import (RunLock, check_state_paths, checkpoint_path, checkpoint
 from .frame import encode_pixels, frame_input, map_frame, output_metadata
 from .options import (RUN_KEY, Interrupted, JobOptions, JobResult, output_is_linear,
                       run_fingerprint, transfers_line)
+from .overlap import FrameIO
 from .sequence import frame_jobs, frame_time
 from .setup import RunSetup, check_output_depth, check_output_tag
 from .views import still_view, view_from_header
@@ -132,7 +133,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         st, jobs = resume_point(opts, jobs, ckpt, opts.operator)
         state = st if st is not None else state
         done_before = [j for j in all_jobs if j not in jobs]
-    io = _FrameIO(opts.overlap_io)
+    io = FrameIO(opts.overlap_io, opts.threads)
     try:
         if jobs and read_whole(opts, jobs[0][1]):   # the first frame read while the run
             f0, inp0 = jobs[0][0], jobs[0][1]       # sets up (its errors come at its turn)
@@ -176,9 +177,10 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
 
     with _StopSignals() as stop, io:
         for k, (f, inp, outp, held) in enumerate(jobs):
-            if k + 1 < n and not rows(k + 1):         # read-ahead of the next frame
-                _, inp1, _, _ = jobs[k + 1]
-                io.prefetch(k + 1, lambda inp1=inp1, f1=jobs[k + 1][0]:
+            for j in range(k + 1, min(n, k + 1 + io.ahead)):    # read-ahead
+                if rows(j):
+                    break                             # (a streamed frame reads itself)
+                io.prefetch(j, lambda inp1=jobs[j][1], f1=jobs[j][0]:
                             read_frame(inp1, f1, opts.channels, io.pool))
             try:
                 if opts.stills and tm.adapted:   # each still its own observer
@@ -330,72 +332,6 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
         except Exception as exc:
             raise FrameError(outp, f, exc) from exc
     return t, res.info, fps, write
-
-
-class _FrameIO:
-    """Read-ahead and write-behind: the next frame is read and the last one encoded
-    and written on two threads (one frame each way in flight: memory stays bounded)
-    while the device works; OIIO and OCIO release Python's lock while they decode,
-    encode and write. A failure surfaces at its own frame; ``drain`` waits for the
-    write in flight and then runs what follows it (the checkpoint), so outputs and
-    checkpoints keep their order. ``enabled`` False: everything on the caller."""
-
-    def __init__(self, enabled: bool = True):
-        from concurrent.futures import ThreadPoolExecutor
-        self._r = ThreadPoolExecutor(1, "ocltm-read") if enabled else None
-        self._w = ThreadPoolExecutor(1, "ocltm-write") if enabled else None
-        self._reads: dict = {}
-        self._pending = None
-        self.pool = FramePool()          # frames read whole, into memory used before
-
-    def prefetch(self, key, fn) -> None:
-        if self._r is not None and key not in self._reads:
-            self._reads[key] = self._r.submit(fn)
-
-    def read_done(self, key):
-        """A function saying whether the read of ``key`` is done (or was never
-        submitted). It holds no reference to the read: a frame is pooled memory that
-        only the frame's own turn may keep (``FramePool``)."""
-        reads = self._reads
-
-        def done() -> bool:
-            fut = reads.get(key)
-            return fut is None or fut.done()
-        return done
-
-    def read(self, key, fn):
-        fut = self._reads.pop(key, None)
-        return fn() if fut is None else fut.result()
-
-    def write(self, fn, after) -> None:
-        """Run ``fn`` (None: nothing to write) and then ``after``, behind the caller."""
-        self.drain()
-        if fn is None or self._w is None:
-            if fn is not None:
-                fn()
-            after()
-            return
-        def both():
-            fn()
-            after()
-        self._pending = self._w.submit(both)
-
-    def drain(self) -> None:
-        if self._pending is not None:
-            fut, self._pending = self._pending, None
-            fut.result()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        for fut in self._reads.values():
-            fut.cancel()
-        self._reads.clear()
-        for ex in (self._r, self._w):
-            if ex is not None:
-                ex.shutdown(wait=True)      # a write in flight completes (renamed whole)
-        return False
 
 
 class _StopSignals:

@@ -212,6 +212,22 @@ class FrameGraph:
                          transfers_since(self.backend, moved))
         return FrameResult(out, None, info, encoding is not None)
 
+    def run_device(self, img, dt, time_s, frame_number, scale, illuminant, encoding,
+                   measure_only: bool, weights: dict | None):
+        """:meth:`run` of a frame already on the device (a device image): its
+        display-linear output left there as a new device array (``encoding`` given:
+        code values to the host as for host frames). Where a display effect works only
+        on host pixels, the output comes back and goes up again (one upload)."""
+        res = self.run(Frame(img, scale, None, self.primaries), dt, time_s, frame_number,
+                       illuminant, encoding or self.backend.device_output(), measure_only,
+                       weights)
+        if measure_only:
+            return res
+        if encoding is None and not res.encoded:
+            res.output = self.backend.device_array(res.output)
+        res.encoded = encoding is not None and res.encoded
+        return res
+
 
 def spectral_frame(op, operator_name: str, effects, frame, wavelengths, scale,
                    primaries) -> Frame:

@@ -202,8 +202,12 @@ class Tonemapper:
         shot's integrate pass measuring a frame as the serial run weighs it)."""
         img = None if isinstance(frame, np.ndarray) else self.backend.device_image(frame)
         if img is not None:
-            return self._process_device(img, dt, time_s, frame_number, luminance_scale,
-                                        illuminant, wavelengths, encoding, measure_only, weights)
+            if wavelengths is not None:
+                raise ValueError("a spectral frame comes as a host array (wavelengths=...)")
+            check_scale(luminance_scale)
+            res = self.graph.run_device(img, dt, time_s, frame_number, luminance_scale,
+                                        illuminant, encoding, measure_only, weights)
+            return res if measure_only else self._remember(res)
         if wavelengths is not None:
             fr = spectral_frame(self.op, self.operator_name, self.effects, frame, wavelengths,
                                 luminance_scale, self.graph.primaries)
@@ -229,25 +233,6 @@ class Tonemapper:
         if grey is not None:                          # luminance in, luminance out
             y = (np.asarray(res.output[..., :3], np.float64) @ Y_WEIGHTS).astype(np.float32)
             res.output = y if grey == "2d" else y[..., None]
-        return self._remember(res)
-
-    def _process_device(self, img, dt, time_s, frame_number, luminance_scale, illuminant,
-                        wavelengths, encoding, measure_only, weights):
-        """A frame already on the device (a ``pyopencl.array.Array``): read there, and its
-        display-linear output left there as a new device array (``encoding`` given: code
-        values to the host as for host frames). Where a display effect works only on
-        host pixels, the output comes back and goes up again (one upload)."""
-        if wavelengths is not None:
-            raise ValueError("a spectral frame comes as a host array (wavelengths=...)")
-        check_scale(luminance_scale)
-        res = self.graph.run(Frame(img, luminance_scale, None, self.graph.primaries), dt,
-                             time_s, frame_number, illuminant,
-                             encoding or self.backend.device_output(), measure_only, weights)
-        if measure_only:
-            return res
-        if encoding is None and not res.encoded:
-            res.output = self.backend.device_array(res.output)
-        res.encoded = encoding is not None and res.encoded
         return self._remember(res)
 
     def _remember(self, res: FrameResult) -> FrameResult:

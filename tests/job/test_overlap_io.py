@@ -1,7 +1,8 @@
-"""Read-ahead and write-behind (sequence._FrameIO): the next frame is read and the
-last one encoded and written on two threads while the device works. The frames,
-their metadata and the checkpoints are those of the serial run; a failure is
-reported at its own frame, with the frames before it complete."""
+"""Read-ahead and write-behind (job/overlap.py FrameIO): the next frames are read and
+the last ones encoded and written on ``--threads`` threads while the device works.
+The frames, their metadata and the checkpoints are those of the serial run; a failure
+is reported at its own frame, with the frames before it complete and no checkpoint
+past it."""
 
 import json
 import os
@@ -29,11 +30,14 @@ def _meta(path):
             if a.name.startswith("ocltm:")}
 
 
-@pytest.mark.parametrize("op, ext", [("pattanaik00", ".png"), ("ledda04", ".exr")])
-def test_overlapped_io_equals_serial(seq, tmp_path, op, ext):
+@pytest.mark.parametrize("op, ext, threads", [("pattanaik00", ".png", "2"),
+                                              ("ledda04", ".exr", "2"),
+                                              ("pattanaik00", ".png", "4"),
+                                              ("kirk11", ".tif", "5")])
+def test_overlapped_io_equals_serial(seq, tmp_path, op, ext, threads):
     pattern, frames = seq
     runs = {}
-    for mode, extra in (("serial", ["--serial-io"]), ("overlap", [])):
+    for mode, extra in (("serial", ["--serial-io"]), ("overlap", ["--threads", threads])):
         d = tmp_path / mode
         d.mkdir()
         out = str(d / f"o.####{ext}")
@@ -82,21 +86,27 @@ def test_bad_frame_while_the_last_one_is_written(seq, tmp_path, capsys):
     assert not [p for p in os.listdir(tmp_path) if ".tmp" in p]
 
 
-def test_write_failure_is_named_at_its_frame(seq, tmp_path, capsys):
+@pytest.mark.parametrize("threads", ["2", "6"])
+def test_write_failure_is_named_at_its_frame(seq, tmp_path, capsys, threads):
     """Frame 2's output cannot be written (a folder stands in its place): the error
-    names that output and frame, frame 1 is complete and its checkpoint written,
-    and nothing after frame 2 is left."""
+    names that output and frame, frame 1 is complete and its checkpoint written (with
+    several writers too: no checkpoint counts a frame past a failed one), and with
+    one writer nothing after frame 2 is left; --resume then makes the rest."""
     pattern, frames = seq
     out = str(tmp_path / "o.####.png")
     os.mkdir(frame_path(out, frames[1]))
-    assert main(["run", pattern, out, "-q"]) == 2
+    assert main(["run", pattern, out, "-q", "--threads", threads]) == 2
     err = capsys.readouterr().err
     assert err.count("ocl-tonemap ERROR") == 1
     assert f"frame {frames[1]}" in err
     assert os.path.isfile(frame_path(out, frames[0]))
     assert json.loads((tmp_path / "o.png.state.json").read_text())["frame"] == frames[0]
-    assert not any(os.path.exists(frame_path(out, f)) for f in frames[2:])
+    if threads == "2":
+        assert not any(os.path.exists(frame_path(out, f)) for f in frames[2:])
     assert not [p for p in os.listdir(tmp_path) if ".tmp" in p]
+    os.rmdir(frame_path(out, frames[1]))
+    assert main(["run", pattern, out, "-q", "--threads", threads, "--resume"]) == 0
+    assert all(os.path.isfile(frame_path(out, f)) for f in frames)
 
 
 def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, monkeypatch):
@@ -136,10 +146,10 @@ def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, mo
     def prefetch(self, key, fn):
         order.append(("prefetch", key))
         return real_prefetch(self, key, fn)
-    real_resolve, real_prefetch = job_run.resolve_backend, job_run._FrameIO.prefetch
+    real_resolve, real_prefetch = job_run.resolve_backend, job_run.FrameIO.prefetch
     real_prepare = job_run.prepare_kernels
     monkeypatch.setattr(job_run, "prepare_kernels", prepare)
-    monkeypatch.setattr(job_run._FrameIO, "prefetch", prefetch)
+    monkeypatch.setattr(job_run.FrameIO, "prefetch", prefetch)
     monkeypatch.setattr(job_run, "read_frame", read)
     monkeypatch.setattr(job_run, "setup_run", setup)
     monkeypatch.setattr(job_run, "resolve_backend", resolve)

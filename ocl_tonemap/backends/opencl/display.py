@@ -2,7 +2,7 @@
 
 :class:`DeviceDisplayTable` holds one :class:`~ocl_tonemap.colour.DisplayTable` on the
 device and encodes frames with it: upload, one kernel, download. It may be called from
-any thread (the writer thread of ``sequence._FrameIO``): it has its own command queue
+any thread (a writer thread of ``job/overlap.py``): it has its own command queue
 and kernel object in the chosen device's context, and a lock around each frame.
 """
 
