@@ -38,6 +38,7 @@ class OpenCLBackend(MeteringPasses):
         self._colour = self.rt.kernel("colour.cl", "scene_to_working4")
         self._gains = self.rt.kernel("colour.cl", "apply_gains")
         self._scale = None             # colour.cl:scale_rgb, made when first used
+        self._arrays = None            # the memory pool of device-array outputs
         self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
         self._blocks = self.rt.kernel("metering.cl", "block_sums")
         self._resident = None          # (h, w) of the working frame whole in bufs["rgb"]
@@ -132,8 +133,12 @@ class OpenCLBackend(MeteringPasses):
         return device_image(self.rt, arr)
 
     def device_output(self):
-        """The output left on the device, as a ``pyopencl.array.Array``."""
-        return DeviceArrayOutput(self.rt)
+        """The output left on the device, as a ``pyopencl.array.Array`` (from a memory
+        pool: a frame's array the caller has let go of serves a later frame)."""
+        if self._arrays is None:
+            import pyopencl.tools as clt
+            self._arrays = clt.MemoryPool(clt.ImmediateAllocator(self.rt.queue))
+        return DeviceArrayOutput(self.rt, self._arrays)
 
     def device_array(self, pixels: np.ndarray):
         """Host pixels as a ``pyopencl.array.Array`` (one upload)."""

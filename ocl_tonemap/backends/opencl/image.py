@@ -85,12 +85,12 @@ class DeviceArrayOutput:
 
     dtype = np.dtype(np.float32)
 
-    def __init__(self, rt):
-        self.rt = rt
+    def __init__(self, rt, allocator=None):
+        self.rt, self.allocator = rt, allocator
 
     def array(self, h: int, w: int):
         import pyopencl.array as cla
-        return cla.empty(self.rt.queue, (h, w, 3), np.float32)
+        return cla.empty(self.rt.queue, (h, w, 3), np.float32, allocator=self.allocator)
 
     def fetch(self, queue, src, n: int, out) -> None:
         """Copy ``n`` pixels of RGB from device buffer ``src`` into ``out`` (a row slice
