@@ -10,16 +10,18 @@ import numpy as np
 import pytest
 
 from ocl_tonemap import Tonemapper
-from ocl_tonemap.backends.opencl.transfers import Transfers, counted, host_buffer, transfer
+from ocl_tonemap.backends.opencl.transfers import (ConstantBuffers, Transfers, counted,
+                                                   host_buffer, transfer)
 from ocl_tonemap.sample import render_frame
 
 pytestmark = pytest.mark.requires_opencl
 
 #: What may cross beside the frame, per frame: statistics, the flare's ring level and
-#: the plan's proxy (under 1.5 MiB each way at 1080p), in at most this many calls.
+#: the plan's proxy (under 1.5 MiB each way at 1080p), in at most this many calls
+#: (14 for pattanaik00 and durand00, 19 for ledda04 and kirk11 while the eye adapts).
 #: (Issue 47's goal is 6 calls and two statistics buffers of 64 KiB; not yet met.)
 SIDE_BYTES = 1.5 * 2**20
-MAX_CALLS = 32
+MAX_CALLS = 20
 
 
 @pytest.fixture(scope="module")
@@ -54,6 +56,13 @@ def test_the_counter_counts_host_memory_only(rt):
     rt.queue.finish()
     assert counted() - before == Transfers(1, 4000, 1, 2000)
     np.testing.assert_array_equal(back[:500], a[:500])
+    consts, before = ConstantBuffers(rt.context, keep=2), counted()
+    one = consts.get(np.ones(3, np.float32))
+    assert consts.get(np.ones(3, np.float32)) is one                 # held: no upload
+    consts.get(np.zeros(3, np.float32))
+    consts.get(np.full(3, 2.0, np.float32))                          # the oldest given up
+    consts.get(np.ones(3, np.float32))
+    assert (counted() - before).up_calls == 4
 
 
 def test_the_reference_backend_moves_nothing():

@@ -22,9 +22,9 @@ from .display import BlurredOutputEncoding
 from .flare import DeviceFlare
 from .image import DeviceArrayOutput, DeviceImage, device_image
 from .lmsr import KirkDevice
-from .metering import DeviceMeter, MeteringPasses
+from .metering import DeviceMeter, MeteringPasses, repair_counts
 from .runtime import describe_device, get_runtime, index_defines, round_up
-from .transfers import Transfers, counted, host_buffer, transfer
+from .transfers import ConstantBuffers, Transfers, counted, transfer
 
 
 class OpenCLBackend(MeteringPasses):
@@ -39,6 +39,7 @@ class OpenCLBackend(MeteringPasses):
         self._gains = self.rt.kernel("colour.cl", "apply_gains")
         self._scale = None             # colour.cl:scale_rgb, made when first used
         self._arrays = None            # the memory pool of device-array outputs
+        self._consts = ConstantBuffers(self.rt.context)
         self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
         self._blocks = self.rt.kernel("metering.cl", "block_sums")
         self._resident = None          # (h, w) of the working frame whole in bufs["rgb"]
@@ -181,7 +182,9 @@ class OpenCLBackend(MeteringPasses):
             del self._pool[name]
 
     def constant(self, arr: np.ndarray):
-        return host_buffer(self.rt.context, np.ascontiguousarray(arr, np.float32))
+        """A read-only device copy of a small array (a kernel's parameters), uploaded only
+        where the device does not hold the same values already."""
+        return self._consts.get(np.asarray(arr, np.float32))
 
     def _buffers(self, npix: int, channels: int):
         need = npix * max(channels, 3)
@@ -247,10 +250,7 @@ class OpenCLBackend(MeteringPasses):
         first)."""
         c = np.empty(8, np.int32)
         transfer(self.rt.queue, c, counts)
-        rc = RepairCounts()
-        for k, v in zip(RepairCounts.KEYS, c):
-            setattr(rc, k, int(v))
-        return rc
+        return repair_counts(c)
 
     def bands(self, h: int, w: int, halo: int = 0):
         return row_bands(h, w, self.max_band_pixels, halo)

@@ -17,7 +17,7 @@ from ...models.bilateral import (LEDDA_RANGE, SUPPORT, RangeKernel, prepare_sign
 from ...models.bilateral import BilateralSpec
 from ..bands import row_bands
 from .runtime import round_up
-from .transfers import host_buffer, transfer
+from .transfers import ConstantBuffers, host_buffer, transfer
 
 # --- the bilateral grid, shared geometry ---------------------------------------------
 
@@ -90,6 +90,7 @@ class DeviceBilateral:
     def __init__(self, rt):
         import pyopencl as cl
         self.rt = rt
+        self._consts = ConstantBuffers(rt.context)
         self._exact = rt.kernel("bilateral.cl", "bilateral_exact")
         self._minmax = rt.kernel("bilateral.cl", "z_minmax")
         self._splat = rt.kernel("bilateral.cl", "grid_splat")
@@ -104,7 +105,7 @@ class DeviceBilateral:
 
     # -- helpers -------------------------------------------------------------
     def _const(self, arr: np.ndarray):
-        return host_buffer(self.rt.context, np.ascontiguousarray(arr, np.float32))
+        return self._consts.get(np.asarray(arr, np.float32))
 
     def choose(self, spec: BilateralSpec, sigma_s: float, width: int, height: int) -> str:
         if spec.method != "auto":

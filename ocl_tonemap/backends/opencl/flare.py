@@ -16,7 +16,7 @@ from .. import flare_exec as fx
 from .flare_level0 import FlareLevel0
 from .image import DeviceImage
 from .runtime import round_up
-from .transfers import host_buffer, transfer
+from .transfers import ConstantBuffers, host_buffer, transfer
 
 #: Bytes of device memory per pixel of the frame, at most (the pyramid written out:
 #: source part, accumulator and blur scratch as float4, 4/3 of the frame each, the
@@ -35,6 +35,7 @@ class DeviceFlare(FlareLevel0):
     def __init__(self, rt, buffer, release=None, spare=None):
         import pyopencl as cl
         self.rt = rt
+        self._consts = ConstantBuffers(rt.context)
         self._pool = buffer
         self._release = release
         #: ``spare(nbytes)``: where a resident frame's flared frame may go (the colour

@@ -10,13 +10,12 @@ from ...models import spencer1995 as fl
 from ...models.convolution import gaussian_taps
 from .. import flare_exec as fx
 from .runtime import round_up
-from .transfers import host_buffer
 
 
 class FlareLevel0:
     """Level 0 of :class:`~.flare.DeviceFlare`: its kernels per set of Gaussian widths
     and the fused pass that makes the flared frame (it uses the flare's ``rt``,
-    ``_k``, ``_buf``, ``_defines``, ``local`` and ``_scratch64``)."""
+    ``_k``, ``_buf``, ``_consts``, ``_defines``, ``local`` and ``_scratch64``)."""
 
     #: Level 0's tiles (kernels/flare.cl TILE0): its Gaussians are made only in the
     #: tiles with a source within their reach (``flare_tiles``).
@@ -51,7 +50,7 @@ class FlareLevel0:
             self._level0_kernels[key] = ({n: self.rt.kernel("flare.cl", n, defines)
                                           for n in self.LEVEL0_KERNELS}, R)
         kern, R = self._level0_kernels[key]
-        wts = host_buffer(self.rt.context, np.asarray([wk for _, wk in gs] or [0.0], np.float32))
+        wts = self._consts.get(np.asarray([wk for _, wk in gs] or [0.0], np.float32))
         return kern, wts, len(gs), R
 
     def _finish0(self, d_rgb, lim: float, acc1, stored, plan, h: int, w: int, d_out, occ):

@@ -17,7 +17,7 @@ from ...models.photometry import RepairCounts
 from .bilateral import DeviceBilateral
 from .image import DeviceImage
 from .runtime import round_up
-from .transfers import host_buffer, transfer
+from .transfers import ConstantBuffers, transfer
 
 
 #: purkinje_rgb's work-group size.
@@ -42,6 +42,7 @@ class KirkDevice:
         import pyopencl as cl
         self.rt = rt
         self.cl = cl
+        self._consts = ConstantBuffers(rt.context)
         self.bil = DeviceBilateral(rt)
         c = KERNEL_CONSTANTS
         self._k_lmsr = rt.kernel("kirk11.cl", "to_lmsr", c)
@@ -54,14 +55,15 @@ class KirkDevice:
         self._k_hist = rt.kernel("kirk11.cl", "base_histogram", c)
         self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
         self._params_key, self._params = None, ()              # purkinje's constants
+        self._fallbacks = None                                 # purkinje's fallback count
         self._band = None                                      # purkinje's host band
         self._hist = self._buf(BASE_HIST_BINS * 4)             # base_histogram's counts
 
     def _buf(self, nbytes: int, host: np.ndarray | None = None):
         cl = self.cl
         mf = cl.mem_flags
-        if host is not None:
-            return host_buffer(self.rt.context, np.ascontiguousarray(host, np.float32))
+        if host is not None:                   # (a table the device holds: not again)
+            return self._consts.get(np.asarray(host, np.float32))
         return cl.Buffer(self.rt.context, mf.READ_WRITE, max(int(nbytes), 4))
 
     def shift(self, q, n: int, area, k1, k2, gain, xyz, M, D, paper: bool = False):
@@ -71,7 +73,8 @@ class KirkDevice:
         dw = np.ones(3) if paper else white_norm()[:3]
         par = np.array([area, k1, k2, gain, *xyz, *RHO, *dw, 1.0 if paper else 0.0], np.float32)
         out, wbuf, logY = self._buf(n * 12), self._buf(n * 4), self._buf(n * 4)
-        fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
+        fb = self._buf(4)
+        self.cl.enqueue_fill_buffer(self.rt.queue, fb, np.int32(0), 0, 4)
         self._k_shift(self.rt.queue, (round_up(n, 64),), (64,), q, np.int32(n),
                       self._buf(0, par), self._buf(0, np.linalg.inv(M).reshape(-1)),
                       self._buf(0, subset_solvers(M).reshape(-1)),
@@ -122,13 +125,19 @@ class KirkDevice:
     SHIFT_BAND = 1 << 18
 
     def _shift_params(self, area, k1, k2, gain, M, xyz):
+        """The shift's constant buffers: the matrices made again only when ``M`` changes,
+        the frame's scalars (area, k1, k2, gain, xyz) only when they do (one upload a
+        frame while the eye adapts, not five)."""
         par = np.array([area, k1, k2, gain, *xyz, *RHO, *white_norm()[:3], 0.0], np.float32)
-        key = par.tobytes() + np.asarray(M, np.float64).tobytes()
-        if self._params_key != key:
-            self._params_key = key
-            self._params = (self._buf(0, lmsr.fitted()["H"]), self._buf(0, par),
+        key_m = np.asarray(M, np.float64).tobytes()
+        if self._params_key is None or self._params_key[0] != key_m:
+            self._params_key = (key_m, None)
+            self._params = (self._buf(0, lmsr.fitted()["H"]), None,
                             self._buf(0, np.linalg.inv(M).reshape(-1)),
                             self._buf(0, subset_solvers(M).reshape(-1)), self._buf(0, M))
+        if self._params_key[1] != par.tobytes():
+            self._params_key = (key_m, par.tobytes())
+            self._params = (self._params[0], self._buf(0, par), *self._params[2:])
         return self._params
 
     def purkinje(self, rgb, area: float, k1: float, k2: float, gain: float, M: np.ndarray,
@@ -141,7 +150,10 @@ class KirkDevice:
         buffer of :data:`SHIFT_BAND` pixels, kept for the next frame."""
         q_ = self.rt.queue
         params = self._shift_params(area, k1, k2, gain, M, xyz)
-        fb = self._buf(4, np.zeros(1, np.int32).view(np.float32))
+        if self._fallbacks is None:
+            self._fallbacks = self._buf(4)
+        fb = self._fallbacks                  # the fallback count, zeroed on the device
+        self.cl.enqueue_fill_buffer(q_, fb, np.int32(0), 0, 4)
 
         def run(buf, n):
             items = round_up(self.rt.pixel_items(n, 4), PURKINJE_WG)

@@ -14,6 +14,14 @@ from .runtime import round_up
 from .transfers import host_buffer, transfer
 
 
+def repair_counts(c) -> RepairCounts:
+    """The repair counts a colour kernel left (8 int32, ``RepairCounts.KEYS`` first)."""
+    rc = RepairCounts()
+    for k, v in zip(RepairCounts.KEYS, c):
+        setattr(rc, k, int(v))
+    return rc
+
+
 class DeviceMeter:
     """Two-stage device reductions over one band at a time."""
 
@@ -25,7 +33,8 @@ class DeviceMeter:
         self.rt = rt
         mf = cl.mem_flags
         self.partial = cl.Buffer(rt.context, mf.READ_WRITE, self.GROUPS * 8 * 4)
-        self.result = cl.Buffer(rt.context, mf.READ_WRITE, 8 * 4)
+        # the sums (8 floats), then a colour stage's repair counts (8 int32): one read
+        self.result = cl.Buffer(rt.context, mf.READ_WRITE, 16 * 4)
         self.hist = cl.Buffer(rt.context, mf.READ_WRITE, HIST_BINS * 4)
         self._k_partial = rt.kernel("metering.cl", "meter_partial")
         self._k_final = rt.kernel("metering.cl", "meter_final")
@@ -33,6 +42,7 @@ class DeviceMeter:
         self._no_mask = cl.Buffer(rt.context, mf.READ_ONLY, 4)
         self._mask_key = None
         self._mask_buf = None
+        self.counts = None                     # the last band_sums' repair counts
 
     def _mask(self, spec: MeteringSpec, width: int, height: int):
         if spec.mode != "mask":
@@ -44,7 +54,9 @@ class DeviceMeter:
         return self._mask_buf
 
     def band_sums(self, y_buf, ys_buf, n: int, width: int, height: int, y0: int,
-                  spec: MeteringSpec) -> MeterSums:
+                  spec: MeteringSpec, counts=None) -> MeterSums:
+        """The band's sums; with ``counts`` (a colour stage's repair counts, 8 int32 on
+        the device) read in the same transfer, into ``self.counts``."""
         import pyopencl as cl
         q = self.rt.queue
         mode, p0, p1, p2, w_in, w_out = spec.weight_params(width, height)
@@ -57,9 +69,12 @@ class DeviceMeter:
                         self.partial, scratch)
         self._k_final(q, (self.WG,), (self.WG,), self.partial, np.int32(groups), self.result,
                       scratch)
-        out = np.empty(8, np.float32)
+        out = np.empty(16 if counts is not None else 8, np.float32)
+        if counts is not None:                 # device to device: not a transfer
+            cl.enqueue_copy(q, self.result, counts, byte_count=32, dst_offset=32)
         transfer(q, out, self.result)
         ms = MeterSums(out[:7].astype(np.float64))
+        self.counts = out[8:].view(np.int32) if counts is not None else None
         if spec.mode == "percentile":
             ms.hist_Y = self._histogram(y_buf, n)
             ms.hist_Ys = self._histogram(ys_buf, n)
@@ -137,9 +152,10 @@ class MeteringPasses:
         stride = int(proxy_stride)
         blocks = np.zeros((-(-h // stride), -(-w // stride), 4)) if stride else None
         for y0, nr in bands:
-            repairs += self.to_working(pixels[y0:y0 + nr], scale, count=True)
+            self.to_working(pixels[y0:y0 + nr], scale, count=False)
             b = self.bufs
-            s = self.meter.band_sums(b["Y"], b["Ys"], nr * w, w, h, y0, spec)
+            s = self.meter.band_sums(b["Y"], b["Ys"], nr * w, w, h, y0, spec, b["counts"])
+            repairs += repair_counts(self.meter.counts)
             if sums is None:
                 sums = s
             else:

@@ -73,3 +73,25 @@ def host_buffer(context, host: np.ndarray):
     _count(True, host.nbytes)
     return cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                      hostbuf=host)
+
+
+class ConstantBuffers:
+    """Read-only device buffers of small host arrays, kept by content: an array the
+    device already holds is not uploaded again (a frame's parameters, tables and
+    matrices mostly repeat from frame to frame). At most ``keep`` of them, the least
+    recently used given up first."""
+
+    def __init__(self, context, keep: int = 64):
+        self.context, self.keep = context, int(keep)
+        self._bufs: dict = {}
+
+    def get(self, host: np.ndarray):
+        host = np.ascontiguousarray(host)
+        key = (host.dtype.str, host.shape, host.tobytes())
+        buf = self._bufs.pop(key, None)
+        if buf is None:
+            buf = host_buffer(self.context, host)
+            while len(self._bufs) >= self.keep:
+                self._bufs.pop(next(iter(self._bufs)))
+        self._bufs[key] = buf                   # (most recent last)
+        return buf
