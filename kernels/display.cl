@@ -18,14 +18,25 @@
  * Built with OUT_U8=1 the code values are written as 8-bit integers, quantised as
  * OIIO's ImageOutput converts float to uint8 when it writes (v 255 rounded to the
  * nearest, ties to even, clamped to [0, 255]; NaN 0), so an 8-bit file gets the same
- * bytes and a quarter of the download.
+ * bytes and a quarter of the download; with OUT_U16=1 as 16-bit integers, the same
+ * rule with 65535 (OIIO's, measured on every value: tests/colour/test_display_table.py),
+ * half the download.
  */
 
 #ifndef OUT_U8
 #define OUT_U8 0
 #endif
+#ifndef OUT_U16
+#define OUT_U16 0
+#endif
 
-#if OUT_U8
+#if OUT_U16
+typedef ushort out_t;
+inline ushort to_out(const float v)
+{
+    return (ushort)((clamp(v * 65535.0f, 0.0f, 65535.0f) + 0x1.8p23f) - 0x1.8p23f);
+}
+#elif OUT_U8
 typedef uchar out_t;
 inline uchar to_out(const float v)
 {
@@ -111,7 +122,7 @@ inline float4 curve4(const float4 v, const int c, __global const float2 *restric
     return fma(t, (float4)(a.y, b.y, d.y, e.y), (float4)(a.x, b.x, d.x, e.x));
 }
 
-#if OUT_U8
+#if OUT_U8 && !OUT_U16
 /* Four code values as the four bytes of a little-endian uint (PoCL stores bytes
  * slowly; the host checks the device is little-endian). */
 inline uint pack_u8(const float4 a)
@@ -129,6 +140,23 @@ inline void store_out4(const int q, __global uchar *restrict dst, const float4 r
     d[0] = pack_u8((float4)(r.x, g.x, b.x, r.y));
     d[1] = pack_u8((float4)(g.y, b.y, r.z, g.z));
     d[2] = pack_u8((float4)(b.z, r.w, g.w, b.w));
+}
+#elif OUT_U16
+/* Two code values as the two halves of a little-endian uint, rounded as to_out. */
+inline uint2 pack_u16(const float4 a)
+{
+    const uint4 i = as_uint4(clamp(a * 65535.0f, 0.0f, 65535.0f) + 0x1.8p23f) & 0xFFFFu;
+    return (uint2)(i.x | (i.y << 16), i.z | (i.w << 16));
+}
+
+inline void store_out4(const int q, __global ushort *restrict dst, const float4 r,
+                       const float4 g, const float4 b)
+{
+    __global uint *d = (__global uint *)dst + 6 * (size_t)q;
+    const uint2 a = pack_u16((float4)(r.x, g.x, b.x, r.y));
+    const uint2 c = pack_u16((float4)(g.y, b.y, r.z, g.z));
+    const uint2 e = pack_u16((float4)(b.z, r.w, g.w, b.w));
+    d[0] = a.x; d[1] = a.y; d[2] = c.x; d[3] = c.y; d[4] = e.x; d[5] = e.y;
 }
 #else
 inline void store_out4(const int q, __global float *restrict dst, const float4 r,

@@ -45,8 +45,10 @@ def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
     bits = output_bits(path, bits)
     if bits not in BITS_TYPES:
         raise FrameError(path, frame, f"unknown output bit depth {bits!r} (8, 16, half, float)")
-    if pixels.dtype == np.uint8 and bits != "8":
-        raise FrameError(path, frame, f"8-bit code values given for a {bits}-bit output")
+    code_bits = {np.dtype(np.uint8): "8", np.dtype(np.uint16): "16"}.get(pixels.dtype)
+    if code_bits is not None and bits != code_bits:
+        raise FrameError(path, frame, f"{code_bits}-bit code values given for a {bits}-bit "
+                         "output")
     pix, straight_alpha = _alpha_for_format(pixels, ext, straight_alpha, path)
     nch = pix.shape[2]
     spec = output_spec(in_spec, pix.shape[1], pix.shape[0], nch, ext, bits, colorspace,
@@ -183,8 +185,9 @@ def format_supports_alpha(path: str) -> bool:
 def _alpha_for_format(pixels, ext: str, straight_alpha: bool, path: str = ""):
     """(pixels as the format stores them, still straight?): formats without alpha
     (JPEG, Radiance) drop it; premultiplied formats (EXR) get straight colour
-    premultiplied; 8-bit code values stay as they are."""
-    pix = pixels if pixels.dtype == np.uint8 else np.ascontiguousarray(pixels, np.float32)
+    premultiplied; integer code values stay as they are."""
+    pix = pixels if pixels.dtype in (np.uint8, np.uint16) else \
+        np.ascontiguousarray(pixels, np.float32)
     if pix.shape[2] == 4 and (ext in (".jpg", ".jpeg") or
                               (path and not format_supports_alpha(path))):
         pix = np.ascontiguousarray(pix[..., :3])

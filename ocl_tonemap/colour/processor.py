@@ -238,8 +238,8 @@ class ColourPipeline:
         self.display_encode_note = "display encoding: " + table.describe()
         return self.display_encode_note
 
-    def device_output_encoding(self, u8: bool, runtime):
-        """:meth:`encode_fast` (``u8`` as there) as a ``DeviceOutputEncoding`` for an
+    def device_output_encoding(self, bits: int, runtime):
+        """:meth:`encode_fast` (``bits`` as there) as a ``DeviceOutputEncoding`` for an
         operator whose output is on ``runtime``'s device (an OpenCL runtime), so that the
         table runs there and only code values come back; None where :meth:`encode_fast`
         uses OCIO, or the table is in another context."""
@@ -247,22 +247,23 @@ class ColourPipeline:
         if table is None or runtime is None or \
                 runtime.context != table.rt.context:
             return None
+        bits = 8 if bits is True else int(bits or 0)
         cache = self.__dict__.setdefault("_device_encodings", {})
-        enc = cache.get(bool(u8))
+        enc = cache.get(bits)
         if enc is None or enc.table is not table:
             # lazy: the device modules only for a device table
             from ..backends.opencl.display import DeviceOutputEncoding
-            cache[bool(u8)] = enc = DeviceOutputEncoding(table, u8)
+            cache[bits] = enc = DeviceOutputEncoding(table, bits)
         return enc
 
-    def encode_fast(self, display_linear: np.ndarray, u8: bool = False) -> np.ndarray:
+    def encode_fast(self, display_linear: np.ndarray, bits: int = 0) -> np.ndarray:
         """:meth:`encode` through the device table chosen by :meth:`set_display_encode` (new
         array; RGB encoded, a 4th channel kept), or through OCIO when none was chosen.
-        ``u8``: 8-bit code values quantised on the device as OIIO quantises them when
-        it writes, where a device table encodes (else float code values)."""
+        ``bits`` 8 or 16: integer code values quantised on the device as OIIO quantises
+        them when it writes, where a device table encodes (else float code values)."""
         table = self.device_table
         if table is None:
             return self.encode(display_linear)
-        if u8 and display_linear.shape[-1] in (3, 4):
-            return table.encode(display_linear, u8=True)
+        if bits and display_linear.shape[-1] in (3, 4):
+            return table.encode(display_linear, bits=bits)
         return table.encode(display_linear)

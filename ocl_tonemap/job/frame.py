@@ -163,17 +163,18 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, fin: FrameInput, info,
 
 
 def encode_pixels(colour, disp_lin: np.ndarray, alpha_info, linear: bool,
-                  u8: bool = False) -> np.ndarray:
+                  bits: int = 0) -> np.ndarray:
     """Display-linear light (with alpha) to the output's values: the display's linear
     colourspace, or the display encoding (``colour.encode_fast``: the baked device table
-    chosen by ``--display-encode``, else OCIO's CPU processor). ``u8``: the output is
-    an 8-bit file; with the device table the code values come back as the bytes OIIO
-    would write (quantised on the device: a quarter of the download, no conversion)."""
+    chosen by ``--display-encode``, else OCIO's CPU processor). ``bits`` 8 or 16: the
+    output is an 8- or 16-bit file; with the device table the code values come back as
+    the values OIIO would write (quantised on the device: a quarter or half of the
+    download, no conversion)."""
     rgb = disp_lin[..., :3]
     alpha = disp_lin.shape[2] == 4
     pm = alpha and alpha_info is not None and alpha_info[2]
-    if u8 and not linear and not pm and colour.device_table is not None:
-        return colour.encode_fast(disp_lin, u8=True)
+    if bits and not linear and not pm and colour.device_table is not None:
+        return colour.encode_fast(disp_lin, bits=bits)
     encode = colour.encode_fast
     if pm and not linear:
         # a display encoding is not linear: encode the straight colour, then

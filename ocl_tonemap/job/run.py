@@ -301,11 +301,11 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
         t, fps = frame_time(fr, f, held, fps, t_prev)
         fin = frame_input(run, tm, fr, inp)
         linear = output_is_linear(run.opts, outp)
-        u8 = output_bits(outp, run.opts.out_bits) == "8"
+        bits = {"8": 8, "16": 16}.get(output_bits(outp, run.opts.out_bits), 0)
         # encoded outputs: the display table runs where the operator's output is, and
         # only code values come back (encode_pixels, below, for frames that cannot)
         enc = None if linear else run.colour.device_output_encoding(
-            u8, tm.backend.device_runtime())
+            bits, tm.backend.device_runtime())
         res = map_frame(tm, fin, t, f, encoding=enc)
         if exporter is not None and fin.wavelengths is None:
             exporter.add_frame(f, fin.pixels, fin.scale, res.info.effects,
@@ -322,7 +322,7 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
     def write():
         try:
             pixels = res.output if res.encoded else \
-                encode_pixels(run.colour, res.output, res.alpha, linear, u8)
+                encode_pixels(run.colour, res.output, res.alpha, linear, bits)
             _, out_cs, chroma, white, straight = meta
             write_frame(outp, pixels, spec, out_cs, meta[0], run.opts.out_bits, f,
                         chromaticities=chroma, white_luminance=white, straight_alpha=straight,

@@ -27,30 +27,32 @@ def frames(h, w):
     return [base, base * 1e-2, base * 1e-4]
 
 
-def run(op, cp, u8, pix, encode_on_device, wavelengths=None, **kw):
+def run(op, cp, bits, pix, encode_on_device, wavelengths=None, **kw):
     tm = Tonemapper(op, "opencl", **kw)
     outs, flags = [], []
     for i, f in enumerate(pix):
-        enc = cp.device_output_encoding(u8, tm.backend.device_runtime()) \
+        enc = cp.device_output_encoding(bits, tm.backend.device_runtime()) \
             if encode_on_device else None
         res = tm.process_frame(f, time_s=0.5 * i, wavelengths=wavelengths, encoding=enc)
         flags.append(res.encoded)
         outs.append(res.output if res.encoded else
-                    encode_pixels(cp, res.output, res.alpha, False, u8))
+                    encode_pixels(cp, res.output, res.alpha, False, bits))
     return outs, flags, tm
 
 
 @pytest.mark.parametrize("op", ["pattanaik00", "durand00", "ledda04", "kirk11"])
-@pytest.mark.parametrize("u8", [True, False])
-def test_device_encoding_equals_the_host_path(colour_table, op, u8):
-    """Same bytes (8-bit) or the same float code values, frame after frame; 37 x 29
-    pixels: the 4-pixel kernel and its scalar tail both run."""
+@pytest.mark.parametrize("bits", [8, 16, 0])
+def test_device_encoding_equals_the_host_path(colour_table, op, bits):
+    """Same bytes (8-bit), the same 16-bit codes (half the download of floats) or the
+    same float code values, frame after frame; 37 x 29 pixels: the 4-pixel kernel and
+    its scalar tail both run."""
     pix = frames(29, 37)
-    want, f0, _ = run(op, colour_table, u8, pix, False)
-    got, f1, tm = run(op, colour_table, u8, pix, True)
+    want, f0, _ = run(op, colour_table, bits, pix, False)
+    got, f1, tm = run(op, colour_table, bits, pix, True)
     assert f0 == [False] * 3 and f1 == [True] * 3
+    dtype = {8: np.uint8, 16: np.uint16, 0: np.float32}[bits]
     for g, w_ in zip(got, want):
-        assert g.dtype == (np.uint8 if u8 else np.float32) and g.shape == (29, 37, 3)
+        assert g.dtype == dtype and g.shape == (29, 37, 3)
         np.testing.assert_array_equal(g, w_)
 
 
@@ -58,8 +60,8 @@ def test_device_encoding_equals_the_host_path(colour_table, op, u8):
 def test_banded_frames_are_encoded_band_by_band(colour_table, op):
     """A frame in row bands (max_band_pixels): every band comes back encoded, in place."""
     pix = frames(40, 33)
-    want, _, _ = run(op, colour_table, True, pix, False, max_band_pixels=33 * 7)
-    got, flags, tm = run(op, colour_table, True, pix, True, max_band_pixels=33 * 7)
+    want, _, _ = run(op, colour_table, 8, pix, False, max_band_pixels=33 * 7)
+    got, flags, tm = run(op, colour_table, 8, pix, True, max_band_pixels=33 * 7)
     assert len(tm.backend.bands(40, 33)) > 1 and flags == [True] * 3
     for g, w_ in zip(got, want):
         np.testing.assert_array_equal(g, w_)

@@ -131,7 +131,7 @@ def test_kernel_matches_numpy_reference(rt, src, display, view, kind, probe):
                                               (STUDIO, "Rec.2100-HLG - Display",
                                                "Un-tone-mapped")])
 def test_8bit_code_values_are_the_bytes_oiio_writes(rt, tmp_path, src, display, view, probe):
-    """encode(u8=True) quantises on the device: the same bytes as the float code
+    """encode(bits=8) quantises on the device: the same bytes as the float code
     values written to an 8-bit PNG by OIIO's ImageOutput (which quantises them
     itself: ties to even, where an ImageBuf's write rounds them up), on the
     probe set, the special values, every half-code boundary (k + 0.5) / 255 and
@@ -155,7 +155,7 @@ def test_8bit_code_values_are_the_bytes_oiio_writes(rt, tmp_path, src, display, 
     a = np.resize(edges, n)[:, None]
     for pix in (x[:n].reshape(4, -1, 3), np.concatenate([x[:n], a], 1).reshape(4, -1, 4)):
         f = dev.encode(pix)
-        q = dev.encode(pix, u8=True)
+        q = dev.encode(pix, bits=8)
         assert q.dtype == np.uint8 and q.shape == pix.shape
         paths = [str(tmp_path / "f.png"), str(tmp_path / "q.png")]
         for path, px in zip(paths, (f, q)):
@@ -170,6 +170,39 @@ def test_8bit_code_values_are_the_bytes_oiio_writes(rt, tmp_path, src, display, 
         np.testing.assert_array_equal(qb[~tie], fb[~tie])
         np.testing.assert_array_equal(q[tie], np.rint(v[tie]))          # ties to even
         assert np.all(np.abs(fb[tie].astype(int) - qb[tie]) <= 1)
+
+
+@pytest.mark.parametrize("ext", [".png", ".tif"])
+def test_16bit_code_values_are_the_values_oiio_writes(rt, tmp_path, ext, probe):
+    """encode(bits=16) quantises on the device as OIIO's ImageOutput quantises float
+    code values into a 16-bit file: v 65535 clamped, rounded to the nearest, ties to
+    even (measured on every code and its half-code boundaries), NaN 0; RGB and RGBA,
+    every half-code boundary (k + 0.5) / 65535 and its float neighbours fed as alpha."""
+    import OpenImageIO as oiio
+    from ocl_tonemap.imagewrite import write_frame
+    t = pipeline("ocl-tonemap", "sRGB - Display").display_table()
+    dev = DeviceDisplayTable(t, runtime=rt)
+    edges = ((np.arange(-2, 65538, 7) + 0.5) / 65535.0).astype(np.float32)
+    edges = np.concatenate([edges, np.nextafter(edges, np.float32(2)),
+                            np.nextafter(edges, np.float32(-2)), [np.nan, np.inf, -np.inf]])
+    x = np.concatenate([probe[: len(probe) // 64 * 4], SPECIAL])
+    n = len(x) // 4 * 4
+    a = np.resize(edges.astype(np.float32), n)[:, None]
+    for pix in (x[:n].reshape(4, -1, 3), np.concatenate([x[:n], a], 1).reshape(4, -1, 4)):
+        f, q = dev.encode(pix), dev.encode(pix, bits=16)
+        assert q.dtype == np.uint16 and q.shape == pix.shape
+        paths = [str(tmp_path / f"f{ext}"), str(tmp_path / f"q{ext}")]
+        for path, px in zip(paths, (f, q)):
+            write_frame(path, px, None, "sRGB", {}, bits="16", straight_alpha=True)
+        raw = oiio.ImageSpec()
+        raw.attribute("oiio:UnassociatedAlpha", 1)
+        fb, qb = (oiio.ImageBuf(p, 0, 0, raw).get_pixels(oiio.UINT16) for p in paths)
+        np.testing.assert_array_equal(qb, q)               # written as they came
+        v = np.clip(np.nan_to_num(f, nan=0.0) * np.float32(65535), 0, 65535)
+        tie = v % 1 == 0.5                                  # (OIIO's rounding of an exact
+        np.testing.assert_array_equal(fb[~tie], q[~tie])    # tie is the machine's: as
+        np.testing.assert_array_equal(q[tie], np.rint(v[tie]))    # for 8 bits above)
+        assert np.all(np.abs(fb[tie].astype(int) - q[tie]) <= 1)
 
 
 @pytest.mark.parametrize("display", ["sRGB - Display", "Rec.2100-PQ - Display"])

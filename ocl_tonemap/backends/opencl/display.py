@@ -18,6 +18,18 @@ from .transfers import host_buffer, transfer
 _WG = 64
 
 
+def code_bits(bits) -> int:
+    """8 or 16 (integer code values), else 0 (float); True is 8 (the older ``u8``)."""
+    b = 8 if bits is True else int(bits or 0)
+    if b not in (0, 8, 16):
+        raise ValueError(f"display code values are 8 or 16 bits, or float (got {bits!r})")
+    return b
+
+
+def code_dtype(bits) -> np.dtype:
+    return np.dtype({8: np.uint8, 16: np.uint16}.get(code_bits(bits), np.float32))
+
+
 class DeviceDisplayTable:
     """A display table on the device: :meth:`encode` (H, W, C >= 3) float32 -> code values."""
 
@@ -50,17 +62,19 @@ class DeviceDisplayTable:
         self._lock = threading.Lock()
         self._bufs: dict = {}
 
-    def _kernel(self, u8: bool, vector: bool):
+    def _kernel(self, bits: int, vector: bool):
         """This table's kernel object for 8-bit or float output, 4-pixel or scalar: the
         program is built on first use (once per process: the runtime's cache; a run
         needs one output kind), the kernel object is this table's own, so that its
         arguments are not shared with another thread."""
         import pyopencl as cl
-        key = (bool(u8), bool(vector))
+        key = (code_bits(bits), bool(vector))
         k = self._knl.get(key)
         if k is None:
             name = "display_lut1d_rgb4" if vector else self._name
-            prg = self.rt.kernel("display.cl", name, (("OUT_U8", int(u8)),)).program
+            b = code_bits(bits)
+            prg = self.rt.kernel("display.cl", name, (("OUT_U8", int(b == 8)),
+                                                      ("OUT_U16", int(b == 16)))).program
             self._knl[key] = k = cl.Kernel(prg, name)
         return k
 
@@ -75,47 +89,49 @@ class DeviceDisplayTable:
                                                max(int(nbytes), 4))
         return buf
 
-    def encode(self, pixels: np.ndarray, u8: bool = False) -> np.ndarray:
+    def encode(self, pixels: np.ndarray, bits: int = 0) -> np.ndarray:
         """Display-linear working-space RGB (..., C >= 3) -> display code values (new
         float32 array of the same shape; channels after RGB copied as they are).
-        ``u8``: 8-bit code values (uint8), quantised as OIIO quantises float when it
-        writes an 8-bit file (C = 3 or 4: a 4th channel quantised too)."""
+        ``bits`` 8 or 16: integer code values (uint8, uint16), quantised as OIIO
+        quantises float when it writes such a file (C = 3 or 4: a 4th channel
+        quantised too); 0 (or False): float."""
+        bits = code_bits(bits)
         x = np.asarray(pixels)
         if x.ndim < 1 or x.shape[-1] < 3:
             raise ValueError(f"display encoding needs RGB pixels (got shape {x.shape})")
         c = x.shape[-1]
         if c not in (3, 4):
-            if u8:
-                raise ValueError("8-bit display encoding needs 3 or 4 channels")
+            if bits:
+                raise ValueError("integer display encoding needs 3 or 4 channels")
             out = np.array(x, dtype=np.float32, copy=True, order="C")
             out[..., :3] = self.encode(x[..., :3])
             return out
         x = np.ascontiguousarray(x, np.float32)
         n = x.size // c
-        out = np.empty(x.shape, np.uint8 if u8 else np.float32)
+        out = np.empty(x.shape, code_dtype(bits))
         if n == 0:
             return out
         with self._lock:
             src = self._buffer("src", x.nbytes)
             transfer(self.queue, src, x, is_blocking=False)
-            self._encode_enqueued(self.queue, src, n, c, out, u8)
+            self._encode_enqueued(self.queue, src, n, c, out, bits)
         return out
 
-    def encode_buffer(self, queue, src, n: int, out: np.ndarray, u8: bool) -> None:
+    def encode_buffer(self, queue, src, n: int, out: np.ndarray, bits: int) -> None:
         """:meth:`encode` of ``n`` RGB pixels already on the device: ``src`` holds them
         as interleaved float32 (an operator's output buffer, in this table's context),
         ``queue`` is the queue that wrote them (so the kernel runs after), ``out`` (n x 3
-        values, C-contiguous, uint8 when ``u8`` else float32) receives the code values.
+        values, C-contiguous, of :func:`code_dtype` of ``bits``) receives the code values.
         Nothing display-linear comes back to the host."""
-        if out.dtype != (np.uint8 if u8 else np.float32) or not out.flags.c_contiguous \
+        if out.dtype != code_dtype(bits) or not out.flags.c_contiguous \
                 or out.size != 3 * n:
             raise ValueError("encode_buffer: out must be n x 3 C-contiguous code values")
         if n == 0:
             return
         with self._lock:
-            self._encode_enqueued(queue, src, n, 3, out, u8)
+            self._encode_enqueued(queue, src, n, 3, out, bits)
 
-    def _encode_enqueued(self, queue, src, n: int, c: int, out: np.ndarray, u8: bool) -> None:
+    def _encode_enqueued(self, queue, src, n: int, c: int, out: np.ndarray, bits: int) -> None:
         """The kernels on ``queue`` from ``src`` (n pixels of c floats) into ``out``
         (blocking download). Call with the lock held."""
         dst = self._buffer("dst", out.nbytes)
@@ -123,11 +139,11 @@ class DeviceDisplayTable:
         start = 0
         if c == 3 and self._vector and n >= 4:
             n4 = n // 4
-            self._kernel(u8, True)(queue, (round_up(n4, _WG),), (_WG,), src, dst,
+            self._kernel(bits, True)(queue, (round_up(n4, _WG),), (_WG,), src, dst,
                                      np.int32(n), self._par, self._e_eps, size, self._lut)
             start = 4 * n4
         if start < n:
-            self._kernel(u8, False)(queue, (n - start,), None, src, dst, np.int32(n),
+            self._kernel(bits, False)(queue, (n - start,), None, src, dst, np.int32(n),
                                     np.int32(c), np.int32(c), self._par, self._e_eps, size,
                                     self._lut, global_offset=(start,))
         transfer(queue, out, dst, is_blocking=True)
@@ -140,17 +156,18 @@ class DeviceDisplayTable:
 
 class DeviceOutputEncoding:
     """The display encoding a run writes, applied where the operator's output already is
-    (``OpenCLBackend.output_encoding``): the operator's last kernel leaves display-linear
+    (``process_frame(..., encoding=)``): the operator's last kernel leaves display-linear
     RGB in a device buffer and only code values come back (a quarter of the bytes for
-    8-bit files) -- no download of the display-linear frame, no upload for encoding."""
+    8-bit files, half for 16-bit ones) -- no download of the display-linear frame, no
+    upload for encoding."""
 
-    def __init__(self, table: DeviceDisplayTable, u8: bool):
-        self.table, self.u8 = table, bool(u8)
-        self.dtype = np.dtype(np.uint8 if u8 else np.float32)
+    def __init__(self, table: DeviceDisplayTable, bits: int):
+        self.table, self.bits = table, code_bits(bits)
+        self.dtype = code_dtype(self.bits)
 
     def fetch(self, queue, src, n: int, out: np.ndarray) -> None:
         """Encode ``n`` pixels of ``src`` (display-linear RGB on the device) into ``out``."""
-        self.table.encode_buffer(queue, src, n, out.reshape(-1), self.u8)
+        self.table.encode_buffer(queue, src, n, out.reshape(-1), self.bits)
 
     def array(self, h: int, w: int) -> np.ndarray:
         """Where a frame's code values come back: a host array."""
