@@ -34,7 +34,8 @@
 typedef ushort out_t;
 inline ushort to_out(const float v)
 {
-    return (ushort)((clamp(v * 65535.0f, 0.0f, 65535.0f) + 0x1.8p23f) - 0x1.8p23f);
+    /* 0x1.fffep15f = 65535 */
+    return (ushort)((clamp(v * 0x1.fffep15f, 0.0f, 0x1.fffep15f) + 0x1.8p23f) - 0x1.8p23f);
 }
 #elif OUT_U8
 typedef uchar out_t;
@@ -145,7 +146,7 @@ inline void store_out4(const int q, __global uchar *restrict dst, const float4 r
 /* Two code values as the two halves of a little-endian uint, rounded as to_out. */
 inline uint2 pack_u16(const float4 a)
 {
-    const uint4 i = as_uint4(clamp(a * 65535.0f, 0.0f, 65535.0f) + 0x1.8p23f) & 0xFFFFu;
+    const uint4 i = as_uint4(clamp(a * 0x1.fffep15f, 0.0f, 0x1.fffep15f) + 0x1.8p23f) & 0xFFFFu;
     return (uint2)(i.x | (i.y << 16), i.z | (i.w << 16));
 }
 
