@@ -147,6 +147,14 @@ __kernel void apply_gains(__global float *rgb, __global float *Y, const int n,
     Y[i] = M_YR * r + M_YG * g + M_YB * b;
 }
 
+/* A frame that came up in its stored half floats (a half EXR: half the upload) to
+ * float32, exactly (every half is a float32), for scene_to_working4; n values. */
+__kernel void half_to_float(__global const half *src, __global float *dst, const int n)
+{
+    const int i = get_global_id(0);
+    if (i < n) dst[i] = vload_half(i, src);
+}
+
 /* Chromatic gains on a frame held on the device (effects/chromatic.py, the seen
  * slot for ledda04 and kirk11): rgb *= g in place, the float32 products of the host's
  * (np.float32 rgb * gains), so the frame need not cross to the host and back. */

@@ -147,18 +147,22 @@ class FramePool:
         self._lock = threading.Lock()
         self.made = 0                          # arrays allocated (a fresh frame's memory)
 
-    def take(self, shape) -> np.ndarray:
-        """A float32 array of ``shape`` that nothing else refers to (contents undefined)."""
-        shape = tuple(int(v) for v in shape)
+    def take(self, shape, dtype=np.float32) -> np.ndarray:
+        """An array of ``shape`` and ``dtype`` (float32, or float16 for frames kept as
+        stored) that nothing else refers to (contents undefined)."""
+        shape, dtype = tuple(int(v) for v in shape), np.dtype(dtype)
+
+        def fits(a):
+            return a.shape == shape and a.dtype == dtype
         with self._lock:
             arrs = self._arrays                # (by index: a name bound to an array
             for i in range(len(arrs)):         # would count as a reference to it)
-                if arrs[i].shape == shape and self._free(arrs, i):
+                if fits(arrs[i]) and self._free(arrs, i):
                     return arrs[i]
             if len(arrs) >= self.keep:         # free arrays of another size make room
                 self._arrays = arrs = [arrs[i] for i in range(len(arrs))
-                                       if arrs[i].shape == shape or not self._free(arrs, i)]
-            out = np.empty(shape, np.float32)
+                                       if fits(arrs[i]) or not self._free(arrs, i)]
+            out = np.empty(shape, dtype)
             self.made += 1
             if len(arrs) < self.keep:
                 arrs.append(out)
@@ -181,10 +185,12 @@ POOL_BAND_BYTES = 1 * 2**20
 
 
 def read_frame(path: str, frame: int | None = None, channels: list[str] | None = None,
-               pool: FramePool | None = None) -> Frame:
+               pool: FramePool | None = None, keep_half: bool = False) -> Frame:
     """Read the RGB (+alpha) of an image OIIO can read, as float32 (channels by
     :func:`select_channels`; what was assumed is in ``Frame.channel_note``).
-    ``pool``: a scanline image is read in row bands into one of its arrays."""
+    ``pool``: a scanline image is read in row bands into one of its arrays;
+    ``keep_half``: a half-float file of R, G, B alone stays half (float16: half the
+    memory, and the upload to a device of half the bytes; every half is a float32)."""
     if not os.path.exists(path):
         raise FrameError(path, frame, "no such file")
     # Ask for alpha as the file stores it: straight-alpha formats (PNG, TIFF with
@@ -208,7 +214,8 @@ def read_frame(path: str, frame: int | None = None, channels: list[str] | None =
             r.close()
     rad, src = radiance_source(path, frame)
     try:
-        fr = frame_from_file(src, hint, path, frame, channels, pool)
+        fr = frame_from_file(src, hint, path, frame, channels, pool,
+                             keep_half and channels is None and rad is None)
     finally:
         if src != path:
             safeio.remove(src)
@@ -277,7 +284,8 @@ def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
 
 
 def frame_from_file(src: str, hint, path: str, frame: int | None = None,
-                    channels: list[str] | None = None, pool: FramePool | None = None) -> Frame:
+                    channels: list[str] | None = None, pool: FramePool | None = None,
+                    keep_half: bool = False) -> Frame:
     """A :class:`Frame` of the file ``src`` (named ``path`` in messages), its first
     subimage read straight into one float32 array by its ImageInput (``hint``: the
     open's configuration): an ImageBuf's get_pixels keeps a float copy of its own
@@ -290,7 +298,10 @@ def frame_from_file(src: str, hint, path: str, frame: int | None = None,
         spec = inp.spec()
         _check_size(spec, path, frame)
         if pool is not None and spec.tile_width == 0 and spec.depth <= 1:
-            pix = _read_bands(inp, spec, pool.take((spec.height, spec.width, spec.nchannels)))
+            half = keep_half and spec.format == oiio.TypeDesc("half") and \
+                list(spec.channelnames) == ["R", "G", "B"]
+            pix = _read_bands(inp, spec, pool.take((spec.height, spec.width, spec.nchannels),
+                                                   np.float16 if half else np.float32))
         else:
             pix = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
         if pix is None:
@@ -303,23 +314,27 @@ def frame_from_file(src: str, hint, path: str, frame: int | None = None,
 
 
 def _read_bands(inp, spec, out: np.ndarray) -> np.ndarray | None:
-    """The image's scanlines as float32 into ``out`` (height x width x channels), a
-    band of :data:`POOL_BAND_BYTES` at a time; None where OIIO fails."""
+    """The image's scanlines into ``out`` (height x width x channels; float32, or
+    float16 read as stored), a band of :data:`POOL_BAND_BYTES` at a time; None where
+    OIIO fails."""
     h, w, n = out.shape
     step = max(1, POOL_BAND_BYTES // (w * n * 4))
+    kind = oiio.HALF if out.dtype == np.float16 else oiio.FLOAT
     for y0 in range(0, h, step):
         y1 = min(h, y0 + step)
-        rows = inp.read_scanlines(0, 0, spec.y + y0, spec.y + y1, spec.z, 0, n, oiio.FLOAT)
+        rows = inp.read_scanlines(0, 0, spec.y + y0, spec.y + y1, spec.z, 0, n, kind)
         if rows is None:
             return None
-        out[y0:y1] = np.asarray(rows, np.float32).reshape(y1 - y0, w, n)
+        out[y0:y1] = np.asarray(rows, out.dtype).reshape(y1 - y0, w, n)
     return out
 
 
 def frame_from_pixels(spec, pix, fmt: str, path: str, frame: int | None,
                       channels: list[str] | None) -> Frame:
-    """A :class:`Frame` from an image's spec, its float pixels and its format's name."""
-    pix = np.asarray(pix, np.float32)
+    """A :class:`Frame` from an image's spec, its float pixels and its format's name
+    (float32; float16 kept where it was read so)."""
+    if np.asarray(pix).dtype != np.float16:
+        pix = np.asarray(pix, np.float32)
     if pix.ndim == 4:  # volume images: take the first slice
         pix = pix[0]
     if pix.ndim == 2:

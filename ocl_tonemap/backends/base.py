@@ -83,6 +83,8 @@ class Backend(Protocol):
     name: str
     #: Pixels per row band on this backend (None: frames are done whole).
     max_band_pixels: int | None
+    #: Whether half-float frames go to it as they are (else they are made float32 first).
+    half_input: bool
 
     def describe(self) -> str: ...
 
@@ -159,6 +161,7 @@ class HostBackend:
     """What a backend without a device answers: nothing on a device, frames whole."""
 
     max_band_pixels: int | None = None
+    half_input = False
 
     def device_runtime(self):
         return None

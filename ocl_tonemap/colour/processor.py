@@ -62,9 +62,14 @@ class ColourPipeline:
 
     def convert_input(self, pixels: np.ndarray, ic: InputColour) -> np.ndarray:
         """Working-space RGB of (H, W, C>=3) float32 ``pixels`` described by ``ic``
-        (converted in place where possible; returns the array)."""
-        if ic.kind == "working":
+        (converted in place where possible; returns the array). Half floats read as
+        stored stay half where nothing is converted, else become float32 first."""
+        if ic.kind == "working" or (ic.kind == "ocio" and not ic.builtin and
+                                    self.cfg.getColorSpace(ic.colorspace).getName()
+                                    == self.working):
             return pixels
+        if pixels.dtype != np.float32:
+            pixels = np.asarray(pixels, np.float32)
         if ic.kind == "matrix":
             M = np.asarray(ic.matrix, np.float32)
             pixels[..., :3] = pixels[..., :3] @ M.T

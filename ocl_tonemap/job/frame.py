@@ -51,7 +51,8 @@ class FrameInput:
     """One frame at the front door: what the operator is given, and what the output's
     metadata says about it."""
 
-    pixels: np.ndarray            # working-space RGB (or the spectrum), float32
+    pixels: np.ndarray            # working-space RGB (or the spectrum), float32 (a half
+                                  # file's RGB in the working space: float16 as stored)
     wavelengths: np.ndarray | None
     colour_text: str              # the input colour, described
     scale: float                  # cd/m^2 per unit (calibration x 2^exposure)
@@ -70,7 +71,7 @@ def frame_input(run: RunSetup, tm: Tonemapper, fr, path) -> FrameInput:
 
     def working_rgb():
         if lam is None:
-            return pix
+            return np.asarray(pix, np.float32)
         return spectral_to_rgb(lam, pix)
     scale, why = run.calibrate(fr, working_rgb)
     remember_auto(tm, run)

@@ -12,6 +12,8 @@ import os
 import sys
 import time
 
+import numpy as np
+
 from .. import safeio
 from ..backends.select import resolve_backend
 from ..colour import ColourPipeline
@@ -137,7 +139,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
     try:
         if jobs and read_whole(opts, jobs[0][1]):   # the first frame read while the run
             f0, inp0 = jobs[0][0], jobs[0][1]       # sets up (its errors come at its turn)
-            io.prefetch(0, lambda: read_frame(inp0, f0, opts.channels, io.pool))
+            io.prefetch(0, lambda: read_frame(inp0, f0, opts.channels, io.pool, keep_half=True))
         opts = resolved_backend(opts)              # the device probed behind the read
         run, tm = setup_run(opts, state)
         check_output_depth(opts, run.disp, jobs)
@@ -181,7 +183,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                 if rows(j):
                     break                             # (a streamed frame reads itself)
                 io.prefetch(j, lambda inp1=jobs[j][1], f1=jobs[j][0]:
-                            read_frame(inp1, f1, opts.channels, io.pool))
+                            read_frame(inp1, f1, opts.channels, io.pool, keep_half=True))
             try:
                 if opts.stills and tm.adapted:   # each still its own observer
                     tm.reset_adaptation(opts.preadapt)
@@ -198,7 +200,8 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                                                 t_prev)
                     write = None
                 else:
-                    fr = io.read(k, lambda: read_frame(inp, f, opts.channels, io.pool))
+                    fr = io.read(k, lambda: read_frame(inp, f, opts.channels, io.pool,
+                                                       keep_half=True))
                     still_view(tm, run, inp, fr)
                     t, info, fps, write = _whole_frame(run, tm, fr, inp, outp, f, held, fps,
                                                        t_prev, exporter)
@@ -308,7 +311,8 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
             bits, tm.backend.device_runtime())
         res = map_frame(tm, fin, t, f, encoding=enc)
         if exporter is not None and fin.wavelengths is None:
-            exporter.add_frame(f, fin.pixels, fin.scale, res.info.effects,
+            exporter.add_frame(f, np.asarray(fin.pixels, np.float32), fin.scale,
+                               res.info.effects,
                                run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,

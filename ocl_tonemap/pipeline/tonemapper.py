@@ -218,7 +218,8 @@ class Tonemapper:
         if grey is not None or pix.shape[2] != 3:
             encoding = None                           # code values only for RGB in and out
         check_scale(luminance_scale)
-        pix = np.ascontiguousarray(pix, np.float32)
+        if not (pix.dtype == np.float16 and pix.shape[2] == 3 and self.backend.half_input):
+            pix = np.ascontiguousarray(pix, np.float32)   # (half RGB: up as it is stored)
         alpha = None
         if pix.shape[2] == 4:
             pix, alpha = straight_colour(pix, premultiplied)

@@ -31,6 +31,8 @@ class OpenCLBackend(MeteringPasses):
     """Float32 OpenCL kernels (kernels/*.cl)."""
 
     name = "opencl"
+    #: Frames of half floats go up as they are (half the bytes) and become float32 there.
+    half_input = True
 
     def __init__(self, device: str | None = None, max_band_pixels: int | None = None):
         self.rt = get_runtime(device)
@@ -38,6 +40,7 @@ class OpenCLBackend(MeteringPasses):
         self._colour = self.rt.kernel("colour.cl", "scene_to_working4")
         self._gains = self.rt.kernel("colour.cl", "apply_gains")
         self._scale = None             # colour.cl:scale_rgb, made when first used
+        self._half = None              # colour.cl:half_to_float
         self._arrays = None            # the memory pool of device-array outputs
         self._consts = ConstantBuffers(self.rt.context)
         self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
@@ -237,6 +240,13 @@ class OpenCLBackend(MeteringPasses):
         if isinstance(band, DeviceImage):          # a frame made on the device this frame
             if band.buffer != b["src"]:            # (already there: _spare_frame)
                 band.copy_to(q, b["src"])
+        elif band.dtype == np.float16:             # up as stored, made float32 there
+            m = band.size
+            half = self.buffer("src16", 2 * m)
+            transfer(q, half, np.ascontiguousarray(band))
+            if self._half is None:
+                self._half = self.rt.kernel("colour.cl", "half_to_float")
+            self._half(q, (round_up(m, 64),), (64,), half, b["src"], np.int32(m))
         else:
             transfer(q, b["src"], np.ascontiguousarray(band, np.float32))
         cl.enqueue_fill_buffer(q, b["counts"], np.int32(0), 0, 8 * 4)
