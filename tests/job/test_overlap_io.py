@@ -123,9 +123,9 @@ def test_the_first_frame_is_read_while_the_run_sets_up(seq, tmp_path, capsys, mo
     real_read, real_setup = job_run.read_frame, job_run.setup_run
     prepared = threading.Event()
 
-    def read(path, frame=None, channels=None, pool=None):
+    def read(path, frame=None, channels=None, pool=None, **kw):
         order.append(("read", frame))
-        fr = real_read(path, frame, channels, pool)
+        fr = real_read(path, frame, channels, pool, **kw)
         made.append(pool.made)
         if frame == frames[0]:        # a large first frame: still read when the kernels
             prepared.wait(600)        # are made (the wait's limit: only against a hang)
