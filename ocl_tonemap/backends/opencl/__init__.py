@@ -145,9 +145,10 @@ class OpenCLBackend(MeteringPasses):
         return DeviceArrayOutput(self.rt, self._arrays)
 
     def device_array(self, pixels: np.ndarray):
-        """Host pixels as a ``pyopencl.array.Array`` (one upload)."""
+        """Host pixels as a ``pyopencl.array.Array`` (one upload; the outputs' pool)."""
         import pyopencl.array as cla
-        out = cla.empty(self.rt.queue, pixels.shape, np.float32)
+        out = cla.empty(self.rt.queue, pixels.shape, np.float32,
+                        allocator=self.device_output().allocator)
         transfer(self.rt.queue, out.base_data, np.ascontiguousarray(pixels, np.float32))
         return out
 

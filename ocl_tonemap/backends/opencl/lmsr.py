@@ -125,20 +125,17 @@ class KirkDevice:
     SHIFT_BAND = 1 << 18
 
     def _shift_params(self, area, k1, k2, gain, M, xyz):
-        """The shift's constant buffers: the matrices made again only when ``M`` changes,
-        the frame's scalars (area, k1, k2, gain, xyz) only when they do (one upload a
-        frame while the eye adapts, not five)."""
+        """The shift's constant buffers: the matrices made again only when ``M`` changes;
+        the frame's scalars go through the constant buffers (uploaded only when they
+        change)."""
         par = np.array([area, k1, k2, gain, *xyz, *RHO, *white_norm()[:3], 0.0], np.float32)
-        key_m = np.asarray(M, np.float64).tobytes()
-        if self._params_key is None or self._params_key[0] != key_m:
-            self._params_key = (key_m, None)
-            self._params = (self._buf(0, lmsr.fitted()["H"]), None,
+        key = np.asarray(M, np.float64).tobytes()
+        if self._params_key != key:
+            self._params_key = key
+            self._params = (self._buf(0, lmsr.fitted()["H"]),
                             self._buf(0, np.linalg.inv(M).reshape(-1)),
                             self._buf(0, subset_solvers(M).reshape(-1)), self._buf(0, M))
-        if self._params_key[1] != par.tobytes():
-            self._params_key = (key_m, par.tobytes())
-            self._params = (self._params[0], self._buf(0, par), *self._params[2:])
-        return self._params
+        return (self._params[0], self._buf(0, par), *self._params[1:])
 
     def purkinje(self, rgb, area: float, k1: float, k2: float, gain: float, M: np.ndarray,
                  xyz):
