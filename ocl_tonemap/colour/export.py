@@ -38,6 +38,7 @@ from .. import safeio
 from ..effects.purkinje import apply_purkinje
 from ..models.display import DISPLAY_LINEAR_MAX, apply_shoulder
 from ..models.photometry import Y_WEIGHTS, photopic_luminance, scotopic_luminance
+from ..operators import get_operator
 from . import clf, lattice
 
 log = logging.getLogger("ocl_tonemap")
@@ -57,12 +58,21 @@ class ExportError(ValueError):
     """An export that cannot be made (said in one line)."""
 
 
+def operator_blocker(name: str, blocker: str | None = None) -> str | None:
+    """Why operator ``name`` (its ``export_blocker``, else its class's) cannot be a
+    per-pixel OCIO transform (one line), or None: known before any device work."""
+    blocker = blocker if blocker is not None else get_operator(name).export_blocker
+    if blocker:
+        return (f"{name}'s {blocker} is not a per-pixel transform, and "
+                "an OCIO view is one (pattanaik00 and durand00 export)")
+    return None
+
+
 def export_blocker(tm) -> str | None:
     """Why the run's mapping cannot be a per-pixel OCIO transform (one line), or None."""
     op = tm.op
     if op.export_blocker:
-        return (f"{tm.operator_name}'s {op.export_blocker} is not a per-pixel transform, and "
-                "an OCIO view is one (pattanaik00 and durand00 export)")
+        return operator_blocker(tm.operator_name, op.export_blocker)
     if op.options.get("lut"):
         return (f"{tm.operator_name} --lut: its Sec. 5 tables are nearest-entry steps; "
                 "export without --lut")

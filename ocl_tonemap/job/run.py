@@ -135,6 +135,11 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         st, jobs = resume_point(opts, jobs, ckpt, opts.operator)
         state = st if st is not None else state
         done_before = [j for j in all_jobs if j not in jobs]
+    if opts.ocio_export:                    # refused before any device work
+        from ..colour.export import ExportError, operator_blocker  # lazy: only with --ocio-export
+        why = operator_blocker(opts.operator)
+        if why:
+            raise ExportError(f"--ocio-export: {why}")
     io = FrameIO(opts.overlap_io, opts.threads)
     try:
         if jobs and read_whole(opts, jobs[0][1]):   # the first frame read while the run
