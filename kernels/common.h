@@ -43,6 +43,12 @@
  * launches Runtime.pixel_items(n, K) items. */
 #define ITEM_PIXELS(K) (VECTOR_PIXELS ? (K) : 1)
 
+/* A per-pixel kernel's frame scalars (operators' KernelCall params, P_<name> their
+ * indices): a float16 argument, so that a frame's new values travel with the launch
+ * instead of as an upload (issue 47); FRAME_PARAMS_LOAD makes them p[0..15]. */
+#define FRAME_PARAMS const float16 pv
+#define FRAME_PARAMS_LOAD float p[16]; vstore16(pv, 0, p)
+
 /* fmax, fmin, clamp, select and comparisons inline on CPU devices. PoCL as
  * pyopencl's wheel ships it calls these built-ins out of line: perf put ~5% of a 1080p sequence's CPU in _cl_clamp,
  * _cl_fmax and _cl_fmin, and a call keeps the driver from vectorising a loop across

@@ -2,13 +2,15 @@
  * Eq. 5: out = m_C rgb + k m_R s_w (1.05, 0.97, 1.27), display-linear, with
  * the cone signals already chromatically adapted (Eq. 6, colour.cl's
  * apply_gains). Reference: ocl_tonemap/models/durand2000.py (map_reference); the scalars
- * are packed by ocl_tonemap/operators/durand00.py (P_<name>: their indices);
+ * are packed by ocl_tonemap/operators/durand00.py (P_<name>: their indices; common.h
+ * FRAME_PARAMS);
  * DISPLAY_LINEAR_MAX and SIGNAL_CEILING come with common.h's build options. */
 
 __kernel void durand00_map(__global const float *rgb, __global const float *Y,
                            __global const float *Ys, __global float *out, const int n,
-                           __constant const float *p)
+                           FRAME_PARAMS)
 {
+    FRAME_PARAMS_LOAD;
     const int i = get_global_id(0);
     if (i >= n) return;
     const float m_cone = p[P_m_cone];                         /* m_C / display unit */
@@ -24,8 +26,9 @@ __kernel void durand00_map(__global const float *rgb, __global const float *Y,
  * the tail, and every pixel elsewhere, scalar). */
 __kernel void durand00_map4(__global const float *rgb, __global const float *Y,
                             __global const float *Ys, __global float *out, const int n,
-                            __constant const float *p)
+                            FRAME_PARAMS)
 {
+    FRAME_PARAMS_LOAD;
     const int q = get_global_id(0), i0 = ITEM_PIXELS(4) * q;
     if (i0 >= n) return;
     const float m_cone = p[P_m_cone];
@@ -63,8 +66,9 @@ inline float lut_at(__global const float *t, const int nlut, const float lo,
 
 __kernel void durand00_map_lut(__global const float *rgb, __global const float *Y,
                                __global const float *Ys, __global float *out, const int n,
-                               __constant const float *p, __global const float *tables)
+                               FRAME_PARAMS, __global const float *tables)
 {
+    FRAME_PARAMS_LOAD;
     const int i = get_global_id(0);
     if (i >= n) return;
     const int nlut = (int)p[P_nlut];

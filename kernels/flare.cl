@@ -317,7 +317,7 @@ __kernel void flare_blur0_x(__global const float4 *S, const int w, const int h,
  * flare (r, g, b, 0), as flare_finish. */
 __kernel void flare_finish0(__global const float *rgb, __global const float4 *S, const int w,
                             const int y0, const int rows, __global const float4 *tmp,
-                            const int t0, const int trows, __constant float *kw,
+                            const int t0, const int trows, const float16 kw16,
                             __global const float4 *coarse, const int cw, const int ch,
                             const int cm, const int has_coarse, const float a0,
                             const int h, __global const uchar *tiles, const int tw,
@@ -345,6 +345,8 @@ __kernel void flare_finish0(__global const float *rgb, __global const float4 *S,
                            0.75f * a[2] + 0.25f * a[1], 0.75f * a[2] + 0.25f * a[3]);
         }
 #if L0_NK > 0
+        float kw[16];                       /* the frame's weights: an argument, not a buffer */
+        vstore16(kw16, 0, kw);
         const size_t plane = (size_t)trows * w;
         if (TILE_ON(tiles, tw, x, y, w, h)) {    /* else no source near: all 0 */
 #pragma unroll
@@ -387,3 +389,60 @@ __kernel void flare_finish0(__global const float *rgb, __global const float4 *S,
                     partial + gbase + get_group_id(1) * get_num_groups(0) + get_group_id(0));
 }
 #endif
+
+/* The halo ring (f3) on its level, on the device (issue 47: no round trip to a host
+ * FFT). Its sources are few: flare_nonzero lists the level's nonzero samples in order
+ * (one work-group: each work-item a contiguous share, an exclusive scan of their
+ * counts in local memory), flare_ring sums each output sample over them with the f3
+ * kernel of each channel, K: 3 planes of (2h-1) x (2w-1), centre at [h-1, w-1]
+ * (spencer1995.basis_kernel), out = w3 (K * S), the same linear convolution as the
+ * reference's FFT (backends/flare_exec.py fftconvolve_same), in a fixed order. */
+__kernel void flare_nonzero(__global const float4 *S, const int n, __global int *idx,
+                            __global int *count, __local int *scan)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    const int per = (n + lsz - 1) / lsz;
+    const int a = min(n, lid * per), b = min(n, a + per);
+    int c = 0;
+    for (int i = a; i < b; i++) {
+        const float4 v = S[i];
+        c += (v.x != 0.0f || v.y != 0.0f || v.z != 0.0f) ? 1 : 0;
+    }
+    scan[lid] = c;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid == 0) {
+        int t = 0;
+        for (int j = 0; j < lsz; j++) {
+            const int v = scan[j];
+            scan[j] = t;
+            t += v;
+        }
+        count[0] = t;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    int o = scan[lid];
+    for (int i = a; i < b; i++) {
+        const float4 v = S[i];
+        if (v.x != 0.0f || v.y != 0.0f || v.z != 0.0f) idx[o++] = i;
+    }
+}
+
+__kernel void flare_ring(__global const float4 *S, const int w, const int h,
+                         __global const int *idx, __global const int *count,
+                         __global const float *K, const float w3, __global float4 *out)
+{
+    const int x = get_global_id(0), y = get_global_id(1);
+    if (x >= w || y >= h) return;
+    const int kw = 2 * w - 1, plane = kw * (2 * h - 1);
+    const int m = count[0];
+    const int base = (y + h - 1) * kw + (x + w - 1);
+    float3 acc = 0.0f;
+    for (int j = 0; j < m; j++) {
+        const int q = idx[j];
+        const int qy = q / w;
+        const int k = base - qy * kw - (q - qy * w);
+        const float4 s = S[q];
+        acc += (float3)(K[k] * s.x, K[plane + k] * s.y, K[2 * plane + k] * s.z);
+    }
+    out[y * w + x] = (float4)(w3 * acc, 0.0f);
+}

@@ -36,7 +36,7 @@ __kernel void to_lmsr(__global const float *in, const int nc, const int n,
  * fell back (Eq. 15's full support infeasible, or the gamut map moved it). ``exact``:
  * Eq. 15's NNLS, else the gamut map (a literal 0 leaves straight-line code that the
  * driver vectorises across work-items). */
-inline float3 shift_pixel(const float4 qq, __constant float *par, __constant float *Minv,
+inline float3 shift_pixel(const float4 qq, const float *par, __constant float *Minv,
                           __constant float *solvers, __constant float *M, float *lum_out,
                           int *fb_out, const int exact)
 {
@@ -100,7 +100,7 @@ inline float3 shift_pixel(const float4 qq, __constant float *par, __constant flo
     return best;
 }
 
-__kernel void kirk11_shift(__global const float *q, const int n, __constant float *par,
+__kernel void kirk11_shift(__global const float *q, const int n, const float16 parv,
                            __constant float *Minv, __constant float *solvers,
                            __constant float *M,
                            __constant float *D, __global float *rgb_out,
@@ -109,6 +109,8 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
 {
     const int i = get_global_id(0);
     if (i >= n) return;
+    float par[16];                          /* the frame's shift: an argument, no upload */
+    vstore16(parv, 0, par);
     float lum;
     int fb;
     const float3 best = shift_pixel(vload4(i, q), par, Minv, solvers, M, &lum, &fb,
@@ -133,7 +135,7 @@ __kernel void kirk11_shift(__global const float *q, const int n, __constant floa
  * The same operations as shift_pixel's, in vector form (PoCL runs the scalar form
  * per work-item: measured 2.2x slower on a CPU). */
 inline void shift_gamut4(const float4 l, const float4 m, const float4 s, const float4 r,
-                         __constant float *par, __constant float *Minv, __constant float *M,
+                         const float *par, __constant float *Minv, __constant float *M,
                          float4 *pr, float4 *pg, float4 *pb, int4 *fb)
 {
     const float area = par[0], k1 = par[1], k2 = par[2], gain = par[3];
@@ -176,10 +178,12 @@ inline float3 keep_y(const float3 a, const float3 p)
 }
 
 __kernel void purkinje_rgb(__global float *rgb, const int n, __constant float *H,
-                           __constant float *par, __constant float *Minv,
+                           const float16 parv, __constant float *Minv,
                            __constant float *solvers, __constant float *M,
                            __global int *fallbacks)
 {
+    float par[16];                          /* the frame's shift: an argument, no upload */
+    vstore16(parv, 0, par);
     __local int fbs[PURKINJE_WG];
     const int q = get_global_id(0), lid = get_local_id(0), i0 = ITEM_PIXELS(4) * q;
     int fb = 0;

@@ -212,13 +212,10 @@ __kernel void illuminant_partial(__global const float *rgb, __global const float
  * the bands' sums (a block cut by a band edge gets its rows from both). With
  * lim > 0, the sums of the flare's source part rgb max(0, 1 - lim / Y) instead
  * (spencer1995.source_part: lamps smaller than a block keep their flux). */
-__kernel void block_sums(__global const float *rgb, const int w, const int rows, const int y0,
-                         const int s, const int bw, const int by0, const int nb,
-                         const float lim, __global float4 *out)
+static float4 block_acc(__global const float *rgb, const int w, const int rows,
+                        const int y0, const int s, const int by, const int bx,
+                        const float lim)
 {
-    const int i = get_global_id(0);
-    if (i >= nb * bw) return;
-    const int by = by0 + i / bw, bx = i % bw;
     const int ya = max(by * s - y0, 0), yb = min((by + 1) * s - y0, rows);
     const int xa = bx * s, xb = min(xa + s, w);
     float4 acc = 0.0f;
@@ -234,5 +231,53 @@ __kernel void block_sums(__global const float *rgb, const int w, const int rows,
             acc += (float4)(rgb[k] * f, rgb[k + 1] * f, rgb[k + 2] * f, 1.0f);
         }
     }
-    out[i] = acc;
+    return acc;
+}
+
+__kernel void block_sums(__global const float *rgb, const int w, const int rows, const int y0,
+                         const int s, const int bw, const int by0, const int nb,
+                         const float lim, __global float4 *out)
+{
+    const int i = get_global_id(0);
+    if (i >= nb * bw) return;
+    out[i] = block_acc(rgb, w, rows, y0, s, by0 + i / bw, i % bw, lim);
+}
+
+/* The block means of a whole frame (rows = its height, y0 = 0) as 16-bit log2 codes,
+ * three a block (the plan's proxy read in 6 bytes a block, with the metering's sums:
+ * ocl_tonemap/models/metering.py log16_encode, LOG16_STEPS and LOG16_OFFSET from
+ * there): 0 for 0, else 1 + LOG16_STEPS (log2 m + LOG16_OFFSET) rounded, within
+ * 1..65535. */
+#ifdef LOG16_STEPS
+__kernel void block_means_log16(__global const float *rgb, const int w, const int rows,
+                                const int s, const int bw, const int nb, const float lim,
+                                __global ushort *out)
+{
+    const int i = get_global_id(0);
+    if (i >= nb * bw) return;
+    const float4 acc = block_acc(rgb, w, rows, 0, s, i / bw, i % bw, lim);
+    const float m[3] = {acc.x / acc.w, acc.y / acc.w, acc.z / acc.w};
+    for (int c = 0; c < 3; c++) {
+        const float code = LOG16_STEPS * (log2(m[c]) + LOG16_OFFSET) + 1.0f;
+        out[3 * i + c] = m[c] > 0.0f ? (ushort)clamp(rint(code), 1.0f, (float)USHRT_MAX) : (ushort)0;
+    }
+}
+#endif
+
+/* The sum of n float4 partials (a first stage's per-group sums), one work-group: each
+ * work-item adds a strided share (Kahan-compensated), then group_sum4 in a fixed
+ * order, into out[0]. The host reads it with the frame's other statistics. */
+__kernel void sum4_final(__global const float4 *part, const int n, __global float4 *out,
+                         __local float4 *scratch)
+{
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    float s[4] = {0, 0, 0, 0}, c[4] = {0, 0, 0, 0};
+    for (int i = lid; i < n; i += lsz) {
+        const float4 v = part[i];
+        kahan(&s[0], &c[0], v.x);
+        kahan(&s[1], &c[1], v.y);
+        kahan(&s[2], &c[2], v.z);
+        kahan(&s[3], &c[3], v.w);
+    }
+    group_sum4(scratch, (float4)(s[0], s[1], s[2], s[3]), out);
 }

@@ -51,9 +51,11 @@ inline void map_one(const int i, __global const float *rgb, __global const float
 #define MAP_ARGS log2_sigma_rod, log2_sigma_cone, B_rod, B_cone, gain, offset, \
                  dB_rod, dB_cone, ds_rod, ds_cone, colour_k, out_black, out_scale, inv_white, knee, chroma
 /* The frame's scalars, packed by ocl_tonemap/operators/pattanaik00.py (kernel_call);
- * P_<name> (their indices) come from the same place, as build options. */
-#define MAP_PARAMS __constant const float *p
+ * P_<name> (their indices) come from the same place, as build options (common.h
+ * FRAME_PARAMS). */
+#define MAP_PARAMS FRAME_PARAMS
 #define MAP_LOAD \
+    FRAME_PARAMS_LOAD; \
     const float log2_sigma_rod = p[P_log2_sigma_rod], log2_sigma_cone = p[P_log2_sigma_cone]; \
     const float B_rod = p[P_B_rod], B_cone = p[P_B_cone], gain = p[P_gain], offset = p[P_offset]; \
     const float dB_rod = p[P_dB_rod], dB_cone = p[P_dB_cone];              /* display */ \

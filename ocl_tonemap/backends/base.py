@@ -29,6 +29,29 @@ from ..operators.base import Frame, FrameStats
 from .planes import band_readable, plane_shape, read_rows
 
 
+class Later:
+    """A value of a frame's record that a device has enqueued and that comes down at the
+    frame's next sync point (``opencl/stats.py``): :func:`settle` gives the record
+    with it. ``fn()`` gives the value (reading it where it has not come yet)."""
+
+    __slots__ = ("fn",)
+
+    def __init__(self, fn: Callable):
+        self.fn = fn
+
+
+def settle(value):
+    """``value`` (a record: dicts, lists, tuples) with each :class:`Later` in it made
+    its value."""
+    if isinstance(value, Later):
+        return settle(value.fn())
+    if isinstance(value, dict):
+        return {k: settle(v) for k, v in value.items()}
+    if type(value) in (list, tuple):
+        return type(value)(settle(v) for v in value)
+    return value
+
+
 class Levels(NamedTuple):
     """A frame's colour stage and metering (:meth:`Backend.working`,
     :meth:`Backend.scene_levels`)."""

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from ..backends import flare_exec as fx
+from ..backends.base import Later
 from ..models import spencer1995 as fl
 from ..models.convolution import EDGE_ZERO
 from ..models.photometry import Y_WEIGHTS
@@ -101,7 +102,8 @@ def _run_on_device(settings, rgb, G_rod: float, G_cone: float, lim: float, devic
             "ran": sources > 0}
     if sources == 0:
         return None, info
-    info["energy_in_frame"] = float(F_sum.sum() / max(S_sum.sum(), 1e-300))
+    # the flared sums come down with the frame's next statistics (the metering's)
+    info["energy_in_frame"] = Later(lambda: float(F_sum().sum() / max(S_sum.sum(), 1e-300)))
     return out, info
 
 

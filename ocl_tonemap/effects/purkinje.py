@@ -17,6 +17,7 @@ from ..models import kirk2011 as ko, lmsr
 from ..models.pattanaik2000 import (receptor_levels_advance, receptor_levels_preadapted,
                                     receptor_levels_steady, rod_sensitivity)
 from ..models.photometry import Y_WEIGHTS, neutral_scotopic_ratio
+from ..backends.base import Later, settle
 from .base import Effect
 
 LEVELS_KEY = "purkinje_levels"
@@ -41,7 +42,7 @@ def apply_purkinje(rgb: np.ndarray, G_rod: float, G_cone: float, device=None,
     info = {"rod_gain": float(gain), "k1": float(k1)}
     if device is not None:              # one pass on the device, the luminance kept there
         p, fb = device.purkinje(rgb, area, k1, k2, gain, M, ko.SHIFT_XYZ)
-        return p, {**info, "fallback_fraction": float(fb)}
+        return p, {**info, "fallback_fraction": Later(fb)}     # (comes with the output)
     rgb = np.asarray(rgb)
     q = lmsr.rgb_to_lmsr(rgb)
     qh, _ = ko.purkinje_shift(q, area, k1, k2, ko.SHIFT_XYZ, gain)
@@ -120,7 +121,7 @@ class BandedPurkinje:
         out, info = shift(rgb, self.info, self.device)
         y1 = y0 + len(rgb)
         if y0 <= self._swept < y1:
-            self._fb += info["fallback_fraction"] * (y1 - self._swept)
+            self._fb += settle(info["fallback_fraction"]) * (y1 - self._swept)
             self._swept = y1
         return np.asarray(out, np.float32)
 

@@ -269,7 +269,27 @@ def block_sums(rgb: np.ndarray, s: int, y0: int = 0) -> tuple[np.ndarray, int]:
     return out, by0
 
 
+#: The plan's proxy is held as 16-bit log2 codes (a device sends it down with the
+#: metering's sums, 6 bytes a block: ``metering.cl:block_means_log16``): 0 for 0, else
+#: 1 + round(LOG16_STEPS (log2 m + LOG16_OFFSET)) within 1..65535, i.e. 2^-64 .. 2^64
+#: cd/m^2 in steps of 2^(1/512) (0.07 % at most). Every backend and path holds it so.
+LOG16_STEPS, LOG16_OFFSET = 512, 64
+
+
+def log16_encode(m: np.ndarray) -> np.ndarray:
+    m = np.asarray(m, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        code = np.rint(LOG16_STEPS * (np.log2(np.where(m > 0, m, 1.0)) + LOG16_OFFSET) + 1.0)
+    return np.where(m > 0, np.clip(code, 1, 65535), 0).astype(np.uint16)
+
+
+def log16_decode(codes: np.ndarray) -> np.ndarray:
+    c = np.asarray(codes).astype(np.float64)
+    return np.where(c > 0, np.exp2((c - 1.0) / LOG16_STEPS - LOG16_OFFSET), 0.0)
+
+
 def block_means(rgb: np.ndarray, s: int) -> np.ndarray:
-    """The frame's proxy: the means of its s x s blocks (the last ones partial)."""
+    """The frame's proxy: the means of its s x s blocks (the last ones partial), held
+    as :func:`log16_encode` codes."""
     sums, _ = block_sums(rgb, s)
-    return sums[..., :3] / np.maximum(sums[..., 3:], 1.0)
+    return log16_decode(log16_encode(sums[..., :3] / np.maximum(sums[..., 3:], 1.0)))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..backends.base import settle
 from ..effects import FrameContext
 from ..operators.base import Frame
 from .results import FrameInfo, check_scale, transfers_since
@@ -158,7 +159,7 @@ def run_banded(graph, source, sink, dt, time_s, frame_number, luminance_scale, i
     out = fx.display_banded(dctx, alpha_sink(source, sink), (h, w), STREAM_EFFECT_BANDS * band_px)
     info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
                      levels.repairs if metered is not frame else stats.repairs,
-                     obs.scalars.copy(), graph.schedule.summary(stats, params, work), eff,
+                     obs.scalars.copy(), graph.schedule.summary(stats, params, work), settle(eff),
                      graph.record)
     if start is not None:
         start(info)

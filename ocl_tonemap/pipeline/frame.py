@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ..backends.base import settle
 from ..effects import FrameContext
 from ..effects.runner import changed_frame
 from ..operators import registry
@@ -182,7 +183,8 @@ class FrameGraph:
             self.begin_plan(levels, frame, step_dt, fresh, measure_only, weights)
             self.record["flare_metered"] = fx.metered_weights(levels.max_Y, ctx.lim)
             rgb, changed = fx.optical(ctx, levels.rgb)
-            if changed:
+            if changed or not isinstance(levels.rgb, (np.ndarray, type(None))):
+                # (unchanged but on the device: measured where it is, not uploaded again)
                 metered = changed_frame(frame, rgb, self.primaries)
         stats = self.measure(metered)
         self.scene_stats(stats, levels)
@@ -208,7 +210,7 @@ class FrameGraph:
         repairs = levels.repairs if metered is not frame else stats.repairs
         info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
                          repairs, self.observer.scalars.copy(),
-                         self.schedule.summary(stats, params), eff, self.record,
+                         self.schedule.summary(stats, params), settle(eff), self.record,
                          transfers_since(self.backend, moved))
         return FrameResult(out, None, info, encoding is not None)
 

@@ -6,6 +6,7 @@ import pytest
 from conftest import hdr_image
 from ocl_tonemap.models import spencer1995 as fl
 from ocl_tonemap.backends import flare_exec as flx
+from ocl_tonemap.backends.base import settle
 from ocl_tonemap.backends.opencl.convolution import DeviceBlur
 from ocl_tonemap.effects import EffectSettings
 from ocl_tonemap.pipeline import Tonemapper
@@ -127,6 +128,7 @@ def test_fast_flare_made_whole_on_the_device_is_the_reference(rt, shape, fov, L)
     lim = fl.source_limit(L)
     ref, ri = F.run(s, rgb.astype(np.float64), L, L, lim)
     got, gi = F.run(s, rgb, L, L, lim, None, dev)
+    gi = settle(gi)                   # (the flared sums come down with the next statistics)
     assert got.dtype == np.float32 and got.shape == rgb.shape
     assert np.max(np.abs(got - ref) / ref) < 2e-6
     assert gi["sources"] == ri["sources"] >= 1 and gi["pupil_mm"] == ri["pupil_mm"]

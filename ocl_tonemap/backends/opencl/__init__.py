@@ -23,7 +23,8 @@ from .flare import DeviceFlare
 from .image import DeviceArrayOutput, DeviceImage, device_image
 from .lmsr import KirkDevice
 from .metering import DeviceMeter, MeteringPasses, repair_counts
-from .runtime import describe_device, get_runtime, index_defines, round_up
+from .runtime import describe_device, frame_params, get_runtime, index_defines, round_up
+from .stats import TAIL, statistics, tailed
 from .transfers import ConstantBuffers, Transfers, counted, transfer
 
 
@@ -45,6 +46,9 @@ class OpenCLBackend(MeteringPasses):
         self._consts = ConstantBuffers(self.rt.context)
         self._illum = self.rt.kernel("metering.cl", "illuminant_partial")
         self._blocks = self.rt.kernel("metering.cl", "block_sums")
+        self._blocks16 = self.rt.kernel("metering.cl", "block_means_log16",
+                                        (("LOG16_STEPS", met.LOG16_STEPS),
+                                         ("LOG16_OFFSET", met.LOG16_OFFSET)))
         self._resident = None          # (h, w) of the working frame whole in bufs["rgb"]
         self._ahead = None             # source_proxy_ahead's: (its arguments, sums, collect)
         if max_band_pixels is None:
@@ -194,7 +198,9 @@ class OpenCLBackend(MeteringPasses):
         need = npix * max(channels, 3)
         if self.bufs is None or self._cap < need:
             cap = max(need, 1)
-            self.bufs = {k: self.buffer(k, cap * 4) for k in ("src", "rgb", "out")}
+            # (src and out: room after the frame for the statistics that come down with it)
+            self.bufs = {k: self.buffer(k, cap * 4 + (TAIL if k != "rgb" else 0))
+                         for k in ("src", "rgb", "out")}
             # one channel each: a third of the others (cap >= 3 x pixels)
             self.bufs.update({k: self.buffer(k, -(-cap // 3) * 4) for k in ("Y", "Ys")})
             self.bufs["counts"] = self.buffer("counts", 8 * 4)
@@ -215,15 +221,15 @@ class OpenCLBackend(MeteringPasses):
         """The array a frame's output comes back into: display-linear float32 on the
         host, or ``encoding``'s (a ``display.DeviceOutputEncoding``: code values on the
         host; an ``image.DeviceArrayOutput``: display-linear on the device)."""
-        return np.empty((h, w, 3), np.float32) if encoding is None else \
+        return tailed((h, w, 3), np.float32) if encoding is None else \
             encoding.array(h, w)
 
     def fetch_output(self, dst: np.ndarray, buf, n: int, encoding=None) -> None:
         """Bring ``n`` pixels of a per-pixel kernel's RGB output (``buf``) back into
         ``dst`` (C-contiguous rows of :meth:`output_array`), through the device display
         encoding when one is given (then only code values cross to the host)."""
-        if encoding is None:
-            transfer(self.rt.queue, dst, buf)
+        if encoding is None:             # (with the frame's last statistics: stats.py)
+            statistics(self.rt).download(dst, buf)
         else:
             encoding.fetch(self.rt.queue, buf, n, dst)
 
@@ -297,7 +303,7 @@ class OpenCLBackend(MeteringPasses):
         """Enqueue a per-pixel kernel (operators.base.KernelCall) over ``n`` pixels."""
         names = tuple(k for k, _ in call.params)
         knl = self.rt.kernel(call.file, call.kernel, index_defines(names) + tuple(call.defines))
-        p = self.constant(np.array([v for _, v in call.params] or [0.0], np.float32))
+        p = frame_params([v for _, v in call.params])
         extra = tuple(self.constant(b) for b in call.buffers)
         items = self.rt.pixel_items(max(n, 1), call.pixels_per_item)
         knl(self.rt.queue, (round_up(items, 64),), (64,), rgb, Y, Ys, out, np.int32(n), p,

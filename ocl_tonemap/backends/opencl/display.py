@@ -13,6 +13,7 @@ import threading
 import numpy as np
 
 from .runtime import get_runtime, round_up
+from .stats import TAIL, statistics, tailed
 from .transfers import host_buffer, transfer
 
 _WG = 64
@@ -134,7 +135,7 @@ class DeviceDisplayTable:
     def _encode_enqueued(self, queue, src, n: int, c: int, out: np.ndarray, bits: int) -> None:
         """The kernels on ``queue`` from ``src`` (n pixels of c floats) into ``out``
         (blocking download). Call with the lock held."""
-        dst = self._buffer("dst", out.nbytes)
+        dst = self._buffer("dst", out.nbytes + TAIL)      # (room for the statistics)
         size = np.int32(self.table.size)
         start = 0
         if c == 3 and self._vector and n >= 4:
@@ -146,7 +147,10 @@ class DeviceDisplayTable:
             self._kernel(bits, False)(queue, (n - start,), None, src, dst, np.int32(n),
                                     np.int32(c), np.int32(c), self._par, self._e_eps, size,
                                     self._lut, global_offset=(start,))
-        transfer(queue, out, dst, is_blocking=True)
+        if queue is self.rt.queue:      # the frame's last statistics come down with it
+            statistics(self.rt).download(out, dst)
+        else:
+            transfer(queue, out, dst, is_blocking=True)
 
     def release(self) -> None:
         """Drop the frame buffers (they are made again on the next :meth:`encode`)."""
@@ -170,8 +174,9 @@ class DeviceOutputEncoding:
         self.table.encode_buffer(queue, src, n, out.reshape(-1), self.bits)
 
     def array(self, h: int, w: int) -> np.ndarray:
-        """Where a frame's code values come back: a host array."""
-        return np.empty((h, w, 3), self.dtype)
+        """Where a frame's code values come back: a host array (with room after it for
+        the frame's last statistics: ``stats.tailed``)."""
+        return tailed((h, w, 3), self.dtype)
 
 
 class BlurredOutputEncoding:

@@ -1,10 +1,10 @@
 """The fast flare on an OpenCL runtime (kernels/flare.cl): the frame goes up once,
 the source part, the pyramid, its Gaussians and the flared frame are made on the
-device, and the flared frame comes down once. The halo ring (f3) is an FFT on a
-small level, made on the host. What is computed is
+device, and the flared frame comes down once. The halo ring (f3), on a small level,
+is summed over its few nonzero samples there too. What is computed is
 :func:`~ocl_tonemap.models.spencer1995.fast_plan`'s plan; the reference is
 :func:`~ocl_tonemap.backends.flare_exec.convolve_fast` (float64), whose pyramid
-geometry and ring FFT this uses."""
+geometry this uses."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from .. import flare_exec as fx
 from .flare_level0 import FlareLevel0
 from .image import DeviceImage
 from .runtime import round_up
+from .stats import statistics
 from .transfers import ConstantBuffers, host_buffer, transfer
 
 #: Bytes of device memory per pixel of the frame, at most (the pyramid written out:
@@ -23,6 +24,13 @@ from .transfers import ConstantBuffers, host_buffer, transfer
 #: scratch 1; the frame in and out as float3). The fused level 0 holds less: levels
 #: from 1 up (~11 bytes a pixel) and one band's planes.
 BYTES_PER_PIXEL = 16 * (4 / 3 + 4 / 3 + 1) + 24
+
+
+#: A CPU device's ring sums over each nonzero sample of its level, a cost that grows
+#: with the sources; where they are more than this share of the frame's pixels the
+#: host's FFT makes it instead (its level down and up: 2 x 140 KiB at 1080p). A GPU
+#: always sums. (Measured on 2 cores, 1920 x 1080: docs/backends.md.)
+RING_HOST_SHARE = 0.03
 
 
 class DeviceFlare(FlareLevel0):
@@ -43,8 +51,9 @@ class DeviceFlare(FlareLevel0):
         self._spare = spare
         names = ("flare_source", "flare_down", "flare_up", "flare_blur_x", "flare_blur_y_add",
                  "flare_add", "flare_finish", "flare_down_src", "flare_tiles_x",
-                 "flare_tiles_y")
+                 "flare_tiles_y", "flare_nonzero", "flare_ring")
         self._k = {n: rt.kernel("flare.cl", n, self._defines()) for n in names}
+        self._k_sum4 = rt.kernel("metering.cl", "sum4_final")
         wg = int(rt.device.max_work_group_size)
         self.local = 1 << (min(256, max(1, wg)).bit_length() - 1)
         self._scratch = cl.LocalMemory(16 * self.local)
@@ -52,6 +61,7 @@ class DeviceFlare(FlareLevel0):
         self._started = None                  # start()'s passes: (key, what they made)
         self._taps: dict = {}                 # sigma -> (taps buffer, radius)
         self._level0_kernels: dict = {}       # level 0's widths -> (kernels, radius)
+        self._ring_k = None                   # ((level size, angle), the f3 kernels)
 
     @classmethod
     def _defines(cls) -> tuple:
@@ -73,10 +83,14 @@ class DeviceFlare(FlareLevel0):
             self._taps[key] = (host_buffer(self.rt.context, t), len(t) - 1)
         return self._taps[key]
 
-    def _partials(self, buf, groups: int) -> np.ndarray:
-        p = np.empty((groups, 4), np.float32)
-        transfer(self.rt.queue, p, buf)
-        return p.astype(np.float64).sum(axis=0)
+    def _sums_later(self, buf, groups: int):
+        """The sum of ``groups`` float4 partials, finished on the device and put in the
+        frame's statistics (``stats.py``): a function that gives it (float64, 4)."""
+        out = self._buf("sum4", 16)
+        self._k_sum4(self.rt.queue, (self.local,), (self.local,), buf, np.int32(groups), out,
+                     self._scratch)
+        got = statistics(self.rt).put(out, 16, np.float32)
+        return lambda: got.get().astype(np.float64)
 
     def start(self, rgb, plan: fl.FastPlan, lim: float) -> None:
         """Enqueue the first passes of :meth:`apply` of a frame left on the device (its
@@ -102,9 +116,9 @@ class DeviceFlare(FlareLevel0):
                 float(lim))
 
     def _first_passes(self, d_rgb, shape, plan: fl.FastPlan, lim: float, downs: bool):
-        """The source part made into level 1 (the fused path) or level 0, its partial
-        sums, and with ``downs`` the decimations to the top: (S, stored, fused, part,
-        groups, occ, downs made)."""
+        """The source part made into level 1 (the fused path) or level 0, its sums (on
+        their way down with the frame's statistics), and with ``downs`` the decimations
+        to the top: (S, stored, fused, a function giving the sums, occ, downs made)."""
         q, k, L = self.rt.queue, self._k, self.local
         h, w = shape
         n = h * w
@@ -132,9 +146,10 @@ class DeviceFlare(FlareLevel0):
             part = self._buf("partial", 16 * groups)
             k["flare_source"](q, (groups * L,), (L,), d_rgb, np.int32(n), np.float32(lim),
                               S[0], part, self._scratch)
+        ssum = self._sums_later(part, groups)       # comes down with the plan's read
         if downs:
             self._downs(S, stored, fused, plan)
-        return S, stored, fused, part, groups, occ, downs
+        return S, stored, fused, ssum, occ, downs
 
     def _downs(self, S, stored, fused: bool, plan: fl.FastPlan) -> None:
         for l in range(2 if fused else 1, plan.top + 1):
@@ -145,7 +160,8 @@ class DeviceFlare(FlareLevel0):
                                   np.int32(ch), np.int32(fx.level_margin(l)))
 
     def apply(self, rgb: np.ndarray, plan: fl.FastPlan, lim: float):
-        """(flared frame or None when no pixel is a source, sources, S sum (3), F sum (3)).
+        """(flared frame or None when no pixel is a source, sources, S sum (3), a function
+        giving the F sum (3): it comes down with the frame's next statistics).
         ``rgb``: (H, W, 3) working rgb, cd/m^2, a host array or a :class:`DeviceImage`
         (then read where it is, and the flared frame is a DeviceImage too: it does not
         come to the host); ``lim``: the source threshold, cd/m^2 (threshold x L_wa).
@@ -159,7 +175,7 @@ class DeviceFlare(FlareLevel0):
         started, self._started = self._started, None
         if resident and started is not None and started[0] == self._first_key(rgb, plan, lim):
             d_rgb = rgb.buffer
-            S, stored, fused, part, groups, occ, downs = started[1]
+            S, stored, fused, ssum, occ, downs = started[1]
         else:
             if started is not None:
                 self._release_scratch()
@@ -168,13 +184,13 @@ class DeviceFlare(FlareLevel0):
             else:
                 d_rgb = self._buf("rgb", 12 * n)
                 transfer(q, d_rgb, rgb)
-            S, stored, fused, part, groups, occ, downs = self._first_passes(
+            S, stored, fused, ssum, occ, downs = self._first_passes(
                 d_rgb, (h, w), plan, lim, False)
-        ssum = self._partials(part, groups)
+        ssum = ssum()
         sources = int(round(ssum[3]))
         if sources == 0:
             self._release_scratch()
-            return None, 0, ssum[:3], np.zeros(3)
+            return None, 0, ssum[:3], lambda: np.zeros(3)
         if not downs:
             self._downs(S, stored, fused, plan)
         acc, have = None, False
@@ -196,7 +212,8 @@ class DeviceFlare(FlareLevel0):
                                       np.int32(R), np.float32(wk), np.int32(0 if have else 1))
                 have = True
             if l == plan.lring:
-                ring = self._ring(S[l], hh, ww, plan.deg_per_px * 2.0 ** l, plan.w3)
+                ring = (self._ring_host if self._host_ring(sources, n) else self._ring)(
+                    S[l], hh, ww, plan.deg_per_px * 2.0 ** l, plan.w3)
                 if have:
                     k["flare_add"](q, (round_up(hh * ww, L),), (L,), a, ring,
                                    np.int32(hh * ww))
@@ -213,25 +230,32 @@ class DeviceFlare(FlareLevel0):
                 S = None                        # (freed once their kernels have run)
             part, groups = self._finish0(d_rgb, lim, acc, stored, plan, h, w, d_out, occ)
         else:
+            groups = round_up(n, L) // L
+            part = self._buf("partial", 16 * groups)
             k["flare_finish"](q, (groups * L,), (L,), d_rgb, S[0], acc if have else S[0],
                               np.int32(1 if have else 0), np.float32(plan.a0), np.int32(n),
                               d_out, part, self._scratch)
-        fsum = self._partials(part, groups)
+        fsum = self._sums_later(part, groups)       # comes down with the next read
         self._release_scratch()
         if resident:                            # stays on the device for the operator
             out = DeviceImage(self.rt, d_out, (h, w, 3))
         else:
             out = np.empty((h, w, 3), np.float32)
             transfer(q, out, d_out)
-        return out, sources, ssum[:3], fsum[:3]
+        return out, sources, ssum[:3], lambda: fsum()[:3]
 
     def _release_scratch(self) -> None:
         """The pyramids and bands go back to the pool: scratch of this frame only."""
         if self._release is not None:
             self._release("flare:S", "flare:acc", "flare:tmp", "flare:partial0")
 
-    def _ring(self, S_buf, hh: int, ww: int, deg_per_px: float, w3: float):
-        """w3 f3 * S on a level (host FFT of its few thousand samples), on the device."""
+    def _host_ring(self, sources: int, n: int) -> bool:
+        import pyopencl as cl
+        return bool(self.rt.device.type & cl.device_type.CPU) and sources > RING_HOST_SHARE * n
+
+    def _ring_host(self, S_buf, hh: int, ww: int, deg_per_px: float, w3: float):
+        """:meth:`_ring` by an FFT on the host (its level down and the ring up again):
+        where a CPU device would sum over many sources."""
         lv = np.empty((hh, ww, 4), np.float32)
         transfer(self.rt.queue, lv, S_buf)
         ring = np.zeros((hh, ww, 4), np.float32)
@@ -240,4 +264,26 @@ class DeviceFlare(FlareLevel0):
                                                     fx.ring_kernel_fft((hh, ww), deg_per_px, c))
         buf = self._buf("ring", ring.nbytes)
         transfer(self.rt.queue, buf, ring)
+        return buf
+
+    def _ring(self, S_buf, hh: int, ww: int, deg_per_px: float, w3: float):
+        """w3 f3 * S on a level (stored size hh x ww), on the device: its nonzero samples
+        listed (``flare_nonzero``), each output sample summed over them
+        (``flare_ring``) with the f3 kernels, uploaded once per level size and angle."""
+        import pyopencl as cl
+        q = self.rt.queue
+        n = hh * ww
+        key = (hh, ww, float(deg_per_px))
+        if self._ring_k is None or self._ring_k[0] != key:
+            K = np.stack([fl.basis_kernel(fl.channel_bases(c)[3], (hh, ww), deg_per_px)
+                          for c in range(3)]).astype(np.float32)
+            self._ring_k = (key, host_buffer(self.rt.context, K))
+        idx, cnt = self._buf("ring_idx", 4 * n), self._buf("ring_count", 4)
+        L = self.local
+        self._k["flare_nonzero"](q, (L,), (L,), S_buf, np.int32(n), idx, cnt,
+                                 cl.LocalMemory(4 * L))
+        buf = self._buf("ring", 16 * n)
+        self._k["flare_ring"](q, (round_up(ww, 16), round_up(hh, 4)), (16, 4), S_buf,
+                              np.int32(ww), np.int32(hh), idx, cnt, self._ring_k[1],
+                              np.float32(w3), buf)
         return buf

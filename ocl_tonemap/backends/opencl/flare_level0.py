@@ -49,9 +49,14 @@ class FlareLevel0:
                             ("L0_TAPS", tuple(taps)))
             self._level0_kernels[key] = ({n: self.rt.kernel("flare.cl", n, defines)
                                           for n in self.LEVEL0_KERNELS}, R)
+        from pyopencl import cltypes
         kern, R = self._level0_kernels[key]
-        wts = self._consts.get(np.asarray([wk for _, wk in gs] or [0.0], np.float32))
-        return kern, wts, len(gs), R
+        # the pupil's weights change every frame: a kernel argument (float16), no upload
+        if len(gs) > 16:                    # (the fit's at most 4 a octave: 16 at most)
+            raise ValueError(f"level 0 of the flare has {len(gs)} Gaussians; 16 at most")
+        wts = np.zeros(16, np.float32)
+        wts[:len(gs)] = [wk for _, wk in gs]
+        return kern, cltypes.make_float16(*wts), len(gs), R
 
     def _finish0(self, d_rgb, lim: float, acc1, stored, plan, h: int, w: int, d_out, occ):
         """Level 0 and the flared frame, band by band: the band's source part

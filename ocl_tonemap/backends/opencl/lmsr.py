@@ -16,7 +16,8 @@ from ...models.kirk2011 import RHO, SIGMA_RANGE_LOG10, subset_solvers, white_nor
 from ...models.photometry import RepairCounts
 from .bilateral import DeviceBilateral
 from .image import DeviceImage
-from .runtime import round_up
+from .runtime import frame_params, round_up
+from .stats import statistics
 from .transfers import ConstantBuffers, transfer
 
 
@@ -76,7 +77,7 @@ class KirkDevice:
         fb = self._buf(4)
         self.cl.enqueue_fill_buffer(self.rt.queue, fb, np.int32(0), 0, 4)
         self._k_shift(self.rt.queue, (round_up(n, 64),), (64,), q, np.int32(n),
-                      self._buf(0, par), self._buf(0, np.linalg.inv(M).reshape(-1)),
+                      frame_params(par), self._buf(0, np.linalg.inv(M).reshape(-1)),
                       self._buf(0, subset_solvers(M).reshape(-1)),
                       self._buf(0, M), self._buf(0, D), out, wbuf, logY, fb)
         return out, wbuf, logY, fb
@@ -125,9 +126,8 @@ class KirkDevice:
     SHIFT_BAND = 1 << 18
 
     def _shift_params(self, area, k1, k2, gain, M, xyz):
-        """The shift's constant buffers: the matrices made again only when ``M`` changes;
-        the frame's scalars go through the constant buffers (uploaded only when they
-        change)."""
+        """The shift's arguments: the matrices' constant buffers made again only when ``M``
+        changes; the frame's scalars a float16 argument (no upload)."""
         par = np.array([area, k1, k2, gain, *xyz, *RHO, *white_norm()[:3], 0.0], np.float32)
         key = np.asarray(M, np.float64).tobytes()
         if self._params_key != key:
@@ -135,7 +135,7 @@ class KirkDevice:
             self._params = (self._buf(0, lmsr.fitted()["H"]),
                             self._buf(0, np.linalg.inv(M).reshape(-1)),
                             self._buf(0, subset_solvers(M).reshape(-1)), self._buf(0, M))
-        return (self._params[0], self._buf(0, par), *self._params[1:])
+        return (self._params[0], frame_params(par), *self._params[1:])
 
     def purkinje(self, rgb, area: float, k1: float, k2: float, gain: float, M: np.ndarray,
                  xyz):
@@ -144,7 +144,9 @@ class KirkDevice:
         ``(shifted, fallback share)``. ``rgb`` a :class:`~.image.DeviceImage`: shifted in
         place on the device (a new image of the same buffer comes back: another frame
         to the stages' residency checks); a host array: through one
-        buffer of :data:`SHIFT_BAND` pixels, kept for the next frame."""
+        buffer of :data:`SHIFT_BAND` pixels, kept for the next frame. The fallback share
+        is a function: its count comes down with the frame's next statistics (stats.py),
+        on a whole frame with its output."""
         q_ = self.rt.queue
         params = self._shift_params(area, k1, k2, gain, M, xyz)
         if self._fallbacks is None:
@@ -173,9 +175,8 @@ class KirkDevice:
                 run(band, m)
                 transfer(q_, res[a:a + m], band)
             res = res.reshape(h, w, 3)
-        nfb = np.empty(1, np.int32)
-        transfer(q_, nfb, fb)
-        return res, float(nfb[0]) / max(n, 1)
+        got = statistics(self.rt).put(fb, 4, np.int32)   # comes down with the output
+        return res, lambda: float(got.get()[0]) / max(n, 1)
 
     def lmsr_band(self, backend, band: np.ndarray, scale: float, wavelengths, count: bool):
         """One band (or a whole frame) to LMSR on the device: (q buffer, source

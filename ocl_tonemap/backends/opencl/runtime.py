@@ -443,6 +443,18 @@ def _kernel(context, device, file: str, name: str, defines: tuple = ()):
     return cl.Kernel(_build(context, device, (file,), defines), name)
 
 
+def frame_params(values):
+    """A per-pixel kernel's frame scalars as its float16 argument (kernels/common.h
+    FRAME_PARAMS): they travel with the launch, not as an upload."""
+    import numpy as np
+    from pyopencl import cltypes
+    if len(values) > 16:
+        raise ValueError(f"a per-pixel kernel takes 16 frame scalars at most, not {len(values)}")
+    v = np.zeros(16, np.float32)
+    v[:len(values)] = values
+    return cltypes.make_float16(*v)
+
+
 def round_up(n: int, m: int) -> int:
     """Smallest multiple of ``m`` that is >= ``n`` (padded global sizes)."""
     return ((int(n) + m - 1) // m) * m
