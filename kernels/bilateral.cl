@@ -17,6 +17,13 @@
  * Both work on row bands: input rows [0, rows_in) of a buffer whose first row
  * is image row in_y0; outputs cover image rows [out_y0, out_y0 + rows_out). */
 
+/* A filter gated on the device (issue 47: no read between two passes): with ``gate``
+ * (a min/max pair, z_minmax_final) it filters only where gate[0] < gate_floor, and
+ * else writes ``alt`` (the same rows of another level) as its output: ledda04's rod
+ * levels where the frame's darkest cone level is photopic, decided as the host
+ * did, without reading it first. A NULL gate: always filters. */
+#define GATED_OFF(gate, gate_floor) ((gate) != 0 && !((gate)[0] < (gate_floor)))
+
 /* ------------------------------------------------------------------ exact */
 
 /* Four horizontally adjacent centres per work-item: for a given (dx, dy) the
@@ -25,11 +32,18 @@
 __kernel void bilateral_exact(__global const float *v, const int width, const int rows_in,
                               const int in_y0, const int out_y0, const int rows_out,
                               __constant float *fw, const int radius, const float k_r,
-                              const int ratio, __global float *out)
+                              const int ratio, __global float *out,
+                              __global const float *gate, const float gate_floor,
+                              __global const float *alt)
 {
     const int x0 = get_global_id(0) * 4;
     const int ro = get_global_id(1);
     if (x0 >= width || ro >= rows_out) return;
+    if (GATED_OFF(gate, gate_floor)) {
+        for (int j = 0; j < min(4, width - x0); ++j)
+            out[(size_t)ro * width + x0 + j] = alt[(size_t)ro * width + x0 + j];
+        return;
+    }
     const int yc = out_y0 + ro - in_y0;               /* centre row in the buffer */
     const int ylo = max(yc - radius, 0), yhi = min(yc + radius, rows_in - 1);
     const int nx = min(4, width - x0);
@@ -155,6 +169,20 @@ __kernel void z_minmax(__global const float *v, const int n, const int ratio,
     }
 }
 
+/* The min and max of z_minmax's partials (one work-item): out[0], out[1]. */
+__kernel void z_minmax_final(__global const float *partial, const int groups,
+                             __global float *out)
+{
+    if (get_global_id(0) != 0) return;
+    float lo = INFINITY, hi = -INFINITY;
+    for (int g = 0; g < groups; ++g) {
+        lo = fmin(lo, partial[2 * g]);
+        hi = fmax(hi, partial[2 * g + 1]);
+    }
+    out[0] = lo;
+    out[1] = hi;
+}
+
 /* Splat (gather form, no atomics): grid cell (cx, cy) owns its column of nz
  * bins and adds the pixels of this band that fall in its tent footprint
  * |x/s_s - cx| < 1, |y/s_s - cy| < 1, with trilinear (tent) weights; each
@@ -222,10 +250,15 @@ __kernel void grid_slice(__global const float *v, const int width, const int row
                          const int ratio, const float s_s, const float z0,
                          const float inv_s_r, const int gw, const int gh, const int nz,
                          __global const float2 *grid, __global float *out,
-                         __global const float *zv)
+                         __global const float *zv, __global const float *gate,
+                         const float gate_floor, __global const float *alt)
 {
     const int x = get_global_id(0), ro = get_global_id(1);
     if (x >= width || ro >= rows_out) return;
+    if (GATED_OFF(gate, gate_floor)) {
+        out[(size_t)ro * width + x] = alt[(size_t)ro * width + x];
+        return;
+    }
     const int y = out_y0 + ro;
     const size_t iv = (size_t)(y - in_y0) * width + x;
     const float val = v[iv];

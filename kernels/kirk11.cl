@@ -227,13 +227,14 @@ __kernel void purkinje_rgb(__global float *rgb, const int n, __constant float *H
  * blend from the source by w. */
 __kernel void kirk11_compose(__global const float *src, __global const float *shifted,
                              __global const float *w, __global const float *logY,
-                             __global const float *base, const int n, const float c,
-                             const float base_max, const float beta, const float gamma,
+                             __global const float *base, const int n,
+                             __global const float *rp, const float beta, const float gamma,
                              const float out_scale, const int blend, __global float *out,
                              const int dim_all)
 {
     const int i = get_global_id(0);
     if (i >= n) return;
+    const float c = rp[0], base_max = rp[1];          /* kirk11_range */
     const float ly = logY[i], b = base[i];
     const float ly_out = c * (b - base_max) + (ly - b);
     const float s = exp10(ly_out - ly);
@@ -329,9 +330,10 @@ __kernel void kirk11_sums(__global const float *x, const int n, const int mode,
  * absolute-level gain (anchor_gain) under the signal ceiling, the highlight shoulder
  * (knee 0: none, the paper mode, gain 1) and the clamp. Four pixels per work-item,
  * launched over ceil(n / 4) items. */
-__kernel void kirk11_finish(__global float *rgb, const int n, const float gain,
+__kernel void kirk11_finish(__global float *rgb, const int n, __global const float *gp,
                             const float inv_white, const float knee)
 {
+    const float gain = gp[0];                          /* kirk11_gain */
     const int q = get_global_id(0);
     const int i0 = ITEM_PIXELS(4) * q;            /* common.h */
     if (i0 >= n) return;
@@ -386,4 +388,100 @@ __kernel void base_histogram(__global const float *v, const int n, const int nbi
         ++run;
     }
     if (run) atomic_add(&hist[cur], run);
+}
+
+/* The base range's compression on the device (models/durand2002.py BaseRange.result and
+ * compression; issue 47: no read between the base layer and the composition): from the
+ * exact extremes mm (bilateral.cl z_minmax_final) or, for percentiles, the base
+ * histogram (base_histogram): rp[0] = c, rp[1] = the top (base_max). A percentile's
+ * rank r = p (n - 1) / 100 comes as its floor r_k (an integer: the first bin whose
+ * cumulative count passes it is the host's searchsorted) and fraction f_k. One
+ * work-group of KIRK_RANGE_WG items (a build option). */
+__kernel void kirk11_range(__global const float *mm, __global const int *hist,
+                           const int nbins, const int exact, const int n,
+                           const int r_lo, const float f_lo, const int r_hi, const float f_hi,
+                           const float hist_lo, const float width, const float log_target,
+                           __global float *rp)
+{
+    __local int chunk[KIRK_RANGE_WG];
+    __local int found[4];                       /* (bin, count before it) of lo, hi */
+    const int lid = get_local_id(0), lsz = get_local_size(0);
+    const float lo = mm[0], hi = mm[1];
+    if (!exact) {
+        const int per = (nbins + lsz - 1) / lsz, a = min(nbins, lid * per),
+                  b = min(nbins, a + per);
+        int s = 0;
+        for (int k = a; k < b; ++k) s += hist[k];
+        chunk[lid] = s;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (lid == 0) {                         /* exclusive prefix of the chunks */
+            int t = 0;
+            for (int j = 0; j < lsz; ++j) {
+                const int v = chunk[j];
+                chunk[j] = t;
+                t += v;
+            }
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        const int ranks[2] = {r_lo, r_hi};
+        for (int p = 0; p < 2; ++p) {
+            int cum = chunk[lid];
+            const int end = cum + s;
+            if (cum <= ranks[p] && ranks[p] < end) {
+                for (int k = a; k < b; ++k) {
+                    if (cum + hist[k] > ranks[p]) {
+                        found[2 * p] = k;
+                        found[2 * p + 1] = cum;
+                        break;
+                    }
+                    cum += hist[k];
+                }
+            }
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid != 0) return;
+    float v_lo = lo, v_hi = hi;
+    if (n <= 0) {
+        v_lo = 0.0f;
+        v_hi = 0.0f;
+    } else if (!exact) {
+        const float fr[2] = {f_lo, f_hi};
+        const int ranks[2] = {r_lo, r_hi};
+        float v[2];
+        for (int p = 0; p < 2; ++p) {
+            const int k = found[2 * p];
+            const float x = hist_lo + ((float)k + ((float)(ranks[p] - found[2 * p + 1]) + fr[p]
+                                                   + 0.5f) / (float)hist[k]) * width;
+            v[p] = fmin(fmax(x, lo), hi);
+        }
+        v_lo = v[0];
+        v_hi = v[1];
+    }
+    const float span = v_hi - v_lo;
+    rp[0] = span > 0.0f ? fmin(1.0f, log_target / span) : 1.0f;
+    rp[1] = v_hi;
+}
+
+/* anchor_gain (models/kirk2011.py) on the device from kirk11_sums' groups (mode 2):
+ * the log-average of the composed frame's luminance over white, la (LOG_FLOOR where
+ * nothing is lit), then gain[0] = key / la, ``key`` the host's scene key of the adapted
+ * cone level times the transient factor. One work-item. */
+__kernel void kirk11_gain(__global const float4 *partial, const int groups, const float key,
+                          __global float *gain)
+{
+    if (get_global_id(0) != 0) return;
+    float s = 0.0f, k = 0.0f, cs = 0.0f, ck = 0.0f;
+    for (int g = 0; g < groups; ++g) {
+        const float4 p = partial[g];
+        float y = p.x - cs, t = s + y;
+        cs = (t - s) - y;
+        s = t;
+        y = p.z - ck;
+        t = k + y;
+        ck = (t - k) - y;
+        k = t;
+    }
+    const float la = k > 0.0f ? fmax(exp(s / k), LOG_FLOOR) : LOG_FLOOR;
+    gain[0] = key / la;
 }

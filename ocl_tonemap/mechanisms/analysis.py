@@ -1,9 +1,10 @@
 """Scene analysis of one frame: what the mechanism plan decides from.
 
 The frame is reduced to a *proxy* in the backend's metering pass (on the device
-for OpenCL: ``metering.cl:block_sums``): the means of s x s blocks of the working
-frame in cd/m^2 (energy kept, so small lamps still carry their flux), at most
-:data:`PROXY_SIDE` blocks along its longer side.
+for OpenCL: ``metering.cl:block_means_log16``): the means of s x s blocks of the
+working frame in cd/m^2 (energy kept, so small lamps still carry their flux), at most
+:data:`PROXY_SIDE` blocks along its longer side, held as 16-bit log codes
+(``models/metering.log16_encode``: 0.07 %).
 From it: the adaptation goals with the run's metering, photopic and scotopic
 percentiles, the light sources (pixels above the flare threshold x the
 adaptation level: count, area, share of the energy), the scene's dynamic range

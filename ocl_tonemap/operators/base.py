@@ -343,9 +343,10 @@ def white_luminance(shown, white: float, lo: float = 0.0) -> float:
 
 @dataclass(frozen=True)
 class KernelCall:
-    """A per-pixel kernel of signature ``(rgb, Y, Ys, out, n, FRAME_PARAMS)``
-    (``params``: the frame's scalars in the kernel's order, at most 16, a float16
-    argument: kernels/common.h) that maps
+    """A per-pixel kernel of signature ``(rgb, Y, Ys, out, n, __constant float *p)``
+    (``params``: the frame's scalars in the kernel's order, packed as float32; with
+    ``frame_params``, at most 16 of them as one float16 argument instead,
+    kernels/common.h ``FRAME_PARAMS``: they travel with the launch, no upload) that maps
     ``pixels_per_item`` pixels per work-item (launched over ceil(n / that) items).
     ``buffers``: extra read-only float32 arrays passed after ``p`` (tables).
     ``defines``: the kernel file's model constants, (NAME, value) pairs given to the
@@ -358,6 +359,7 @@ class KernelCall:
     pixels_per_item: int = 1
     buffers: tuple = ()
     defines: tuple = ()
+    frame_params: bool = False
 
 
 def finite_positive(flag: str, upper: float = math.inf):

@@ -59,10 +59,12 @@ class Durand00(ModelOperator):
             rod = p.rod_rgb
             vals = _packed(m_cone=p.m_cone / p.unit_cd, rod_r=rod[0], rod_g=rod[1],
                            rod_b=rod[2], inv_white=1.0 / p.white_signal, knee=p.shoulder_knee)
-            return KernelCall("durand00.cl", "durand00_map4", vals, pixels_per_item=4)
+            return KernelCall("durand00.cl", "durand00_map4", vals, pixels_per_item=4,
+                              frame_params=True)
         tc, tr, lo, step = model.lut_tables(p)
         vals = _packed(nlut=p.lut, lo=lo, inv_step=1.0 / step, tint_r=p.tint[0],
                        tint_g=p.tint[1], tint_b=p.tint[2], inv_white=1.0 / p.white_signal,
                        knee=p.shoulder_knee)
         return KernelCall("durand00.cl", "durand00_map_lut", vals,
-                          buffers=(np.concatenate([tc, tr]).astype(np.float32),))
+                          buffers=(np.concatenate([tc, tr]).astype(np.float32),),
+                          frame_params=True)

@@ -62,5 +62,5 @@ class Pattanaik00(ModelOperator):
                 p.chroma if p.chroma is not None else 0.0)
         return KernelCall("pattanaik00.cl", "pattanaik00_map8" if vector else "pattanaik00_map",
                           tuple(zip(KERNEL_PARAMS, vals)), 8 if vector else 1,
-                          defines=KERNEL_CONSTANTS)
+                          defines=KERNEL_CONSTANTS, frame_params=True)
 

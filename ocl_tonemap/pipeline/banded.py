@@ -159,7 +159,8 @@ def run_banded(graph, source, sink, dt, time_s, frame_number, luminance_scale, i
     out = fx.display_banded(dctx, alpha_sink(source, sink), (h, w), STREAM_EFFECT_BANDS * band_px)
     info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
                      levels.repairs if metered is not frame else stats.repairs,
-                     obs.scalars.copy(), graph.schedule.summary(stats, params, work), settle(eff),
+                     obs.scalars.copy(),
+                     settle(graph.schedule.summary(stats, params, work)), settle(eff),
                      graph.record)
     if start is not None:
         start(info)

@@ -210,7 +210,7 @@ class FrameGraph:
         repairs = levels.repairs if metered is not frame else stats.repairs
         info = FrameInfo(frame_number, float(time_s), step_dt, stats.G_rod, stats.G_cone,
                          repairs, self.observer.scalars.copy(),
-                         self.schedule.summary(stats, params), settle(eff), self.record,
+                         settle(self.schedule.summary(stats, params)), settle(eff), self.record,
                          transfers_since(self.backend, moved))
         return FrameResult(out, None, info, encoding is not None)
 

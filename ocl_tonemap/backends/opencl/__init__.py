@@ -288,6 +288,7 @@ class OpenCLBackend(MeteringPasses):
         frame is one band, else a host array; it is the colour stage's buffer, valid until
         the backend's next colour stage (:meth:`to_working`)."""
         h, w, _ = pixels.shape
+        statistics(self.rt).drop()         # a frame's first colour stage
         one_band = len(self.bands(h, w)) == 1
         rgb = None if (on_device and one_band) else np.empty((h, w, 3), np.float32)
         bands, repairs, G, illum, max_Y, proxy = self.meter_pass(pixels, scale, spec,
@@ -303,7 +304,9 @@ class OpenCLBackend(MeteringPasses):
         """Enqueue a per-pixel kernel (operators.base.KernelCall) over ``n`` pixels."""
         names = tuple(k for k, _ in call.params)
         knl = self.rt.kernel(call.file, call.kernel, index_defines(names) + tuple(call.defines))
-        p = frame_params([v for _, v in call.params])
+        values = [v for _, v in call.params]
+        p = frame_params(values) if call.frame_params else \
+            self.constant(np.array(values or [0.0], np.float32))
         extra = tuple(self.constant(b) for b in call.buffers)
         items = self.rt.pixel_items(max(n, 1), call.pixels_per_item)
         knl(self.rt.queue, (round_up(items, 64),), (64,), rgb, Y, Ys, out, np.int32(n), p,

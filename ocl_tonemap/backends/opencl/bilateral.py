@@ -17,6 +17,7 @@ from ...models.bilateral import (LEDDA_RANGE, SUPPORT, RangeKernel, prepare_sign
 from ...models.bilateral import BilateralSpec
 from ..bands import row_bands
 from .runtime import round_up
+from .stats import statistics
 from .transfers import ConstantBuffers, host_buffer, transfer
 
 # --- the bilateral grid, shared geometry ---------------------------------------------
@@ -93,6 +94,7 @@ class DeviceBilateral:
         self._consts = ConstantBuffers(rt.context)
         self._exact = rt.kernel("bilateral.cl", "bilateral_exact")
         self._minmax = rt.kernel("bilateral.cl", "z_minmax")
+        self._minmax_final = rt.kernel("bilateral.cl", "z_minmax_final")
         self._splat = rt.kernel("bilateral.cl", "grid_splat")
         self._blur = rt.kernel("bilateral.cl", "grid_blur")
         self._slice = rt.kernel("bilateral.cl", "grid_slice")
@@ -122,7 +124,7 @@ class DeviceBilateral:
 
     # -- exact -----------------------------------------------------------------
     def exact(self, v_buf, out_buf, width: int, rows_in: int, in_y0: int, out_y0: int,
-              rows_out: int, sigma_s: float, rk: RangeKernel):
+              rows_out: int, sigma_s: float, rk: RangeKernel, gate=None):
         """Brute-force filter of rows [out_y0, out_y0+rows_out) from a buffer
         holding image rows [in_y0, in_y0+rows_in) (which must include the
         rows within ceil(3 sigma_s) that exist)."""
@@ -133,12 +135,17 @@ class DeviceBilateral:
         self._exact(self.rt.queue, (round_up(gx, wg[0]), round_up(rows_out, wg[1])), wg,
                     v_buf, np.int32(width), np.int32(rows_in), np.int32(in_y0),
                     np.int32(out_y0), np.int32(rows_out), self._const(fw), np.int32(r),
-                    np.float32(rk.k), np.int32(1 if rk.ratio else 0), out_buf)
+                    np.float32(rk.k), np.int32(1 if rk.ratio else 0), out_buf, *self._gate(gate))
 
     # -- grid ------------------------------------------------------------------
     def z_range(self, v_buf, n: int, rk: RangeKernel) -> tuple[float, float]:
-        """Min and max of z over n values (device reduction, host finishes); ``v_buf``
-        may be the z buffer itself with an identity (difference) kernel ``rk``."""
+        """Min and max of z over n values (a device reduction); ``v_buf`` may be the z
+        buffer itself with an identity (difference) kernel ``rk``."""
+        return self.z_range_later(v_buf, n, rk)[0]()
+
+    def z_range_later(self, v_buf, n: int, rk: RangeKernel):
+        """:meth:`z_range` enqueued: (a function giving (min, max), read with the frame's
+        other statistics; the device buffer holding them, a filter's ``gate``)."""
         cl = self._cl
         wg, groups = 64, 64
         if self._mm is None:
@@ -146,9 +153,10 @@ class DeviceBilateral:
         gsz = min(round_up(max(n, 1), wg), wg * groups)
         self._minmax(self.rt.queue, (gsz,), (wg,), v_buf, np.int32(n),
                      np.int32(1 if rk.ratio else 0), self._mm, cl.LocalMemory(2 * wg * 4))
-        part = np.empty(2 * (gsz // wg), np.float32)
-        transfer(self.rt.queue, part, self._mm)
-        return float(part[0::2].min()), float(part[1::2].max())
+        out = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, 8)
+        self._minmax_final(self.rt.queue, (1,), None, self._mm, np.int32(gsz // wg), out)
+        got = statistics(self.rt).put(out, 8, np.float32)
+        return (lambda: (float(got.get()[0]), float(got.get()[1]))), out
 
     def begin_grid(self, geom: GridGeometry):
         """Allocate (if needed) and zero the grid and its blur scratch."""
@@ -200,7 +208,8 @@ class DeviceBilateral:
         self._grid = [src, dst]
 
     def slice(self, v_buf, out_buf, width: int, rows_in: int, in_y0: int, out_y0: int,
-              rows_out: int, geom: GridGeometry, rk: RangeKernel, z_ready: bool = False):
+              rows_out: int, geom: GridGeometry, rk: RangeKernel, z_ready: bool = False,
+              gate=None):
         if not z_ready:
             self.z_map(v_buf, width * rows_in, rk)
         wg = (64, 1)
@@ -209,7 +218,16 @@ class DeviceBilateral:
                     np.int32(out_y0), np.int32(rows_out), np.int32(1 if rk.ratio else 0),
                     np.float32(geom.s_s), np.float32(geom.z0), np.float32(1.0 / geom.s_r),
                     np.int32(geom.gw), np.int32(geom.gh), np.int32(geom.nz), self._grid[0],
-                    out_buf, self._zbuf)
+                    out_buf, self._zbuf, *self._gate(gate))
+
+    @staticmethod
+    def _gate(gate) -> tuple:
+        """A filter's gate arguments (kernels/bilateral.cl GATED_OFF): ``gate`` None, or
+        (min/max buffer of :meth:`z_range_later`, floor, the rows to write instead)."""
+        if gate is None:
+            return None, np.float32(0.0), None
+        buf, floor, alt = gate
+        return buf, np.float32(floor), alt
 
     def grid_limit_bytes(self) -> int:
         return int(min(self.rt.max_alloc_bytes(),

@@ -11,21 +11,21 @@ apply      Eqs. 10-16, the base layer, the composition, ``finish``; frames beyon
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ...models.bilateral import RangeKernel, spatial_radius
 from ...models.durand2002 import compression
-from ...models.display import SHOULDER_KNEE
-from ...models.kirk2011 import (SIGMA_RANGE_LOG10, anchor_gain, display_matrix, mean_exp,
-                                model_scale)
+from ...models.display import SHOULDER_KNEE, scene_key
+from ...models.kirk2011 import (SIGMA_RANGE_LOG10, TRANSIENT_N, anchor_gain, display_matrix,
+                                mean_exp, model_scale)
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
-from ..base import NoPixelState
+from ..base import Later, NoPixelState
 from .image import DeviceImage
 from .lmsr import KirkDevice
+from .metering import repair_counts
 from .runtime import round_up
+from .stats import TAIL, statistics
 from .transfers import transfer
 
 class _Banded:
@@ -52,12 +52,13 @@ class KirkSchedule(NoPixelState):
         n = h * w
         bands = be.bands(h, w)
         if len(bands) == 1 and isinstance(frame.pixels, (np.ndarray, DeviceImage)):
-            q, src, repairs = self.dev.lmsr_band(be, frame.pixels, frame.scale, frame.wavelengths,
-                                                 True)
-            sum_r, sum_lm, lit = self.dev.sums(q, n, self.dev.LOG_LEVELS)  # level_logmeans
+            q, src, _ = self.dev.lmsr_band(be, frame.pixels, frame.scale, frame.wavelengths,
+                                           False)
+            # the colour stage's repair counts come down with the level sums, in one read
+            counts = statistics(be.rt).put(be.buffer("counts", 8 * 4), 32, np.int32)
+            sum_r, sum_lm, lit = self.dev.sums_later(q, n, self.dev.LOG_LEVELS)()
             return FrameStats(w, h, mean_exp(sum_r, lit), mean_exp(sum_lm, lit),
-                              repairs if isinstance(repairs, RepairCounts) else RepairCounts(),
-                              handle=(frame.pixels, q, src))
+                              repair_counts(counts.get()), handle=(frame.pixels, q, src))
         repairs = RepairCounts()
         sum_lm = sum_r = lit = 0.0
         for y0, nr in bands:                               # the frame's levels, per band
@@ -98,20 +99,22 @@ class KirkSchedule(NoPixelState):
             dev.bil.exact(logY, base, w, h, 0, 0, h, sig, rk)
         else:
             dev.bil.fast(logY, base, w, h, sig, rk, op.bilateral.q_s, op.bilateral.q_r)
-        _, bmax = brange = dev.base_range(s.base_percentiles).add(base, n).result()
-        c = compression(brange, s.target_contrast)
-        out = dev._buf(n * 12)
+        # the compression, the anchor gain: made and used on the device, nothing read
+        rp = dev.base_range(s.base_percentiles).add(base, n, True).compression(s.target_contrast)
+        out = dev._buf(n * 12 + TAIL)           # (room for the statistics: stats.py)
         blend = frame.wavelengths is None
         dev._k_compose(q_, gsz, wg, src if blend else shifted, shifted, wbuf, logY, base,
-                       np.int32(n), np.float32(c), np.float32(bmax), np.float32(s.beta),
-                       np.float32(s.gamma),
+                       np.int32(n), rp, np.float32(s.beta), np.float32(s.gamma),
                        np.float32(op.display.white_cd / op.display.unit_cd),
                        np.int32(1 if blend else 0), out, np.int32(0 if s.paper else 1))
-        self._finish(out, n, self._gain(out, n, stats))
-        nfb = np.empty(1, np.int32)
-        transfer(q_, nfb, fb)
-        v.update(model_scale=area, w_mean=dev.sums(wbuf, n, dev.PLANE)[0] / n,
-                 fallback_fraction=float(nfb[0]) / n,
+        u = op.display.white_cd / op.display.unit_cd
+        self._finish(out, n, 1.0 if op.s.paper else dev.gain(out, n, 1.0 / u,
+                                                                 self._gain_key(stats)))
+        # the record's fallbacks and w mean come down with the output (stats.py)
+        nfb = statistics(be.rt).put(fb, 4, np.int32)
+        w_sum = dev.sums_later(wbuf, n, dev.PLANE)
+        v.update(model_scale=area, w_mean=Later(lambda: w_sum()[0] / n),
+                 fallback_fraction=Later(lambda: float(nfb.get()[0]) / n),
                  input="spectral" if frame.wavelengths is not None else "rgb")
         if sink is not None:
             res = np.empty((h, w, 3), np.float32)
@@ -134,6 +137,13 @@ class KirkSchedule(NoPixelState):
             log_sum = self.dev.sums(out, n, self.dev.LOG_OUTPUT, 1.0 / u)[::2]
         return anchor_gain(np.array([mean_exp(*log_sum)]), stats.G_cone,
                            stats.values["levels"]["A_cone"])
+
+    @staticmethod
+    def _gain_key(stats) -> float:
+        """``anchor_gain`` times the frame's log-average: what kirk11_gain divides by it
+        (the scene key of the adapted cone level, the transient factor)."""
+        A = stats.values["levels"]["A_cone"]
+        return float(scene_key(A)) * (max(stats.G_cone, 1e-10) / max(A, 1e-10)) ** TRANSIENT_N
 
     def _finish(self, out, n: int, gain: float) -> None:
         """``Kirk11.finish`` in place on the device (the shoulder and clamp per pixel;
@@ -229,7 +239,7 @@ class KirkSchedule(NoPixelState):
         for y0, nr in bands:
             acc.add(base(y0, nr, False)[0], nr * w)
         _, bmax = brange = acc.result()
-        c = compression(brange, s.target_contrast)
+        rp = dev._buf(0, np.array([compression(brange, s.target_contrast), bmax], np.float32))
         u = op.display.white_cd / op.display.unit_cd
         blend = frame.wavelengths is None
 
@@ -238,7 +248,7 @@ class KirkSchedule(NoPixelState):
             m = nr * w
             out = dev._buf(m * 12)
             dev._k_compose(q_, (round_up(m, 64),), (64,), src, shifted, wb, lb, bb,
-                           np.int32(m), np.float32(c), np.float32(bmax), np.float32(s.beta),
+                           np.int32(m), rp, np.float32(s.beta),
                            np.float32(s.gamma), np.float32(u), np.int32(1 if blend else 0),
                            out, np.int32(0 if s.paper else 1))
             return out

@@ -21,9 +21,12 @@ from ...models.bilateral import LEDDA_RANGE, V_FLOOR, spatial_radius
 from ...models.metering import MeteringSpec
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
+from ..base import Later
 from ..planes import PlaneStore, UniformPlanes, read_rows
 from .bilateral import Z_IDENTITY, DeviceBilateral
 from .ledda04_state import LeddaPixelState
+from .metering import repair_counts
+from .stats import statistics
 from .runtime import round_up
 from .transfers import transfer
 
@@ -102,23 +105,32 @@ class LeddaSchedule(LeddaPixelState):
         banded = len(bands) > 1
         # the frame's global log-averages (and the z ranges of Y and Y' for the
         # grid): one band is coloured once and stays resident
-        resident = self._colour_and_lum(frame, 0, h, (0, h)) if not banded else None
+        # (a resident frame's repair counts, sums and z ranges come down in one read)
+        resident = self._colour_and_lum(frame, 0, h, None) if not banded else None
         gsums = None
         zr = [[np.inf, -np.inf], [np.inf, -np.inf]]
         for y0, nr in ([(0, h)] if not banded else bands):
             _, n, yl, ysl = resident if resident is not None else \
                 self._colour_and_lum(frame, y0, y0 + nr, None)
-            gs = be.meter.band_sums(yl, ysl, n, w, h, y0, LOGMEAN)
+            gs = be.meter.band_sums_later(yl, ysl, n, w, h, y0, LOGMEAN,
+                                          be.bufs["counts"] if resident is not None else None)
+            ranges = []
+            if method == "fast":
+                for flt, buf in ((fc, yl), (fr, ysl)):
+                    # z once per pixel: the resident band's stays in the filter's z
+                    # buffer for its splat and slice
+                    ranges.append(flt.z_range_later(flt.z_map(buf, n, LEDDA_RANGE), n,
+                                                    Z_IDENTITY)[0])
+            gs = gs()
+            if resident is not None:
+                resident = (repair_counts(be.meter.counts), *resident[1:])
             if gsums is None:
                 gsums = gs
             else:
                 gsums.add(gs)
-            if method == "fast":
-                for k, (flt, buf) in enumerate(((fc, yl), (fr, ysl))):
-                    # z once per pixel: the resident band's stays in the filter's z
-                    # buffer for its splat and slice
-                    lo, hi = flt.z_range(flt.z_map(buf, n, LEDDA_RANGE), n, Z_IDENTITY)
-                    zr[k] = [min(zr[k][0], lo), max(zr[k][1], hi)]
+            for k, got in enumerate(ranges):
+                lo, hi = got()
+                zr[k] = [min(zr[k][0], lo), max(zr[k][1], hi)]
         G_rod_g, G_cone_g = gsums.goal(LOGMEAN)
         geoms = None
         if method == "fast":
@@ -153,16 +165,21 @@ class LeddaSchedule(LeddaPixelState):
                 fc.exact(yl, ic, w, b - a, a, y0, nr, sig, LEDDA_RANGE)
             else:
                 fc.slice(yl, ic, w, nr, y0, y0, nr, geoms[0], LEDDA_RANGE, z_ready=not banded)
-            rods_needed = banded or op.rods == "always" or \
-                fc.z_range(ic, n, Z_IDENTITY)[0] < L.PHOTOPIC_FLOOR     # the darkest level
-            if rods_needed:
-                if method == "exact":
-                    fr.exact(ysl, ir, w, b - a, a, y0, nr, sig, LEDDA_RANGE)
-                else:
-                    fr.slice(ysl, ir, w, nr, y0, y0, nr, geoms[1], LEDDA_RANGE,
-                             z_ready=not banded)
+            # the rods where the darkest cone level is below photopic: on a resident
+            # frame decided on the device (the rod filter gated, else I_r = I_c) and
+            # read with the sums, no read between the two filters
+            darkest, gate = None, None
+            if not (banded or op.rods == "always"):
+                darkest, zbuf = fc.z_range_later(ic, n, Z_IDENTITY)
+                gate = (zbuf, L.PHOTOPIC_FLOOR, ic)
+            if method == "exact":
+                fr.exact(ysl, ir, w, b - a, a, y0, nr, sig, LEDDA_RANGE, gate=gate)
+            else:
+                fr.slice(ysl, ir, w, nr, y0, y0, nr, geoms[1], LEDDA_RANGE,
+                         z_ready=not banded, gate=gate)
+            sb = be.meter.band_sums(ic, ir, n, w, h, y0, LOGMEAN)
+            rods_needed = darkest is None or darkest()[0] < L.PHOTOPIC_FLOOR
             rods_used = rods_used and rods_needed
-            sb = be.meter.band_sums(ic, ir if rods_needed else ic, n, w, h, y0, LOGMEAN)
             if sums is None:
                 sums = sb
             else:
@@ -251,9 +268,10 @@ class LeddaSchedule(LeddaPixelState):
             if src is not dst and isinstance(src, PlaneStore):
                 src.close()
             self._host = dst
-        nres = np.empty(1, np.int32)
-        transfer(q, nres, counts)
-        stats.values["restarted_fraction"] = float(nres[0]) / (h * w) if not init else 0.0
+        # the restarts' count comes down with the frame's output (stats.py)
+        got = statistics(be.rt).put(counts, 4, np.int32)
+        stats.values["restarted_fraction"] = \
+            Later(lambda: float(got.get()[0]) / (h * w)) if not init else 0.0
         stats.values["sigma_disp"] = op.frame_mapping(stats.values["global_cone"],
                                                       stats.values["global_rod"])[0]
         state.values = {"logmean_I_A_cone": float(stats.G_cone),

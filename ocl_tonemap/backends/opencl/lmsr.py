@@ -23,18 +23,21 @@ from .transfers import ConstantBuffers, transfer
 
 #: purkinje_rgb's work-group size.
 PURKINJE_WG = 64
+#: kirk11_range's work-group (kernels/kirk11.cl: its chunks of the base histogram).
+KIRK_RANGE_WG = 256
 
 #: Model constants of kernels/kirk11.cl, given as build options (never retyped);
 #: DISPLAY_LINEAR_MAX and the other shared ones come with every program (constants.py).
 #: Eq. 11's A^-1 as the kernel's closed form takes it: the four entries of its first two
 #: rows that are not 0 (the last row, (0, 1, 1), is written out there); purkinje_rgb's
-#: work-group size (:data:`PURKINJE_WG`: its fallbacks are counted per group).
+#: work-group size (:data:`PURKINJE_WG`: its fallbacks are counted per group) and
+#: kirk11_range's (:data:`KIRK_RANGE_WG`).
 KERNEL_CONSTANTS = (
     ("L_MAX_F", lmsr.L_MAX), ("M_MAX_F", lmsr.M_MAX), ("S_MAX_F", lmsr.S_MAX),
     ("ALPHA_F", K.ALPHA), ("REGULATION_C", K.REGULATION_C),
     *((f"A_INV_{i}{j}", float(K.A_INV[i, j])) for i in (0, 1) for j in (0, 2)),
     ("N_SUPPORTS", len(K.SUBSETS)), ("Y_FLOOR", K.Y_FLOOR), ("LOG_FLOOR", K.LOG_FLOOR),
-    ("PURKINJE_WG", PURKINJE_WG),
+    ("PURKINJE_WG", PURKINJE_WG), ("KIRK_RANGE_WG", KIRK_RANGE_WG),
 )
 
 
@@ -54,6 +57,8 @@ class KirkDevice:
         self._k_purkinje = rt.kernel("kirk11.cl", "purkinje_rgb", c)
         self._k_spectrum = rt.kernel("colour.cl", "spectrum_to_lmsr")
         self._k_hist = rt.kernel("kirk11.cl", "base_histogram", c)
+        self._k_range = rt.kernel("kirk11.cl", "kirk11_range", c)
+        self._k_gain = rt.kernel("kirk11.cl", "kirk11_gain", c)
         self._partial = self._buf(self.SUM_GROUPS * 16)       # kirk11_sums, per group
         self._params_key, self._params = None, ()              # purkinje's constants
         self._fallbacks = None                                 # purkinje's fallback count
@@ -93,17 +98,41 @@ class KirkDevice:
         ``anchor_gain``. Lit: above ``kirk2011.LOG_FLOOR`` (R or L+M; Y inv_u), the
         only pixels summed (the metering rule of ``models/metering.py``). Only the
         groups' records come back."""
+        return self.sums_later(x, n, mode, inv_u)()
+
+    def _sums_groups(self, x, n: int, mode: int, inv_u: float) -> int:
+        """kirk11_sums into ``self._partial``: the number of groups."""
         cl = self.cl
-        if n <= 0:
-            return 0.0, 0.0, 0.0
         wg = self.SUM_WG
         groups = max(1, min(self.SUM_GROUPS, -(-n // (4 * wg))))
         self._k_sums(self.rt.queue, (groups * wg,), (wg,), x, np.int32(n), np.int32(mode),
                      np.float32(inv_u), self._partial, cl.LocalMemory(wg * 16))
-        host = np.empty((groups, 4), np.float32)
-        transfer(self.rt.queue, host, self._partial)
-        t = host.astype(np.float64).sum(axis=0)
-        return float(t[0]), float(t[1]), float(t[2])
+        return groups
+
+    def sums_later(self, x, n: int, mode: int, inv_u: float = 1.0):
+        """:meth:`sums` enqueued, its groups put in the frame's statistics: a function
+        that gives them."""
+        if n <= 0:
+            return lambda: (0.0, 0.0, 0.0)
+        groups = self._sums_groups(x, n, mode, inv_u)
+        got = statistics(self.rt).put(self._partial, groups * 16, np.float32, (groups, 4))
+
+        def done():
+            t = got.get().astype(np.float64).sum(axis=0)
+            return float(t[0]), float(t[1]), float(t[2])
+        return done
+
+    def gain(self, out, n: int, inv_u: float, key: float):
+        """``anchor_gain`` of ``n`` composed pixels (``out``) on the device
+        (kirk11_gain): a one-float buffer, read by :meth:`finish`; nothing comes back."""
+        buf = self._buf(4)
+        if n <= 0:
+            self.cl.enqueue_fill_buffer(self.rt.queue, buf, np.float32(1.0), 0, 4)
+            return buf
+        groups = self._sums_groups(out, n, self.LOG_OUTPUT, inv_u)
+        self._k_gain(self.rt.queue, (1,), None, self._partial, np.int32(groups),
+                     np.float32(key), buf)
+        return buf
 
     #: base_histogram: at most this many work-items, each a stretch of >= HIST_MIN_RUN
     HIST_ITEMS, HIST_MIN_RUN = 16384, 64
@@ -112,14 +141,15 @@ class KirkDevice:
         """A :class:`~ocl_tonemap.models.durand2002.BaseRange` fed with device buffers."""
         return DeviceBaseRange(self, percentiles)
 
-    def finish(self, rgb, n: int, gain: float, inv_white: float, knee: float) -> None:
+    def finish(self, rgb, n: int, gain, inv_white: float, knee: float) -> None:
         """``Kirk11.finish`` in place on ``n`` display-linear pixels (kernels/kirk11.cl
-        kirk11_finish): the gain under the signal ceiling, the shoulder (knee 0: none),
-        the clamp."""
+        kirk11_finish): the gain (a float, or the device buffer :meth:`gain` made) under
+        the signal ceiling, the shoulder (knee 0: none), the clamp."""
+        if not isinstance(gain, self.cl.Buffer):
+            gain = self._buf(0, np.array([gain], np.float32))
         if n > 0:
             self._k_finish(self.rt.queue, (round_up(self.rt.pixel_items(n, 4), 64),), (64,),
-                           rgb, np.int32(n), np.float32(gain), np.float32(inv_white),
-                           np.float32(knee))
+                           rgb, np.int32(n), gain, np.float32(inv_white), np.float32(knee))
 
     #: purkinje works on host frames in bands of this many pixels (one kept buffer of
     #: 12 bytes a pixel; on a CPU device it is the host's memory).
@@ -215,17 +245,24 @@ class DeviceBaseRange:
     def __init__(self, dev: KirkDevice, percentiles):
         self.dev, self.acc = dev, BaseRange(percentiles)
         self.lo, self.hi, self.n = math.inf, -math.inf, 0
+        self._mm = None                        # the last add's (min, max) on the device
         if not self.acc.exact:
             dev.cl.enqueue_fill_buffer(dev.rt.queue, dev._hist, np.int32(0), 0,
                                        BASE_HIST_BINS * 4)
 
-    def add(self, base, n: int) -> "DeviceBaseRange":
-        """Adds the n base values (log10, float32) of the device buffer ``base``."""
+    def add(self, base, n: int, on_device: bool = False) -> "DeviceBaseRange":
+        """Adds the n base values (log10, float32) of the device buffer ``base``
+        (``on_device``: the one base of a whole frame, for :meth:`compression`: its
+        extremes stay on the device)."""
         if n <= 0:
             return self
         dev = self.dev
-        lo, hi = dev.bil.z_range(base, n, RangeKernel("difference", SIGMA_RANGE_LOG10))
-        self.lo, self.hi, self.n = min(self.lo, lo), max(self.hi, hi), self.n + n
+        got, self._mm = dev.bil.z_range_later(base, n,
+                                              RangeKernel("difference", SIGMA_RANGE_LOG10))
+        if not on_device:
+            lo, hi = got()
+            self.lo, self.hi = min(self.lo, lo), max(self.hi, hi)
+        self.n += n
         if not self.acc.exact:
             num, off, den = base_hist_edges()
             items = max(1, min(dev.HIST_ITEMS, n // dev.HIST_MIN_RUN))
@@ -234,6 +271,23 @@ class DeviceBaseRange:
                         np.float32(BASE_HIST_BINS / (BASE_HIST_HI - BASE_HIST_LO)),
                         np.int32(num), np.int32(off), np.float32(1.0 / den), dev._hist)
         return self
+
+    def compression(self, target_contrast: float):
+        """``compression`` of the range and its top on the device (kirk11_range), for
+        a range of one :meth:`add` made with ``on_device``: a buffer (c, base_max) the
+        composition reads; nothing comes back."""
+        dev, acc = self.dev, self.acc
+        ranks = []
+        for p in (acc.p_lo, acc.p_hi):
+            r = p / 100.0 * (self.n - 1)            # BaseRange._percentile's rank
+            ranks += [np.int32(math.floor(r)), np.float32(r - math.floor(r))]
+        rp = dev._buf(8)
+        dev._k_range(dev.rt.queue, (KIRK_RANGE_WG,), (KIRK_RANGE_WG,), self._mm, dev._hist,
+                     np.int32(BASE_HIST_BINS), np.int32(1 if acc.exact else 0),
+                     np.int32(self.n), *ranks, np.float32(BASE_HIST_LO),
+                     np.float32((BASE_HIST_HI - BASE_HIST_LO) / BASE_HIST_BINS),
+                     np.float32(math.log10(target_contrast)), rp)
+        return rp
 
     def result(self) -> tuple[float, float]:
         hist = None

@@ -54,6 +54,8 @@ class Pending:
     def get(self) -> np.ndarray:
         if self._value is None:
             self._stats.read()
+        if self._value is None:
+            raise RuntimeError("a frame statistic asked for after its frame was over")
         return self._value
 
 
@@ -107,6 +109,13 @@ class FrameStatistics:
     def _resolve_all(self, host: np.ndarray) -> None:
         for p in self._pending:
             p._resolve(host)
+        self._pending = []
+        self._used = 0
+
+    def drop(self) -> None:
+        """A new frame: what the last one put and nobody asked for (a source proxy made
+        ahead for a plan that reused its predictions, a flare the plan skipped) does not
+        come down with this frame's statistics."""
         self._pending = []
         self._used = 0
 
