@@ -146,11 +146,21 @@ class FramePool:
         self._arrays: list[np.ndarray] = []
         self._lock = threading.Lock()
         self.made = 0                          # arrays allocated (a fresh frame's memory)
+        self._host = None                      # a backend's host arrays (use)
+
+    def use(self, backend) -> None:
+        """Take the arrays from ``backend``'s ``host_arrays`` where it has them (an
+        OpenCL device: page-locked memory for a GPU's transfers), kept by it under the
+        same rule and bound."""
+        make = getattr(backend, "host_arrays", None)
+        self._host = make(self.keep) if make is not None else None
 
     def take(self, shape, dtype=np.float32) -> np.ndarray:
         """An array of ``shape`` and ``dtype`` (float32, or float16 for frames kept as
         stored) that nothing else refers to (contents undefined)."""
         shape, dtype = tuple(int(v) for v in shape), np.dtype(dtype)
+        if self._host is not None and self._host.pinned:
+            return self._host.empty(shape, dtype)
 
         def fits(a):
             return a.shape == shape and a.dtype == dtype

@@ -147,6 +147,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
             io.prefetch(0, lambda: read_frame(inp0, f0, opts.channels, io.pool, keep_half=True))
         opts = resolved_backend(opts)              # the device probed behind the read
         run, tm = setup_run(opts, state)
+        io.pool.use(tm.backend)                    # page-locked frames for a GPU
         check_output_depth(opts, run.disp, jobs)
         check_output_tag(run.colour, opts, jobs)
         exporter = None

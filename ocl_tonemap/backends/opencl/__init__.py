@@ -24,7 +24,9 @@ from .image import DeviceArrayOutput, DeviceImage, device_image
 from .lmsr import KirkDevice
 from .metering import DeviceMeter, MeteringPasses, repair_counts
 from .runtime import describe_device, frame_params, get_runtime, index_defines, round_up
-from .stats import TAIL, statistics, tailed
+from . import pinned
+from .pinned import HostArrays
+from .stats import TAIL, statistics
 from .transfers import ConstantBuffers, Transfers, counted, transfer
 
 
@@ -216,13 +218,17 @@ class OpenCLBackend(MeteringPasses):
         return b["src"] if one_band and b["src"].size >= 12 * n else b["out"]
 
     # -- the output -------------------------------------------------------------------------
-    @staticmethod
-    def output_array(h: int, w: int, encoding=None):
+    def output_array(self, h: int, w: int, encoding=None):
         """The array a frame's output comes back into: display-linear float32 on the
         host, or ``encoding``'s (a ``display.DeviceOutputEncoding``: code values on the
         host; an ``image.DeviceArrayOutput``: display-linear on the device)."""
-        return tailed((h, w, 3), np.float32) if encoding is None else \
-            encoding.array(h, w)
+        return pinned.outputs(self.rt).empty((h, w, 3), np.float32, TAIL) \
+            if encoding is None else encoding.array(h, w)
+
+    def host_arrays(self, keep: int) -> HostArrays:
+        """Arrays for frames read to come here (``imageio.FramePool``'s allocator):
+        page-locked where the device is not a CPU (``pinned.py``)."""
+        return HostArrays(self.rt, keep)
 
     def fetch_output(self, dst: np.ndarray, buf, n: int, encoding=None) -> None:
         """Bring ``n`` pixels of a per-pixel kernel's RGB output (``buf``) back into

@@ -13,7 +13,8 @@ import threading
 import numpy as np
 
 from .runtime import get_runtime, round_up
-from .stats import TAIL, statistics, tailed
+from . import pinned
+from .stats import TAIL, statistics
 from .transfers import host_buffer, transfer
 
 _WG = 64
@@ -174,9 +175,9 @@ class DeviceOutputEncoding:
         self.table.encode_buffer(queue, src, n, out.reshape(-1), self.bits)
 
     def array(self, h: int, w: int) -> np.ndarray:
-        """Where a frame's code values come back: a host array (with room after it for
-        the frame's last statistics: ``stats.tailed``)."""
-        return tailed((h, w, 3), self.dtype)
+        """Where a frame's code values come back: a host array (page-locked for a GPU:
+        ``pinned.py``) with room after it for the frame's last statistics."""
+        return pinned.outputs(self.table.rt).empty((h, w, 3), self.dtype, TAIL)
 
 
 class BlurredOutputEncoding:

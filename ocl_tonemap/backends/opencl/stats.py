@@ -23,14 +23,6 @@ from .transfers import transfer
 TAIL = 4096
 
 
-def tailed(shape, dtype) -> np.ndarray:
-    """An empty host array with :data:`TAIL` bytes after it (an output's: see
-    :meth:`FrameStatistics.download`)."""
-    dtype = np.dtype(dtype)
-    n = int(np.prod(shape)) * dtype.itemsize
-    return np.empty(n + TAIL, np.uint8)[:n].view(dtype).reshape(shape)
-
-
 class Pending:
     """Values put in a :class:`FrameStatistics`: ``get()`` them (a read where they have
     not come yet)."""
@@ -121,8 +113,9 @@ class FrameStatistics:
 
     def download(self, host: np.ndarray, buf) -> None:
         """``host`` <- device buffer ``buf`` (a frame's output), with what is pending here
-        in the same transfer where ``host`` is a :func:`tailed` array and ``buf`` has
-        room after the frame (:data:`TAIL` bytes): the frame's last statistics (the
+        in the same transfer where ``host`` has :data:`TAIL` bytes of its memory after
+        it (``pinned.HostArrays.empty``'s ``tail``) and ``buf`` has as much room after
+        the frame: the frame's last statistics (the
         Purkinje shift's fallbacks, the flared sums) come down with its output."""
         import pyopencl as cl
         base = host.base
