@@ -393,12 +393,14 @@ __kernel void flare_finish0(__global const float *rgb, __global const float4 *S,
 /* The halo ring (f3) on its level, on the device (issue 47: no round trip to a host
  * FFT). Its sources are few: flare_nonzero lists the level's nonzero samples in order
  * (one work-group: each work-item a contiguous share, an exclusive scan of their
- * counts in local memory), flare_ring sums each output sample over them with the f3
+ * counts in local memory), with their offsets in K's rows and their values, and
+ * flare_ring sums each output sample over them with the f3
  * kernel of each channel, K: 3 planes of (2h-1) x (2w-1), centre at [h-1, w-1]
  * (spencer1995.basis_kernel), out = w3 (K * S), the same linear convolution as the
  * reference's FFT (backends/flare_exec.py fftconvolve_same), in a fixed order. */
-__kernel void flare_nonzero(__global const float4 *S, const int n, __global int *idx,
-                            __global int *count, __local int *scan)
+__kernel void flare_nonzero(__global const float4 *S, const int n, const int w,
+                            __global int *off, __global float4 *val, __global int *count,
+                            __local int *scan)
 {
     const int lid = get_local_id(0), lsz = get_local_size(0);
     const int per = (n + lsz - 1) / lsz;
@@ -421,14 +423,18 @@ __kernel void flare_nonzero(__global const float4 *S, const int n, __global int 
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     int o = scan[lid];
+    const int kw = 2 * w - 1;
     for (int i = a; i < b; i++) {
         const float4 v = S[i];
-        if (v.x != 0.0f || v.y != 0.0f || v.z != 0.0f) idx[o++] = i;
+        if (v.x != 0.0f || v.y != 0.0f || v.z != 0.0f) {
+            off[o] = (i / w) * kw + i % w;      /* its offset in K's rows */
+            val[o++] = v;
+        }
     }
 }
 
-__kernel void flare_ring(__global const float4 *S, const int w, const int h,
-                         __global const int *idx, __global const int *count,
+__kernel void flare_ring(const int w, const int h, __global const int *off,
+                         __global const float4 *val, __global const int *count,
                          __global const float *K, const float w3, __global float4 *out)
 {
     const int x = get_global_id(0), y = get_global_id(1);
@@ -438,10 +444,8 @@ __kernel void flare_ring(__global const float4 *S, const int w, const int h,
     const int base = (y + h - 1) * kw + (x + w - 1);
     float3 acc = 0.0f;
     for (int j = 0; j < m; j++) {
-        const int q = idx[j];
-        const int qy = q / w;
-        const int k = base - qy * kw - (q - qy * w);
-        const float4 s = S[q];
+        const int k = base - off[j];
+        const float4 s = val[j];
         acc += (float3)(K[k] * s.x, K[plane + k] * s.y, K[2 * plane + k] * s.z);
     }
     out[y * w + x] = (float4)(w3 * acc, 0.0f);

@@ -29,8 +29,9 @@ BYTES_PER_PIXEL = 16 * (4 / 3 + 4 / 3 + 1) + 24
 #: A CPU device's ring sums over each nonzero sample of its level, a cost that grows
 #: with the sources; where they are more than this share of the frame's pixels the
 #: host's FFT makes it instead (its level down and up: 2 x 140 KiB at 1080p). A GPU
-#: always sums. (Measured on 2 cores, 1920 x 1080: docs/backends.md.)
-RING_HOST_SHARE = 0.03
+#: always sums. (Measured on 2 cores at 1920 x 1080, a frame's time with the sum
+#: against the FFT: the same at 7 % sources, +1.3 ms at 14 %, +12 ms at 28 %.)
+RING_HOST_SHARE = 0.15
 
 
 class DeviceFlare(FlareLevel0):
@@ -278,12 +279,13 @@ class DeviceFlare(FlareLevel0):
             K = np.stack([fl.basis_kernel(fl.channel_bases(c)[3], (hh, ww), deg_per_px)
                           for c in range(3)]).astype(np.float32)
             self._ring_k = (key, host_buffer(self.rt.context, K))
-        idx, cnt = self._buf("ring_idx", 4 * n), self._buf("ring_count", 4)
+        off, val = self._buf("ring_off", 4 * n), self._buf("ring_val", 16 * n)
+        cnt = self._buf("ring_count", 4)
         L = self.local
-        self._k["flare_nonzero"](q, (L,), (L,), S_buf, np.int32(n), idx, cnt,
-                                 cl.LocalMemory(4 * L))
+        self._k["flare_nonzero"](q, (L,), (L,), S_buf, np.int32(n), np.int32(ww), off, val,
+                                 cnt, cl.LocalMemory(4 * L))
         buf = self._buf("ring", 16 * n)
-        self._k["flare_ring"](q, (round_up(ww, 16), round_up(hh, 4)), (16, 4), S_buf,
-                              np.int32(ww), np.int32(hh), idx, cnt, self._ring_k[1],
-                              np.float32(w3), buf)
+        self._k["flare_ring"](q, (round_up(ww, 16), round_up(hh, 4)), (16, 4), np.int32(ww),
+                              np.int32(hh), off, val, cnt, self._ring_k[1], np.float32(w3),
+                              buf)
         return buf
