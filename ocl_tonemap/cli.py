@@ -103,6 +103,25 @@ def _simulate_args(p) -> None:
                    "seconds, or with an m suffix minutes (e.g. 1m,2m,4m,16m)")
 
 
+def _visibility_args(p) -> None:
+    p.add_argument("--background", type=float, required=True, metavar="L",
+                   help="background luminance L_b, cd/m^2 (the eye adapted to it)")
+    p.add_argument("--size", type=float, default=10.0, metavar="ARCMIN",
+                   help="target size, arcmin (a disc of the same area; default 10)")
+    p.add_argument("--age", type=float, default=25.0, metavar="YEARS",
+                   help="observer age, 1..100 (default 25)")
+    p.add_argument("--time", type=float, default=2.0, metavar="S",
+                   help="observation time, s (default 2; inf: a long look)")
+    p.add_argument("--negative", action="store_true",
+                   help="a target darker than its background (default: brighter)")
+    p.add_argument("--target", type=float, metavar="L",
+                   help="target luminance, cd/m^2: its visibility level VL")
+    p.add_argument("--k", type=float, default=2.6,
+                   help="field factor (2.6: 99.93%% detection, RP-8; 1: the laboratory's "
+                   "50%%)")
+    p.add_argument("--json", action="store_true", help="the terms as JSON")
+
+
 def _sample_args(p) -> None:
     p.add_argument("outdir")
     p.add_argument("--spectral", action="store_true",
@@ -147,6 +166,10 @@ COMMANDS = (
     Command("simulate", "a still image seen over time after pre-adaptation (one output per "
             "--at time)", commands.simulate, _simulate_args,
             "ocl-tonemap simulate --at T1,T2,... [options] INPUT OUTPUT", runs=True),
+    Command("visibility", "the threshold luminance difference of a target (Adrian 1989) and "
+            "its visibility level, with each term", commands.visibility, _visibility_args,
+            "ocl-tonemap visibility --background L [--size ARCMIN] [--age A] [--time S] "
+            "[--target L] [--json]"),
     Command("radiance-env", "the shell lines that put Radiance's programs from pip install "
             "'ocl-tonemap[radiance]' on PATH (eval \"$(ocl-tonemap radiance-env)\")",
             commands.radiance_env),

@@ -4,7 +4,9 @@ arguments."""
 
 from __future__ import annotations
 
+import json
 import logging
+import math
 import os
 import shlex
 import sys
@@ -136,6 +138,49 @@ def simulate(a, argv) -> int:
     if not a.quiet:                   # (rendered in time order)
         for t, o in zip(sorted(parse_times(a.at)), res.outputs):
             print(f"t = {t:g} s -> {o}")
+    return 0
+
+
+def visibility(a, argv) -> int:
+    from .models import adrian1989 as ad  # lazy: a command loads its own layers
+    if not 1.0 <= a.age <= 100.0:
+        raise ValueError(f"--age must be 1..100 years (got {a.age:g})")
+    if not a.size > 0:
+        raise ValueError(f"--size must be > 0 arcmin (got {a.size:g})")
+    if not a.time > 0:
+        raise ValueError(f"--time must be > 0 s (got {a.time:g})")
+    if a.target is not None and not (a.target >= 0 and math.isfinite(a.target)):
+        raise ValueError(f"--target must be a luminance >= 0 cd/m^2 (got {a.target:g})")
+    polarity = "negative" if a.negative else "positive"
+    if a.target is not None:          # the target says its polarity
+        polarity = "negative" if a.target < a.background else "positive"
+    th = ad.threshold(a.background, a.size, a.age, a.time, polarity, a.k)
+    out = th.as_dict()
+    if a.target is not None:
+        out["L_target"] = a.target
+        out["VL"] = ad.visibility_level(a.target - a.background, th)
+    if a.json:
+        print(json.dumps(out, indent=1))
+        return 0
+    rows = [("background L_b", f"{th.L_b:.6g} cd/m^2"),
+            ("target size", f"{th.alpha_arcmin:g} arcmin"),
+            ("observer age", f"{th.age:g} years"),
+            ("observation time", f"{th.time_s:g} s"), ("contrast polarity", th.polarity),
+            ("sqrt(Phi) (Ricco)", f"{th.sqrt_phi:.5g}"),
+            ("sqrt(L) (Weber)", f"{th.sqrt_weber:.5g}"),
+            ("(sqrt(Phi)/alpha + sqrt(L))^2", f"{th.basic:.5g} cd/m^2"),
+            ("field factor k", f"{th.k:g}"), ("polarity factor F_cp", f"{th.F_cp:.4f}"),
+            ("time factor (a+t)/t", f"{th.time_factor:.4f}"),
+            ("age factor AF", f"{th.age_factor:.4f}"),
+            ("threshold dL_th", f"{th.dL_th:.5g} cd/m^2"),
+            ("threshold contrast dL_th/L_b", f"{th.contrast:.4g}")]
+    if a.target is not None:
+        rows += [("target L_t", f"{a.target:.6g} cd/m^2"),
+                 ("visibility level VL", f"{out['VL']:.3f}" +
+                  ("  (below threshold)" if out["VL"] < 1 else ""))]
+    width = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        print(f"{k:<{width}}  {v}")
     return 0
 
 

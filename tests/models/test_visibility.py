@@ -1,0 +1,125 @@
+"""Adrian 1989's threshold luminance difference and CIE 146's disability glare
+(models/adrian1989.py, models/cie146.py; issue 48's first step): the model's pieces
+where its fits meet, its factors at the ages and polarities the literature quotes,
+and the behaviour a road-lighting designer relies on. (Adrian's published values
+and the CIE 88 portal are the issue's next steps.)"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from ocl_tonemap.models import adrian1989 as ad
+from ocl_tonemap.models import cie146
+
+
+@pytest.mark.parametrize("L", [ad.L_LOW, ad.L_HIGH])
+def test_the_fits_meet_where_their_ranges_do(L):
+    """Adrian's three fits of sqrt(Phi) and sqrt(L) are continuous to a few percent at
+    0.00418 and 0.6 cd/m^2 (a break there would be a step in a visibility map)."""
+    for f in (ad.sqrt_phi, ad.sqrt_weber):
+        below, above = float(f(L * (1 - 1e-9))), float(f(L * (1 + 1e-9)))
+        assert above == pytest.approx(below, rel=0.03), f.__name__
+
+
+def test_the_threshold_falls_with_the_background_and_the_size():
+    """Threshold contrast falls as the background brightens and the target grows
+    (van Bommel 2015, Fig. 3.1 from Adrian 1989: 4, 7 and 9 arcmin at 0.1 .. 10 cd/m^2,
+    0.2 s, age 30); the threshold luminance difference rises with the background
+    (Weber's law above ~1 cd/m^2: dL_th / L_b tends to a constant). Over the range of
+    road and tunnel lighting, 0.01 .. 100 cd/m^2 (beyond, the small targets' fits turn
+    up slightly: daylight is not the model's domain)."""
+    Ls = np.logspace(-2, 2, 21)
+    for size in (4.0, 7.0, 9.0, 20.0):
+        C = [ad.threshold(L, size, 30, 0.2).contrast for L in Ls]
+        dL = [ad.threshold(L, size, 30, 0.2).dL_th for L in Ls]
+        assert np.all(np.diff(C) < 0) and np.all(np.diff(dL) > 0)
+    for L in (0.1, 1.0, 10.0):
+        c = [ad.threshold(L, s, 30, 0.2).contrast for s in (4.0, 7.0, 9.0)]
+        assert c[0] > c[1] > c[2]
+    weber = [ad.threshold(L, 60.0, 23, math.inf).contrast for L in (1e3, 1e4)]
+    assert weber[1] == pytest.approx(weber[0], rel=0.3)
+
+
+def test_the_age_factor_is_adrians():
+    assert float(ad.age_factor(23)) == pytest.approx((23 - 19) ** 2 / 2160 + 0.99)
+    assert float(ad.age_factor(60)) == pytest.approx(41 ** 2 / 2160 + 0.99)      # 1.768
+    assert float(ad.age_factor(70)) == pytest.approx(13.4 ** 2 / 116.3 + 1.43)   # 2.974
+    assert float(ad.age_factor(10)) == float(ad.age_factor(23))                 # held
+    a60, a23 = (ad.threshold(1.0, 10, A, 2.0) for A in (60, 23))
+    assert a60.dL_th / a23.dL_th == pytest.approx(a60.age_factor / a23.age_factor)
+
+
+def test_a_long_look_and_a_short_one():
+    """(a + t)/t: 1 for a long look, larger the shorter the look; a(alpha, L_b) is a
+    fraction of a second."""
+    th = [ad.threshold(1.0, 10, 23, t) for t in (0.1, 0.2, 2.0, math.inf)]
+    f = [x.time_factor for x in th]
+    assert f[0] > f[1] > f[2] > f[3] == 1.0
+    assert 0.05 < float(ad.time_constant(1.0, 10.0)) < 0.5
+
+
+def test_a_dark_target_needs_less_difference_than_a_bright_one():
+    """F_cp < 1: at road levels a target darker than its background is seen at a
+    smaller difference than a brighter one (Adrian's negative contrast)."""
+    for L in (0.1, 1.0, 10.0):
+        pos, neg = (ad.threshold(L, 10, 23, 0.2, p) for p in ("positive", "negative"))
+        assert 0 < neg.F_cp < 1 and neg.dL_th < pos.dL_th
+
+
+def test_visibility_level_is_the_difference_over_the_threshold():
+    th = ad.threshold(1.0, 10, 60, 0.2)
+    assert ad.visibility_level(5 * th.dL_th, th) == pytest.approx(5.0)
+    with pytest.raises(ValueError, match="background"):
+        ad.threshold(0.0)
+    with pytest.raises(ValueError, match="size"):
+        ad.threshold(1.0, 0.0)
+
+
+def test_cie146_glare():
+    """The general equation against the age-adjusted Stiles-Holladay one where both
+    hold (CIE 146: 'adequate accuracy within their domains'): within a factor 1.6 at
+    2-20 degrees, the same fall with angle, and the older eye veiled more by
+    (1 + (A/62.5)^4)."""
+    th = np.array([2.0, 5.0, 10.0, 20.0])
+    for A in (25, 70):
+        g, s = cie146.veil_per_lux(th, A), cie146.stiles_holladay(th, A)
+        assert np.all(g / s > 1 / 1.6) and np.all(g / s < 1.6)
+        assert np.all(np.diff(g) < 0)
+    young, old = cie146.veil_per_lux(10.0, 25, 0.0), cie146.veil_per_lux(10.0, 70, 0.0)
+    core = 10 / 1e3
+    assert (old - core) / (young - core) == pytest.approx(
+        float(cie146.age_glare_factor(70) / cie146.age_glare_factor(25)))
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "ocl_tonemap", "visibility", *args],
+                          capture_output=True, text=True)
+
+
+def test_the_calculator_prints_each_term_and_vl():
+    r = _cli("--background", "1", "--size", "10", "--age", "60", "--time", "0.2",
+             "--target", "1.5", "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    th = ad.threshold(1.0, 10, 60, 0.2)
+    assert d["dL_th"] == pytest.approx(th.dL_th) and d["age_factor"] == pytest.approx(1.7683,
+                                                                                       abs=1e-4)
+    assert d["VL"] == pytest.approx(0.5 / th.dL_th)
+    r = _cli("--background", "1", "--target", "0.2")
+    assert r.returncode == 0 and "negative" in r.stdout and "visibility level VL" in r.stdout
+
+
+@pytest.mark.parametrize("args, why", [
+    (["--background", "1", "--size", "0"], "--size must be > 0"),
+    (["--background", "1", "--age", "120"], "--age must be 1..100"),
+    (["--background", "0"], "background luminance must be > 0"),
+])
+def test_the_calculator_refuses_bad_input_in_one_line(args, why):
+    r = _cli(*args)
+    assert r.returncode == 2 and why in r.stderr and len(r.stderr.strip().splitlines()) == 1
