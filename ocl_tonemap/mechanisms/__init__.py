@@ -77,15 +77,17 @@ class MechanismPlan:
         return block_stride(h, w) if self.active else 0
 
     def frame(self, levels, get_rows, h: int, w: int, scale: float, extra: dict | None,
-              dt: float, fresh: bool) -> dict:
+              dt: float, fresh: bool, get_patches=None) -> dict:
         """{"weights", "estimate", "record"} of one frame: ``levels`` its backend's
         :class:`~ocl_tonemap.backends.base.Levels` with the proxy; ``get_rows(a, b)`` its
-        working-space rows (full-resolution patches, for acuity); ``extra``: the state's,
+        working-space rows (full-resolution patches, for acuity; ``get_patches``: the
+        frame's own way to give the patches alone, a device image's); ``extra``: the state's,
         where the weights advance (None: a measure-only pass, targets only)."""
         if not self.active or levels.proxy is None:
             return {}
         G_rod, G_cone = levels.goal
-        patches = patches_of(get_rows, h, w, scale) if self.gated else []
+        patches = patches_of(get_rows, h, w, scale, get_patches=get_patches) \
+            if self.gated else []
         an = analyse(levels.proxy, G_rod, G_cone, w, h, self.display, patches)
         an.flare_limit = self.flare_limit(G_rod, G_cone)
         an.max_Y = levels.max_Y

@@ -53,16 +53,22 @@ def block_stride(h: int, w: int, side: int = PROXY_SIDE) -> int:
 
 
 def patches_of(get_rows, h: int, w: int, scale: float, side: int = PATCH_SIDE,
-               grid: int = PATCH_GRID) -> list:
+               grid: int = PATCH_GRID, get_patches=None) -> list:
     """Full-resolution patches on a grid (cd/m^2, float64), for fine detail and as
-    a sample of single pixels: [(y, x, patch)]."""
+    a sample of single pixels: [(y, x, patch)]. ``get_patches(ys, xs, ph, pw)``: the
+    frame's own way to give them ({(y, x): patch}: a frame on a device reads them
+    alone, not their rows)."""
     ph, pw = min(side, h), min(side, w)
-    ys = np.linspace(0, h - ph, grid).round().astype(int)
-    xs = np.linspace(0, w - pw, grid).round().astype(int)
+    ys = sorted(set(np.linspace(0, h - ph, grid).round().astype(int).tolist()))
+    xs = sorted(set(np.linspace(0, w - pw, grid).round().astype(int).tolist()))
+    if get_patches is not None:
+        got = get_patches(ys, xs, ph, pw)
+        return [(y, x, sanitize(np.asarray(got[y, x])[..., :3], scale)[0])
+                for y in ys for x in xs]
     out = []
-    for y in sorted(set(ys.tolist())):
+    for y in ys:
         rows = np.asarray(get_rows(y, y + ph))[..., :3]
-        for x in sorted(set(xs.tolist())):
+        for x in xs:
             out.append((y, x, sanitize(rows[:, x:x + pw], scale)[0]))
     return out
 

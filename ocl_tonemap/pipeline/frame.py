@@ -116,7 +116,8 @@ class FrameGraph:
         h, w = frame.shape[:2]
         pix = frame.pixels
         plan = self.plan.frame(levels, lambda a, b: pix[a:b], h, w, frame.scale,
-                               None if measure_only else self.observer.scalars.extra, dt, fresh)
+                               None if measure_only else self.observer.scalars.extra, dt, fresh,
+                               getattr(pix, "patches", None))
         self.effects.begin_frame(weights if weights is not None else plan.get("weights"),
                                  plan.get("estimate"))
         self.record = plan.get("record", {})

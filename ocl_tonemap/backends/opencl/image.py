@@ -55,6 +55,25 @@ class DeviceImage:
     def __len__(self) -> int:
         return self.shape[0]
 
+    def patches(self, ys, xs, ph: int, pw: int) -> dict:
+        """The ph x pw patches at each (y, x) of ``ys`` x ``xs`` (the plan's full-
+        resolution samples): gathered on the device by rectangular copies and read in
+        one transfer, not their rows whole. {(y, x): (ph, pw, C) float32}."""
+        import pyopencl as cl
+        h, w, c = self.shape
+        item = 4 * c
+        at = [(int(y), int(x)) for y in ys for x in xs]
+        out = np.empty((len(at), ph, pw, c), np.float32)
+        if not at or ph <= 0 or pw <= 0:
+            return {}
+        dev = cl.Buffer(self.rt.context, cl.mem_flags.READ_WRITE, out.nbytes)
+        for k, (y, x) in enumerate(at):
+            cl.enqueue_copy(self.rt.queue, dev, self.buffer, src_origin=(x * item, y, 0),
+                            dst_origin=(0, k * ph, 0), region=(pw * item, ph, 1),
+                            src_pitches=(w * item, 0), dst_pitches=(pw * item, 0))
+        transfer(self.rt.queue, out, dev)
+        return {yx: out[k] for k, yx in enumerate(at)}
+
     def copy_to(self, queue, dst) -> None:
         """Copy the pixels into device buffer ``dst`` (device to device)."""
         transfer(queue, dst, self.buffer, byte_count=self.nbytes)
