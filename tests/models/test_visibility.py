@@ -123,3 +123,21 @@ def test_the_calculator_prints_each_term_and_vl():
 def test_the_calculator_refuses_bad_input_in_one_line(args, why):
     r = _cli(*args)
     assert r.returncode == 2 and why in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_the_flares_psf_per_steradian_is_the_one_held_against_cie146():
+    """benchmarks/glare_cie146.py puts the flare's PSF in the CIE's units, per
+    steradian: it still carries the whole of a source's light (the bases' unit energy,
+    integrated over the angle as the flare's kernels sample it), and it veils more
+    than CIE 146's young eye at 2-20 degrees, about as its 70-year-old does (the
+    table in benchmarks/results/glare_cie146.md; issue 48's age step starts here)."""
+    from benchmarks.glare_cie146 import spencer_psf
+    from ocl_tonemap.models import spencer1995 as fl
+    th = np.concatenate([np.linspace(0, 0.2, 20001)[:-1],
+                         np.linspace(0.2, fl.THETA_MAX, 400001)])
+    r = np.radians(th)
+    assert np.trapezoid(spencer_psf(th, 1.0) * 2 * np.pi * r, r) == pytest.approx(1.0, rel=1e-4)
+    band = np.array([2.0, 5.0, 10.0, 20.0])
+    ratio = spencer_psf(band, 1.0) / cie146.veil_per_lux(band, 25)
+    assert np.all(ratio > 1.25)
+    assert np.all(np.abs(spencer_psf(band, 1.0) / cie146.veil_per_lux(band, 70) - 1) < 0.25)
