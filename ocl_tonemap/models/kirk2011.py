@@ -253,9 +253,14 @@ def anchor_gain(Y_out: np.ndarray, L_wa: float, A_cone: float) -> float:
     entering a tunnel, brighter (dazzle) leaving it. The range reduction maps every
     frame's base maximum to white whatever its level; without this a 0.1 cd/m^2
     scene was shown at 0.86x its daylight brightness."""
-    la = logmean(Y_out)
-    g = float(scene_key(A_cone)) / la
-    return g * (max(L_wa, 1e-10) / max(A_cone, 1e-10)) ** TRANSIENT_N
+    return anchor_key(L_wa, A_cone) / logmean(Y_out)
+
+
+def anchor_key(L_wa: float, A_cone: float) -> float:
+    """:func:`anchor_gain` times the frame's log-average: the scene key of the adapted
+    cone level times the transient factor (L_wa/A_cone)^n (what a device divides by the
+    log-average it reduces: kernels/kirk11.cl kirk11_gain)."""
+    return float(scene_key(A_cone)) * (max(L_wa, 1e-10) / max(A_cone, 1e-10)) ** TRANSIENT_N
 
 
 # --- settings and the per-frame pieces -------------------------------------------------

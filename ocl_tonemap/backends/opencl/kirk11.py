@@ -15,8 +15,8 @@ import numpy as np
 
 from ...models.bilateral import RangeKernel, spatial_radius
 from ...models.durand2002 import compression
-from ...models.display import SHOULDER_KNEE, scene_key
-from ...models.kirk2011 import (SIGMA_RANGE_LOG10, TRANSIENT_N, anchor_gain, display_matrix,
+from ...models.display import SHOULDER_KNEE
+from ...models.kirk2011 import (SIGMA_RANGE_LOG10, anchor_gain, anchor_key, display_matrix,
                                 mean_exp, model_scale)
 from ...models.photometry import RepairCounts
 from ...operators.base import FrameStats
@@ -102,14 +102,14 @@ class KirkSchedule(NoPixelState):
         # the compression, the anchor gain: made and used on the device, nothing read
         rp = dev.base_range(s.base_percentiles).add(base, n, True).compression(s.target_contrast)
         out = dev._buf(n * 12 + TAIL)           # (room for the statistics: stats.py)
+        u = op.display.white_cd / op.display.unit_cd
         blend = frame.wavelengths is None
         dev._k_compose(q_, gsz, wg, src if blend else shifted, shifted, wbuf, logY, base,
                        np.int32(n), rp, np.float32(s.beta), np.float32(s.gamma),
-                       np.float32(op.display.white_cd / op.display.unit_cd),
-                       np.int32(1 if blend else 0), out, np.int32(0 if s.paper else 1))
-        u = op.display.white_cd / op.display.unit_cd
-        self._finish(out, n, 1.0 if op.s.paper else dev.gain(out, n, 1.0 / u,
-                                                                 self._gain_key(stats)))
+                       np.float32(u), np.int32(1 if blend else 0), out,
+                       np.int32(0 if s.paper else 1))
+        key = anchor_key(stats.G_cone, stats.values["levels"]["A_cone"])
+        self._finish(out, n, 1.0 if op.s.paper else dev.gain(out, n, 1.0 / u, key))
         # the record's fallbacks and w mean come down with the output (stats.py)
         nfb = statistics(be.rt).put(fb, 4, np.int32)
         w_sum = dev.sums_later(wbuf, n, dev.PLANE)
@@ -137,13 +137,6 @@ class KirkSchedule(NoPixelState):
             log_sum = self.dev.sums(out, n, self.dev.LOG_OUTPUT, 1.0 / u)[::2]
         return anchor_gain(np.array([mean_exp(*log_sum)]), stats.G_cone,
                            stats.values["levels"]["A_cone"])
-
-    @staticmethod
-    def _gain_key(stats) -> float:
-        """``anchor_gain`` times the frame's log-average: what kirk11_gain divides by it
-        (the scene key of the adapted cone level, the transient factor)."""
-        A = stats.values["levels"]["A_cone"]
-        return float(scene_key(A)) * (max(stats.G_cone, 1e-10) / max(A, 1e-10)) ** TRANSIENT_N
 
     def _finish(self, out, n: int, gain: float) -> None:
         """``Kirk11.finish`` in place on the device (the shoulder and clamp per pixel;
