@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import math
 import os
-import sys
-import threading
 from dataclasses import dataclass
 
 import numpy as np
 import OpenImageIO as oiio
 
 from . import radiance, safeio
+from .reuse import Reused
 from .channels import MIN_SPECTRAL_CHANNELS, channel_runs, select_channels, spectral_channels
 from .models.lmsr import spectral_to_rgb
 from .models.photometry import xy_to_rgb
@@ -128,7 +127,7 @@ def max_frame_bytes() -> float:
     return 0.25 * float(total)
 
 
-class FramePool:
+class FramePool(Reused):
     """Float32 arrays for frames read whole, used again once nothing else holds them.
 
     A frame read into fresh memory pays a page fault for every 4 KiB of it, every
@@ -137,15 +136,11 @@ class FramePool:
     memory a read, about 6% of a 1080p sequence's CPU on this project's machines.
     Read in row bands into an array of the pool (:func:`read_frame` ``pool``), a
     frame takes neither. An array is free when the pool alone refers to it
-    (CPython's reference count, which views and buffer exports raise through
-    their ``base``); at most ``keep`` arrays are kept (a run's frames in flight:
+    (``reuse.py``); at most ``keep`` arrays are kept (a run's frames in flight:
     the one read ahead, the one mapped, the one still being written)."""
 
     def __init__(self, keep: int = 4):
-        self.keep = int(keep)
-        self._arrays: list[np.ndarray] = []
-        self._lock = threading.Lock()
-        self.made = 0                          # arrays allocated (a fresh frame's memory)
+        super().__init__(keep)
         self._host = None                      # a backend's host arrays (use)
 
     def use(self, backend) -> None:
@@ -161,31 +156,8 @@ class FramePool:
         shape, dtype = tuple(int(v) for v in shape), np.dtype(dtype)
         if self._host is not None and self._host.pinned:
             return self._host.empty(shape, dtype)
-
-        def fits(a):
-            return a.shape == shape and a.dtype == dtype
-        with self._lock:
-            arrs = self._arrays                # (by index: a name bound to an array
-            for i in range(len(arrs)):         # would count as a reference to it)
-                if fits(arrs[i]) and self._free(arrs, i):
-                    return arrs[i]
-            if len(arrs) >= self.keep:         # free arrays of another size make room
-                self._arrays = arrs = [arrs[i] for i in range(len(arrs))
-                                       if fits(arrs[i]) or not self._free(arrs, i)]
-            out = np.empty(shape, dtype)
-            self.made += 1
-            if len(arrs) < self.keep:
-                arrs.append(out)
-            return out
-
-    @staticmethod
-    def _free(arrs: list, i: int) -> bool:
-        """Whether the list's own reference is the only one (getrefcount adds its argument's)."""
-        return sys.getrefcount(arrs[i]) <= 2
-
-    def clear(self) -> None:
-        with self._lock:
-            self._arrays.clear()
+        return self._take(lambda a: a.shape == shape and a.dtype == dtype,
+                          lambda: np.empty(shape, dtype))
 
 
 #: Bytes of a band of rows when a frame is read into a :class:`FramePool` array:

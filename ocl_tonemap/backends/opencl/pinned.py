@@ -13,29 +13,24 @@ plain NumPy arrays, not kept.
 
 from __future__ import annotations
 
-import sys
 import threading
 
 import numpy as np
 
-
-def _free(arrs: list, i: int) -> bool:
-    """Whether the list's own reference is the only one (getrefcount adds its argument's)."""
-    return sys.getrefcount(arrs[i]) <= 2
+from ...reuse import Reused
 
 
-class HostArrays:
+class HostArrays(Reused):
     """Host arrays for transfers to and from ``rt``'s device: page-locked where it is
-    not a CPU, at most ``keep`` of them kept for reuse (a run's frames in flight)."""
+    not a CPU, at most ``keep`` of them kept for reuse (a run's frames in flight;
+    ``reuse.py``: the mapped owner is what is kept, so that every view counts)."""
 
     def __init__(self, rt, keep: int = 4, pinned: bool | None = None):
         import pyopencl as cl
-        self.rt, self.keep = rt, int(keep)
+        super().__init__(keep)
+        self.rt = rt
         self.pinned = not bool(rt.device.type & cl.device_type.CPU) if pinned is None \
             else bool(pinned)
-        self._owners: list[np.ndarray] = []
-        self._lock = threading.Lock()
-        self.made = 0                          # page-locked arrays allocated
 
     def empty(self, shape, dtype=np.float32, tail: int = 0) -> np.ndarray:
         """An array of ``shape`` and ``dtype`` (contents undefined) with ``tail`` bytes
@@ -45,32 +40,17 @@ class HostArrays:
         need = max(n + int(tail), 1)
         if not self.pinned:
             return np.empty(need, np.uint8)[:n].view(dtype).reshape(shape)
-        with self._lock:
-            arrs = self._owners
-            owner = None
-            for i in range(len(arrs)):         # (by index: a name is a reference)
-                if arrs[i].nbytes == need and _free(arrs, i):
-                    owner = arrs[i]
-                    break
-            if owner is None:
-                if len(arrs) >= self.keep:     # free arrays of another size make room
-                    self._owners = arrs = [arrs[i] for i in range(len(arrs))
-                                           if arrs[i].nbytes == need or not _free(arrs, i)]
-                owner = self._map(need)
-                if len(arrs) < self.keep:
-                    arrs.append(owner)
+        owner = self._take(lambda a: a.nbytes == need, lambda: self._map(need))
         return owner[:n].view(dtype).reshape(shape)
 
     def _map(self, nbytes: int) -> np.ndarray:
         import pyopencl as cl
         mf = cl.mem_flags
-        nbytes = max(int(nbytes), 1)
         buf = cl.Buffer(self.rt.context, mf.READ_WRITE | mf.ALLOC_HOST_PTR, nbytes)
         arr, ev = cl.enqueue_map_buffer(self.rt.queue, buf,
                                         cl.map_flags.READ | cl.map_flags.WRITE, 0,
                                         (nbytes,), np.uint8)
         ev.wait()
-        self.made += 1
         return arr
 
 
