@@ -108,8 +108,8 @@ class KirkSchedule(NoPixelState):
                        np.int32(n), rp, np.float32(s.beta), np.float32(s.gamma),
                        np.float32(u), np.int32(1 if blend else 0), out,
                        np.int32(0 if s.paper else 1))
-        key = anchor_key(stats.G_cone, stats.values["levels"]["A_cone"])
-        self._finish(out, n, 1.0 if op.s.paper else dev.gain(out, n, 1.0 / u, key))
+        self._finish(out, n, 1.0 if op.s.paper else dev.gain(
+            out, n, 1.0 / u, anchor_key(stats.G_cone, stats.values["levels"]["A_cone"])))
         # the record's fallbacks and w mean come down with the output (stats.py)
         nfb = statistics(be.rt).put(fb, 4, np.int32)
         w_sum = dev.sums_later(wbuf, n, dev.PLANE)
