@@ -119,6 +119,16 @@ def _visibility_args(p) -> None:
     p.add_argument("--k", type=float, default=2.6,
                    help="field factor (2.6: 99.93%% detection, RP-8; 1: the laboratory's "
                    "50%%)")
+    p.add_argument("--operator", default="pattanaik00", metavar="NAME",
+                   help="whose adaptation time course drives the step (default pattanaik00)")
+    p.add_argument("--adapted-to", type=float, metavar="L0", dest="adapted_to",
+                   help="the eye adapted to L0 cd/m^2 before the background steps to L_b")
+    p.add_argument("--for", type=float, metavar="S0", dest="adapted_for",
+                   help="... for S0 seconds (default: fully adapted)")
+    p.add_argument("--after", default="0.5,2,10", metavar="T1,T2,...",
+                   help="seconds after the step to report (default 0.5,2,10)")
+    p.add_argument("--plot", metavar="FILE.png",
+                   help="draw dL_th over the seconds after the step (needs --adapted-to)")
     p.add_argument("--json", action="store_true", help="the terms as JSON")
 
 
@@ -169,7 +179,8 @@ COMMANDS = (
     Command("visibility", "the threshold luminance difference of a target (Adrian 1989) and "
             "its visibility level, with each term", commands.visibility, _visibility_args,
             "ocl-tonemap visibility --background L [--size ARCMIN] [--age A] [--time S] "
-            "[--target L] [--json]"),
+            "[--target L] [--adapted-to L0 [--for S0] [--after T,..] [--operator NAME] "
+            "[--plot FILE]] [--json]"),
     Command("radiance-env", "the shell lines that put Radiance's programs from pip install "
             "'ocl-tonemap[radiance]' on PATH (eval \"$(ocl-tonemap radiance-env)\")",
             commands.radiance_env),

@@ -159,6 +159,9 @@ def visibility(a, argv) -> int:
     if a.target is not None:
         out["L_target"] = a.target
         out["VL"] = ad.visibility_level(a.target - a.background, th)
+    step = _visibility_step(a, polarity)
+    if step is not None:
+        out["step"] = step
     if a.json:
         print(json.dumps(out, indent=1))
         return 0
@@ -181,7 +184,52 @@ def visibility(a, argv) -> int:
     width = max(len(k) for k, _ in rows)
     for k, v in rows:
         print(f"{k:<{width}}  {v}")
+    if step is not None:
+        pre = "fully" if step["for_s"] is None else f"for {step['for_s']:g} s"
+        print(f"\nafter a step from {step['adapted_to']:g} cd/m^2 (adapted {pre}), "
+              f"{step['operator']}'s time course:")
+        head = ["t (s)", "La (cd/m^2)", "TAF", "dL_th (cd/m^2)"] + (["VL"] if a.target
+                                                                   is not None else [])
+        print("  ".join(f"{h:>14}" for h in head))
+        for p in step["points"]:
+            cells = [f"{p['t']:g}", f"{p['L_a']:.5g}", f"{p['TAF']:.4f}", f"{p['dL_th']:.5g}"]
+            if p["VL"] is not None:
+                cells.append(f"{p['VL']:.3f}")
+            print("  ".join(f"{c:>14}" for c in cells))
     return 0
+
+
+def _visibility_step(a, polarity: str) -> dict | None:
+    """The calculator's step: the observer of ``--operator`` adapted to ``--adapted-to``
+    (``--for``), the background stepping to L_b; None without a step."""
+    if a.adapted_to is None:
+        if a.adapted_for is not None or a.plot:
+            raise ValueError("--for and --plot need --adapted-to L0 (the step's start)")
+        return None
+    # lazy: a command loads its own layers
+    from . import visibility as vis
+    from .operators import get_operator
+    if not (a.adapted_to >= 0 and math.isfinite(a.adapted_to)):
+        raise ValueError(f"--adapted-to must be a luminance >= 0 cd/m^2 (got {a.adapted_to:g})")
+    if a.adapted_for is not None and not (a.adapted_for > 0 and math.isfinite(a.adapted_for)):
+        raise ValueError(f"--for must be > 0 s (got {a.adapted_for:g})")
+    try:
+        after = [float(x) for x in a.after.split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"--after must be seconds, comma-separated (got {a.after!r})") from None
+    if not after or not all(t >= 0 and math.isfinite(t) for t in after):
+        raise ValueError(f"--after must be seconds >= 0, comma-separated (got {a.after!r})")
+    op = get_operator(a.operator)({})
+    view = vis.Viewing(a.size, a.age, a.time, a.k).check()
+    pts = vis.trace(op, a.adapted_to, a.adapted_for, a.background, after, view, polarity,
+                    a.target)
+    if a.plot:
+        from .plot import plot_visibility_step  # lazy: matplotlib only for --plot
+        plot_visibility_step(a.plot, op, a.adapted_to, a.adapted_for, a.background, view,
+                             polarity, max(after + [30.0]))
+    return {"operator": op.name, "adapted_to": a.adapted_to, "for_s": a.adapted_for,
+            "steady_dL_th": float(view.steady(a.background, polarity)),
+            "points": [p.as_dict() for p in pts]}
 
 
 def demo(a, argv) -> int:

@@ -133,3 +133,54 @@ def _plot_plan(ax, infos) -> None:
     ax.set_title("mechanism plan (--model auto): 0 skipped, 1 applied")
     ax.legend(loc="center right", fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
+
+
+def _pyplot():
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as exc:
+        raise RuntimeError("--plot needs matplotlib: pip install 'ocl-tonemap[plot]'") from exc
+    return plt
+
+
+def save_figure(fig, path: str) -> None:
+    """Write a figure through a temporary file, verified (safeio)."""
+    import matplotlib.pyplot as plt
+    tmp = safeio.temp_path(path)
+    try:
+        fig.savefig(tmp, dpi=110, format=os.path.splitext(path)[1][1:].lower() or "png")
+        safeio.commit(tmp, path)
+    except OSError as exc:
+        raise safeio.WriteFailed(path, safeio.reason(exc), exc.errno) from None
+    finally:
+        safeio.remove(tmp)
+        plt.close(fig)
+
+
+def plot_visibility_step(path: str, ops, L_from: float, seconds, L_b: float, view,
+                         polarity: str = "positive", t_max: float = 30.0) -> None:
+    """dL_th (Adrian 1989 x each operator's transient factor) over the seconds after a
+    step from ``L_from`` to ``L_b``; ``ops``: an operator or a list of them."""
+    from .visibility import trace
+    plt = _pyplot()
+    ops = ops if isinstance(ops, (list, tuple)) else [ops]
+    t = np.concatenate([[0.0], np.logspace(-2, np.log10(max(t_max, 0.02)), 160)])
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for op in ops:
+        pts = trace(op, L_from, seconds, L_b, t, view, polarity)
+        ax.plot(t[1:], [p.dL_th for p in pts[1:]], label=op.name)
+    steady = float(view.steady(L_b, polarity))
+    ax.axhline(steady, color="0.4", ls="--", lw=1, label=f"steady at {L_b:g} cd/m^2")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("seconds after the step")
+    ax.set_ylabel("threshold dL_th, cd/m^2")
+    pre = "fully" if seconds is None else f"{seconds:g} s"
+    ax.set_title(f"{L_from:g} -> {L_b:g} cd/m^2 (adapted {pre}); {view.size_arcmin:g}', "
+                 f"{view.age:g} y, t_obs {view.time_s:g} s, {polarity}")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)

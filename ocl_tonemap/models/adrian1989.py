@@ -124,6 +124,21 @@ def age_factor(age) -> np.ndarray:
                     (A - 56.6) ** 2 / 116.3 + 1.43)
 
 
+#: The largest transient factor kept (an eye adapted 14 decades away: seen as blind).
+TAF_MAX = 1.0e6
+
+
+def transient_factor(slope_steady, slope_now) -> np.ndarray:
+    """TAF: how much higher the threshold is while the eye is adapted elsewhere than
+    the background (Adrian 1987; CIE 88's threshold zone). Reconstructed as the
+    ratio of the observer's response gain dR/dln L at L_b when adapted to L_b to its
+    gain under its present state (each operator's own response: docs/models.md,
+    "Transient adaptation"), never below 1 (an eye off its level sees no better),
+    at most :data:`TAF_MAX`."""
+    s_now = np.maximum(np.asarray(slope_now, np.float64), 1e-300)
+    return np.clip(np.asarray(slope_steady, np.float64) / s_now, 1.0, TAF_MAX)
+
+
 @dataclass(frozen=True)
 class Threshold:
     """dL_th and its terms (cd/m^2 and factors), for a table or JSON."""

@@ -109,6 +109,31 @@ def preadapted(L_cd: float, seconds: float | None) -> dict:
     return advance(dark, G_rod, G_cone, seconds)
 
 
+
+def response_slope(L_b, values: dict):
+    """dL_d/dln L_w of Sec. 3.1's scaling, per display threshold, for a small neutral
+    increment on a background of L_b cd/m^2 under the state ``values``: the
+    observer's own gain for a visibility threshold (``adrian1989.transient_factor``),
+    L_b ((1 - k) / eps_C + k L'/L / eps_R), k Eq. 4 at the current L_waR."""
+    L = np.asarray(L_b, np.float64)
+    k = mesopic_factor_walraven_valeton(values["L_waR"])
+    return L * ((1.0 - k) * values["inv_eps_cone"]
+                + k * neutral_scotopic_ratio() * values["inv_eps_rod"])
+
+
+def steady_slope(L_b):
+    """:func:`response_slope` of observers fully adapted to each neutral L_b (any shape)."""
+    L = np.maximum(np.asarray(L_b, np.float64), 0.0)
+    Lr = L * neutral_scotopic_ratio()
+    return response_slope(L, {"inv_eps_rod": 1.0 / threshold_rod(Lr),
+                              "inv_eps_cone": 1.0 / threshold_cone(L), "L_waR": Lr})
+
+
+def adaptation_luminance(values: dict) -> float:
+    """The cone adaptation level of the state: the luminance whose Eq. 2 threshold is
+    the current eps_C (it lags L_wa by Sec. 3.3's time course)."""
+    return adapted_cone_luminance(values["inv_eps_cone"])
+
 # --- Per-frame scalars and the per-pixel pass ---------------------------------------
 
 @dataclass(frozen=True)

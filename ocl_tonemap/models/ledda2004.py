@@ -188,6 +188,23 @@ def sigma_at(sigma_in, sigma_fin, t, K, receptor: str):
     return sigma_fin + f * (sigma_in - sigma_fin)
 
 
+
+def adaptation_luminance(sigma_cone):
+    """I_A of a cone sigma, Eq. 5 inverted: (sigma / beta)^(1/alpha), cd/m^2."""
+    return (np.asarray(sigma_cone, np.float64) / BETA_CONE) ** (1.0 / ALPHA)
+
+
+def response_slope(L_b, sigma_cone, sigma_rod, ward: bool = True):
+    """dR/dln Y of Eqs. 2-3, cones and rods mixed by Eq. 11's mes at the current cone
+    level, for a small neutral increment on a background of L_b cd/m^2 seen with
+    the current sigmas: the observer's own gain for a visibility threshold
+    (``adrian1989.transient_factor``): n (mes x_c (1 - x_c) + (1 - mes) x_r (1 - x_r))."""
+    L = np.asarray(L_b, np.float64)
+    mes = mesopic_factor_ledda2004(adaptation_luminance(sigma_cone))
+    xc = response(L, sigma_cone)
+    xr = response(L * neutral_rod_ratio(ward), sigma_rod)
+    return N * (mes * xc * (1.0 - xc) + (1.0 - mes) * xr * (1.0 - xr))
+
 # --- per-pixel state ----------------------------------------------------------------
 
 def initial_state(I_c, I_r, E) -> dict:

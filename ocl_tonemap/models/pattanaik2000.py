@@ -169,6 +169,32 @@ def colour_slope(L_cone, sigma_c, bleach_c):
     return LN10 * N * bleach_c * x * (1.0 - x)
 
 
+
+def response_slope(L_b, values: dict, rod_amplitude: float = ROD_AMPLITUDE):
+    """dR/dln L of Eq. 2, cones and rods together, for a small neutral increment on a
+    background of L_b cd/m^2 seen under the receptor levels ``values`` (A, B): the
+    observer's own gain for a visibility threshold (``adrian1989.transient_factor``):
+    n (B_cone x_c (1 - x_c) + B_rod x_r (1 - x_r)), x = L^n/(L^n + sigma^n)."""
+    L = np.asarray(L_b, np.float64)
+    xc = saturation(L, sigma_cone(values["A_cone"]))
+    xr = saturation(L * neutral_scotopic_ratio(), sigma_rod(values["A_rod"]))
+    return N * (values["B_cone"] * xc * (1.0 - xc)
+                + rod_amplitude * values["B_rod"] * xr * (1.0 - xr))
+
+
+def steady_slope(L_b):
+    """:func:`response_slope` of observers fully adapted to each neutral L_b (any shape)."""
+    L = np.maximum(np.asarray(L_b, np.float64), 0.0)
+    Lr = L * neutral_scotopic_ratio()
+    return response_slope(L, {"A_rod": Lr, "A_cone": L,
+                              "B_rod": bleach_static(Lr, K_ROD, TAU_ROD),
+                              "B_cone": bleach_static(L, K_CONE, TAU_CONE)})
+
+
+def adaptation_luminance(values: dict) -> float:
+    """The cone adaptation level A_cone of the receptor levels, cd/m^2."""
+    return float(values["A_cone"])
+
 # --- Display observer (Sec. 4.3) ------------------------------------------------
 
 @dataclass(frozen=True)

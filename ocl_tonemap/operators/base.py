@@ -252,6 +252,42 @@ class Operator:
         return self.map_reference(rgb, L, L * neutral_scotopic_ratio(), p)
 
 
+    # -- the observer, for visibility (ocl_tonemap/visibility.py) ----------------------------
+    # A uniform neutral field seen over time, in the operator's own state, and the gain
+    # of its response for a small increment: the transient threshold follows the
+    # operator's time course (models/adrian1989.transient_factor).
+    def observer_preadapted(self, L_cd: float, seconds: float | None) -> dict:
+        """Observer state after a neutral field of ``L_cd`` cd/m^2 (for ``seconds``;
+        None: fully adapted)."""
+        raise NotImplementedError(f"{self.name} has no observer model")
+
+    def observer_advance(self, obs: dict, L_cd: float, dt: float) -> dict:
+        """Observer state after ``dt`` s more of a neutral field of ``L_cd``."""
+        raise NotImplementedError(f"{self.name} has no observer model")
+
+    def observer_slope(self, obs: dict, L_b):
+        """dR/dln L of the operator's response at background(s) ``L_b`` under ``obs``."""
+        raise NotImplementedError(f"{self.name} has no observer model")
+
+    def observer_level(self, obs: dict):
+        """The eye's (cone) adaptation luminance of ``obs``, cd/m^2."""
+        raise NotImplementedError(f"{self.name} has no observer model")
+
+    def observer_steady_slope(self, L_b):
+        """:meth:`observer_slope` of observers adapted to each of ``L_b`` (any shape)."""
+        L = np.asarray(L_b, np.float64)
+        return np.array([float(self.observer_slope(self.observer_preadapted(float(x), None), x))
+                         for x in L.reshape(-1)]).reshape(L.shape)
+
+    #: True where :meth:`observer_of` holds a state per pixel (local adaptation).
+    observer_per_pixel = False
+
+    def observer_of(self, state, stats=None) -> dict:
+        """The observer state of a run's AdaptationState at a frame (global
+        operators: its scalars)."""
+        return dict(state.values)
+
+
 #: The colour and metering stages every frame-metered operator starts with.
 COLOUR_STAGE = Stage("colour", "colour", "working RGB x scale -> cd/m^2, Y, Y'; bad values "
                      "repaired", "models.photometry.sanitize", "colour.cl:scene_to_working4")
@@ -281,6 +317,21 @@ class ModelOperator(Operator):
 
     def map_reference(self, rgb, Y, Ys, p):
         return self.model.map_reference(rgb, Y, Ys, p)
+
+    def observer_preadapted(self, L_cd, seconds):
+        return self.model.preadapted(L_cd, seconds)
+
+    def observer_advance(self, obs, L_cd, dt):
+        return self.model.advance(obs, L_cd * neutral_scotopic_ratio(), L_cd, dt)
+
+    def observer_slope(self, obs, L_b):
+        return self.model.response_slope(L_b, obs)
+
+    def observer_level(self, obs):
+        return self.model.adaptation_luminance(obs)
+
+    def observer_steady_slope(self, L_b):
+        return self.model.steady_slope(L_b)
 
     #: The per-pixel map's smooth part is ``map_reference`` with ``raw=True``
     #: (``colour/export.py`` samples it for an OCIO export).

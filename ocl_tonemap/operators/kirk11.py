@@ -19,8 +19,9 @@ from ..models.bilateral import BilateralSpec
 from ..models.display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, apply_shoulder
 from ..models.kirk2011 import (KAPPA1, KAPPA2, KirkSettings, anchor_gain, display_matrix,
                                kappas)
-from ..models.pattanaik2000 import (receptor_levels_advance, receptor_levels_preadapted,
-                                    receptor_levels_steady, rod_sensitivity)
+from ..models.pattanaik2000 import (K_CONE, K_ROD, TAU_CONE, TAU_ROD, bleach_static,
+                                    receptor_levels_advance, receptor_levels_preadapted,
+                                    receptor_levels_steady, response_slope, rod_sensitivity)
 from ..models.photometry import Y_WEIGHTS
 from .base import Operator, Option, Stage, StateSpec, parse_triple
 from .ledda04 import BILATERAL_OPTIONS
@@ -118,9 +119,7 @@ class Kirk11(Operator):
         else:
             if fresh or levels is None:
                 if fresh and self.preadapt is not None:
-                    L, sec = self.preadapt
-                    w = lmsr.rgb_to_lmsr(np.ones(3))     # a neutral: rod goal per cone goal
-                    levels = receptor_levels_preadapted(L * w[3] / (w[0] + w[1]), L, sec)
+                    levels = self.observer_preadapted(*self.preadapt)
                 else:
                     levels = receptor_levels_steady(L_waR, L_wa)
             else:
@@ -149,6 +148,37 @@ class Kirk11(Operator):
         g = anchor_gain(out @ Y_WEIGHTS / u, stats.G_cone, stats.values["levels"]["A_cone"])
         out = apply_shoulder(np.minimum(out * g, SIGNAL_CEILING), u, SHOULDER_KNEE)
         return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
+
+    # -- the observer: the receptor levels of its time course ----------------------------
+    @staticmethod
+    def _rod_per_cone() -> float:
+        w = lmsr.rgb_to_lmsr(np.ones(3))         # a neutral: rod goal per cone goal
+        return float(w[3] / (w[0] + w[1]))
+
+    def observer_preadapted(self, L_cd, seconds):
+        return receptor_levels_preadapted(L_cd * self._rod_per_cone(), L_cd, seconds)
+
+    def observer_advance(self, obs, L_cd, dt):
+        return receptor_levels_advance(obs, L_cd * self._rod_per_cone(), L_cd, dt)
+
+    def observer_slope(self, obs, L_b):
+        return response_slope(L_b, obs)
+
+    def observer_level(self, obs):
+        return float(obs["A_cone"])
+
+    def observer_steady_slope(self, L_b):
+        L = np.maximum(np.asarray(L_b, np.float64), 0.0)
+        Lr = L * self._rod_per_cone()
+        return response_slope(L, {"A_rod": Lr, "A_cone": L,
+                                  "B_rod": bleach_static(Lr, K_ROD, TAU_ROD),
+                                  "B_cone": bleach_static(L, K_CONE, TAU_CONE)})
+
+    def observer_of(self, state, stats=None):
+        v = state.values
+        if all(k in v for k in LEVEL_KEYS):
+            return {k: float(v[k]) for k in LEVEL_KEYS}
+        return receptor_levels_steady(v["logmean_I_A_rod"], v["logmean_I_A_cone"])  # paper
 
     def plot_curves(self, state, Ls):
         return None

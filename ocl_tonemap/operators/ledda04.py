@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field
 
+import numpy as np
+
 from ..models import ledda2004 as L
 from ..models.bilateral import BilateralSpec
 from ..models.display import SHOULDER_KNEE
@@ -168,6 +170,33 @@ class Ledda04(Operator):
         if self.settings.mode == "paper":
             return self.sigma_disp, white, 0.0
         return anchored_sigma(self.display, G_cone, G_rod), white, SHOULDER_KNEE
+
+    # -- the observer (a uniform field: every pixel's course alike) ------------------------
+    def observer_preadapted(self, L_cd, seconds):
+        return L.preadapted_state(L_cd, seconds, (), self.ward)
+
+    def observer_advance(self, obs, L_cd, dt):
+        Lr = L_cd * self.rod_ratio
+        now = L.step_reference(obs, L_cd, Lr, 0.0)      # the field changes now ...
+        return L.step_reference(now, L_cd, Lr, dt)      # ... and is seen for dt
+
+    def observer_slope(self, obs, L_b):
+        sc, sr = L.current_sigmas(obs)
+        return L.response_slope(L_b, sc, sr, self.ward)
+
+    def observer_level(self, obs):
+        return L.adaptation_luminance(L.current_sigmas(obs)[0])
+
+    def observer_steady_slope(self, L_b):
+        Lb = np.asarray(L_b, np.float64)
+        return L.response_slope(Lb, L.sigma_of(Lb, L.BETA_CONE),
+                                L.sigma_of(Lb * self.rod_ratio, L.BETA_ROD), self.ward)
+
+    #: Each pixel has its own course: the run's observer is its per-pixel state.
+    observer_per_pixel = True
+
+    def observer_of(self, state, stats=None):
+        return {k: np.asarray(v, np.float64) for k, v in (state.pixels or {}).items()}
 
     def plot_curves(self, state, Ls):
         return None                       # no single curve: each pixel has its own
