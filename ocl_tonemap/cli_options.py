@@ -244,6 +244,14 @@ def _output_flags(g) -> None:
                    help="PNG row filter (default sub)")
     g.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
     g.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
+    g.add_argument("--visibility", metavar="OUT.####.exr",
+                   help="also write what the observer can see, per frame: La, Lveil, Lb, dLth "
+                   "and VL channels (cd/m^2; Adrian 1989 under the operator's own adaptation; "
+                   "docs/models.md, \"Visibility\")")
+    g.add_argument("--target-size", type=float, default=10.0, metavar="ARCMIN",
+                   help="--visibility: the target's size, arcmin (default 10)")
+    g.add_argument("--age", type=float, default=25.0, metavar="YEARS",
+                   help="--visibility: the observer's age, 1..100 (default 25)")
     g.add_argument("--ocio-export", metavar="DIR",
                    help="also write the observer as an OCIO view: DIR/<name>.ocio and a CLF per "
                    "frame (docs/ocio_export.md)")
@@ -258,7 +266,8 @@ def _output_build(a, tier) -> dict:
     return {"encode": a.encode, "out_bits": a.out_bits, "png_level": a.png_level,
             "png_filter": a.png_filter, "plot": a.plot,
             "plot_frames": [int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
-            "ocio_export": a.ocio_export, "ocio_export_size": parse_export_size(a.ocio_export_size)}
+            "ocio_export": a.ocio_export, "ocio_export_size": parse_export_size(a.ocio_export_size),
+            "visibility": a.visibility, "target_size": a.target_size, "age": a.age}
 
 
 def _run_flags(g) -> None:

@@ -60,6 +60,9 @@ class JobOptions:
     out_bits: str | None = None
     plot: str | None = None
     plot_frames: list[int] | None = None
+    visibility: str | None = None       # per-frame visibility planes, EXR (job/visibility_out.py)
+    target_size: float = 10.0           # --target-size, arcmin
+    age: float = 25.0                   # --age, years (Adrian's age factor)
     ocio_export: str | None = None      # a folder: the observer as an OCIO view (colour/export.py)
     ocio_export_size: int | str = "auto"    # lattice nodes per axis, or auto
     fov_given: bool = False             # --fov given: a Radiance picture's VIEW does not set it

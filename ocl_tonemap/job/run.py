@@ -24,6 +24,8 @@ from ..models.photometry import RepairCounts
 from ..patterns import is_sequence
 from ..pipeline import FrameInfo, Tonemapper
 from ..plot import plot_adaptation
+from .visibility_out import (check_visibility, frame_visibility, viewing, visibility_path,
+                             write_visibility)
 from ..state import AdaptationState
 from ..state_files import save_state
 from .banded_io import read_whole, stream_frame, stream_rows
@@ -128,6 +130,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
         state = load_state_in(opts)
     else:
         state.extra.pop(RUN_KEY, None)
+    check_visibility(opts, jobs)
     done_before: list = []
     if opts.resume:
         opts = resolved_backend(opts)              # (its fingerprint names the backend)
@@ -198,6 +201,9 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                     log.info("frame %s: scene cut, adaptation reset", f)
                 if rows(k) and exporter is not None:
                     raise FrameError(inp, f, "--ocio-export needs whole frames; this one "
+                                     "would stream in row bands (--max-memory): give more")
+                if rows(k) and opts.visibility:
+                    raise FrameError(inp, f, "--visibility needs whole frames; this one "
                                      "would stream in row bands (--max-memory): give more")
                 if rows(k):
                     io.drain()                        # a streamed frame writes in bands
@@ -320,6 +326,9 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
             exporter.add_frame(f, np.asarray(fin.pixels, np.float32), fin.scale,
                                res.info.effects,
                                run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
+        vis = None
+        if run.opts.visibility:
+            vis = frame_visibility(tm, fin, res.info, run.opts)
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,
                                res.output.shape[2] == 4, fps)
@@ -337,6 +346,9 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
             write_frame(outp, pixels, spec, out_cs, meta[0], run.opts.out_bits, f,
                         chromaticities=chroma, white_luminance=white, straight_alpha=straight,
                         png_level=run.opts.png_level, png_filter=run.opts.png_filter)
+            if vis is not None:
+                write_visibility(visibility_path(run.opts, f), vis, f, viewing(run.opts),
+                                 tm.op.name, tm.effects.settings.fov_deg)
         except FrameError:
             raise
         except Exception as exc:

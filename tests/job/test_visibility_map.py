@@ -1,0 +1,128 @@
+"""``run --visibility``: per-frame planes of what the observer can see (issue 48).
+
+Each frame's dLth equals the calculator's (``ocl_tonemap.visibility``) at the plane's
+own background, under the operator's state after that frame, on both backends;
+the planes are tagged; bad requests get one line each."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from ocl_tonemap.operators import get_operator
+from ocl_tonemap.state_files import load_state
+from ocl_tonemap.visibility import MAP_TIME_S, Viewing, transient
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "ocl_tonemap", *map(str, args)],
+                          capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": os.getcwd()})
+
+
+def _planes(path):
+    b = oiio.ImageBuf(str(path))
+    a = b.get_pixels(oiio.FLOAT)
+    return {n: a[..., i] for i, n in enumerate(b.spec().channelnames)}, b.spec()
+
+
+@pytest.fixture(scope="module")
+def drive(tmp_path_factory):
+    """The sample's tunnel drive, 2 s at 4 fps: sunlit approach, then the portal."""
+    d = tmp_path_factory.mktemp("vis")
+    r = _cli("sample", d / "s", "--size", "96x54", "--seconds", "3", "--fps", "4",
+             "--spectral")
+    assert r.returncode == 0, r.stderr
+    return d
+
+
+def _run(drive, op, backend, tag):
+    out = drive / f"{op}-{backend}-{tag}"
+    r = _cli("run", drive / "s" / "tunnel.####.exr", out / "d.####.png", "--operator", op,
+             "--backend", backend, "--visibility", out / "v.####.exr",
+             "--state-out", out / "state.json")
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def _check_against_calculator(out, op_name):
+    last = sorted(p for p in os.listdir(out) if p.startswith("v."))[-1]
+    P, spec = _planes(out / last)
+    op = get_operator(op_name)({})
+    obs = op.observer_of(load_state(out / "state.json"))
+    view = Viewing(10.0, 25.0, MAP_TIME_S)
+    Lb = P["Lb"].astype(np.float64)
+    rng = np.random.default_rng(1)
+    ys, xs = rng.integers(0, Lb.shape[0], 40), rng.integers(0, Lb.shape[1], 40)
+    for y, x in zip(ys, xs):
+        o = {k: np.asarray(v)[y, x] for k, v in obs.items()} if op.observer_per_pixel else obs
+        taf = float(transient(op, o, Lb[y, x]))
+        th = [float(view.steady(Lb[y, x], pol)) * taf for pol in ("positive", "negative")]
+        got = float(P["dLth"][y, x])
+        # the table's interpolation (<= 1e-6) and the plane's float32
+        assert min(abs(got - t) / t for t in th) < 3e-6, (y, x, got, th)
+    assert np.isfinite(np.stack(list(P.values()))).all()
+    assert spec.getattribute("ocltm:visibility:dLth").endswith("[cd/m^2]")
+    assert spec.getattribute("ocltm:operator") == op_name
+    return P
+
+
+@pytest.mark.parametrize("op", ["pattanaik00", "durand00", "ledda04", "kirk11"])
+def test_planes_equal_the_calculator_reference(drive, op):
+    out = _run(drive, op, "reference", "a")
+    frames = sorted(p for p in os.listdir(out) if p.startswith("v."))
+    assert len(frames) == 12
+    _check_against_calculator(out, op)
+
+
+@pytest.mark.parametrize("op", ["pattanaik00", "ledda04"])
+def test_planes_equal_the_calculator_opencl(drive, op, rt):
+    out = _run(drive, op, "opencl", "a")
+    P = _check_against_calculator(out, op)
+    ref = _planes(drive / f"{op}-reference-a" / "v.0011.exr")[0] \
+        if (drive / f"{op}-reference-a").exists() else None
+    if ref is not None:             # the backends' states agree to their float32 paths
+        for n in ("La", "Lb", "dLth"):
+            np.testing.assert_allclose(P[n], ref[n], rtol=2e-3, err_msg=n)
+
+
+def test_the_threshold_follows_the_time_course(drive):
+    """Into the tunnel the eye is still adapted to the approach: the threshold of a
+    dark-zone background is above its steady value, and TAF > 1 there."""
+    out = _run(drive, "ledda04", "reference", "t")
+    P, _ = _planes(out / "v.0008.exr")
+    Lb = P["Lb"].astype(np.float64)
+    view = Viewing(10.0, 25.0, MAP_TIME_S)
+    steady = np.minimum(view.steady(Lb, "positive"), view.steady(Lb, "negative"))
+    assert (P["dLth"] >= steady * (1 - 1e-5)).all()
+    assert (P["dLth"] > 1.5 * steady).mean() > 0.2
+
+
+@pytest.mark.parametrize("args,says", [
+    (("--visibility", "v.####.png"), "name it .exr"),
+    (("--visibility", "v.exr"), "give a frame pattern"),
+    (("--visibility", "v.####.exr", "--age", "0"), "age must be 1..100"),
+    (("--visibility", "v.####.exr", "--age", "101"), "age must be 1..100"),
+    (("--visibility", "v.####.exr", "--target-size", "0"), "size must be > 0"),
+])
+def test_bad_requests_get_one_line(drive, args, says, tmp_path):
+    r = _cli("run", drive / "s" / "tunnel.####.exr", tmp_path / "d.####.png",
+             "--backend", "reference", *[str(tmp_path / a) if a.startswith("v.") else a
+                                          for a in args])
+    assert r.returncode != 0
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and says in lines[0], r.stderr
+    assert not list(tmp_path.iterdir())
+
+
+def test_spectral_input_without_luminance_is_refused(drive, tmp_path):
+    r = _cli("run", drive / "s" / "colorchecker_spectral.exr", tmp_path / "d.png",
+             "--operator", "kirk11", "--backend", "reference", "--visibility",
+             tmp_path / "v.exr", "--luminance-scale", "1")
+    assert r.returncode != 0
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "needs the frame's luminance" in lines[0], r.stderr
+    assert not (tmp_path / "v.exr").exists()
