@@ -206,9 +206,8 @@ def _visibility_step(a, polarity: str) -> dict | None:
         if a.adapted_for is not None or a.plot:
             raise ValueError("--for and --plot need --adapted-to L0 (the step's start)")
         return None
-    # lazy: a command loads its own layers
-    from . import visibility as vis
-    from .operators import get_operator
+    from . import visibility as vis  # lazy: a command loads its own layers
+    from .operators import get_operator  # lazy: a command loads its own layers
     if not (a.adapted_to >= 0 and math.isfinite(a.adapted_to)):
         raise ValueError(f"--adapted-to must be a luminance >= 0 cd/m^2 (got {a.adapted_to:g})")
     if a.adapted_for is not None and not (a.adapted_for > 0 and math.isfinite(a.adapted_for)):

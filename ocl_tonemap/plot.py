@@ -14,6 +14,7 @@ import numpy as np
 
 from . import safeio
 from .mechanisms.planner import mechanisms
+from .visibility import trace
 
 
 
@@ -163,7 +164,6 @@ def plot_visibility_step(path: str, ops, L_from: float, seconds, L_b: float, vie
                          polarity: str = "positive", t_max: float = 30.0) -> None:
     """dL_th (Adrian 1989 x each operator's transient factor) over the seconds after a
     step from ``L_from`` to ``L_b``; ``ops``: an operator or a list of them."""
-    from .visibility import trace
     plt = _pyplot()
     ops = ops if isinstance(ops, (list, tuple)) else [ops]
     t = np.concatenate([[0.0], np.logspace(-2, np.log10(max(t_max, 0.02)), 160)])

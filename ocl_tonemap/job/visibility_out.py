@@ -18,6 +18,7 @@ from .. import safeio
 from ..backends import flare_exec as fx
 from ..models import spencer1995 as fl
 from ..models.photometry import Y_WEIGHTS
+from ..patterns import frame_path, is_sequence, same_file
 from ..imageio import FrameError
 from ..imagewrite import verify_written
 from ..visibility import MAP_TIME_S, PLANES, Viewing, frame_planes
@@ -119,7 +120,6 @@ def check_visibility(opts, jobs) -> None:
     against the run's frames, an input it would overwrite, the viewing."""
     if not opts.visibility:
         return
-    from ..patterns import is_sequence, same_file
     viewing(opts)
     p = opts.visibility
     if not p.lower().endswith(".exr"):
@@ -138,6 +138,5 @@ def check_visibility(opts, jobs) -> None:
 
 
 def visibility_path(opts, f) -> str:
-    from ..patterns import frame_path, is_sequence
     return frame_path(opts.visibility, f) if f is not None and is_sequence(opts.visibility) \
         else opts.visibility

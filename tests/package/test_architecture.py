@@ -94,7 +94,7 @@ LAYERS = (
     ("models", ("models",)),
     ("operators", ("operators",)),
     ("backends", ("backends",)),
-    ("effects", ("effects", "mechanisms")),
+    ("effects", ("effects", "mechanisms", "visibility")),
     ("pipeline", ("pipeline", "alpha", "state")),
     ("colour and I/O", ("colour", "imageio", "imagewrite", "channels", "patterns", "radiance",
                         "calibration", "state_files", "sample", "plot")),
