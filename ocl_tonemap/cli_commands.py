@@ -58,8 +58,10 @@ def size(text: str) -> tuple[int, int]:
 def run(a, argv) -> int:
     """``run``: the main job, serially or as a shot on Dask (``--scheduler``)."""
     if a.scheduler:
+        from .job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
         from .shot.distributed import run_distributed  # lazy: a command loads its own layers
         opts = job_options(a, a.input, a.output)
+        refuse_visibility(opts, "--scheduler")
         res = run_distributed(opts, a.scheduler, a.workers, a.chunk_frames, a.store,
                               progress=opts.progress,
                               pocl_threads=max(1, (os.cpu_count() or 1) // max(1, a.workers)),
@@ -89,15 +91,34 @@ def run(a, argv) -> int:
         moved = res.transfers()
         if moved:
             print(f"host <-> device per frame: {moved}")
+        _target_report(res)
         if res.export:
             print(res.export)
     return 0
 
 
+def _target_report(res) -> None:
+    """The tracked target's visibility, frame by frame (``run --target``)."""
+    rows = [(f, i.time_s, i.visibility) for f, i in zip(res.frames, res.infos)
+            if getattr(i, "visibility", None)]
+    if not rows:
+        return
+    v0 = rows[0][2]
+    print(f"target at ({v0['x']:g}, {v0['y']:g}), {v0['size_arcmin']:g} arcmin:")
+    print(f"{'frame':>6} {'t (s)':>8} {'L_t':>10} {'L_b':>10} {'La':>10} {'TAF':>8} "
+          f"{'dL_th':>10} {'VL':>8}")
+    for f, t, v in rows:
+        flag = "  below threshold" if v["VL"] < 1 else ""
+        print(f"{'' if f is None else f:>6} {t:8.3f} {v['L_target']:10.4g} {v['Lb']:10.4g} "
+              f"{v['La']:10.4g} {v['TAF']:8.3f} {v['dLth']:10.4g} {v['VL']:8.3f}{flag}")
+
+
 def shot_pass(a, argv) -> int:
     """``measure`` / ``integrate`` / ``apply`` / ``export``: one pass of a split shot."""
+    from .job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
     from .shot import passes  # lazy: a command loads its own layers
     opts = job_options(a, a.input, a.output)
+    refuse_visibility(opts, f"the {a.cmd} pass")
     store = a.store or passes.default_store(opts)
     if a.cmd == "measure":
         done = passes.measure(opts, store, passes.parse_chunk(a.chunk), redo=a.redo)
@@ -134,7 +155,10 @@ def farm_template(a, argv) -> int:
 def simulate(a, argv) -> int:
     from .job.options import parse_times  # lazy: a command loads its own layers
     from .job.simulate import run_simulate  # lazy: a command loads its own layers
-    res = run_simulate(job_options(a, a.input, a.output), parse_times(a.at))
+    from .job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
+    opts = job_options(a, a.input, a.output)
+    refuse_visibility(opts, "simulate")
+    res = run_simulate(opts, parse_times(a.at))
     if not a.quiet:                   # (rendered in time order)
         for t, o in zip(sorted(parse_times(a.at)), res.outputs):
             print(f"t = {t:g} s -> {o}")

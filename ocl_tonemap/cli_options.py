@@ -248,10 +248,14 @@ def _output_flags(g) -> None:
                    help="also write what the observer can see, per frame: La, Lveil, Lb, dLth "
                    "and VL channels (cd/m^2; Adrian 1989 under the operator's own adaptation; "
                    "docs/models.md, \"Visibility\")")
+    g.add_argument("--visibility-view", metavar="OUT.####.png",
+                   help="also write a false-colour view of the visibility level over the "
+                   "shown frame (VL < 1 hatched red), with a legend")
+    g.add_argument("--target", metavar="X,Y,SIZE",
+                   help="track a target through the shot: its centre (pixels) and size "
+                   "(arcmin); its VL per frame in the report and --plot")
     g.add_argument("--target-size", type=float, default=10.0, metavar="ARCMIN",
                    help="--visibility: the target's size, arcmin (default 10)")
-    g.add_argument("--age", type=float, default=25.0, metavar="YEARS",
-                   help="--visibility: the observer's age, 1..100 (default 25)")
     g.add_argument("--ocio-export", metavar="DIR",
                    help="also write the observer as an OCIO view: DIR/<name>.ocio and a CLF per "
                    "frame (docs/ocio_export.md)")
@@ -261,13 +265,16 @@ def _output_flags(g) -> None:
 
 def _output_build(a, tier) -> dict:
     from .job.options import parse_export_size  # lazy: the parser loads no OIIO
+    from .job.visibility_out import parse_target  # lazy: the parser loads no OIIO
     if a.plot_frames and not a.plot:
         log.warning("--plot-frames applies to --plot: ignored")
     return {"encode": a.encode, "out_bits": a.out_bits, "png_level": a.png_level,
             "png_filter": a.png_filter, "plot": a.plot,
             "plot_frames": [int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
             "ocio_export": a.ocio_export, "ocio_export_size": parse_export_size(a.ocio_export_size),
-            "visibility": a.visibility, "target_size": a.target_size, "age": a.age}
+            "visibility": a.visibility, "target_size": a.target_size,
+            "visibility_view": a.visibility_view,
+            "target": parse_target(a.target) if a.target else None}
 
 
 def _run_flags(g) -> None:

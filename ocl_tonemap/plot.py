@@ -52,11 +52,14 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
     val = lambda k: np.array([i.state.values[k] for i in infos])  # noqa: E731
     lg = lambda x: np.log10(np.maximum(x, 1e-7))  # noqa: E731
     plans = [i.plan.get("weights") for i in infos if i.plan]
-    n = 4 if plans else 3
+    target = [i for i in infos if getattr(i, "visibility", None)]
+    n = 3 + bool(plans) + bool(target)
     fig, axes = plt.subplots(n, 1, figsize=(9, 10 + 2 * (n - 3)),
-                             gridspec_kw={"height_ratios": [2, 1, 2, 1][:n]})
+                             gridspec_kw={"height_ratios": [2, 1, 2, 1, 1][:n]})
     if plans:
         _plot_plan(axes[3], infos)
+    if target:
+        _plot_target(axes[n - 1], target)
     ax = axes[0]
     ax.plot(t, lg([i.G_cone for i in infos]), "k:", label="G_cone (goal)")
     ax.plot(t, lg([i.G_rod for i in infos]), "b:", label="G_rod (goal, scotopic)")
@@ -117,6 +120,20 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
     finally:
         safeio.remove(tmp)
         plt.close(fig)
+
+
+def _plot_target(ax, infos) -> None:
+    """VL of the tracked target over the shot (``run --target``), threshold marked."""
+    t = [i.time_s for i in infos]
+    v0 = infos[0].visibility
+    ax.plot(t, [max(i.visibility["VL"], 1e-3) for i in infos], "k-",
+            label=f"VL at ({v0['x']:g}, {v0['y']:g}), {v0['size_arcmin']:g} arcmin")
+    ax.axhline(1.0, color="r", ls="--", lw=1, label="threshold (VL 1)")
+    ax.set_yscale("log")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("visibility level")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3, which="both")
 
 
 def _plot_plan(ax, infos) -> None:

@@ -66,11 +66,12 @@ def basis_fft(name: str, shape: tuple[int, int], deg_per_px: float) -> np.ndarra
     return np.fft.rfft2(fl.basis_kernel(name, shape, deg_per_px), _fft_shape(*shape))
 
 
-def convolve_exact_cached(src: np.ndarray, deg_per_px: float, D: float) -> np.ndarray:
+def convolve_exact_cached(src: np.ndarray, deg_per_px: float, D: float,
+                          age: float | None = None) -> np.ndarray:
     """:func:`convolve_exact` from the cached basis FFTs (the PSF is linear in them:
     the same result to rounding)."""
     h, w, _ = src.shape
-    wts = fl.flare_weights(D)
+    wts = fl.flare_weights(D, age)
     shared = sum(wi * basis_fft(b, (h, w), deg_per_px)
                  for wi, b in zip(wts[:3], fl.channel_bases(0)))
     out = []
@@ -80,10 +81,11 @@ def convolve_exact_cached(src: np.ndarray, deg_per_px: float, D: float) -> np.nd
     return np.stack(out, axis=-1)
 
 
-def convolve_exact(src: np.ndarray, deg_per_px: float, D: float) -> np.ndarray:
+def convolve_exact(src: np.ndarray, deg_per_px: float, D: float,
+                   age: float | None = None) -> np.ndarray:
     """PSF * src, float64, exact (FFT of the full-support kernel)."""
     h, w, _ = src.shape
-    K = fl.psf_kernel((h, w), deg_per_px, D)
+    K = fl.psf_kernel((h, w), deg_per_px, D, age)
     return np.stack([np.maximum(fftconvolve_same(src[..., c], K[c]), 0.0) for c in range(3)],
                     axis=-1)
 
@@ -278,7 +280,7 @@ def _wide_part(plan: BandedPlan, lev0: int, level: np.ndarray, blur) -> np.ndarr
 
 
 def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int = 1,
-                  blur=None) -> np.ndarray:
+                  blur=None, age: float | None = None) -> np.ndarray:
     """PSF * src approximated on a pyramid.
 
     f0, f1, f2 (monotone): the fitted delta + Gaussians, each Gaussian on the
@@ -292,7 +294,7 @@ def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int 
     """
     blur = blur or (lambda img, taps: blur_reference(img, taps, EDGE_ZERO))
     h, w, _ = src.shape
-    plan = pyramid_plan(fl.fast_plan((h, w), deg_per_px, D, per_octave))
+    plan = pyramid_plan(fl.fast_plan((h, w), deg_per_px, D, per_octave, age=age))
     src = np.asarray(src, np.float64)
     out = plan.a0 * src
     acc = _wide_part(plan, 0, src, blur)
@@ -303,28 +305,30 @@ def convolve_fast(src: np.ndarray, deg_per_px: float, D: float, per_octave: int 
 
 def apply_flare(rgb: np.ndarray, L_wa: float, L_waR: float, fov_deg: float,
                 method: str = "fast", threshold: float = fl.DEFAULT_THRESHOLD, per_octave: int = 1,
-                blur=None, lim: float | None = None) -> tuple[np.ndarray, dict]:
+                blur=None, lim: float | None = None,
+                age: float | None = None) -> tuple[np.ndarray, dict]:
     """Add the flares of the frame's light sources (cd/m^2 in, cd/m^2 out): the
     part of each pixel above ``lim`` cd/m^2 (default: ``threshold`` x L_wa, the
     paper's test alone; ``effects/flare.py`` ``source_limit``).
 
+    ``age``: the observer's (``spencer1995.observer_pupil``, ``flare_weights``).
     Returns the new frame and what was done: sources (pixels), pupil diameter,
     weights, the share of source energy that stayed inside the frame.
     """
     rgb = np.asarray(rgb, np.float64)
     h, w, _ = rgb.shape
-    D = float(fl.pupil_diameter(0.5 * (L_wa + L_waR)))
+    D = fl.observer_pupil(L_wa, L_waR, fov_deg, (h, w), age)
     S = fl.source_part(rgb, L_wa, threshold) if lim is None else fl.source_part(rgb, 1.0, lim)
     n_src = int(np.count_nonzero(S.any(axis=-1)))
-    info = {"sources": n_src, "pupil_mm": D, "weights": list(fl.flare_weights(D)),
+    info = {"sources": n_src, "pupil_mm": D, "weights": list(fl.flare_weights(D, age)),
             "method": method, "threshold": threshold}
     if n_src == 0:
         return rgb, info
     deg_per_px = fov_deg / w
     if method == "exact":
-        F = convolve_exact(S, deg_per_px, D)
+        F = convolve_exact(S, deg_per_px, D, age)
     elif method == "fast":
-        F = convolve_fast(S, deg_per_px, D, per_octave, blur)
+        F = convolve_fast(S, deg_per_px, D, per_octave, blur, age)
     else:
         raise ValueError(f"unknown flare method {method!r} (fast | exact)")
     info["energy_in_frame"] = float(F.sum() / max(S.sum(), 1e-300))
@@ -334,7 +338,7 @@ def apply_flare(rgb: np.ndarray, L_wa: float, L_waR: float, fov_deg: float,
 # --- the fast method in row bands (frames streamed with bounded memory) ------------------
 
 def banded_fast(shape: tuple[int, int], deg_per_px: float, D: float, per_octave: int = 1,
-                max_pixels: int | None = None) -> BandedPlan:
+                max_pixels: int | None = None, age: float | None = None) -> BandedPlan:
     """:func:`convolve_fast` split for frames that are never whole in memory.
 
     The pyramid is cut at level ``split``, the finest whose image holds at most
@@ -351,7 +355,7 @@ def banded_fast(shape: tuple[int, int], deg_per_px: float, D: float, per_octave:
     blurs: bit for bit; device blurs: bit for bit as well), not a further
     approximation. Memory: a few float64 copies of level ``split`` plus the
     band and its halo."""
-    plan = fl.fast_plan(tuple(shape), deg_per_px, D, per_octave)
+    plan = fl.fast_plan(tuple(shape), deg_per_px, D, per_octave, age=age)
     split = 0
     cap = max(1, int(max_pixels)) if max_pixels else 1
     hh, ww = shape

@@ -49,6 +49,31 @@ FOV_OPTION = EffectOption("fov_deg", "--fov", "angular width of the image, degre
                           check=_check_fov, value=DEFAULT_FOV)
 
 
+def _check_age(v):
+    if v is not None and not (isinstance(v, (int, float)) and 1.0 <= v <= 100.0):
+        raise ValueError(f"--age must be 1..100 years, or spencer (got {v})")
+
+
+def _age(text: str):
+    """``--age``: years, or ``spencer`` (Eq. 8's printed weights and pupil, no age)."""
+    if text.strip().lower() == "spencer":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"--age must be 1..100 years, or spencer (got {text!r})") from None
+
+
+#: The observer's age: the flare's pupil (Watson & Yellott 2012) and glare (CIE 146's
+#: equation at that age); the visibility threshold's age factor (Adrian 1989). Not
+#: given (None): the flare as Eq. 8 prints it, the threshold at 25 (docs/models.md).
+AGE_OPTION = EffectOption("age", "--age", "the observer's age, years 1..100: the pupil "
+                          "(Watson & Yellott 2012), the glare (CIE 146/180) and the visibility "
+                          "threshold (Adrian 1989). Default: the flare as Spencer et al.'s "
+                          "Eq. 8 prints it (spencer), the threshold at 25",
+                          type=_age, metavar="YEARS", check=_check_age, value=None)
+
+
 def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, lim: float, blur=None,
         device=None):
     """(new rgb or None, info) for one frame in cd/m^2; ``lim``: the source limit
@@ -68,7 +93,8 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, lim: float, blur
             return None, {"ran": False, "reason": "no light sources", "source_limit_cd": lim}
     dev = None if blur is None else (lambda img, taps: blur(img, taps, EDGE_ZERO))
     out, info = fx.apply_flare(rgb, G_cone, G_rod, settings.fov_deg, settings.flare_method,
-                               settings.flare_threshold, settings.flare_per_octave, dev, lim=lim)
+                               settings.flare_threshold, settings.flare_per_octave, dev, lim=lim,
+                               age=settings.age)
     info["ran"] = info["sources"] > 0
     return out.astype(np.float32), info
 
@@ -76,9 +102,10 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, lim: float, blur
 def device_plan(settings, shape, G_rod: float, G_cone: float):
     """(pupil mm, fast plan) of a frame's flare on the device."""
     h, w = (int(v) for v in shape[:2])
-    D = float(fl.pupil_diameter(0.5 * (G_cone + G_rod)))
+    D = fl.observer_pupil(G_cone, G_rod, settings.fov_deg, (h, w), settings.age)
     plan = fl.fast_plan((h, w), settings.fov_deg / w, D, settings.flare_per_octave,
-                        fit=stored_fit((h, w), settings.fov_deg / w, settings.flare_per_octave))
+                        fit=stored_fit((h, w), settings.fov_deg / w, settings.flare_per_octave),
+                        age=settings.age)
     return D, plan
 
 
@@ -97,7 +124,8 @@ def _run_on_device(settings, rgb, G_rod: float, G_cone: float, lim: float, devic
     out, sources, S_sum, F_sum = device.apply(rgb, plan, lim)
     if sources == 0 and settings.flare == "auto":
         return None, {"ran": False, "reason": "no light sources", "source_limit_cd": lim}
-    info = {"sources": sources, "pupil_mm": D, "weights": list(fl.flare_weights(D)),
+    info = {"sources": sources, "pupil_mm": D,
+            "weights": list(fl.flare_weights(D, settings.age)),
             "method": "fast", "threshold": settings.flare_threshold, "source_limit_cd": lim,
             "ran": sources > 0}
     if sources == 0:
@@ -150,9 +178,9 @@ class BandedFlare:
         self.rgb_rows = rgb_rows
         self.blur = None if blur is None else (lambda img, taps: blur(img, taps, EDGE_ZERO))
         h, w = self.shape
-        self.D = float(fl.pupil_diameter(0.5 * (G_cone + G_rod)))
+        self.D = fl.observer_pupil(G_cone, G_rod, settings.fov_deg, (h, w), settings.age)
         self.plan = fx.banded_fast((h, w), settings.fov_deg / w, self.D,
-                                   settings.flare_per_octave, max_pixels)
+                                   settings.flare_per_octave, max_pixels, settings.age)
         self.max_rows = max(1, int(max_pixels) // max(w, 1))
         self.coarse = None
         self.sources = 0
@@ -249,7 +277,8 @@ def stream(settings, shape, G_rod: float, G_cone: float, lim: float, rgb_rows,
     bf.build()
     if settings.flare == "auto" and bf.sources == 0:
         return None, {"ran": False, "reason": "no light sources", "source_limit_cd": lim}
-    info = {"sources": bf.sources, "pupil_mm": bf.D, "weights": list(fl.flare_weights(bf.D)),
+    info = {"sources": bf.sources, "pupil_mm": bf.D,
+            "weights": list(fl.flare_weights(bf.D, settings.age)),
             "method": "fast", "threshold": settings.flare_threshold, "source_limit_cd": lim,
             "ran": bf.sources > 0}
     if settings.flare_method != "fast":
@@ -273,6 +302,7 @@ class Flare(Effect):
     capabilities = frozenset({"host", "device", "banded"})
     options = (
         FOV_OPTION,
+        AGE_OPTION,
         EffectOption("flare_method", "--flare-method", "fast: Gaussians on a pyramid "
                      "(default); exact: FFT of the full PSF", choices=("fast", "exact"),
                      check=_check_method, value="fast"),

@@ -61,8 +61,9 @@ class JobOptions:
     plot: str | None = None
     plot_frames: list[int] | None = None
     visibility: str | None = None       # per-frame visibility planes, EXR (job/visibility_out.py)
+    visibility_view: str | None = None  # ... its false-colour view over the frame
     target_size: float = 10.0           # --target-size, arcmin
-    age: float = 25.0                   # --age, years (Adrian's age factor)
+    target: tuple | None = None         # --target X,Y,SIZE: one target tracked through the shot
     ocio_export: str | None = None      # a folder: the observer as an OCIO view (colour/export.py)
     ocio_export_size: int | str = "auto"    # lattice nodes per axis, or auto
     fov_given: bool = False             # --fov given: a Radiance picture's VIEW does not set it

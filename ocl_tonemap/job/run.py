@@ -24,8 +24,9 @@ from ..models.photometry import RepairCounts
 from ..patterns import is_sequence
 from ..pipeline import FrameInfo, Tonemapper
 from ..plot import plot_adaptation
-from .visibility_out import (check_visibility, frame_visibility, viewing, visibility_path,
-                             write_visibility)
+from .visibility_out import (check_visibility, frame_visibility, shown_codes,
+                             target_visibility, viewing, visibility_path, visibility_view,
+                             write_view, write_visibility)
 from ..state import AdaptationState
 from ..state_files import save_state
 from .banded_io import read_whole, stream_frame, stream_rows
@@ -202,7 +203,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False) 
                 if rows(k) and exporter is not None:
                     raise FrameError(inp, f, "--ocio-export needs whole frames; this one "
                                      "would stream in row bands (--max-memory): give more")
-                if rows(k) and opts.visibility:
+                if rows(k) and (opts.visibility or opts.visibility_view or opts.target):
                     raise FrameError(inp, f, "--visibility needs whole frames; this one "
                                      "would stream in row bands (--max-memory): give more")
                 if rows(k):
@@ -327,8 +328,10 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
                                res.info.effects,
                                run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
         vis = None
-        if run.opts.visibility:
+        if run.opts.visibility or run.opts.visibility_view or run.opts.target:
             vis = frame_visibility(tm, fin, res.info, run.opts)
+        if run.opts.target:
+            res.info.visibility = target_visibility(tm, fin, res.info, run.opts, vis)
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,
                                res.output.shape[2] == 4, fps)
@@ -346,9 +349,15 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
             write_frame(outp, pixels, spec, out_cs, meta[0], run.opts.out_bits, f,
                         chromaticities=chroma, white_luminance=white, straight_alpha=straight,
                         png_level=run.opts.png_level, png_filter=run.opts.png_filter)
-            if vis is not None:
-                write_visibility(visibility_path(run.opts, f), vis, f, viewing(run.opts),
+            if vis is not None and run.opts.visibility:
+                write_visibility(visibility_path(run.opts.visibility, f), vis, f,
+                                 viewing(run.opts, tm.effects.settings.age),
                                  tm.op.name, tm.effects.settings.fov_deg)
+            if vis is not None and run.opts.visibility_view:
+                shown = run.colour.encode_fast(res.output[..., :3]) if linear else \
+                    shown_codes(pixels)
+                write_view(visibility_path(run.opts.visibility_view, f),
+                           visibility_view(shown, vis["VL"]), f)
         except FrameError:
             raise
         except Exception as exc:

@@ -9,6 +9,7 @@ state), so both backends write the same planes.
 
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
@@ -21,15 +22,18 @@ from ..models.photometry import Y_WEIGHTS
 from ..patterns import frame_path, is_sequence, same_file
 from ..imageio import FrameError
 from ..imagewrite import verify_written
-from ..visibility import MAP_TIME_S, PLANES, Viewing, frame_planes
+from ..visibility import MAP_TIME_S, PLANES, Viewing, frame_planes, transient
 
 #: The veil is made at 1/VEIL_STEP of the frame's width (it is smooth at the angles
 #: where it matters: CIE 146's 1-30 degrees), then spread back.
 VEIL_STEP = 8
 
 
-def viewing(opts) -> Viewing:
-    return Viewing(opts.target_size, opts.age, MAP_TIME_S).check()
+def viewing(opts, age: float | None) -> Viewing:
+    """The map's target and observer: ``--target-size``, the run's ``--age`` (the
+    flare's option; ``spencer``, no age, takes Adrian's at the default 25)."""
+    return Viewing(opts.target_size, fl.DEFAULT_AGE if age is None else float(age),
+                   MAP_TIME_S).check()
 
 
 def _block_mean(a: np.ndarray, s: int) -> np.ndarray:
@@ -53,7 +57,7 @@ def veil(rgb_cd: np.ndarray, flare: dict, settings) -> np.ndarray | None:
     if not S.any():
         return None
     F = fx.convolve_fast(S, settings.fov_deg / small.shape[1], float(flare["pupil_mm"]),
-                         settings.flare_per_octave, None)
+                         settings.flare_per_octave, None, settings.age)
     V = np.maximum((F - S) @ Y_WEIGHTS, 0.0)
     return np.repeat(np.repeat(V, s, axis=0), s, axis=1)[:h, :w]
 
@@ -70,7 +74,57 @@ def frame_visibility(tm, fin, info, opts) -> dict:
     px_per_arcmin = w / (tm.effects.settings.fov_deg * 60.0)
     # a local operator's observer is its per-pixel state (from the schedule: a download)
     obs = tm.op.observer_of(tm.state if tm.op.observer_per_pixel else info.state)
-    return frame_planes(tm.op, obs, Y, V, viewing(opts), px_per_arcmin)
+    return frame_planes(tm.op, obs, Y, V, viewing(opts, tm.effects.settings.age),
+                        px_per_arcmin)
+
+
+def parse_target(text: str) -> tuple[float, float, float]:
+    """``--target X,Y,SIZE``: pixel column and row of the target's centre (0, 0 the
+    top-left pixel), its size in arcmin."""
+    try:
+        x, y, size = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--target must be X,Y,SIZE (pixels, pixels, arcmin; got "
+                         f"{text!r})") from None
+    if not all(math.isfinite(v) for v in (x, y, size)):
+        raise ValueError(f"--target must be finite numbers (got {text!r})")
+    if not size > 0:
+        raise ValueError(f"--target: the size must be > 0 arcmin (got {size:g})")
+    return x, y, size
+
+
+def target_visibility(tm, fin, info, opts, planes: dict) -> dict:
+    """The tracked target (``--target X,Y,SIZE``) on one frame: its luminance (a disc
+    of SIZE), its surround (the ring out to 3 sizes), the veil there, dLth and VL."""
+    x, y, size = opts.target
+    Y = np.asarray(fin.pixels[..., :3], np.float64) @ Y_WEIGHTS * fin.scale
+    h, w = Y.shape
+    if not (0 <= x < w and 0 <= y < h):
+        raise ValueError(f"--target {x:g},{y:g}: outside the frame ({w} x {h} pixels)")
+    px = w / (tm.effects.settings.fov_deg * 60.0) * size
+    r = max(0.5, px / 2.0)
+    R = int(math.ceil(3.0 * r)) + 1
+    y0, y1, x0, x1 = max(0, int(y) - R), min(h, int(y) + R + 1), max(0, int(x) - R), \
+        min(w, int(x) + R + 1)
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    d = np.hypot(xx + 0.5 - (x + 0.5), yy + 0.5 - (y + 0.5))
+    Yc = np.nan_to_num(np.maximum(Y[y0:y1, x0:x1], 0.0), posinf=0.0)
+    inner, ring = d <= r, (d > r) & (d <= 3.0 * r)
+    L_t = float(Yc[inner].mean()) if inner.any() else float(Yc[int(y) - y0, int(x) - x0])
+    L_s = float(Yc[ring].mean()) if ring.any() else L_t
+    veil = float(planes["Lveil"][int(y), int(x)])
+    L_b = max(L_s + veil, 1e-6)
+    view = Viewing(size, viewing(opts, tm.effects.settings.age).age, MAP_TIME_S)
+    op = tm.op
+    obs = op.observer_of(tm.state if op.observer_per_pixel else info.state)
+    if op.observer_per_pixel:
+        obs = {k: np.asarray(v)[int(y), int(x)] for k, v in obs.items()}
+    pol = "negative" if L_t < L_s else "positive"
+    taf = float(transient(op, obs, L_b))
+    dl = float(view.steady(L_b, pol)) * taf
+    return {"x": x, "y": y, "size_arcmin": size, "L_target": L_t, "L_surround": L_s,
+            "Lveil": veil, "Lb": L_b, "La": float(np.mean(op.observer_level(obs))),
+            "TAF": taf, "dLth": dl, "VL": abs(L_t - L_s) / dl}
 
 
 def write_visibility(path: str, planes: dict, f, view: Viewing, operator: str,
@@ -93,50 +147,138 @@ def write_visibility(path: str, planes: dict, f, view: Viewing, operator: str,
     spec.attribute("ocltm:operator", operator)
     if f is not None:
         spec.attribute("ocltm:frame", int(f))
+    data = np.stack([planes[n] for n in names], axis=-1)
+    _write_verified(path, data, spec, f)
+
+
+def _write_verified(path: str, data: np.ndarray, spec, f) -> None:
+    """Write ``data`` with ``spec`` through a temporary file, read it back, then rename."""
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise FrameError(path, f, f"cannot write: no folder {folder}")
-    tmp = safeio.temp_path(path, ".exr")
+    tmp = safeio.temp_path(path)
     try:
         out = oiio.ImageOutput.create(tmp)
         if out is None or not out.open(tmp, spec):
-            raise FrameError(path, f, f"cannot write: {oiio.geterror() or 'no EXR writer'}")
-        data = np.ascontiguousarray(np.stack([planes[n] for n in names], axis=-1),
-                                    dtype=np.float32)
-        ok = out.write_image(data)
+            raise FrameError(path, f, f"cannot write: {oiio.geterror() or 'no writer'}")
+        ok = out.write_image(np.ascontiguousarray(data))
         ok = bool(out.close()) and ok
         if not ok:
             raise FrameError(path, f, "cannot write: " + (
                 "no space left on device" if safeio.disk_full(tmp) else
                 (out.geterror() or "failed")))
-        verify_written(tmp, path, f, w, h, len(names))
+        verify_written(tmp, path, f, spec.width, spec.height, spec.nchannels)
         safeio.commit(tmp, path)
     finally:
         safeio.remove(tmp)
 
 
+# --- the false-colour view (--visibility-view) ----------------------------------------------
+
+#: VL bands of the view, (upper bound, colour, label): no colour where the scene has
+#: no detail at the target's size (a uniform wall is no target), red and hatched
+#: below CIE 140's threshold 1, then RP-8's steps.
+VIEW_BANDS = ((0.1, None, "VL < 0.1: no detail"), (1.0, (0.9, 0.05, 0.05), "0.1-1: not seen"),
+              (3.0, (1.0, 0.55, 0.0), "1-3"), (10.0, (1.0, 0.92, 0.15), "3-10"),
+              (math.inf, (0.15, 0.8, 0.35), "> 10"))
+#: How much of the band colour covers the (dimmed) picture.
+VIEW_OPACITY = 0.5
+
+
+def visibility_view(shown: np.ndarray, VL: np.ndarray) -> np.ndarray:
+    """The false-colour view: the tone-mapped frame (``shown``, display code values
+    0..1) dimmed under the VL bands' colours (:data:`VIEW_BANDS`), detail below
+    threshold hatched in full red, a legend below. Float32, H + legend rows x W x 3."""
+    h, w = VL.shape
+    base = np.clip(np.asarray(shown[..., :3], np.float32), 0.0, 1.0) * 0.6
+    band = np.searchsorted(np.array([b for b, _, _ in VIEW_BANDS[:-1]]), VL, side="right")
+    cols = np.array([c or (0.0, 0.0, 0.0) for _, c, _ in VIEW_BANDS], np.float32)
+    opacity = np.where(band == 0, 0.0, VIEW_OPACITY)[..., None].astype(np.float32)
+    out = (1.0 - opacity) * base + opacity * cols[band]
+    yy, xx = np.mgrid[0:h, 0:w]
+    hatch = (band == 1) & (((xx + yy) // max(2, min(h, w) // 120)) % 3 == 0)
+    out[hatch] = cols[1]
+    lh = max(18, min(48, h // 10))
+    legend = np.full((lh, w, 3), 0.08, np.float32)
+    buf = oiio.ImageBuf(oiio.ImageSpec(w, lh, 3, oiio.FLOAT))
+    buf.set_pixels(oiio.ROI(), legend)
+    size = max(8, int(lh * 0.5))
+    x = 4
+    for _, c, label in VIEW_BANDS:
+        oiio.ImageBufAlgo.fill(buf, c or (0.36, 0.36, 0.36),
+                               oiio.ROI(x, x + lh // 2, lh // 4, lh // 4 + lh // 2))
+        oiio.ImageBufAlgo.render_text(buf, x + lh // 2 + 4, int(lh * 0.72), label, size, "",
+                                      (1.0, 1.0, 1.0))
+        tw = oiio.ImageBufAlgo.text_size(label, size, "")
+        x += lh // 2 + 4 + (tw.width if tw.defined else size * len(label) // 2) + lh // 2
+    oiio.geterror()                       # (no font: boxes without labels)
+    return np.concatenate([out, buf.get_pixels(oiio.FLOAT)[..., :3]], axis=0)
+
+
+def shown_codes(pixels: np.ndarray) -> np.ndarray:
+    """Display code values 0..1 of an output's pixels (integers normalised)."""
+    a = np.asarray(pixels)
+    if np.issubdtype(a.dtype, np.integer):
+        return a[..., :3].astype(np.float32) / float(np.iinfo(a.dtype).max)
+    return a[..., :3].astype(np.float32)
+
+
+def write_view(path: str, image: np.ndarray, f) -> None:
+    h, w = image.shape[:2]
+    spec = oiio.ImageSpec(w, h, 3, oiio.UINT8 if not path.lower().endswith(".exr")
+                          else oiio.HALF)
+    spec.attribute("oiio:ColorSpace", "sRGB")
+    spec.attribute("ImageDescription", "ocl-tonemap visibility view: VL bands "
+                   + ", ".join(lab for _, _, lab in VIEW_BANDS))
+    data = np.clip(image, 0.0, 1.0)
+    if spec.format == oiio.UINT8:
+        data = np.round(data * 255.0).astype(np.uint8)
+    _write_verified(path, data, spec, f)
+
+
 def check_visibility(opts, jobs) -> None:
-    """Refuse a bad ``--visibility`` before the first frame: its name, its pattern
-    against the run's frames, an input it would overwrite, the viewing."""
-    if not opts.visibility:
+    """Refuse a bad ``--visibility`` or ``--visibility-view`` before the first frame:
+    their names, their patterns against the run's frames, an input or output they
+    would overwrite, the target size."""
+    if not (opts.visibility or opts.visibility_view or opts.target):
         return
-    viewing(opts)
-    p = opts.visibility
-    if not p.lower().endswith(".exr"):
-        raise ValueError(f"--visibility writes OpenEXR: name it .exr (got {p})")
+    if not (opts.target_size > 0 and math.isfinite(opts.target_size)):
+        raise ValueError(f"--target-size: the target size must be > 0 arcmin (got "
+                         f"{opts.target_size:g})")
+    if opts.visibility and not opts.visibility.lower().endswith(".exr"):
+        raise ValueError(f"--visibility writes OpenEXR: name it .exr (got {opts.visibility})")
     numbered = any(f is not None for f, *_ in jobs)
-    if numbered and not is_sequence(p):
-        raise ValueError(f"--visibility {p}: the run has numbered frames; give a frame "
-                         "pattern (#, @ or %04d)")
-    if not numbered and is_sequence(p):
-        raise ValueError(f"--visibility {p}: a frame pattern, but the input is one image")
-    for f, inp, outp, _ in jobs:
-        v = visibility_path(opts, f)
-        if same_file(v, inp) or same_file(v, outp) or os.path.abspath(v) == \
-                os.path.abspath(outp):
-            raise FrameError(v, f, "--visibility would overwrite the frame's input or output")
+    for flag, p in (("--visibility", opts.visibility), ("--visibility-view",
+                                                        opts.visibility_view)):
+        if not p:
+            continue
+        if flag == "--visibility-view" and oiio.ImageOutput.create(p) is None:
+            raise ValueError(f"--visibility-view {p}: no image format for this name "
+                             "(.png, .tif, .jpg, .exr ...)")
+        if numbered and not is_sequence(p):
+            raise ValueError(f"{flag} {p}: the run has numbered frames; give a frame "
+                             "pattern (#, @ or %04d)")
+        if not numbered and is_sequence(p):
+            raise ValueError(f"{flag} {p}: a frame pattern, but the input is one image")
+        for f, inp, outp, _ in jobs:
+            v = visibility_path(p, f)
+            if same_file(v, inp) or os.path.abspath(v) == os.path.abspath(outp):
+                raise FrameError(v, f, f"{flag} would overwrite the frame's input or output")
+    if opts.visibility and opts.visibility_view and \
+            os.path.abspath(opts.visibility) == os.path.abspath(opts.visibility_view):
+        raise ValueError("--visibility and --visibility-view name the same file")
 
 
-def visibility_path(opts, f) -> str:
-    return frame_path(opts.visibility, f) if f is not None and is_sequence(opts.visibility) \
-        else opts.visibility
+def visibility_path(pattern: str, f) -> str:
+    return frame_path(pattern, f) if f is not None and is_sequence(pattern) else pattern
+
+
+def refuse_visibility(opts, where: str) -> None:
+    """The visibility outputs are made by the serial run's frame loop; elsewhere
+    (``where``) they are refused rather than silently left out."""
+    for flag, given in (("--visibility", opts.visibility),
+                        ("--visibility-view", opts.visibility_view),
+                        ("--target", opts.target)):
+        if given:
+            raise ValueError(f"{flag} is made by a serial run (ocl-tonemap run without "
+                             f"--scheduler); {where} does not make it")

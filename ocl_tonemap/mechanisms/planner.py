@@ -116,7 +116,7 @@ def predictions(an, operator, display, settings, gated_list) -> dict:
     out = {}
     levels = flared = None
     if "flare" in gated_list or settings.flare == "on":
-        d, flared = predict.flare(an, resp, settings.fov_deg)
+        d, flared = predict.flare(an, resp, settings.fov_deg, settings.age)
         if flared is not None and not resp.own:
             # a stand-in response cannot see what a local operator makes of the veil
             # (it lifts a dark tunnel mouth that the stand-in shows black): any

@@ -129,7 +129,7 @@ def patch_pixels(an, flared=None) -> np.ndarray:
     return out
 
 
-def flare(an, resp: DisplayResponse, fov_deg: float):
+def flare(an, resp: DisplayResponse, fov_deg: float, age: float | None = None):
     """The flare of the frame's sources, exact method at the proxy's pixel angle:
     (p99 Delta E, the flared proxy or None). The sources are the block means of each
     pixel's source part (above the analysis's ``flare_limit``) where the backend made them (``an.sources_proxy``: a lamp
@@ -145,13 +145,13 @@ def flare(an, resp: DisplayResponse, fov_deg: float):
             # sources smaller than a block (a lamp the block means hide) where the
             # metering saw a pixel beyond the limit: not predictable here, so it runs
             return (math.inf if an.max_Y is not None and an.max_Y > lim else 0.0), None
-        out, _ = apply_flare(P, an.G_cone, an.G_rod, fov_deg, "exact", lim=lim)
+        out, _ = apply_flare(P, an.G_cone, an.G_rod, fov_deg, "exact", lim=lim, age=age)
     else:
         if not np.any(S > 0):
             return 0.0, None
-        D = float(fl.pupil_diameter(0.5 * (an.G_cone + an.G_rod)))
+        D = fl.observer_pupil(an.G_cone, an.G_rod, fov_deg, P.shape, age)
         # (>= 0: the device's float32 block sums of S can pass the proxy's by a rounding)
-        out = np.maximum(P - S + convolve_exact_cached(S, fov_deg / P.shape[1], D), 0.0)
+        out = np.maximum(P - S + convolve_exact_cached(S, fov_deg / P.shape[1], D, age), 0.0)
     # shown at the levels the operator meters on the flared frame (a veil over a
     # dark texture moves them by orders of magnitude), single pixels included
     after = resp.at(*flared_levels(an, out))

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import cie146, watson2012
 from .convolution import gaussian_taps
 from .numerics import nnls
 from .photometry import Y_WEIGHTS
@@ -90,21 +91,83 @@ def pupil_diameter(L_wa) -> np.ndarray:
     return 4.9 - 3.0 * np.tanh(0.4 * np.log10(L))
 
 
-def flare_weights(D: float) -> tuple[float, float, float, float]:
-    """(w0, w1, w2, w3), Eq. 8: Spencer et al.'s photopic (D = 2 mm) to scotopic
-    (D = 7 mm) sets, linear in the pupil diameter (held at the ends: the pupil
-    ranges over 1.9-7.9 mm, and w3 < 0 below 2 mm).
+#: The observer's age where none is given, years: Adrian's threshold's (the flare
+#: without an age keeps Eq. 8 as printed: docs/models.md, "Observer age").
+DEFAULT_AGE = 25.0
+#: The visual field's largest angular area, deg^2 (a fisheye frame counts as this).
+FIELD_AREA_MAX = 180.0 * 130.0
 
-    >>> [round(w, 3) for w in flare_weights(2.0)]
+
+def observer_pupil(G_cone: float, G_rod: float, fov_deg: float, shape,
+                   age: float | None = None) -> float:
+    """The flare's pupil, mm: Watson & Yellott 2012 (``models/watson2012.py``) for an
+    observer of ``age`` seeing the frame (photopic G_cone over the frame's angular
+    area, both eyes); with ``age`` None, Eq. 8's Moon & Spencer pupil of the mean
+    level, as Durand & Dorsey print it (:func:`pupil_diameter`)."""
+    if age is None:
+        return float(pupil_diameter(0.5 * (G_cone + G_rod)))
+    h, w = (int(v) for v in shape[:2])
+    area = min(float(fov_deg) ** 2 * h / max(w, 1), FIELD_AREA_MAX)
+    return float(watson2012.pupil_diameter(max(float(G_cone), 0.0), area, age))
+
+
+def spencer_weights(D: float) -> tuple[float, float, float, float]:
+    """(w0, w1, w2, w3), Eq. 8 as printed: Spencer et al.'s photopic (D = 2 mm) to
+    scotopic (D = 7 mm) sets, linear in the pupil diameter (held at the ends: the
+    pupil ranges over 1.9-7.9 mm, and w3 < 0 below 2 mm).
+
+    >>> [round(w, 3) for w in spencer_weights(2.0)]
     [0.384, 0.478, 0.138, 0.0]
-    >>> round(sum(flare_weights(pupil_diameter(1e-3))), 12)
-    1.0
     """
     D = min(max(float(D), 2.0), 7.0)      # interpolate between the sets, never beyond
     w1 = 0.478
     w2 = 0.138 + 0.08 * (D - 2.0) / 5.0
     w3 = 0.033 * (D - 2.0) / 5.0
     return 1.0 - w1 - w2 - w3, w1, w2, w3
+
+
+#: Angles (degrees) over which the smooth scatter is held to CIE 146's glare equation.
+GLARE_FIT_DEG = (2.0, 20.0)
+_SR_PER_DEG2 = (180.0 / math.pi) ** 2
+
+
+@functools.lru_cache(maxsize=512)
+def _glare_gains(D: float, age: float) -> tuple[float, float]:
+    th = np.geomspace(*GLARE_FIT_DEG, 33)
+    _, w1, w2, _ = spencer_weights(D)
+    A = np.stack([w1 * f1(th) / basis_norm("f1"), w2 * f2(th) / basis_norm("f2")], 1)
+    b = cie146.veil_per_lux(th, age)
+    g, _ = nnls(A * _SR_PER_DEG2 / b[:, None], np.ones_like(th))
+    return float(g[0]), float(g[1])
+
+
+def glare_gains(D: float, age: float) -> tuple[float, float]:
+    """(g1, g2): the factors on Spencer's f1 and f2 weights that hold the smooth
+    scatter, per steradian, to CIE 146's general disability-glare equation (brown
+    eyes) of an observer of ``age`` at 2-20 degrees (relative least squares, >= 0).
+    The lenticular halo (f3) keeps Spencer's weight: CIE 146 has no ring."""
+    return _glare_gains(round(float(D), 3), round(float(age), 1))
+
+
+def flare_weights(D: float, age: float | None = None) -> tuple[float, float, float, float]:
+    """(w0, w1, w2, w3) of the PSF: Eq. 8 with the smooth scatter (w1, w2) scaled by
+    :func:`glare_gains` for an observer of ``age`` (None: Eq. 8 as printed), the
+    rest of the light in the core w0 (never below 0: the scatter then scaled down).
+
+    >>> round(sum(flare_weights(pupil_diameter(1e-3), 25.0)), 12)
+    1.0
+    >>> flare_weights(2.0) == spencer_weights(2.0)
+    True
+    """
+    w0, w1, w2, w3 = spencer_weights(D)
+    if age is None:
+        return w0, w1, w2, w3
+    g1, g2 = glare_gains(D, age)
+    w1, w2 = g1 * w1, g2 * w2
+    if w1 + w2 + w3 > 1.0:                  # more scatter than light: all of it scattered
+        k = (1.0 - w3) / (w1 + w2)
+        w1, w2 = k * w1, k * w2
+    return max(0.0, 1.0 - w1 - w2 - w3), w1, w2, w3
 
 
 @functools.lru_cache(maxsize=16)
@@ -157,9 +220,10 @@ def channel_bases(ch: int) -> tuple[str, str, str, str]:
     return ("f0", "f1", "f2", f"f3:{WAVELENGTHS_RGB[ch]:g}")
 
 
-def psf_kernel(shape: tuple[int, int], deg_per_px: float, D: float) -> np.ndarray:
+def psf_kernel(shape: tuple[int, int], deg_per_px: float, D: float,
+               age: float | None = None) -> np.ndarray:
     """The exact discrete PSF per channel, (3, 2H-1, 2W-1)."""
-    w = flare_weights(D)
+    w = flare_weights(D, age)
     shared = sum(wi * basis_kernel(b, shape, deg_per_px) for wi, b in zip(w[:3], channel_bases(0)))
     return np.stack([shared + w[3] * basis_kernel(channel_bases(c)[3], shape, deg_per_px)
                      for c in range(3)])
@@ -349,7 +413,8 @@ class FastPlan:
 
 
 def fast_plan(shape: tuple[int, int], deg_per_px: float, D: float,
-              per_octave: int, fit: GaussianFit | None = None) -> FastPlan:
+              per_octave: int, fit: GaussianFit | None = None,
+              age: float | None = None) -> FastPlan:
     """Eq. F's terms for a frame of ``shape`` at pupil diameter ``D`` (``fit``:
     the frame's :func:`fit_gaussians`, when the caller has it): the fit's
     weights combined by Eq. 8, each Gaussian on its :func:`pyramid_level`, the
@@ -357,7 +422,7 @@ def fast_plan(shape: tuple[int, int], deg_per_px: float, D: float,
     h, w = shape
     if fit is None:
         fit = fit_gaussians((h, w), float(deg_per_px), int(per_octave))
-    wts = flare_weights(D)
+    wts = flare_weights(D, age)
     a = sum(wi * fit.weights[b] for wi, b in zip(wts[:3], channel_bases(0)))
     max_level = max(0, int(math.log2(max(1, min(h, w)) / PYRAMID_MIN_SIZE)))
     by_level: dict[int, list] = {}

@@ -29,6 +29,8 @@ class FrameInfo:
     plan: dict = field(default_factory=dict)
     #: Host <-> device transfers of the frame (calls and bytes each way; None: no device).
     transfers: dict | None = None
+    #: The tracked target's visibility on this frame (``run --target``; job/visibility_out.py).
+    visibility: dict | None = None
 
 
 def transfers_since(backend, before) -> dict | None:

@@ -126,3 +126,52 @@ def test_spectral_input_without_luminance_is_refused(drive, tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "needs the frame's luminance" in lines[0], r.stderr
     assert not (tmp_path / "v.exr").exists()
+
+
+def test_view_and_target_through_the_drive(drive):
+    """--visibility-view: the shown frame under the VL bands, a legend below;
+    --target: the target's VL per frame in the report and the plot, equal to the
+    calculator at the target's own surround, veil and state."""
+    out = drive / "view"
+    r = _cli("run", drive / "s" / "tunnel.####.exr", out / "d.####.png", "--operator",
+             "pattanaik00", "--backend", "reference", "--visibility-view",
+             out / "view.####.png", "--target", "48,27,30", "--plot", out / "p.png",
+             "--state-out", out / "state.json")
+    assert r.returncode == 0, r.stderr
+    shown = oiio.ImageBuf(str(out / "d.0005.png")).get_pixels(oiio.FLOAT)
+    view = oiio.ImageBuf(str(out / "view.0005.png")).get_pixels(oiio.FLOAT)
+    assert view.shape[1] == shown.shape[1] and view.shape[0] > shown.shape[0]  # + legend
+    assert (out / "p.png").stat().st_size > 1000
+    lines = r.stdout.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("target at (48, 27)"))
+    rows = [ln.split() for ln in lines[head + 2:head + 14]]
+    assert [int(c[0]) for c in rows] == list(range(1, 13))
+    last = rows[-1]
+    L_t, L_b, TAF, dL, VL = (float(last[i]) for i in (2, 3, 5, 6, 7))
+    op = get_operator("pattanaik00")({})
+    obs = op.observer_of(load_state(out / "state.json"))
+    pol = "negative" if L_t < L_b else "positive"
+    want = float(Viewing(30.0, 25.0, MAP_TIME_S).steady(L_b, pol)) * \
+        float(transient(op, obs, L_b))
+    assert dL == pytest.approx(want, rel=2e-3)          # (the report's 4 digits)
+
+
+@pytest.mark.parametrize("args,says", [
+    (("--target", "500,10,10"), "outside the frame"),
+    (("--target", "10,10,0"), "size must be > 0"),
+    (("--target", "10,10"), "must be X,Y,SIZE"),
+    (("--visibility-view", "v.####.xyz"), "no image format"),
+])
+def test_target_and_view_refusals(drive, args, says, tmp_path):
+    r = _cli("run", drive / "s" / "tunnel.####.exr", tmp_path / "d.####.png",
+             "--backend", "reference", *[str(tmp_path / a) if a.startswith("v.") else a
+                                          for a in args])
+    assert r.returncode != 0
+    lines = [ln for ln in r.stderr.strip().splitlines() if "WARNING" not in ln]
+    assert len(lines) == 1 and says in lines[0], r.stderr
+
+
+def test_visibility_is_refused_where_it_is_not_made(drive, tmp_path):
+    r = _cli("simulate", drive / "s" / "tunnel.0001.exr", tmp_path / "s.####.png", "--at", "1",
+             "--visibility", tmp_path / "v.exr")
+    assert r.returncode != 0 and "serial run" in r.stderr and not list(tmp_path.iterdir())

@@ -125,22 +125,39 @@ def test_the_calculator_refuses_bad_input_in_one_line(args, why):
     assert r.returncode == 2 and why in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
-def test_the_flares_psf_per_steradian_is_the_one_held_against_cie146():
+@pytest.mark.parametrize("age", [25.0, 70.0])
+def test_the_flares_veil_is_cie146s_at_the_observers_age(age):
     """benchmarks/glare_cie146.py puts the flare's PSF in the CIE's units, per
-    steradian: it still carries the whole of a source's light (the bases' unit energy,
-    integrated over the angle as the flare's kernels sample it), and it veils more
-    than CIE 146's young eye at 2-20 degrees, about as its 70-year-old does (the
-    table in benchmarks/results/glare_cie146.md; issue 48's age step starts here)."""
-    from benchmarks.glare_cie146 import spencer_psf
+    steradian: it carries the whole of a source's light (the bases' unit energy), and
+    its smooth scatter (f1, f2) is CIE 146's veil at the observer's age within 10 % at
+    2-20 degrees for daylight, dusk and night pupils (issue 48 asks 25 %); Spencer's
+    lenticular halo adds its ring at ~3 degrees only."""
+    from benchmarks.glare_cie146 import agreement, spencer_psf
     from ocl_tonemap.models import spencer1995 as fl
     th = np.concatenate([np.linspace(0, 0.2, 20001)[:-1],
                          np.linspace(0.2, fl.THETA_MAX, 400001)])
     r = np.radians(th)
-    assert np.trapezoid(spencer_psf(th, 1.0) * 2 * np.pi * r, r) == pytest.approx(1.0, rel=1e-4)
-    band = np.array([2.0, 5.0, 10.0, 20.0])
-    ratio = spencer_psf(band, 1.0) / cie146.veil_per_lux(band, 25)
-    assert np.all(ratio > 1.25)
-    assert np.all(np.abs(spencer_psf(band, 1.0) / cie146.veil_per_lux(band, 70) - 1) < 0.25)
+    for L in (1000.0, 1.0, 0.01):
+        assert np.trapezoid(spencer_psf(th, L, age) * 2 * np.pi * r, r) == \
+            pytest.approx(1.0, rel=1e-4)
+        lo, hi = agreement(L, age, ring=False)
+        assert 0.9 < lo and hi < 1.1, (L, lo, hi)
+        assert agreement(L, age, ring=True)[1] > hi          # the ring, where it is
+        away = np.array([5.0, 7.0, 10.0, 15.0, 20.0])        # and not beyond it
+        ratio = spencer_psf(away, L, age) / cie146.veil_per_lux(away, age)
+        assert np.all(np.abs(ratio - 1) < 0.25), (L, ratio)
+
+
+def test_an_older_eye_has_a_smaller_pupil_and_more_glare():
+    from ocl_tonemap.models import spencer1995 as fl
+    from ocl_tonemap.models import watson2012 as wy
+    for L in (0.01, 1.0, 100.0):
+        assert wy.pupil_diameter(L, 1400.0, 70) < wy.pupil_diameter(L, 1400.0, 25)
+    w25, w70 = fl.flare_weights(4.0, 25.0), fl.flare_weights(4.0, 70.0)
+    assert w70[1] + w70[2] > w25[1] + w25[2] and w70[0] < w25[0]
+    assert fl.flare_weights(4.0) == fl.spencer_weights(4.0)      # no age: Eq. 8
+    assert sum(fl.flare_weights(4.0, 100.0)) == pytest.approx(1.0)
+    assert min(fl.flare_weights(7.0, 100.0)) >= 0.0
 
 
 # --- transient adaptation: each operator's own time course (issue 48) ---------------------
