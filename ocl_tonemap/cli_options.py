@@ -245,15 +245,11 @@ def _output_flags(g) -> None:
     g.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
     g.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
     g.add_argument("--visibility", metavar="OUT.####.exr",
-                   help="also write what the observer can see, per frame: La, Lveil, Lb, dLth "
-                   "and VL channels (cd/m^2; Adrian 1989 under the operator's own adaptation; "
-                   "docs/models.md, \"Visibility\")")
+                   help="also write what the observer can see: La, Lveil, Lb, dLth, VL")
     g.add_argument("--visibility-view", metavar="OUT.####.png",
-                   help="also write a false-colour view of the visibility level over the "
-                   "shown frame (VL < 1 hatched red), with a legend")
+                   help="also write VL in false colour over the shown frame")
     g.add_argument("--target", metavar="X,Y,SIZE",
-                   help="track a target through the shot: its centre (pixels) and size "
-                   "(arcmin); its VL per frame in the report and --plot")
+                   help="a target (pixels, arcmin): its VL per frame in the report, --plot")
     g.add_argument("--target-size", type=float, default=10.0, metavar="ARCMIN",
                    help="--visibility: the target's size, arcmin (default 10)")
     g.add_argument("--ocio-export", metavar="DIR",

@@ -67,10 +67,8 @@ def _age(text: str):
 #: The observer's age: the flare's pupil (Watson & Yellott 2012) and glare (CIE 146's
 #: equation at that age); the visibility threshold's age factor (Adrian 1989). Not
 #: given (None): the flare as Eq. 8 prints it, the threshold at 25 (docs/models.md).
-AGE_OPTION = EffectOption("age", "--age", "the observer's age, years 1..100: the pupil "
-                          "(Watson & Yellott 2012), the glare (CIE 146/180) and the visibility "
-                          "threshold (Adrian 1989). Default: the flare as Spencer et al.'s "
-                          "Eq. 8 prints it (spencer), the threshold at 25",
+AGE_OPTION = EffectOption("age", "--age", "observer's age, 1..100: pupil, glare, threshold "
+                          "(default: the flare's Eq. 8 as printed, the threshold at 25)",
                           type=_age, metavar="YEARS", check=_check_age, value=None)
 
 
