@@ -22,11 +22,13 @@ from ..models.photometry import Y_WEIGHTS
 from ..patterns import frame_path, is_sequence, same_file
 from ..imageio import FrameError
 from ..imagewrite import verify_written
-from ..visibility import MAP_TIME_S, PLANES, Viewing, frame_planes, transient
+from ..visibility import (MAP_TIME_S, PLANES, Viewing, block_mean, frame_planes, transient,
+                          upsample)
 
-#: The veil is made at 1/VEIL_STEP of the frame's width (it is smooth at the angles
-#: where it matters: CIE 146's 1-30 degrees), then spread back.
-VEIL_STEP = 8
+#: The veil is made on a grid of cells about this wide, degrees (a power of two of
+#: pixels; it is smooth at the angles where it matters, CIE 146's 1-30 degrees),
+#: then brought back bilinearly.
+VEIL_CELL_DEG = 0.4
 
 
 def viewing(opts, age: float | None) -> Viewing:
@@ -36,30 +38,25 @@ def viewing(opts, age: float | None) -> Viewing:
                    MAP_TIME_S).check()
 
 
-def _block_mean(a: np.ndarray, s: int) -> np.ndarray:
-    h, w = a.shape[:2]
-    H, W = -(-h // s), -(-w // s)
-    pad = np.pad(a, ((0, H * s - h), (0, W * s - w)) + ((0, 0),) * (a.ndim - 2), mode="edge")
-    return pad.reshape(H, s, W, s, *a.shape[2:]).mean(axis=(1, 3))
-
-
 def veil(rgb_cd: np.ndarray, flare: dict, settings) -> np.ndarray | None:
     """The flare's veil (cd/m^2, H x W) of a frame whose flare ran: Spencer's PSF at
-    the frame's pupil over its sources above the frame's source limit, on a grid
-    VEIL_STEP times coarser (fast method), less the sources themselves."""
+    the frame's pupil over its sources above the frame's source limit, on a grid of
+    :data:`VEIL_CELL_DEG` cells (fast method), less the sources themselves."""
     if not flare or not flare.get("ran") or "pupil_mm" not in flare:
         return None
     lim = float(flare.get("source_limit_cd", np.inf))
     h, w = rgb_cd.shape[:2]
-    s = VEIL_STEP if min(h, w) >= 4 * VEIL_STEP else 1
-    small = _block_mean(np.asarray(rgb_cd, np.float64), s)
+    s = 1
+    while 2 * s * settings.fov_deg / w <= VEIL_CELL_DEG and min(h, w) // (2 * s) >= 16:
+        s *= 2
+    small = block_mean(rgb_cd, s).astype(np.float64)
     S = fl.source_part(small, 1.0, lim)
     if not S.any():
         return None
     F = fx.convolve_fast(S, settings.fov_deg / small.shape[1], float(flare["pupil_mm"]),
                          settings.flare_per_octave, None, settings.age)
-    V = np.maximum((F - S) @ Y_WEIGHTS, 0.0)
-    return np.repeat(np.repeat(V, s, axis=0), s, axis=1)[:h, :w]
+    V = np.maximum((F - S) @ Y_WEIGHTS, 0.0).astype(np.float32)
+    return upsample(V, (h, w), s)
 
 
 def frame_visibility(tm, fin, info, opts) -> dict:
@@ -67,8 +64,8 @@ def frame_visibility(tm, fin, info, opts) -> dict:
     if fin.wavelengths is not None:
         raise ValueError("--visibility needs the frame's luminance: this operator takes "
                          "the spectrum (give RGB input, or an operator that maps RGB)")
-    rgb = np.asarray(fin.pixels[..., :3], np.float64) * fin.scale
-    Y = rgb @ Y_WEIGHTS
+    rgb = np.asarray(fin.pixels[..., :3], np.float32) * np.float32(fin.scale)
+    Y = rgb @ Y_WEIGHTS.astype(np.float32)
     V = veil(rgb, info.effects.get("flare"), tm.effects.settings)
     w = Y.shape[1]
     px_per_arcmin = w / (tm.effects.settings.fov_deg * 60.0)
