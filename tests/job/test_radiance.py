@@ -193,3 +193,26 @@ def test_the_readmes_radiance_block_runs_as_written(tmp_path):
     a, b = _png(tmp_path / "room.png"), _png(tmp_path / "room_e2.png")
     assert a.shape[1] == 640 and a.mean() > 20          # (rpict keeps the view's aspect)
     assert np.abs(a - b).max() <= 1
+
+
+def test_the_readmes_lighting_designers_block_runs_as_written(tmp_path):
+    """README "For lighting designers": the portal rendered with rpict, its visibility
+    planes, view and target, and the threshold over time, as written there."""
+    import re
+    from pathlib import Path
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    part = readme.split("## For lighting designers", 1)[1]
+    block = re.search(r"```sh\n(.*?)```", part, re.S).group(1)
+    env = {**os.environ, "PATH": os.path.dirname(sys.executable) + os.pathsep +
+           "/usr/bin:/bin"}
+    env.pop("RAYPATH", None)
+    r = subprocess.run(["bash", "-e", "-c", block], cwd=tmp_path, env=env,
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    for f in ("portal.png", "portal_vis.exr", "portal_vl.png", "vl_over_time.png"):
+        assert (tmp_path / f).stat().st_size > 1000, f
+    row = r.stdout.split("target at (320, 185), 6 arcmin:", 1)[1].splitlines()[2].split()
+    TAF, VL = float(row[-3]), float(row[-1])
+    assert TAF > 3 and 0.2 < VL < 5          # the black hole: the eye still at 5000
+    b = oiio.ImageBuf(str(tmp_path / "portal_vis.exr"))
+    assert set(b.spec().channelnames) == {"La", "Lveil", "Lb", "dLth", "VL"}
