@@ -106,7 +106,7 @@ def main(argv=None) -> int:
             for _, n in LEVELS) + " |")
     lines += ["", "The smooth scatter follows CIE 146 at both ages within the fit's residual; "
               "Spencer's lenticular halo (a ring at ~3 degrees, 3.3 % of the light at a 7 mm "
-              "pupil) adds to it at 2.3-4.3 degrees, most at night, where CIE 146 (a smooth "
+              "pupil) adds to it at 1.8-4.9 degrees, most at night, where CIE 146 (a smooth "
               "fit to veils, no ring) has none (docs/models.md, \"Observer age\")."]
     out = out_path(a, "glare_cie146.md")
     with open(out, "w") as f:

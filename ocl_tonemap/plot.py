@@ -40,12 +40,7 @@ def default_plot_frames(infos, count: int = 6) -> list[int]:
 
 
 def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> None:
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError as exc:
-        raise RuntimeError("--plot needs matplotlib: pip install 'ocl-tonemap[plot]'") from exc
+    plt = _pyplot()
     if not infos:
         raise RuntimeError("nothing to plot")
     t = np.array([i.time_s for i in infos])
@@ -111,15 +106,7 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
         ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    tmp = safeio.temp_path(path)
-    try:
-        fig.savefig(tmp, dpi=110, format=os.path.splitext(path)[1][1:].lower() or "png")
-        safeio.commit(tmp, path)
-    except OSError as exc:
-        raise safeio.WriteFailed(path, safeio.reason(exc), exc.errno) from None
-    finally:
-        safeio.remove(tmp)
-        plt.close(fig)
+    save_figure(fig, path)
 
 
 def _plot_target(ax, infos) -> None:

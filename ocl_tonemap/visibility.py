@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .backends.flare_exec import fft_size
 from .models import adrian1989 as ad
 
 #: The default target: 10 arcmin (the issue's and RP-8's small target is 7.3-10).
@@ -115,21 +116,6 @@ SURROUND = 3.0
 TABLE_PER_DECADE = 2048
 
 
-def _fast_len(n: int) -> int:
-    """The smallest 2^a 3^b 5^c >= n (numpy's FFT is quick on those)."""
-    best, p2 = 1 << max(0, (n - 1).bit_length()), 1
-    while p2 < 2 * n:
-        p3 = p2
-        while p3 < 2 * n:
-            p5 = p3
-            while p5 < n:
-                p5 *= 5
-            best = min(best, p5)
-            p3 *= 3
-        p2 *= 2
-    return best
-
-
 def _gauss_fft(F, shape, sigma_px: float, pad: int) -> np.ndarray:
     """A Gaussian of ``sigma_px`` applied to the padded image whose rfft2 is ``F``."""
     h, w = shape
@@ -146,8 +132,8 @@ def _gauss(Y: np.ndarray, sigma_px: float) -> np.ndarray:
     pad = int(min(max(Y.shape), math.ceil(3.0 * sigma_px) + 1))
     P = np.pad(Y, pad, mode="reflect" if min(Y.shape) > pad else "edge")
     # zero-filled to an FFT-friendly size beyond the reflected border (>= 3 sigma)
-    P = np.pad(P, ((0, _fast_len(P.shape[0]) - P.shape[0]),
-                   (0, _fast_len(P.shape[1]) - P.shape[1])))
+    P = np.pad(P, ((0, fft_size(P.shape[0]) - P.shape[0]),
+                   (0, fft_size(P.shape[1]) - P.shape[1])))
     out = _gauss_fft(np.fft.rfft2(P), P.shape, sigma_px, pad)
     return out[pad:pad + Y.shape[0], pad:pad + Y.shape[1]].astype(np.float32)
 

@@ -175,21 +175,28 @@ def test_photoshops_zero_primaries_are_no_primaries():
 
 
 @needs_radiance
+def _readme_block(section: str, cwd):
+    """The first ``sh`` block under a README section, pasted into bash in ``cwd`` with
+    only the installed package on PATH (its radiance-env puts the wheel's programs
+    there); the finished process."""
+    import re
+    from pathlib import Path
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    block = re.search(r"```sh\n(.*?)```", readme.split(section, 1)[1], re.S).group(1)
+    env = {**os.environ, "PATH": os.path.dirname(sys.executable) + os.pathsep +
+           "/usr/bin:/bin"}
+    env.pop("RAYPATH", None)
+    r = subprocess.run(["bash", "-e", "-c", block], cwd=cwd, env=env,
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return r
+
+
 def test_the_readmes_radiance_block_runs_as_written(tmp_path):
     """README "From Radiance": the block pasted into bash in an empty folder, with only
     the installed package on PATH (its radiance-env puts the wheel's programs there):
     it renders and maps, and pfilt's exposure gives the same picture."""
-    import re
-    from pathlib import Path
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    part = readme.split("## From Radiance", 1)[1]
-    block = re.search(r"```sh\n(.*?)```", part, re.S).group(1)
-    env = {**os.environ, "PATH": os.path.dirname(sys.executable) + os.pathsep +
-           "/usr/bin:/bin"}
-    env.pop("RAYPATH", None)
-    r = subprocess.run(["bash", "-e", "-c", block], cwd=tmp_path, env=env,
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
+    _readme_block("## From Radiance", tmp_path)
     a, b = _png(tmp_path / "room.png"), _png(tmp_path / "room_e2.png")
     assert a.shape[1] == 640 and a.mean() > 20          # (rpict keeps the view's aspect)
     assert np.abs(a - b).max() <= 1
@@ -198,17 +205,7 @@ def test_the_readmes_radiance_block_runs_as_written(tmp_path):
 def test_the_readmes_lighting_designers_block_runs_as_written(tmp_path):
     """README "For lighting designers": the portal rendered with rpict, its visibility
     planes, view and target, and the threshold over time, as written there."""
-    import re
-    from pathlib import Path
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    part = readme.split("## For lighting designers", 1)[1]
-    block = re.search(r"```sh\n(.*?)```", part, re.S).group(1)
-    env = {**os.environ, "PATH": os.path.dirname(sys.executable) + os.pathsep +
-           "/usr/bin:/bin"}
-    env.pop("RAYPATH", None)
-    r = subprocess.run(["bash", "-e", "-c", block], cwd=tmp_path, env=env,
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
+    r = _readme_block("## For lighting designers", tmp_path)
     for f in ("portal.png", "portal_vis.exr", "portal_vl.png", "vl_over_time.png"):
         assert (tmp_path / f).stat().st_size > 1000, f
     row = r.stdout.split("target at (320, 185), 6 arcmin:", 1)[1].splitlines()[2].split()
