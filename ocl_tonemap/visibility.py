@@ -139,16 +139,26 @@ def _gauss(Y: np.ndarray, sigma_px: float) -> np.ndarray:
 
 
 def block_mean(a: np.ndarray, s: int) -> np.ndarray:
-    """Means of s x s blocks (edge blocks padded by their last row/column), float32."""
+    """Means of s x s blocks (the blocks at the bottom and right edges of what pixels
+    they have), float32."""
     if s <= 1:
         return np.asarray(a, np.float32)
     h, w = a.shape[:2]
-    H, W = -(-h // s), -(-w // s)
-    if (H * s, W * s) != (h, w):
-        a = np.pad(a, ((0, H * s - h), (0, W * s - w)) + ((0, 0),) * (a.ndim - 2),
-                   mode="edge")
-    b = np.asarray(a, np.float32).reshape(H, s, W, s, *a.shape[2:])
-    return b.sum(axis=3, dtype=np.float32).sum(axis=1) * np.float32(1.0 / (s * s))
+    hf, wf = h // s * s, w // s * s
+    out = np.empty((-(-h // s), -(-w // s)) + a.shape[2:], np.float32)
+
+    def means(part, ny, nx):
+        b = part.reshape(part.shape[0] // ny, ny, part.shape[1] // nx, nx, *a.shape[2:])
+        return b.sum(axis=3, dtype=np.float32).sum(axis=1) * np.float32(1.0 / (ny * nx))
+    if hf and wf:
+        out[:hf // s, :wf // s] = means(a[:hf, :wf], s, s)
+    if hf < h and wf:
+        out[-1, :wf // s] = means(a[hf:, :wf], h - hf, s)[0]
+    if wf < w and hf:
+        out[:hf // s, -1] = means(a[:hf, wf:], s, w - wf)[:, 0]
+    if hf < h and wf < w:
+        out[-1, -1] = means(a[hf:, wf:], h - hf, w - wf)[0, 0]
+    return out
 
 
 def upsample(a: np.ndarray, shape, s: int) -> np.ndarray:

@@ -38,25 +38,27 @@ def viewing(opts, age: float | None) -> Viewing:
                    MAP_TIME_S).check()
 
 
-def veil(rgb_cd: np.ndarray, flare: dict, settings) -> np.ndarray | None:
-    """The flare's veil (cd/m^2, H x W) of a frame whose flare ran: Spencer's PSF at
-    the frame's pupil over its sources above the frame's source limit, on a grid of
-    :data:`VEIL_CELL_DEG` cells (fast method), less the sources themselves."""
+def veil(Y: np.ndarray, flare: dict, settings) -> np.ndarray | None:
+    """The flare's photopic veil (cd/m^2, H x W) of a frame of luminance ``Y`` (cd/m^2)
+    whose flare ran: the flare's PSF (of ``settings.age``, the channels' PSFs weighted
+    by Y) at the frame's pupil over the light above the frame's source limit, on a
+    grid of :data:`VEIL_CELL_DEG` cells (the exact PSF's cached FFTs), less the
+    sources themselves."""
     if not flare or not flare.get("ran") or "pupil_mm" not in flare:
         return None
     lim = float(flare.get("source_limit_cd", np.inf))
-    h, w = rgb_cd.shape[:2]
+    h, w = Y.shape
     s = 1
     while 2 * s * settings.fov_deg / w <= VEIL_CELL_DEG and min(h, w) // (2 * s) >= 16:
         s *= 2
-    small = block_mean(rgb_cd, s).astype(np.float64)
-    S = fl.source_part(small, 1.0, lim)
+    small = block_mean(Y, s).astype(np.float64)
+    S = np.maximum(small - lim, 0.0)               # (source_part of a grey: Y - lim)
     if not S.any():
         return None
-    F = fx.convolve_fast(S, settings.fov_deg / small.shape[1], float(flare["pupil_mm"]),
-                         settings.flare_per_octave, None, settings.age)
-    V = np.maximum((F - S) @ Y_WEIGHTS, 0.0).astype(np.float32)
-    return upsample(V, (h, w), s)
+    S3 = np.repeat(S[..., None], 3, axis=2)
+    F = fx.convolve_exact_cached(S3, settings.fov_deg / small.shape[1],
+                                 float(flare["pupil_mm"]), settings.age) @ Y_WEIGHTS
+    return upsample(np.maximum(F - S, 0.0).astype(np.float32), (h, w), s)
 
 
 def frame_visibility(tm, fin, info, opts) -> dict:
@@ -64,9 +66,9 @@ def frame_visibility(tm, fin, info, opts) -> dict:
     if fin.wavelengths is not None:
         raise ValueError("--visibility needs the frame's luminance: this operator takes "
                          "the spectrum (give RGB input, or an operator that maps RGB)")
-    rgb = np.asarray(fin.pixels[..., :3], np.float32) * np.float32(fin.scale)
-    Y = rgb @ Y_WEIGHTS.astype(np.float32)
-    V = veil(rgb, info.effects.get("flare"), tm.effects.settings)
+    Y = (fin.pixels[..., :3] @ Y_WEIGHTS.astype(np.float32)).astype(np.float32)
+    Y *= np.float32(fin.scale)
+    V = veil(Y, info.effects.get("flare"), tm.effects.settings)
     w = Y.shape[1]
     px_per_arcmin = w / (tm.effects.settings.fov_deg * 60.0)
     # a local operator's observer is its per-pixel state (from the schedule: a download)
