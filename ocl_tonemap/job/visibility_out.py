@@ -18,7 +18,7 @@ import OpenImageIO as oiio
 from .. import safeio
 from ..backends import flare_exec as fx
 from ..models import spencer1995 as fl
-from ..models.photometry import Y_WEIGHTS
+from ..models.photometry import Y_WEIGHTS, sanitize
 from ..patterns import frame_path, is_sequence, same_file
 from ..imageio import FrameError
 from ..imagewrite import verify_written
@@ -61,13 +61,24 @@ def veil(Y: np.ndarray, flare: dict, settings) -> np.ndarray | None:
     return upsample(np.maximum(F - S, 0.0).astype(np.float32), (h, w), s)
 
 
+def scene_luminance(pixels: np.ndarray, scale: float) -> np.ndarray:
+    """Photopic luminance, cd/m^2 (float32), of working-space ``pixels`` x ``scale``,
+    bad values repaired by the pipeline's policy (``photometry.sanitize``: NaN,
+    -Inf, negatives, denormals 0; +Inf the ceiling) where there are any."""
+    rgb = pixels[..., :3]
+    Y = (rgb @ Y_WEIGHTS.astype(np.float32)).astype(np.float32) * np.float32(scale)
+    if np.isfinite(Y).all() and (np.asarray(rgb) >= 0).all():
+        return Y
+    clean, _ = sanitize(rgb, scale)
+    return (clean @ Y_WEIGHTS).astype(np.float32)
+
+
 def frame_visibility(tm, fin, info, opts) -> dict:
     """The planes of one mapped frame."""
     if fin.wavelengths is not None:
         raise ValueError("--visibility needs the frame's luminance: this operator takes "
                          "the spectrum (give RGB input, or an operator that maps RGB)")
-    Y = (fin.pixels[..., :3] @ Y_WEIGHTS.astype(np.float32)).astype(np.float32)
-    Y *= np.float32(fin.scale)
+    Y = scene_luminance(fin.pixels, fin.scale)
     V = veil(Y, info.effects.get("flare"), tm.effects.settings)
     w = Y.shape[1]
     px_per_arcmin = w / (tm.effects.settings.fov_deg * 60.0)
@@ -96,7 +107,7 @@ def target_visibility(tm, fin, info, opts, planes: dict) -> dict:
     """The tracked target (``--target X,Y,SIZE``) on one frame: its luminance (a disc
     of SIZE), its surround (the ring out to 3 sizes), the veil there, dLth and VL."""
     x, y, size = opts.target
-    Y = np.asarray(fin.pixels[..., :3], np.float64) @ Y_WEIGHTS * fin.scale
+    Y = scene_luminance(fin.pixels, fin.scale)
     h, w = Y.shape
     if not (0 <= x < w and 0 <= y < h):
         raise ValueError(f"--target {x:g},{y:g}: outside the frame ({w} x {h} pixels)")

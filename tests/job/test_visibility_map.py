@@ -175,3 +175,27 @@ def test_visibility_is_refused_where_it_is_not_made(drive, tmp_path):
     r = _cli("simulate", drive / "s" / "tunnel.0001.exr", tmp_path / "s.####.png", "--at", "1",
              "--visibility", tmp_path / "v.exr")
     assert r.returncode != 0 and "serial run" in r.stderr and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("op", ["pattanaik00", "ledda04"])
+def test_extremes_give_finite_planes(tmp_path, op):
+    """A 1x1 frame, a black one, and one with NaN, +-Inf, a negative and 1e8 cd/m^2:
+    every plane finite (the pipeline's bad-value policy on the luminance), the target
+    reported."""
+    frames = {"one": np.full((1, 1, 3), 5.0), "black": np.zeros((40, 60, 3))}
+    bad = np.full((40, 60, 3), 3.0)
+    bad[5, 5], bad[6, 6], bad[7, 7], bad[8, 8] = np.nan, np.inf, -5.0, -np.inf
+    bad[10:12, 10:12] = 1e8
+    frames["bad"] = bad
+    for name, a in frames.items():
+        src = tmp_path / f"{name}.exr"
+        b = oiio.ImageBuf(oiio.ImageSpec(a.shape[1], a.shape[0], 3, oiio.FLOAT))
+        b.set_pixels(oiio.ROI(), a.astype(np.float32))
+        assert b.write(str(src))
+        r = _cli("run", src, tmp_path / f"{name}.png", "--operator", op, "--backend",
+                 "reference", "--luminance-scale", "1", "--visibility",
+                 tmp_path / f"{name}_v.exr", "--target", "0,0,10")
+        assert r.returncode == 0, r.stderr
+        P, _ = _planes(tmp_path / f"{name}_v.exr")
+        assert all(np.isfinite(v).all() for v in P.values()), name
+        assert "target at (0, 0), 10 arcmin:" in r.stdout
