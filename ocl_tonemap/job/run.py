@@ -24,7 +24,7 @@ from ..models.photometry import RepairCounts
 from ..patterns import is_sequence
 from ..pipeline import FrameInfo, Tonemapper
 from ..plot import plot_adaptation
-from .visibility_out import (check_visibility, frame_visibility, shown_codes,
+from .visibility_out import (check_visibility, frame_seen, frame_visibility, shown_codes,
                              target_visibility, viewing, visibility_path, visibility_view,
                              write_view, write_visibility)
 from ..state import AdaptationState
@@ -329,9 +329,10 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
                                run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
         vis = None
         if run.opts.visibility or run.opts.visibility_view or run.opts.target:
-            vis = frame_visibility(tm, fin, res.info, run.opts)
-        if run.opts.target:
-            res.info.visibility = target_visibility(tm, fin, res.info, run.opts, vis)
+            seen = frame_seen(tm, fin, res.info)
+            vis = frame_visibility(tm, seen, res.info, run.opts)
+            if run.opts.target:
+                res.info.visibility = target_visibility(tm, seen, run.opts, vis)
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,
                                res.output.shape[2] == 4, fps)

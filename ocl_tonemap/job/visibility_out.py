@@ -3,7 +3,7 @@
 Reads the frame the run mapped (its scene luminance, the operator's state after
 it, the flare's record) and writes ``ocl_tonemap.visibility.PLANES`` as a float32
 EXR, the channels' meaning and units in its header. The planes are made on the
-host in float64 from what every backend gives alike (the frame's input and the
+host in NumPy from what every backend gives alike (the frame's input and the
 state), so both backends write the same planes.
 """
 
@@ -73,17 +73,22 @@ def scene_luminance(pixels: np.ndarray, scale: float) -> np.ndarray:
     return (clean @ Y_WEIGHTS).astype(np.float32)
 
 
-def frame_visibility(tm, fin, info, opts) -> dict:
-    """The planes of one mapped frame."""
+def frame_seen(tm, fin, info) -> tuple[np.ndarray, dict]:
+    """(scene luminance, observer state) of one mapped frame: what the planes and the
+    target read."""
     if fin.wavelengths is not None:
         raise ValueError("--visibility needs the frame's luminance: this operator takes "
                          "the spectrum (give RGB input, or an operator that maps RGB)")
-    Y = scene_luminance(fin.pixels, fin.scale)
-    V = veil(Y, info.effects.get("flare"), tm.effects.settings)
-    w = Y.shape[1]
-    px_per_arcmin = w / (tm.effects.settings.fov_deg * 60.0)
     # a local operator's observer is its per-pixel state (from the schedule: a download)
     obs = tm.op.observer_of(tm.state if tm.op.observer_per_pixel else info.state)
+    return scene_luminance(fin.pixels, fin.scale), obs
+
+
+def frame_visibility(tm, seen, info, opts) -> dict:
+    """The planes of one mapped frame (``seen``: :func:`frame_seen`'s)."""
+    Y, obs = seen
+    V = veil(Y, info.effects.get("flare"), tm.effects.settings)
+    px_per_arcmin = Y.shape[1] / (tm.effects.settings.fov_deg * 60.0)
     return frame_planes(tm.op, obs, Y, V, viewing(opts, tm.effects.settings.age),
                         px_per_arcmin)
 
@@ -103,11 +108,11 @@ def parse_target(text: str) -> tuple[float, float, float]:
     return x, y, size
 
 
-def target_visibility(tm, fin, info, opts, planes: dict) -> dict:
+def target_visibility(tm, seen, opts, planes: dict) -> dict:
     """The tracked target (``--target X,Y,SIZE``) on one frame: its luminance (a disc
     of SIZE), its surround (the ring out to 3 sizes), the veil there, dLth and VL."""
     x, y, size = opts.target
-    Y = scene_luminance(fin.pixels, fin.scale)
+    Y, obs = seen
     h, w = Y.shape
     if not (0 <= x < w and 0 <= y < h):
         raise ValueError(f"--target {x:g},{y:g}: outside the frame ({w} x {h} pixels)")
@@ -118,7 +123,7 @@ def target_visibility(tm, fin, info, opts, planes: dict) -> dict:
         min(w, int(x) + R + 1)
     yy, xx = np.mgrid[y0:y1, x0:x1]
     d = np.hypot(xx + 0.5 - (x + 0.5), yy + 0.5 - (y + 0.5))
-    Yc = np.nan_to_num(np.maximum(Y[y0:y1, x0:x1], 0.0), posinf=0.0)
+    Yc = Y[y0:y1, x0:x1]
     inner, ring = d <= r, (d > r) & (d <= 3.0 * r)
     L_t = float(Yc[inner].mean()) if inner.any() else float(Yc[int(y) - y0, int(x) - x0])
     L_s = float(Yc[ring].mean()) if ring.any() else L_t
@@ -126,7 +131,6 @@ def target_visibility(tm, fin, info, opts, planes: dict) -> dict:
     L_b = max(L_s + veil, 1e-6)
     view = Viewing(size, viewing(opts, tm.effects.settings.age).age, MAP_TIME_S)
     op = tm.op
-    obs = op.observer_of(tm.state if op.observer_per_pixel else info.state)
     if op.observer_per_pixel:
         obs = {k: np.asarray(v)[int(y), int(x)] for k, v in obs.items()}
     pol = "negative" if L_t < L_s else "positive"
