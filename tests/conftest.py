@@ -96,3 +96,14 @@ def hdr_image(h, w, seed=0, lo=-4.0, hi=5.0):
     rng = np.random.default_rng(seed)
     lum = 10.0 ** rng.uniform(lo, hi, (h, w, 1))
     return (lum * rng.uniform(0.05, 1.0, (h, w, 3))).astype(np.float32)
+
+
+#: The line the kernel builds print once they have taken a second
+#: (``backends/opencl/runtime._building_notice``): without a kernel cache
+#: (PYOPENCL_NO_CACHE) on a busy machine it can come before a refusal.
+BUILDING_NOTE = "ocl-tonemap NOTE: building the OpenCL kernels"
+
+
+def said(stderr: str) -> list:
+    """A command's stderr lines, without the kernels' building notice."""
+    return [ln for ln in stderr.strip().splitlines() if not ln.startswith(BUILDING_NOTE)]

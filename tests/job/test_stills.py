@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import OpenImageIO as oiio
 import pytest
+from conftest import said
 
 
 def _cli(*args):
@@ -62,7 +63,7 @@ def test_a_sequence_without_stills_adapts_over_time(views):
 def test_state_flags_are_refused_with_stills(views, flag):
     r = _cli("run", views / "view.####.exr", views / "x" / "v.####.png", "--stills", *flag)
     assert r.returncode == 2
-    assert len(r.stderr.strip().splitlines()) == 1 and "--stills" in r.stderr, r.stderr
+    assert len(said(r.stderr)) == 1 and "--stills" in r.stderr, r.stderr
 
 
 def _hdr_with_view(path, view: str | None, seed: int):
