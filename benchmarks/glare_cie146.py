@@ -19,6 +19,7 @@ import sys
 import numpy as np
 
 from benchmarks.lib.outdir import add_out_args, out_path
+from benchmarks.lib.report import write_markdown
 from ocl_tonemap.models import cie146
 from ocl_tonemap.models import spencer1995 as fl
 from ocl_tonemap.models.photometry import Y_WEIGHTS
@@ -109,8 +110,7 @@ def main(argv=None) -> int:
               "pupil) adds to it at 1.8-4.9 degrees, most at night, where CIE 146 (a smooth "
               "fit to veils, no ring) has none (docs/models.md, \"Observer age\")."]
     out = out_path(a, "glare_cie146.md")
-    with open(out, "w") as f:
-        f.write("\n".join(lines) + "\n")
+    write_markdown(out, lines, [])
     print(f"wrote {out}")
     return 0
 

@@ -20,6 +20,7 @@ import tempfile
 import time
 
 from benchmarks.lib.outdir import add_out_args, out_path
+from benchmarks.lib.report import write_markdown
 
 OPERATORS = ("pattanaik00", "durand00", "ledda04", "kirk11")
 FRAMES = 20
@@ -81,8 +82,7 @@ def main(argv=None) -> int:
              "written uncompressed on the writer thread: docs/models.md, \"Visibility "
              "maps\"."]
     out = out_path(a, "visibility_cost.md")
-    with open(out, "w") as f:
-        f.write("\n".join(lines) + "\n")
+    write_markdown(out, lines, [])
     print(f"wrote {out}")
     return 0
 

@@ -19,6 +19,7 @@ import os
 import sys
 
 from benchmarks.lib.outdir import add_out_args, out_path
+from benchmarks.lib.report import write_markdown
 from ocl_tonemap.operators import get_operator
 from ocl_tonemap.visibility import Viewing, trace
 
@@ -86,8 +87,7 @@ def main(argv=None) -> int:
     plot_visibility_step(png, [get_operator(n)({}) for n in OPERATORS], L_APPROACH, None,
                          5.0, view, t_max=600.0)
     lines += ["", f"![dL_th after the step to 5 cd/m^2]({os.path.basename(png)})"]
-    with open(out, "w") as f:
-        f.write("\n".join(lines) + "\n")
+    write_markdown(out, lines, [])
     print(f"wrote {out} and {png}")
     return 0
 
