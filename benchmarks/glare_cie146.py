@@ -75,7 +75,7 @@ def main(argv=None) -> int:
              "(`--age`: the smooth scatter f1, f2 held to CIE 146 at that age, the "
              "lenticular halo f3 as Spencer's, the pupil Watson & Yellott 2012's for a "
              "50-degree 16:9 frame) at three adaptation levels, and Spencer's Eq. 8 as "
-             "printed (no `--age`: the default; Moon & Spencer's pupil).", ""]
+             "printed (`--age spencer`; Moon & Spencer's pupil).", ""]
     for A in AGES:
         head = [f"flare {A:g} y, {n} (D {pupil(L, A):.1f} mm)" for L, n in LEVELS]
         lines += [f"## {A:g} years", "",
@@ -97,7 +97,7 @@ def main(argv=None) -> int:
             r0, r1 = agreement(L, A, True)
             lines.append(f"| {A:g} | {n} | {s0:.2f}-{s1:.2f} | {r0:.2f}-{r1:.2f} |")
     old = {n: spencer_psf(th, L, None) for L, n in LEVELS}
-    lines += ["", "## Spencer's Eq. 8 as printed (the default, no `--age`) against CIE 146", "",
+    lines += ["", "## Spencer's Eq. 8 as printed (`--age spencer`) against CIE 146", "",
               "| theta (deg) | Stiles-Holladay 25 y | " +
               " | ".join(f"{n} / CIE 25 y | {n} / CIE 70 y" for _, n in LEVELS) + " |",
               "|" + "---|" * (2 + 2 * len(LEVELS))]

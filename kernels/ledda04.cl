@@ -2,7 +2,8 @@
  * Reference: ocl_tonemap/models/ledda2004.py (float64). */
 
 /* V_FLOOR, ALPHA, BETA_CONE, BETA_ROD, TAU_CONE, TAU_ROD, LN_RHO_CONE, LN_RHO_ROD,
- * K_MAX, K_SLOPE, E_MAX, E_CEILING, T_DONE, MES_LOG_OFFSET, MES_LOG_SPAN,
+ * K_MAX, K_SLOPE, E_MAX, E_CEILING, T_DONE, T_HOLD, COURSE_DONE, COURSE_RUNNING,
+ * AHEAD_TOL, JUMP_LOG2, MES_LOG_OFFSET, MES_LOG_SPAN,
  * Y_COEFF_R/G/B (Eq. 6) and YS_COEFF_R/G/B (Eq. 7) are given as build options from
  * ocl_tonemap/models/ledda2004.py (backends/opencl/ledda04.py, KERNEL_CONSTANTS);
  * DISPLAY_LINEAR_MAX and SIGNAL_CEILING with common.h's: one definition, not retyped
@@ -76,15 +77,48 @@ inline float2 adaptation_levels(__global const float *Ic, __global const float *
     return (float2)(ic, ir);
 }
 
+/* goal_ahead of ledda2004.py: the course s_in -> s_fin has a direction and the new
+ * goal lies beyond the current sigma in it. */
+inline bool goal_ahead(const float s_in, const float s_fin, const float now, const float goal)
+{
+    const float d = s_fin - s_in;
+    if (!(fabs(d) > 1.0e-5f * s_in)) return false;
+    return d > 0.0f ? goal > now * (1.0f - AHEAD_TOL) : goal < now * (1.0f + AHEAD_TOL);
+}
+
+/* course_done of ledda2004.py: at most COURSE_RUNNING of the course is left. */
+inline bool course_done(const float s_in, const float s_fin, const float now)
+{
+    const float d = s_fin - s_in;
+    return !(fabs(d) > 1.0e-5f * s_in) || (s_fin - now) / d <= COURSE_RUNNING;
+}
+
+/* course_clock of ledda2004.py: the time on the curve s_in -> goal (Eqs. 14-15
+ * inverted) at which sigma stands at now; t_now while the course is in its hold,
+ * T_DONE once sigma is within COURSE_DONE of the goal. */
+inline float course_clock(const float s_in, const float goal, const float now, const float K,
+                          const float t_now, const int rod)
+{
+    const float f = clamp((goal - now) / (goal - s_in), 0.0f, 1.0f);
+    if (fabs(goal - now) <= COURSE_DONE * goal) return T_DONE;
+    const bool dark = goal < s_in;
+    const float lag = (rod && dark) ? TAU_CONE : 0.0f;
+    if (f >= 1.0f - 1.0e-5f) return fmin(t_now, lag + T_HOLD);
+    if (!dark) return exp((1.0f - f) * (rod ? LN_RHO_ROD : LN_RHO_CONE));
+    const float a = exp(K / (rod ? TAU_ROD : TAU_CONE));
+    return lag + K / log(a + f * (exp(K) - a));
+}
+
 /* integrate: one frame for every pixel: take the new goals (init: become fully
- * adapted to them with energy E_init; else advance the course by dt and restart it
- * where the goal moved more than change_log2).
+ * adapted to them with energy E_init; else advance each receptor's course by dt,
+ * re-aim it at a goal ahead, and begin a new one where the goal turned back more
+ * than change_log2 from its anchor: step_reference of ledda2004.py).
  *   Ic, Ir: adaptation luminances of cones and rods; Ir is read as
  *           rod_scale * Ic[i] when rod_from_cone is set (rods not filtered).
  *   state:  the planes of ledda2004.STATE_CHANNELS, in that order, `stride` floats
  *           each; this band starts at plane offset 0.
- *   counts[0] += pixels restarted. */
-/* One pixel of ledda04_step; returns 1 when its course restarted. */
+ *   counts[0] += pixels that began a new course. */
+/* One pixel of ledda04_step; returns 1 when it began a new course. */
 inline int ledda04_step_one(__global const float *Ic, __global const float *Ir,
                             const int rod_from_cone, const float rod_scale,
                             __global float *state, const int stride, const int i,
@@ -96,35 +130,40 @@ inline int ledda04_step_one(__global const float *Ic, __global const float *Ir,
     const float2 lv = adaptation_levels(Ic, Ir, i, rod_from_cone, rod_scale, strength,
                                         ln_global_c, ln_global_r);
     const float gc = sigma_of(lv.x, BETA_CONE), gr = sigma_of(lv.y, BETA_ROD);
-    float sic, sfc, sac, sir, sfr, sar, t, E, K;
+    float sic, sfc, sac, sir, sfr, sar, tc, tr, E, K;
     int restarted = 0;
     if (init) {
         sic = sfc = sac = gc;
         sir = sfr = sar = gr;
-        t = T_DONE; E = E_init; K = K_of_energy(E_init);
+        tc = tr = T_DONE; E = E_init; K = K_of_energy(E_init);
     } else {
         sic = s[0]; sfc = s[stride]; sac = s[2 * stride];
         sir = s[3 * stride]; sfr = s[4 * stride]; sar = s[5 * stride];
-        t = s[6 * stride]; E = s[7 * stride]; K = s[8 * stride];
-        const float tn = t + dt;
+        tc = fmin(s[6 * stride] + dt, T_DONE); tr = fmin(s[7 * stride] + dt, T_DONE);
+        E = s[8 * stride]; K = s[9 * stride];
+        const float nc = sigma_cone_at(sic, sfc, tc, K), nr = sigma_rod_at(sir, sfr, tr, K);
         const float i_prev = powp(sfc / BETA_CONE, 1.0f / ALPHA);
         E = fmin(E + i_prev * dt, E_CEILING);
-        const bool change = fabs(log2(gc / sac)) > change_log2 ||
-                            fabs(log2(gr / sar)) > change_log2;
-        if (change) {
-            sic = sigma_cone_at(sic, sfc, tn, K);
-            sir = sigma_rod_at(sir, sfr, tn, K);
+        const bool moved = fabs(log2(gc / sac)) > change_log2 ||
+                           fabs(log2(gr / sar)) > change_log2;
+        const bool jumped = fabs(log2(gc / sfc)) > JUMP_LOG2 || fabs(log2(gr / sfr)) > JUMP_LOG2;
+        const bool ac = goal_ahead(sic, sfc, nc, gc), ar = goal_ahead(sir, sfr, nr, gr);
+        if (ac && gc != sfc) tc = course_clock(sic, gc, nc, K, tc, 0);   /* a goal that */
+        if (ar && gr != sfr) tr = course_clock(sir, gr, nr, K, tr, 1);   /* moved */
+        if (moved) {
             sac = gc; sar = gr;
-            t = 0.0f; K = K_of_energy(E); E = 0.0f;
-            restarted = 1;
-        } else {
-            t = fmin(tn, T_DONE);
+            if (!(ac && ar) || (jumped && course_done(sic, sfc, nc))) {
+                sic = nc; sir = nr;
+                tc = tr = jumped ? 0.0f : T_HOLD;
+                K = K_of_energy(E); E = 0.0f;
+                restarted = 1;
+            }
         }
         sfc = gc; sfr = gr;
     }
     s[0] = sic; s[stride] = sfc; s[2 * stride] = sac;
     s[3 * stride] = sir; s[4 * stride] = sfr; s[5 * stride] = sar;
-    s[6 * stride] = t; s[7 * stride] = E; s[8 * stride] = K;
+    s[6 * stride] = tc; s[7 * stride] = tr; s[8 * stride] = E; s[9 * stride] = K;
     return restarted;
 }
 
@@ -165,9 +204,9 @@ __kernel void ledda04_map(__global const float *rgb, const int rgb_off,
     if (strength < 1.0f)
         ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
     const float sic = s[0], sfc = s[stride], sir = s[3 * stride], sfr = s[4 * stride];
-    const float t = s[6 * stride], K = s[8 * stride];
-    const float sc = sigma_cone_at(sic, sfc, t, K);
-    const float sr = sigma_rod_at(sir, sfr, t, K);
+    const float K = s[9 * stride];
+    const float sc = sigma_cone_at(sic, sfc, s[6 * stride], K);
+    const float sr = sigma_rod_at(sir, sfr, s[7 * stride], K);
     const float u = clamp((log10(fmax(ic, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
     const float mes = u * u * (3.0f - 2.0f * u);                         /* Eq. 11 */
     const float3 c = vload3(rgb_off + i, rgb);
@@ -229,9 +268,9 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
             float ic = Ic[i];
             if (strength < 1.0f)
                 ic = exp(strength * log(fmax(ic, V_FLOOR)) + (1.0f - strength) * ln_global_c);
-            const float sc = sigma_cone_at(s[0], s[stride], s[6 * stride], s[8 * stride]);
-            const float sr = sigma_rod_at(s[3 * stride], s[4 * stride], s[6 * stride],
-                                          s[8 * stride]);
+            const float sc = sigma_cone_at(s[0], s[stride], s[6 * stride], s[9 * stride]);
+            const float sr = sigma_rod_at(s[3 * stride], s[4 * stride], s[7 * stride],
+                                          s[9 * stride]);
             const float u = clamp((log10(fmax(ic, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
             const float mes = u * u * (3.0f - 2.0f * u);
             const float3 c = vload3(rgb_off + i, rgb);
@@ -246,9 +285,11 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
     float4 ic = vload4(q, Ic);
     if (strength < 1.0f)
         ic = blend_global4(ic, strength, ln_global_c);
-    const float4 t = vload4(0, s + 6 * stride), K = vload4(0, s + 8 * stride);
-    const float4 sc = sigma_cone_at4(vload4(0, s), vload4(0, s + stride), t, K);
-    const float4 sr = sigma_rod_at4(vload4(0, s + 3 * stride), vload4(0, s + 4 * stride), t, K);
+    const float4 K = vload4(0, s + 9 * stride);
+    const float4 sc = sigma_cone_at4(vload4(0, s), vload4(0, s + stride),
+                                     vload4(0, s + 6 * stride), K);
+    const float4 sr = sigma_rod_at4(vload4(0, s + 3 * stride), vload4(0, s + 4 * stride),
+                                    vload4(0, s + 7 * stride), K);
     const float4 u = clamp((log10(fmax(ic, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
     const float4 mes = u * u * (3.0f - 2.0f * u);                        /* Eq. 11 */
     float4 r, g, b;
@@ -267,11 +308,41 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
 
 
 /* ledda04_step four pixels per work-item (same arguments; launched over n/4 items):
- * the adaptation levels, goals and energy in float4; the Eq. 14/15 restart branch
- * computed only where a lane's goal moved, and selected per lane. Tail pixels scalar. */
+ * the same steps in float4, both branches computed and selected per lane. Tail
+ * pixels scalar. */
 inline float4 sigma_of4(const float4 I, const float beta)
 {
     return beta * powp4(fmax(I, V_FLOOR), (float4)(ALPHA));
+}
+
+inline int4 goal_ahead4(const float4 s_in, const float4 s_fin, const float4 now,
+                        const float4 goal)
+{
+    const float4 d = s_fin - s_in;
+    return isgreater(fabs(d), 1.0e-5f * s_in) &
+           select(isless(goal, now * (1.0f + AHEAD_TOL)), isgreater(goal, now * (1.0f - AHEAD_TOL)),
+                  isgreater(d, (float4)(0.0f)));
+}
+
+inline int4 course_done4(const float4 s_in, const float4 s_fin, const float4 now)
+{
+    const float4 d = s_fin - s_in;
+    return islessequal(fabs(d), 1.0e-5f * s_in) |
+           islessequal((s_fin - now) / d, (float4)(COURSE_RUNNING));
+}
+
+inline float4 course_clock4(const float4 s_in, const float4 goal, const float4 now,
+                            const float4 K, const float4 t_now, const int rod)
+{
+    const float4 f = clamp((goal - now) / (goal - s_in), 0.0f, 1.0f);
+    const int4 dark = isless(goal, s_in);
+    const float4 lag = rod ? select((float4)(0.0f), (float4)(TAU_CONE), dark) : (float4)(0.0f);
+    const float4 a = exp(K / (rod ? TAU_ROD : TAU_CONE));
+    const float4 t_dark = lag + K / log(a + f * (exp(K) - a));
+    const float4 t_light = exp((1.0f - f) * (rod ? LN_RHO_ROD : LN_RHO_CONE));
+    float4 t = select(t_light, t_dark, dark);
+    t = select(t, fmin(t_now, lag + T_HOLD), isgreaterequal(f, (float4)(1.0f - 1.0e-5f)));
+    return select(t, (float4)(T_DONE), islessequal(fabs(goal - now), COURSE_DONE * goal));
 }
 
 __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
@@ -300,29 +371,40 @@ __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
             ir = rod_from_cone ? rod_scale * ic : blend_global4(ir, strength, ln_global_r);
         }
         const float4 gc = sigma_of4(ic, BETA_CONE), gr = sigma_of4(ir, BETA_ROD);
-        float4 sic, sfc, sac, sir, sfr, sar, t, E, K;
+        float4 sic, sfc, sac, sir, sfr, sar, tc, tr, E, K;
         if (init) {
             sic = sfc = sac = gc;
             sir = sfr = sar = gr;
-            t = (float4)(T_DONE); E = (float4)(E_init); K = (float4)(K_of_energy(E_init));
+            tc = tr = (float4)(T_DONE);
+            E = (float4)(E_init); K = (float4)(K_of_energy(E_init));
         } else {
             sic = vload4(0, s); sfc = vload4(0, s + stride); sac = vload4(0, s + 2 * stride);
             sir = vload4(0, s + 3 * stride); sfr = vload4(0, s + 4 * stride);
             sar = vload4(0, s + 5 * stride);
-            t = vload4(0, s + 6 * stride); E = vload4(0, s + 7 * stride);
-            K = vload4(0, s + 8 * stride);
-            const float4 tn = t + dt;
+            tc = fmin(vload4(0, s + 6 * stride) + dt, T_DONE);
+            tr = fmin(vload4(0, s + 7 * stride) + dt, T_DONE);
+            E = vload4(0, s + 8 * stride); K = vload4(0, s + 9 * stride);
+            const float4 nc = sigma_cone_at4(sic, sfc, tc, K);
+            const float4 nr = sigma_rod_at4(sir, sfr, tr, K);
             const float4 i_prev = powp4(sfc / BETA_CONE, (float4)(1.0f / ALPHA));
             E = fmin(E + i_prev * dt, E_CEILING);
-            const int4 change = isgreater(fabs(log2(gc / sac)), (float4)(change_log2)) |
-                                isgreater(fabs(log2(gr / sar)), (float4)(change_log2));
-            t = fmin(tn, T_DONE);
-            if (any(change)) {
-                sic = select(sic, sigma_cone_at4(sic, sfc, tn, K), change);
-                sir = select(sir, sigma_rod_at4(sir, sfr, tn, K), change);
-                sac = select(sac, gc, change);
-                sar = select(sar, gr, change);
-                t = select(t, (float4)(0.0f), change);
+            const int4 moved = isgreater(fabs(log2(gc / sac)), (float4)(change_log2)) |
+                               isgreater(fabs(log2(gr / sar)), (float4)(change_log2));
+            const int4 jumped = isgreater(fabs(log2(gc / sfc)), (float4)(JUMP_LOG2)) |
+                                isgreater(fabs(log2(gr / sfr)), (float4)(JUMP_LOG2));
+            const int4 ac = goal_ahead4(sic, sfc, nc, gc), ar = goal_ahead4(sir, sfr, nr, gr);
+            const int4 rc = ac & isnotequal(gc, sfc), rr = ar & isnotequal(gr, sfr);
+            if (any(rc)) tc = select(tc, course_clock4(sic, gc, nc, K, tc, 0), rc);
+            if (any(rr)) tr = select(tr, course_clock4(sir, gr, nr, K, tr, 1), rr);
+            if (any(moved)) {
+                const int4 change = moved & (~(ac & ar) | (jumped & course_done4(sic, sfc, nc)));
+                sac = select(sac, gc, moved);
+                sar = select(sar, gr, moved);
+                sic = select(sic, nc, change);
+                sir = select(sir, nr, change);
+                const float4 t0 = select((float4)(T_HOLD), (float4)(0.0f), jumped);
+                tc = select(tc, t0, change);
+                tr = select(tr, t0, change);
                 K = select(K, K_MAX + K_SLOPE * clamp(E, 0.0f, E_MAX), change);
                 E = select(E, (float4)(0.0f), change);
                 atomic_add(&lrestart, -(change.x + change.y + change.z + change.w));
@@ -332,8 +414,8 @@ __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
         vstore4(sic, 0, s); vstore4(sfc, 0, s + stride); vstore4(sac, 0, s + 2 * stride);
         vstore4(sir, 0, s + 3 * stride); vstore4(sfr, 0, s + 4 * stride);
         vstore4(sar, 0, s + 5 * stride);
-        vstore4(t, 0, s + 6 * stride); vstore4(E, 0, s + 7 * stride);
-        vstore4(K, 0, s + 8 * stride);
+        vstore4(tc, 0, s + 6 * stride); vstore4(tr, 0, s + 7 * stride);
+        vstore4(E, 0, s + 8 * stride); vstore4(K, 0, s + 9 * stride);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     if (get_local_id(0) == 0 && lrestart) atomic_add(&counts[0], lrestart);

@@ -272,6 +272,10 @@ class PixelStateMixin(ScheduleDefaults):
         if pixels is not None:
             names = pixels.names if band_readable(pixels) else tuple(pixels)
             missing = [k for k in self.planes if k not in names]
+            if missing and "t_course" in names:
+                raise ValueError(f"per-pixel state lacks {', '.join(missing)}: it was saved "
+                                 "before ledda04's cones and rods had a clock each (one "
+                                 "t_course); rerun the shot from its start")
             if missing:
                 raise ValueError(f"per-pixel state lacks {', '.join(missing)}")
             if band_readable(pixels):

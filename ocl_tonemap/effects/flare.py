@@ -65,11 +65,12 @@ def _age(text: str):
 
 
 #: The observer's age: the flare's pupil (Watson & Yellott 2012) and glare (CIE 146's
-#: equation at that age); the visibility threshold's age factor (Adrian 1989). Not
-#: given (None): the flare as Eq. 8 prints it, the threshold at 25 (docs/models.md).
+#: equation at that age); the visibility threshold's age factor (Adrian 1989). Default
+#: 25 years; ``spencer`` (None): the flare as Eq. 8 prints it with Moon & Spencer's
+#: pupil, the threshold at 25 (docs/models.md, "Observer age").
 AGE_OPTION = EffectOption("age", "--age", "observer's age, 1..100: pupil, glare, threshold "
-                          "(default: the flare's Eq. 8 as printed, the threshold at 25)",
-                          type=_age, metavar="YEARS", check=_check_age, value=None)
+                          "(default 25; spencer: the flare's Eq. 8 as printed)",
+                          type=_age, metavar="YEARS", check=_check_age, value=fl.DEFAULT_AGE)
 
 
 def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, lim: float, blur=None,

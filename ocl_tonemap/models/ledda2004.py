@@ -58,10 +58,25 @@ K_MIN = K_MAX + K_SLOPE * E_MAX
 #: Display adaptation level as a fraction of display white (Sec. 4.4: 30-50
 #: cd/m^2 on the paper's display; 40 for a 100 cd/m^2 white).
 DISPLAY_ADAPT_FRACTION = 0.4
-#: A pixel's adaptation restarts (new sigma_in, sigma_fin) when its goal sigma
-#: moves more than this many log10 units from the goal that started the
-#: current course (Sec. 5.2, last paragraph; our threshold).
-CHANGE_LOG10 = 0.1
+#: A pixel's goal sigma that turns back by more than this many log10 units from
+#: its anchor (the goal at its last such move) begins a new course (Sec. 5.2, last
+#: paragraph; our threshold, a hysteresis against noise): :func:`step_reference`.
+CHANGE_LOG10 = 0.03
+#: A goal that moves more than this (log10 of sigma) in one frame is a "new change
+#: in illumination" (Sec. 5.2): its new course holds sigma_in for the curves' first
+#: second (Figure 9's temporary blindness); smaller turns start past the hold.
+JUMP_LOG10 = 0.3
+#: Where the curves of Eqs. 14-15 begin (s): they hold sigma_in before.
+T_HOLD = 1.0
+#: A re-aimed course is finished when sigma is within this fraction of its goal
+#: (:func:`course_clock`).
+COURSE_DONE = 1.0e-5
+#: A jump ahead (JUMP_LOG10) re-aims a course while more than this fraction of it
+#: is left, and begins a new one with its hold after (:func:`course_done`).
+COURSE_RUNNING = 0.02
+#: A goal within this fraction of the current sigma counts as ahead of it
+#: (:func:`goal_ahead`).
+AHEAD_TOL = 1.0e-4
 #: Eq. 11: u = (log10 I_A + MES_LOG_OFFSET) / MES_LOG_SPAN, i.e. mes from 0 at
 #: 10^-2 cd/m^2 to 1 at 10^0.6 ~ 4 cd/m^2 (mesopic_factor_ledda2004).
 MES_LOG_OFFSET, MES_LOG_SPAN = 2.0, 2.6
@@ -81,7 +96,7 @@ LOCAL_STRENGTH = 0.5
 #: Per-pixel state planes, in this order (float32 on the device).
 STATE_CHANNELS = ("sigma_in_cone", "sigma_fin_cone", "sigma_anchor_cone",
                   "sigma_in_rod", "sigma_fin_rod", "sigma_anchor_rod",
-                  "t_course", "energy", "K")
+                  "t_cone", "t_rod", "energy", "K")
 
 
 # --- static model (Sec. 4) -------------------------------------------------------
@@ -213,7 +228,8 @@ def initial_state(I_c, I_r, E) -> dict:
     E = np.broadcast_to(np.asarray(E, np.float64), sc.shape)
     return {"sigma_in_cone": sc, "sigma_fin_cone": sc, "sigma_anchor_cone": sc,
             "sigma_in_rod": sr, "sigma_fin_rod": sr, "sigma_anchor_rod": sr,
-            "t_course": np.full(sc.shape, T_DONE), "energy": np.array(E, np.float64),
+            "t_cone": np.full(sc.shape, T_DONE), "t_rod": np.full(sc.shape, T_DONE),
+            "energy": np.array(E, np.float64),
             "K": K_of_energy(E)}
 
 
@@ -226,45 +242,124 @@ def preadapted_state(L_cd: float, seconds: float | None, shape, ward: bool = Fal
     return initial_state(np.full(shape, float(L_cd)), np.full(shape, L_cd * ratio), E)
 
 
-def step_reference(state: dict, I_c, I_r, dt: float, change_log10: float = CHANGE_LOG10) -> dict:
+def course_clock(sigma_in, sigma_goal, sigma_now, K, t_now, receptor: str):
+    """The time on the curve sigma_in -> sigma_goal (Eqs. 14-15 inverted) at which
+    sigma stands at ``sigma_now`` (between the two): the clock of a course re-aimed
+    at a new goal ahead, so that sigma stays continuous and goes on at the curve's
+    pace. f = (goal - now) / (goal - sigma_in) left of the course:
+    - dark, cones: t = K / ln(e^{K/tau} + f (e^K - e^{K/tau})) (Eq. 14 inverted);
+      rods: tau_cone later;
+    - light: t = rho^(1 - f) (Eq. 15 inverted);
+    - f = 1 (sigma still at sigma_in, the course in its hold): the clock runs on
+      (``t_now``, at most the hold's end); sigma within COURSE_DONE of the goal:
+      finished (T_DONE)."""
+    sin, goal = np.asarray(sigma_in, np.float64), np.asarray(sigma_goal, np.float64)
+    K = np.asarray(K, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = np.clip((goal - np.asarray(sigma_now, np.float64)) / (goal - sin), 0.0, 1.0)
+    dark = goal < sin
+    tau = TAU_CONE if receptor == "cone" else TAU_ROD
+    lag = 0.0 if receptor == "cone" else TAU_CONE
+    a = np.exp(K / tau)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        t_dark = lag + K / np.log(a + f * (np.exp(K) - a))
+    rho = RHO_CONE if receptor == "cone" else RHO_ROD
+    t = np.where(dark, t_dark, rho ** (1.0 - f))
+    hold_end = np.where(dark, lag + T_HOLD, T_HOLD)
+    held = f >= 1.0 - 1e-5
+    t = np.where(held, np.minimum(np.asarray(t_now, np.float64), hold_end), t)
+    near = np.abs(goal - np.asarray(sigma_now, np.float64)) <= COURSE_DONE * goal
+    return np.where(near, T_DONE, t)
+
+
+def step_reference(state: dict, I_c, I_r, dt: float, change_log10: float = CHANGE_LOG10,
+                   jump_log10: float = JUMP_LOG10, report: dict | None = None) -> dict:
     """Advance every pixel by ``dt`` s and take the new frame's goals (float64).
 
-    1. The previous frame was seen for dt: t += dt; E += I_A_prev dt (Eq. 16,
-       I_A_prev recovered from sigma_fin_cone by inverting Eq. 5).
-    2. New goals sigma_goal = Eq. 5 of this frame's I_A. If either receptor's
-       goal left its anchor by more than ``change_log10``, the course restarts:
-       sigma_in = the current sigma_t, sigma_fin = anchor = goal, t = 0,
-       K = Eq. 17 of the energy just accumulated, E = 0. Otherwise sigma_fin
-       follows the goal and the course goes on.
+    1. The previous frame was seen for dt: each receptor's clock t += dt, its
+       sigma now = Eqs. 14-15 at that clock; E += I_A_prev dt (Eq. 16, I_A_prev
+       recovered from sigma_fin_cone by inverting Eq. 5).
+    2. New goals sigma_goal = Eq. 5 of this frame's I_A; sigma_fin follows them.
+    3. Sec. 5.2's "new change in illumination", per pixel, both receptors together:
+       - a goal ahead of sigma on its course (farther or nearer, on the side it
+         is heading to) re-aims it: sigma_in kept, the clock set where the curve to the new goal
+         passes the current sigma (:func:`course_clock`), so a drifting goal is
+         followed at the curve's pace, never frozen;
+       - a goal that turned back, or left a course without direction (adapted),
+         by more than ``change_log10`` from its anchor begins a new course:
+         sigma_in = sigma now, K = Eq. 17 of the energy since the last one, E = 0,
+         clock 0 (the hold of Figure 9) when the goal moved more than
+         ``jump_log10`` in this frame, else T_HOLD (past the hold);
+       - a goal that turned back less than that is followed on the running course.
+    A jump ahead begins a new course (with the hold) only where the cones' course
+    is done (:func:`course_done`): a new change after the eye had settled.
+    ``report``, when given, gets "new_courses": the share of pixels that began one.
+    docs/models.md, ledda04, "Changes", says why (issue 45's rings, frozen pixels).
     """
     s = {k: np.array(v, np.float64) for k, v in state.items()}
-    t_prev = s["t_course"]
-    sig_c_now = sigma_at(s["sigma_in_cone"], s["sigma_fin_cone"], t_prev + dt, s["K"], "cone")
-    sig_r_now = sigma_at(s["sigma_in_rod"], s["sigma_fin_rod"], t_prev + dt, s["K"], "rod")
+    K = s["K"]
+    t_c = np.minimum(s["t_cone"] + dt, T_DONE)
+    t_r = np.minimum(s["t_rod"] + dt, T_DONE)
+    now_c = sigma_at(s["sigma_in_cone"], s["sigma_fin_cone"], t_c, K, "cone")
+    now_r = sigma_at(s["sigma_in_rod"], s["sigma_fin_rod"], t_r, K, "rod")
     I_prev = (s["sigma_fin_cone"] / BETA_CONE) ** (1.0 / ALPHA)
     E = np.minimum(s["energy"] + I_prev * dt, E_CEILING)
-    t = np.minimum(t_prev + dt, T_DONE)
     gc, gr = sigma_of(I_c, BETA_CONE), sigma_of(I_r, BETA_ROD)
-    change = ((np.abs(np.log10(gc / s["sigma_anchor_cone"])) > change_log10)
-              | (np.abs(np.log10(gr / s["sigma_anchor_rod"])) > change_log10))
-    out = {
-        "sigma_in_cone": np.where(change, sig_c_now, s["sigma_in_cone"]),
+    moved = ((np.abs(np.log10(gc / s["sigma_anchor_cone"])) > change_log10)
+             | (np.abs(np.log10(gr / s["sigma_anchor_rod"])) > change_log10))
+    jumped = ((np.abs(np.log10(gc / s["sigma_fin_cone"])) > jump_log10)
+              | (np.abs(np.log10(gr / s["sigma_fin_rod"])) > jump_log10))
+    ahead_c = goal_ahead(s["sigma_in_cone"], s["sigma_fin_cone"], now_c, gc)
+    ahead_r = goal_ahead(s["sigma_in_rod"], s["sigma_fin_rod"], now_r, gr)
+    new = moved & (~(ahead_c & ahead_r)
+                   | (jumped & course_done(s["sigma_in_cone"], s["sigma_fin_cone"], now_c)))
+    t0 = np.where(jumped, 0.0, T_HOLD)
+    if report is not None:
+        report["new_courses"] = float(np.mean(new))
+    # a goal that did not move keeps its clock (exactly: the same course)
+    t_c = np.where(ahead_c & (gc != s["sigma_fin_cone"]),
+                   course_clock(s["sigma_in_cone"], gc, now_c, K, t_c, "cone"), t_c)
+    t_r = np.where(ahead_r & (gr != s["sigma_fin_rod"]),
+                   course_clock(s["sigma_in_rod"], gr, now_r, K, t_r, "rod"), t_r)
+    return {
+        "sigma_in_cone": np.where(new, now_c, s["sigma_in_cone"]),
         "sigma_fin_cone": gc,
-        "sigma_anchor_cone": np.where(change, gc, s["sigma_anchor_cone"]),
-        "sigma_in_rod": np.where(change, sig_r_now, s["sigma_in_rod"]),
+        "sigma_anchor_cone": np.where(moved, gc, s["sigma_anchor_cone"]),
+        "sigma_in_rod": np.where(new, now_r, s["sigma_in_rod"]),
         "sigma_fin_rod": gr,
-        "sigma_anchor_rod": np.where(change, gr, s["sigma_anchor_rod"]),
-        "t_course": np.where(change, 0.0, t),
-        "energy": np.where(change, 0.0, E),
-        "K": np.where(change, K_of_energy(E), s["K"]),
+        "sigma_anchor_rod": np.where(moved, gr, s["sigma_anchor_rod"]),
+        "t_cone": np.where(new, t0, t_c),
+        "t_rod": np.where(new, t0, t_r),
+        "energy": np.where(new, 0.0, E),
+        "K": np.where(new, K_of_energy(E), K),
     }
-    return out
+
+
+def goal_ahead(sigma_in, sigma_fin, sigma_now, sigma_goal):
+    """True where the course sigma_in -> sigma_fin has a direction (dark or light)
+    and the new goal lies beyond the current sigma in it, or within AHEAD_TOL of it
+    (where either answer gives the same sigma, the float32 device and this reference
+    must not take different branches)."""
+    sin, sfin = np.asarray(sigma_in, np.float64), np.asarray(sigma_fin, np.float64)
+    now = np.asarray(sigma_now, np.float64)
+    d = np.where(np.abs(sfin - sin) > 1e-5 * sin, np.sign(sfin - sin), 0.0)
+    return (d != 0.0) & ((np.asarray(sigma_goal, np.float64) - now) * d > -AHEAD_TOL * now)
+
+
+def course_done(sigma_in, sigma_fin, sigma_now):
+    """True where less than COURSE_RUNNING of the course sigma_in -> sigma_fin is left
+    (or it has no direction): a jump then is a new change, with its hold."""
+    sin, sfin = np.asarray(sigma_in, np.float64), np.asarray(sigma_fin, np.float64)
+    span = sfin - sin
+    with np.errstate(divide="ignore", invalid="ignore"):
+        left = np.where(np.abs(span) > 1e-5 * sin, (sfin - np.asarray(sigma_now)) / span, 0.0)
+    return left <= COURSE_RUNNING
 
 
 def current_sigmas(state: dict) -> tuple[np.ndarray, np.ndarray]:
-    t, K = state["t_course"], state["K"]
-    return (sigma_at(state["sigma_in_cone"], state["sigma_fin_cone"], t, K, "cone"),
-            sigma_at(state["sigma_in_rod"], state["sigma_fin_rod"], t, K, "rod"))
+    K = state["K"]
+    return (sigma_at(state["sigma_in_cone"], state["sigma_fin_cone"], state["t_cone"], K, "cone"),
+            sigma_at(state["sigma_in_rod"], state["sigma_fin_rod"], state["t_rod"], K, "rod"))
 
 
 def map_reference(rgb: np.ndarray, Ys: np.ndarray, I_c: np.ndarray, sigma_c, sigma_r,

@@ -19,6 +19,11 @@ TOL_EXACT = 1e-5
 FAST_MAX_LOG10 = 0.02
 #: Operator output, device vs float64 reference, scaled as in the foundation.
 TOL_OP = 1e-3
+#: Over a shot, a pixel whose goal lands within float32 rounding of one of the time
+#: course's thresholds (ledda2004.step_reference) may take the other branch on the
+#: device: at most this share of the pixels beyond TOL_OP, by at most BRANCH_DIFF
+#: (measured on the 240-frame tunnel drive at 160x90: 0.11 %, 0.047).
+RARE_BRANCHES, BRANCH_DIFF = 0.003, 0.1
 
 
 @pytest.fixture(scope="module")
@@ -176,10 +181,50 @@ def test_small_changes_continue_the_course():
     img = hdr_image(10, 10, seed=9, lo=0, hi=1)
     tm = Tonemapper("ledda04", "opencl", model="none")
     tm.process(img, time_s=0)
-    tm.process(img * 1.1, time_s=0.1)              # 10%: below the restart threshold
+    tm.process(img * 1.05, time_s=0.1)        # 0.015 log10 in sigma: below the threshold
     assert tm.last.params["restarted_fraction"] == 0.0
-    tm.process(img * 10, time_s=0.2)
+    tm.process(img * 10, time_s=0.2)          # a jump after the course was done: a new one
     assert tm.last.params["restarted_fraction"] == 1.0
+
+
+def test_course_clock_inverts_the_curves():
+    """course_clock finds the time at which a curve (Eqs. 14-15) passes a sigma: dark
+    and light, cones and rods (tau_cone later in the dark); in the hold the clock runs
+    on, at most to the hold's end; near the end the course counts as finished."""
+    for receptor in ("cone", "rod"):
+        for s_in, goal in ((100.0, 1.0), (1.0, 100.0)):
+            lag = L.TAU_CONE if (receptor == "rod" and goal < s_in) else 0.0
+            t = lag + np.array([1.05, 1.5, 3.0, 8.0, 15.0])
+            for K in (L.K_MIN, L.K_MAX):
+                now = L.sigma_at(s_in, goal, t, K, receptor)
+                keep = np.abs(goal - now) > L.COURSE_DONE * goal
+                got = L.course_clock(s_in, goal, now, K, 0.0, receptor)
+                np.testing.assert_allclose(got[keep], t[keep], rtol=1e-6)
+                assert np.all(got[~keep] == L.T_DONE)
+            held = L.course_clock(s_in, goal, s_in, 9.0, np.array([0.3, 5e3]), receptor)
+            np.testing.assert_allclose(held, [0.3, lag + L.T_HOLD])
+
+
+@pytest.mark.requires_opencl
+@pytest.mark.parametrize("backend", ["opencl", "reference"])
+def test_a_drifting_goal_is_followed_not_frozen(backend):
+    """A field that dims (or brightens) by 0.02 log10 a frame for 5 s at 30 fps: each
+    frame re-aims the running course at the new goal, so sigma follows at the curve's
+    pace. Before, a goal that kept moving past the restart threshold restarted the
+    course every few frames and each restart held sigma_in for the curve's first
+    second: sigma stayed where the drift began (94x the goal after the dimming). Now
+    3.5x, and 1/5 of it after the brightening (Eq. 15's light curve is slow)."""
+    for sign, Y0, bound in ((-1, 1000.0, (1.0, 5.0)), (1, 1.0, (0.1, 1.0))):
+        tm = Tonemapper("ledda04", backend)
+        ratios = []
+        for k in range(151):
+            tm.process(np.full((8, 8, 3), Y0 * 10 ** (sign * 0.02 * k), np.float32), dt=1 / 30)
+            st = tm.schedule.pixel_state()
+            sc, _ = L.current_sigmas({n: np.asarray(v, np.float64) for n, v in st.items()})
+            ratios.append(float(np.mean(sc / np.asarray(st["sigma_fin_cone"], np.float64))))
+        assert bound[0] < ratios[-1] < bound[1], (sign, ratios[-1])
+        r = np.asarray(ratios) if sign < 0 else 1.0 / np.asarray(ratios)
+        assert np.all(np.diff(r) > -1e-4)           # the lag grows smoothly, no sawtooth
 
 
 @pytest.mark.requires_opencl
@@ -251,6 +296,12 @@ def test_state_side_file_roundtrip(tmp_path):
     assert np.array_equal(two.process(img * 1e-3, time_s=30), final)
     with pytest.raises(ValueError, match="one image size"):
         Tonemapper("ledda04", "opencl", state=st, model="none").process(img[:10], time_s=31)
+    # a state saved before each receptor had its own clock: refused, saying why
+    old = load_state(tmp_path / "s.json")
+    old.pixels = {("t_course" if k == "t_cone" else k): v for k, v in old.pixels.items()
+                  if k != "t_rod"}
+    with pytest.raises(ValueError, match="lacks t_cone, t_rod: .*t_course.*start"):
+        Tonemapper("ledda04", "opencl", state=old, model="none").process(img, time_s=31)
 
 
 def test_grid_fits_device_memory_and_tiny_images(filt):
@@ -321,31 +372,39 @@ def test_step_float4_kernel_equals_scalar_kernel(mode, shape):
 @pytest.mark.requires_opencl
 def test_no_stepped_rings_on_the_tunnel_drive_with_the_defaults():
     """The tunnel drive of the built-in sample (160x90) with ledda04's defaults, as a
-    user gets them, on the device and on the float64 reference (``--quality
-    reference``): the display shows no step that the scene does not have
-    (``appearance_metrics.step_artefacts`` on frames 60-130, the tunnel's mouth, lamps
-    and exit), and the two backends agree on every frame. Measured 0.5-0.7% (the
+    user gets them (a 25-year-old's glare), on the device and on the float64 reference
+    (``--quality reference``): the display shows few steps that the scene does not
+    have (``appearance_metrics.step_artefacts`` on frames 60-150: the tunnel's mouth,
+    lamps, the exit as it nears) and the two backends agree on every frame; inside,
+    the walls brighten as the eye adapts. Measured 0.2-2.3 % (1.2 % on average; the
     wall-road line and the exit's rim, which the scene's own edge finder misses, and
-    faint arcs in the corners); the rings of issue 45 -- chromatic adaptation's gains
-    and the Purkinje shift changing the frame before it was metered, each pixel's
-    level drifting through the time course's restart threshold on its own frame --
-    were 2.3% on average, 4.6% at worst, there. The reference once decided "rods or
-    not" on the blended levels and the device on the local ones: the rod goals then
-    differed by the neutral-ratio stand-in, the restarts fell on other frames and the
-    reference drew rings (5% on average, 13% at worst) the device did not."""
+    arcs where the goals turn from dark to light as the exit nears). Issue 45's rings
+    (each pixel's course restarting on its own frame as its level drifted, then held)
+    were 4.6 % at worst with Eq. 8's veil; with a 25-year-old's veil the same rule drew
+    7.4 %, and its walls stayed at the sunlit approach's level (frame 90 darker than
+    frame 60). The reference once decided "rods or not" on the blended levels and the
+    device on the local ones: the rod goals then differed by the neutral-ratio
+    stand-in, the restarts fell on other frames and the reference drew rings the
+    device did not."""
     from benchmarks.lib.appearance_metrics import step_artefacts
     from ocl_tonemap.colour import ColourPipeline, load_config
     from ocl_tonemap.sample import render_frame
     cp = ColourPipeline(load_config("ocl-tonemap"), "sRGB - Display")
     tms = {b: Tonemapper("ledda04", backend=b) for b in ("opencl", "reference")}
-    worst = {b: [] for b in tms}
-    for k in range(131):
+    found = {b: [] for b in tms}
+    wall = {b: {} for b in tms}
+    for k in range(151):
         rgb = render_frame(k / 30.0, 160, 90, 8.0, ss=1).astype(np.float32)
         out = {b: tm.process(rgb, dt=1 / 30) for b, tm in tms.items()}
-        assert np.max(np.abs(out["opencl"] - out["reference"])) < TOL_OP, k
+        diff = np.abs(out["opencl"] - out["reference"]).max(axis=2)
+        assert np.mean(diff > TOL_OP) <= RARE_BRANCHES and diff.max() < BRANCH_DIFF, k
         if k >= 60 and k % 5 == 0:
             for b, o in out.items():
-                codes = np.clip(cp.encode(np.ascontiguousarray(np.clip(o, 0, 1))), 0, 1) * 255
-                worst[b].append((step_artefacts(np.round(codes), rgb), k))
+                codes = np.round(np.clip(cp.encode(np.ascontiguousarray(np.clip(o, 0, 1))),
+                                         0, 1) * 255)
+                found[b].append((step_artefacts(codes, rgb), k))
+                wall[b][k] = codes[45, 20].mean()
     for b in tms:
-        assert max(worst[b])[0] < 0.012, (b, max(worst[b]))
+        assert max(found[b])[0] < 0.03, (b, max(found[b]))
+        assert np.mean([f for f, _ in found[b]]) < 0.015, b
+        assert wall[b][90] > 1.5 * wall[b][60], (b, wall[b])

@@ -70,8 +70,9 @@ class LeddaSchedule(PixelStateMixin):
         else:
             prev = L.preadapted_state(op.preadapt[0], op.preadapt[1], shape, op.ward) \
                 if fresh else self._host
-            st = L.step_reference(prev, I_c, I_r, dt, op.settings.change_log10)
-            restarted = float(np.mean(st["t_course"] == 0.0))
+            report = {}
+            st = L.step_reference(prev, I_c, I_r, dt, op.settings.change_log10, report=report)
+            restarted = report["new_courses"]
         self._host = st
         stats.values["restarted_fraction"] = restarted
         state.values = {"logmean_I_A_cone": float(stats.G_cone),
