@@ -95,6 +95,7 @@ def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, lim: float, blur
                                settings.flare_threshold, settings.flare_per_octave, dev, lim=lim,
                                age=settings.age)
     info["ran"] = info["sources"] > 0
+    info["source_limit_cd"] = lim
     return out.astype(np.float32), info
 
 

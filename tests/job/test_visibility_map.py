@@ -81,13 +81,16 @@ def test_planes_equal_the_calculator_reference(drive, op):
 @pytest.mark.parametrize("op", ["pattanaik00", "ledda04"])
 def test_planes_equal_the_calculator_opencl(drive, op, rt):
     out = _run(drive, op, "opencl", "a")
-    P = _check_against_calculator(out, op)
-    last = sorted(p for p in os.listdir(out) if p.startswith("v."))[-1]
-    ref = _planes(drive / f"{op}-reference-a" / last)[0] \
-        if (drive / f"{op}-reference-a").exists() else None
-    if ref is not None:             # the backends' states agree to their float32 paths
-        for n in ("La", "Lb", "dLth"):
-            np.testing.assert_allclose(P[n], ref[n], rtol=2e-3, err_msg=n)
+    _check_against_calculator(out, op)
+    if (drive / f"{op}-reference-a").exists():
+        # every frame, the veil's included (the flare runs at frames 2-8): the
+        # backends' states and veils agree to their float32 paths
+        for name in sorted(p for p in os.listdir(out) if p.startswith("v.")):
+            got = _planes(out / name)[0]
+            ref = _planes(drive / f"{op}-reference-a" / name)[0]
+            for n in ("La", "Lveil", "Lb", "dLth"):
+                np.testing.assert_allclose(got[n], ref[n], rtol=2e-3, atol=1e-3,
+                                           err_msg=f"{name} {n}")
 
 
 def test_the_threshold_follows_the_time_course(drive):
