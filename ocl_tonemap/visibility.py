@@ -114,6 +114,10 @@ PLANES = (("La", "cd/m^2", "the eye's (cone) adaptation luminance, from the oper
 SURROUND = 3.0
 #: Samples per decade of L_b of the threshold's table (linear in log-log: <= 1e-6).
 TABLE_PER_DECADE = 2048
+#: A cell whose midpoint the table's line misses by more than this (relative) is
+#: looked up exactly (:class:`ThresholdTable`): the line's error within a cell is at
+#: most twice its midpoint's.
+MIDPOINT_TOL = 4e-7
 
 
 def _gauss_fft(F, shape, sigma_px: float, pad: int) -> np.ndarray:
@@ -203,9 +207,11 @@ def target_and_surround(Y: np.ndarray, size_px: float) -> tuple[np.ndarray, np.n
 
 
 class ThresholdTable:
-    """Adrian's dL_th x TAF of a scalar observer state on a uniform grid of log10 L_b
-    (:data:`TABLE_PER_DECADE`), both polarities; a lookup is linear between samples
-    (<= 1e-6), and exact where a cell holds one of the model's range joins."""
+    """Adrian's dL_th x TAF of a scalar observer state (``obs`` None: the steady dL_th,
+    TAF 1) on a uniform grid of log10 L_b (:data:`TABLE_PER_DECADE`), both
+    polarities; a lookup is linear between samples (<= 1e-6), and exact in the cells
+    where that line misses the model (a kink or a step: Adrian's range joins, TAF
+    reaching 1 or its ceiling, a threshold model's segment joins)."""
 
     def __init__(self, op, obs: dict, view: Viewing, lo: float, hi: float):
         self.op, self.obs, self.view = op, obs, view
@@ -215,28 +221,61 @@ class ThresholdTable:
         self.a, self.n = a, n
         L = 10.0 ** (a + np.arange(n) / TABLE_PER_DECADE)
         t = self.exact(L, np.zeros(n, bool)), self.exact(L, np.ones(n, bool))
-        self.table = np.log10(np.concatenate(t)).astype(np.float32)
-        self.joins = [math.log10(v) for v in (ad.L_LOW, ad.L_HIGH)]
+        # log2 of each sample and the step to the next: one gather each a lookup
+        lg2 = np.log2(np.concatenate(t))
+        self.base = lg2                  # float64: a float32 log2 near 2^4 loses 1e-6
+        self.step = np.append(np.diff(lg2), 0.0)
+        # cells whose midpoint the line misses by more than MIDPOINT_TOL hold a kink
+        # or a step (Adrian's range joins, TAF meeting 1 or its ceiling, a TVI
+        # model's segment joins): looked up exactly
+        mid = 10.0 ** (a + (np.arange(n - 1) + 0.5) / TABLE_PER_DECADE)
+        self.exact_cell = np.zeros(2 * n, bool)
+        for half, samples in enumerate(t):
+            lin = np.exp2((lg2[half * n:half * n + n - 1] + lg2[half * n + 1:half * n + n]) / 2)
+            ex = self.exact(mid, np.full(n - 1, bool(half)))
+            self.exact_cell[half * n:half * n + n - 1] = np.abs(lin / ex - 1.0) > MIDPOINT_TOL
 
     def exact(self, L, negative) -> np.ndarray:
+        if self.obs is None:
+            return self.view.steady(L, negative)
         taf = ad.transient_factor(self.op.observer_steady_slope(L),
                                   self.op.observer_slope(self.obs, L))
         return self.view.steady(L, negative) * taf
 
     def __call__(self, Lb: np.ndarray, negative: np.ndarray) -> np.ndarray:
         """dL_th (float32) of backgrounds ``Lb`` (float32), ``negative`` per pixel."""
-        x = (np.log10(Lb) - np.float32(self.a)) * np.float32(TABLE_PER_DECADE)
-        i = np.clip(x.astype(np.int32), 0, self.n - 2)
-        f = x - i
-        cells = [int(math.floor((j - self.a) * TABLE_PER_DECADE)) for j in self.joins]
-        near = [i == k for k in cells if 0 <= k < self.n - 1]
-        i += self.n * negative
-        t0, t1 = self.table[i], self.table[i + 1]
-        out = np.exp((t0 + f * (t1 - t0)) * np.float32(math.log(10.0)))
-        for m in near:                       # cells across a join: exact
-            if m.any():
-                out[m] = self.exact(Lb[m].astype(np.float64), negative[m])
+        x = np.log10(Lb, dtype=np.float64)           # float32 would lose 1e-3 of a cell
+        x -= self.a
+        x *= TABLE_PER_DECADE
+        i = x.astype(np.int32)
+        np.clip(i, 0, self.n - 2, out=i)
+        x -= i                                          # the fraction within the cell
+        np.add(i, self.n, out=i, where=np.asarray(negative, bool))
+        near = self.exact_cell[i]
+        x *= self.step[i]
+        x += self.base[i]
+        out = np.exp2(x).astype(np.float32)
+        if near.any():                       # cells across a kink: exact
+            out[near] = self.exact(Lb[near].astype(np.float64), negative[near])
         return out
+
+
+class SlopeTable:
+    """An operator's steady response gain (``observer_steady_slope``, smooth in L) on
+    the uniform log10 grid of :class:`ThresholdTable`, looked up linearly in log-log."""
+
+    def __init__(self, op, lo: float, hi: float):
+        a = math.floor(math.log10(max(lo, 1e-9)) * TABLE_PER_DECADE) / TABLE_PER_DECADE
+        n = max(2, int(math.ceil((math.log10(max(hi, 1e-9)) - a) * TABLE_PER_DECADE)) + 2)
+        L = 10.0 ** (a + np.arange(n) / TABLE_PER_DECADE)
+        self.a, self.n = a, n
+        self.table = np.log10(np.maximum(op.observer_steady_slope(L), 1e-300))
+
+    def __call__(self, Lb: np.ndarray) -> np.ndarray:
+        x = (np.log10(np.asarray(Lb, np.float64)) - self.a) * TABLE_PER_DECADE
+        i = np.clip(x.astype(np.int64), 0, self.n - 2)
+        t0, t1 = self.table[i], self.table[i + 1]
+        return 10.0 ** (t0 + (x - i) * (t1 - t0))
 
 
 def frame_planes(op, obs: dict, Y: np.ndarray, veil: np.ndarray | None, view: Viewing,
@@ -252,9 +291,11 @@ def frame_planes(op, obs: dict, Y: np.ndarray, veil: np.ndarray | None, view: Vi
     dL = tgt - sur
     neg = dL < 0
     if op.observer_per_pixel:
+        # the steady threshold and gain from tables of L_b, the gain now per pixel
+        lo, hi = float(Lb.min()), float(Lb.max())
         L64 = Lb.astype(np.float64)
-        taf = ad.transient_factor(op.observer_steady_slope(L64), op.observer_slope(obs, L64))
-        th = view.steady(L64, neg) * taf
+        taf = ad.transient_factor(SlopeTable(op, lo, hi)(L64), op.observer_slope(obs, L64))
+        th = ThresholdTable(op, None, view, lo, hi)(Lb, neg) * taf
         La = np.broadcast_to(op.observer_level(obs), Y.shape)
     else:
         th = ThresholdTable(op, obs, view, float(Lb.min()), float(Lb.max()))(Lb, neg)

@@ -181,11 +181,11 @@ class Ledda04(Operator):
         return L.step_reference(now, L_cd, Lr, dt)      # ... and is seen for dt
 
     def observer_slope(self, obs, L_b):
-        sc, sr = L.current_sigmas(obs)
+        sc, sr = _sigmas_now(obs)
         return L.response_slope(L_b, sc, sr, self.ward)
 
     def observer_level(self, obs):
-        return L.adaptation_luminance(L.current_sigmas(obs)[0])
+        return L.adaptation_luminance(_sigmas_now(obs)[0])
 
     def observer_steady_slope(self, L_b):
         Lb = np.asarray(L_b, np.float64)
@@ -196,7 +196,12 @@ class Ledda04(Operator):
     observer_per_pixel = True
 
     def observer_of(self, state, stats=None):
-        return {k: np.asarray(v, np.float64) for k, v in (state.pixels or {}).items()}
+        """The per-pixel state (float64), with its current sigmas (Eqs. 14-15) made
+        once: the planes and the target read them more than once a frame."""
+        obs = {k: np.asarray(v, np.float64) for k, v in (state.pixels or {}).items()}
+        if obs:
+            obs[SIGMAS_NOW[0]], obs[SIGMAS_NOW[1]] = L.current_sigmas(obs)
+        return obs
 
     def plot_curves(self, state, Ls):
         return None                       # no single curve: each pixel has its own
@@ -219,3 +224,15 @@ class Ledda04(Operator):
                                    L.sigma_of(Ir, L.BETA_ROD), sd, self.display.unit_cd,
                                    white, 0.0)
         return white_luminance(shown, white, lo)
+
+
+#: Keys of an observer (:meth:`Ledda04.observer_of`) holding its current sigmas.
+SIGMAS_NOW = ("sigma_cone_now", "sigma_rod_now")
+
+
+def _sigmas_now(obs):
+    """The current (cone, rod) sigmas of an observer state: made by observer_of where
+    it made them, else from the state (Eqs. 14-15)."""
+    if SIGMAS_NOW[0] in obs:
+        return obs[SIGMAS_NOW[0]], obs[SIGMAS_NOW[1]]
+    return L.current_sigmas(obs)
