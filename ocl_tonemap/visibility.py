@@ -144,7 +144,8 @@ def _gauss(Y: np.ndarray, sigma_px: float) -> np.ndarray:
 
 def block_mean(a: np.ndarray, s: int) -> np.ndarray:
     """Means of s x s blocks (the blocks at the bottom and right edges of what pixels
-    they have), float32."""
+    they have), float32: the whole blocks as a sum of s^2 strided slices (no
+    reshaped reductions over short axes, which NumPy runs slowly)."""
     if s <= 1:
         return np.asarray(a, np.float32)
     h, w = a.shape[:2]
@@ -155,7 +156,12 @@ def block_mean(a: np.ndarray, s: int) -> np.ndarray:
         b = part.reshape(part.shape[0] // ny, ny, part.shape[1] // nx, nx, *a.shape[2:])
         return b.sum(axis=3, dtype=np.float32).sum(axis=1) * np.float32(1.0 / (ny * nx))
     if hf and wf:
-        out[:hf // s, :wf // s] = means(a[:hf, :wf], s, s)
+        acc = np.zeros((hf // s, wf // s) + a.shape[2:], np.float32)
+        for dy in range(s):
+            for dx in range(s):
+                acc += a[dy:hf:s, dx:wf:s]
+        acc *= np.float32(1.0 / (s * s))
+        out[:hf // s, :wf // s] = acc
     if hf < h and wf:
         out[-1, :wf // s] = means(a[hf:, :wf], h - hf, s)[0]
     if wf < w and hf:
@@ -165,19 +171,27 @@ def block_mean(a: np.ndarray, s: int) -> np.ndarray:
     return out
 
 
+def _upsample_axis(a: np.ndarray, n: int, s: int, axis: int) -> np.ndarray:
+    """:func:`upsample` along one axis: output j = s k + p lies at (p + 0.5) / s - 0.5
+    cells from block k's centre, the same for every k, so each phase p is one
+    weighted sum of two shifted slices (the edges held by a one-cell edge pad)."""
+    a = np.moveaxis(np.asarray(a, np.float32), axis, 0)
+    ap = np.concatenate([a[:1], a, a[-1:]])
+    out = np.empty((n,) + a.shape[1:], np.float32)
+    for p in range(min(s, n)):
+        off = (p + 0.5) / s - 0.5
+        d = -1 if off < 0 else 0
+        f = np.float32(off - d)
+        c = len(range(p, n, s))
+        out[p::s] = ap[d + 1:d + 1 + c] * (np.float32(1.0) - f) + ap[d + 2:d + 2 + c] * f
+    return np.moveaxis(out, 0, axis)
+
+
 def upsample(a: np.ndarray, shape, s: int) -> np.ndarray:
     """Bilinear from a grid s times coarser (block centres) to ``shape``, float32."""
     if s <= 1:
         return np.asarray(a, np.float32)
-
-    def axis(n, m):
-        c = (np.arange(n, dtype=np.float32) + 0.5) / s - 0.5
-        i0 = np.clip(np.floor(c).astype(np.int64), 0, m - 1)
-        return i0, np.minimum(i0 + 1, m - 1), np.clip(c - i0, 0.0, 1.0).astype(np.float32)
-    y0, y1, fy = axis(shape[0], a.shape[0])
-    x0, x1, fx = axis(shape[1], a.shape[1])
-    r = a[y0] * (1.0 - fy)[:, None] + a[y1] * fy[:, None]
-    return r[:, x0] * (1.0 - fx) + r[:, x1] * fx
+    return _upsample_axis(_upsample_axis(a, shape[0], s, 0), shape[1], s, 1)
 
 
 def _step(sigma_px: float, h: int, w: int) -> int:

@@ -262,3 +262,30 @@ def test_calculator_step_refusals(args, says):
     assert r.returncode != 0
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and says in lines[0], r.stderr
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (5, 300), (37, 53), (64, 96)])
+@pytest.mark.parametrize("s", [2, 4, 8])
+def test_block_means_and_their_bilinear_return(shape, s):
+    """The maps' coarse grids (visibility.block_mean, upsample): each block's mean,
+    the edge blocks of what pixels they have; back by bilinear interpolation between
+    block centres, held at the edges. Against a direct evaluation of both."""
+    from ocl_tonemap.visibility import block_mean, upsample
+    rng = np.random.default_rng(4)
+    Y = (rng.random(shape) * 100).astype(np.float32)
+    h, w = shape
+    B = block_mean(Y, s)
+    ref = np.array([[Y[i:i + s, j:j + s].mean(dtype=np.float64) for j in range(0, w, s)]
+                    for i in range(0, h, s)])
+    np.testing.assert_allclose(B, ref, rtol=1e-6)
+
+    def centre(n, m):                  # source cells and weights of each output
+        c = (np.arange(n) + 0.5) / s - 0.5
+        i0 = np.clip(np.floor(c).astype(int), 0, m - 1)
+        return i0, np.minimum(i0 + 1, m - 1), np.clip(c - i0, 0.0, 1.0)
+    y0, y1, fy = centre(h, B.shape[0])
+    x0, x1, fx = centre(w, B.shape[1])
+    B64 = B.astype(np.float64)
+    r = B64[y0] * (1 - fy)[:, None] + B64[y1] * fy[:, None]
+    want = r[:, x0] * (1 - fx) + r[:, x1] * fx
+    np.testing.assert_allclose(upsample(B, shape, s), want, rtol=1e-6)
