@@ -298,7 +298,8 @@ def frame_planes(op, obs: dict, Y: np.ndarray, veil: np.ndarray | None, view: Vi
     luminance (cd/m^2, before the flare), ``veil`` the flare's veil (or None), ``obs``
     the operator's observer state at the frame (:meth:`Operator.observer_of`)."""
     Y = np.asarray(Y, np.float32)
-    Y = np.where(np.isfinite(Y), np.maximum(Y, 0.0), 0.0).astype(np.float32)
+    if not (np.isfinite(Y).all() and Y.min(initial=0.0) >= 0.0):    # else clean already
+        Y = np.where(np.isfinite(Y), np.maximum(Y, 0.0), 0.0).astype(np.float32)
     tgt, sur = target_and_surround(Y, view.size_arcmin * px_per_arcmin)
     V = np.zeros_like(Y) if veil is None else np.maximum(np.asarray(veil, np.float32), 0.0)
     Lb = np.maximum(sur + V, np.float32(1e-6))
