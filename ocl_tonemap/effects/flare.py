@@ -50,14 +50,14 @@ FOV_OPTION = EffectOption("fov_deg", "--fov", "angular width of the image, degre
 
 
 def _check_age(v):
-    if v is not None and not (isinstance(v, (int, float)) and 1.0 <= v <= 100.0):
+    if not fl.is_literal(v) and not (isinstance(v, (int, float)) and 1.0 <= v <= 100.0):
         raise ValueError(f"--age must be 1..100 years, or spencer (got {v})")
 
 
 def _age(text: str):
     """``--age``: years, or ``spencer`` (Eq. 8's printed weights and pupil, no age)."""
-    if text.strip().lower() == "spencer":
-        return None
+    if text.strip().lower() == fl.LITERAL_AGE:
+        return fl.LITERAL_AGE
     try:
         return float(text)
     except ValueError:
@@ -66,8 +66,8 @@ def _age(text: str):
 
 #: The observer's age: the flare's pupil (Watson & Yellott 2012) and glare (CIE 146's
 #: equation at that age); the visibility threshold's age factor (Adrian 1989). Default
-#: 25 years; ``spencer`` (None): the flare as Eq. 8 prints it with Moon & Spencer's
-#: pupil, the threshold at 25 (docs/models.md, "Observer age").
+#: 25 years; ``spencer`` (spencer1995.LITERAL_AGE): the flare as Eq. 8 prints it with
+#: Moon & Spencer's pupil, the threshold at 25 (docs/models.md, "Observer age").
 AGE_OPTION = EffectOption("age", "--age", "observer's age, 1..100: pupil, glare, threshold "
                           "(default 25; spencer: the flare's Eq. 8 as printed)",
                           type=_age, metavar="YEARS", check=_check_age, value=fl.DEFAULT_AGE)

@@ -34,7 +34,7 @@ VEIL_CELL_DEG = 0.4
 def viewing(opts, age: float | None) -> Viewing:
     """The map's target and observer: ``--target-size``, the run's ``--age`` (the
     flare's option; ``spencer``, no age, takes Adrian's at the default 25)."""
-    return Viewing(opts.target_size, fl.DEFAULT_AGE if age is None else float(age),
+    return Viewing(opts.target_size, fl.DEFAULT_AGE if fl.is_literal(age) else float(age),
                    MAP_TIME_S).check()
 
 

@@ -94,6 +94,15 @@ def pupil_diameter(L_wa) -> np.ndarray:
 #: The observer's age where none is given, years: Adrian's threshold's (the flare
 #: without an age keeps Eq. 8 as printed: docs/models.md, "Observer age").
 DEFAULT_AGE = 25.0
+#: ``--age spencer``: no observer's age, Eq. 8 as Spencer et al. print it (the same as
+#: None in this module's functions; a value of its own so that the option's default,
+#: DEFAULT_AGE, does not take its place).
+LITERAL_AGE = "spencer"
+
+
+def is_literal(age) -> bool:
+    """True for no age (None or :data:`LITERAL_AGE`): Eq. 8 and its pupil as printed."""
+    return age is None or age == LITERAL_AGE
 #: The visual field's largest angular area, deg^2 (a fisheye frame counts as this).
 FIELD_AREA_MAX = 180.0 * 130.0
 
@@ -104,7 +113,7 @@ def observer_pupil(G_cone: float, G_rod: float, fov_deg: float, shape,
     observer of ``age`` seeing the frame (photopic G_cone over the frame's angular
     area, both eyes); with ``age`` None, Eq. 8's Moon & Spencer pupil of the mean
     level, as Durand & Dorsey print it (:func:`pupil_diameter`)."""
-    if age is None:
+    if is_literal(age):
         return float(pupil_diameter(0.5 * (G_cone + G_rod)))
     h, w = (int(v) for v in shape[:2])
     area = min(float(fov_deg) ** 2 * h / max(w, 1), FIELD_AREA_MAX)
@@ -160,7 +169,7 @@ def flare_weights(D: float, age: float | None = None) -> tuple[float, float, flo
     True
     """
     w0, w1, w2, w3 = spencer_weights(D)
-    if age is None:
+    if is_literal(age):
         return w0, w1, w2, w3
     g1, g2 = glare_gains(D, age)
     w1, w2 = g1 * w1, g2 * w2

@@ -148,6 +148,42 @@ def test_the_flares_veil_is_cie146s_at_the_observers_age(age):
         assert np.all(np.abs(ratio - 1) < 0.25), (L, ratio)
 
 
+@pytest.mark.requires_opencl
+def test_the_default_observer_is_25_and_spencer_keeps_eq_8(tmp_path):
+    """Without --age the flare is a 25-year-old's (issue 48); ``--age spencer`` keeps
+    Eq. 8 as Spencer et al. print it with Moon & Spencer's pupil. (``spencer`` is a
+    value of its own: None would be taken as "not given" and become 25.) Through the
+    API on both backends, and through the command line."""
+    from ocl_tonemap.models import spencer1995 as fl
+    from ocl_tonemap.pipeline import Tonemapper
+    from ocl_tonemap.sample import render_frame
+    rgb = render_frame(3.0, 96, 54, 8.0, ss=1).astype(np.float32)
+    for b in ("opencl", "reference"):
+        young = Tonemapper("durand00", backend=b)
+        young.process(rgb)
+        lit = Tonemapper("durand00", backend=b, age="spencer")
+        lit.process(rgb)
+        fy, fs = young.last.effects["flare"], lit.last.effects["flare"]
+        assert fy["weights"] == pytest.approx(fl.flare_weights(fy["pupil_mm"], 25.0))
+        assert fs["weights"] == pytest.approx(fl.spencer_weights(fs["pupil_mm"]))
+        assert fs["weights"][1] > 1.2 * fy["weights"][1]          # Eq. 8 scatters more
+        assert not np.allclose(young.last_output, lit.last_output)
+    exr = tmp_path / "f.exr"
+    import OpenImageIO as oiio
+    buf = oiio.ImageBuf(oiio.ImageSpec(96, 54, 3, oiio.FLOAT))
+    buf.set_pixels(oiio.ROI(), rgb)
+    assert buf.write(str(exr))
+    outs = []
+    for extra in ([], ["--age", "spencer"], ["--age", "25"]):
+        out = tmp_path / f"o{len(outs)}.exr"
+        r = subprocess.run([sys.executable, "-m", "ocl_tonemap", "run", str(exr), str(out),
+                            "--operator", "durand00", "--luminance-scale", "1", *extra],
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        outs.append(oiio.ImageBuf(str(out)).get_pixels(oiio.FLOAT))
+    assert np.array_equal(outs[0], outs[2]) and not np.array_equal(outs[0], outs[1])
+
+
 def test_an_older_eye_has_a_smaller_pupil_and_more_glare():
     from ocl_tonemap.models import spencer1995 as fl
     from ocl_tonemap.models import watson2012 as wy
