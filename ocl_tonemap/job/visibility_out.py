@@ -204,13 +204,22 @@ def visibility_view(shown: np.ndarray, VL: np.ndarray) -> np.ndarray:
     0..1) dimmed under the VL bands' colours (:data:`VIEW_BANDS`), detail below
     threshold hatched in full red, a legend below. Float32, H + legend rows x W x 3."""
     h, w = VL.shape
-    base = np.clip(np.asarray(shown[..., :3], np.float32), 0.0, 1.0) * 0.6
-    band = np.searchsorted(np.array([b for b, _, _ in VIEW_BANDS[:-1]]), VL, side="right")
+    band = np.zeros(VL.shape, np.uint8)             # the VL band of each pixel, 0..4
+    for edge, _, _ in VIEW_BANDS[:-1]:
+        band += VL >= np.float32(edge)
     cols = np.array([c or (0.0, 0.0, 0.0) for _, c, _ in VIEW_BANDS], np.float32)
-    opacity = np.where(band == 0, 0.0, VIEW_OPACITY)[..., None].astype(np.float32)
-    out = (1.0 - opacity) * base + opacity * cols[band]
-    yy, xx = np.mgrid[0:h, 0:w]
-    hatch = (band == 1) & (((xx + yy) // max(2, min(h, w) // 120)) % 3 == 0)
+    # each band: the picture dimmed to 60 %, then (above the first) VIEW_OPACITY of
+    # its colour over it: out = shown x scale[band] + add[band]
+    scale = np.full(len(VIEW_BANDS), 0.6 * (1.0 - VIEW_OPACITY), np.float32)
+    scale[0] = 0.6
+    add = cols * np.float32(VIEW_OPACITY)
+    add[0] = 0.0
+    out = np.clip(np.asarray(shown[..., :3], np.float32), 0.0, 1.0)
+    out *= scale[band][..., None]
+    out += add[band]
+    step = max(2, min(h, w) // 120)
+    diagonal = (np.arange(w, dtype=np.int32)[None, :] + np.arange(h, dtype=np.int32)[:, None])
+    hatch = (band == 1) & (diagonal // step % 3 == 0)
     out[hatch] = cols[1]
     lh = max(18, min(48, h // 10))
     legend = np.full((lh, w, 3), 0.08, np.float32)
