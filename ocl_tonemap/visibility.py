@@ -220,6 +220,26 @@ def target_and_surround(Y: np.ndarray, size_px: float) -> tuple[np.ndarray, np.n
     return out[0], out[1]
 
 
+def _log_grid(lo: float, hi: float) -> tuple[float, int, np.ndarray]:
+    """(a, n, L): the tables' uniform grid of log10 L from a cell edge at or below
+    ``lo`` past ``hi``, :data:`TABLE_PER_DECADE` samples a decade."""
+    a = math.floor(math.log10(max(lo, 1e-9)) * TABLE_PER_DECADE) / TABLE_PER_DECADE
+    n = max(2, int(math.ceil((math.log10(max(hi, 1e-9)) - a) * TABLE_PER_DECADE)) + 2)
+    return a, n, 10.0 ** (a + np.arange(n) / TABLE_PER_DECADE)
+
+
+def _cells(a: float, n: int, Lb) -> tuple[np.ndarray, np.ndarray]:
+    """(cell index, fraction within it) of backgrounds ``Lb`` on a :func:`_log_grid`,
+    float64 from log10 on (float32 would lose 1e-3 of a cell)."""
+    x = np.log10(np.asarray(Lb), dtype=np.float64)
+    x -= a
+    x *= TABLE_PER_DECADE
+    i = x.astype(np.int32)
+    np.clip(i, 0, n - 2, out=i)
+    x -= i
+    return i, x
+
+
 class ThresholdTable:
     """Adrian's dL_th x TAF of a scalar observer state (``obs`` None: the steady dL_th,
     TAF 1) on a uniform grid of log10 L_b (:data:`TABLE_PER_DECADE`), both
@@ -229,11 +249,8 @@ class ThresholdTable:
 
     def __init__(self, op, obs: dict, view: Viewing, lo: float, hi: float):
         self.op, self.obs, self.view = op, obs, view
-        a = math.floor(math.log10(max(lo, 1e-9)) * TABLE_PER_DECADE) / TABLE_PER_DECADE
-        b = math.log10(max(hi, 1e-9))
-        n = max(2, int(math.ceil((b - a) * TABLE_PER_DECADE)) + 2)
+        a, n, L = _log_grid(lo, hi)
         self.a, self.n = a, n
-        L = 10.0 ** (a + np.arange(n) / TABLE_PER_DECADE)
         t = self.exact(L, np.zeros(n, bool)), self.exact(L, np.ones(n, bool))
         # log2 of each sample and the step to the next: one gather each a lookup
         lg2 = np.log2(np.concatenate(t))
@@ -244,7 +261,7 @@ class ThresholdTable:
         # model's segment joins): looked up exactly
         mid = 10.0 ** (a + (np.arange(n - 1) + 0.5) / TABLE_PER_DECADE)
         self.exact_cell = np.zeros(2 * n, bool)
-        for half, samples in enumerate(t):
+        for half in range(2):
             lin = np.exp2((lg2[half * n:half * n + n - 1] + lg2[half * n + 1:half * n + n]) / 2)
             ex = self.exact(mid, np.full(n - 1, bool(half)))
             self.exact_cell[half * n:half * n + n - 1] = np.abs(lin / ex - 1.0) > MIDPOINT_TOL
@@ -258,12 +275,7 @@ class ThresholdTable:
 
     def __call__(self, Lb: np.ndarray, negative: np.ndarray) -> np.ndarray:
         """dL_th (float32) of backgrounds ``Lb`` (float32), ``negative`` per pixel."""
-        x = np.log10(Lb, dtype=np.float64)           # float32 would lose 1e-3 of a cell
-        x -= self.a
-        x *= TABLE_PER_DECADE
-        i = x.astype(np.int32)
-        np.clip(i, 0, self.n - 2, out=i)
-        x -= i                                          # the fraction within the cell
+        i, x = _cells(self.a, self.n, Lb)
         np.add(i, self.n, out=i, where=np.asarray(negative, bool))
         near = self.exact_cell[i]
         x *= self.step[i]
@@ -279,17 +291,13 @@ class SlopeTable:
     the uniform log10 grid of :class:`ThresholdTable`, looked up linearly in log-log."""
 
     def __init__(self, op, lo: float, hi: float):
-        a = math.floor(math.log10(max(lo, 1e-9)) * TABLE_PER_DECADE) / TABLE_PER_DECADE
-        n = max(2, int(math.ceil((math.log10(max(hi, 1e-9)) - a) * TABLE_PER_DECADE)) + 2)
-        L = 10.0 ** (a + np.arange(n) / TABLE_PER_DECADE)
-        self.a, self.n = a, n
+        self.a, self.n, L = _log_grid(lo, hi)
         self.table = np.log10(np.maximum(op.observer_steady_slope(L), 1e-300))
 
     def __call__(self, Lb: np.ndarray) -> np.ndarray:
-        x = (np.log10(np.asarray(Lb, np.float64)) - self.a) * TABLE_PER_DECADE
-        i = np.clip(x.astype(np.int64), 0, self.n - 2)
+        i, f = _cells(self.a, self.n, Lb)
         t0, t1 = self.table[i], self.table[i + 1]
-        return 10.0 ** (t0 + (x - i) * (t1 - t0))
+        return 10.0 ** (t0 + f * (t1 - t0))
 
 
 def frame_planes(op, obs: dict, Y: np.ndarray, veil: np.ndarray | None, view: Viewing,
