@@ -131,10 +131,15 @@ def main(argv=None) -> int:
                 print(" | ".join(rows[-1]), flush=True)
     finally:
         shutil.rmtree(d, ignore_errors=True)
+    from ocl_tonemap.backends.opencl.runtime import describe_device, get_runtime
+    try:
+        opencl = describe_device(get_runtime().device)
+    except Exception as e:  # noqa: BLE001 (the table still says what ran)
+        opencl = f"no OpenCL device ({e})"
     L = ["# ocl-tonemap against Radiance's pcond -h", "",
          f"- command `python -m benchmarks.radiance_peer`; a night photograph with lamps "
          f"({PHOTO}) at {LEVEL} cd/m^2 log-average as Radiance .hdr; this machine "
-         f"({os.cpu_count()} cores, {cpu_model()}, PoCL CPU OpenCL); ours writes 8-bit PNG, "
+         f"({os.cpu_count()} cores, {cpu_model()}; OpenCL: {opencl}); ours writes 8-bit PNG, "
          f"pcond -h its .hdr (one process per frame); {compiled}",
          f"- times: the median of {max(1, a.repeat)} runs each, ours and pcond's "
          "interleaved (this machine's speed drifts by tens of percent between minutes)",
