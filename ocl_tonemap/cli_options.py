@@ -252,6 +252,9 @@ def _output_flags(g) -> None:
                    help="a target (pixels, arcmin): its VL per frame in the report, --plot")
     g.add_argument("--target-size", type=float, default=10.0, metavar="ARCMIN",
                    help="--visibility: the target's size, arcmin (default 10)")
+    g.add_argument("--veil-halo", action="store_true",
+                   help="--visibility: count the flare's lenticular halo in Lveil (default: "
+                   "the disability veil, the flare's smooth scatter, as CIE 146)")
     g.add_argument("--ocio-export", metavar="DIR",
                    help="also write the observer as an OCIO view: DIR/<name>.ocio and a CLF per "
                    "frame (docs/ocio_export.md)")
@@ -264,11 +267,15 @@ def _output_build(a, tier) -> dict:
     from .job.visibility_out import parse_target  # lazy: the parser loads no OIIO
     if a.plot_frames and not a.plot:
         log.warning("--plot-frames applies to --plot: ignored")
+    if a.veil_halo and not (a.visibility or a.visibility_view or a.target):
+        log.warning("--veil-halo applies to --visibility, --visibility-view and --target: "
+                    "ignored")
     return {"encode": a.encode, "out_bits": a.out_bits, "png_level": a.png_level,
             "png_filter": a.png_filter, "plot": a.plot,
             "plot_frames": [int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
             "ocio_export": a.ocio_export, "ocio_export_size": parse_export_size(a.ocio_export_size),
             "visibility": a.visibility, "target_size": a.target_size,
+            "veil_halo": a.veil_halo,
             "visibility_view": a.visibility_view,
             "target": parse_target(a.target) if a.target else None}
 

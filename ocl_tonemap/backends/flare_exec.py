@@ -72,13 +72,26 @@ def convolve_exact_cached(src: np.ndarray, deg_per_px: float, D: float,
     the same result to rounding)."""
     h, w, _ = src.shape
     wts = fl.flare_weights(D, age)
-    shared = sum(wi * basis_fft(b, (h, w), deg_per_px)
-                 for wi, b in zip(wts[:3], fl.channel_bases(0)))
+    shared = _scatter_fft((h, w), deg_per_px, wts)
     out = []
     for c in range(3):
         KF = shared + wts[3] * basis_fft(fl.channel_bases(c)[3], (h, w), deg_per_px)
         out.append(np.maximum(fftconvolve_same(src[..., c], None, KF), 0.0))
     return np.stack(out, axis=-1)
+
+
+def _scatter_fft(shape: tuple[int, int], deg_per_px: float, wts) -> np.ndarray:
+    """FFT of the PSF's part shared by the channels: w0 f0 + w1 f1 + w2 f2 (no halo)."""
+    return sum(wi * basis_fft(b, shape, deg_per_px) for wi, b in zip(wts[:3], fl.channel_bases(0)))
+
+
+def convolve_scatter_cached(src: np.ndarray, deg_per_px: float, D: float,
+                            age: float | None = None) -> np.ndarray:
+    """One plane ``src`` (H x W) through the PSF without the lenticular halo (f0, f1,
+    f2 at their weights; the same for every channel), float64, >= 0: the light the
+    disability-glare veil counts (``--visibility``'s Lveil)."""
+    KF = _scatter_fft(src.shape, deg_per_px, fl.flare_weights(D, age))
+    return np.maximum(fftconvolve_same(src, None, KF), 0.0)
 
 
 def convolve_exact(src: np.ndarray, deg_per_px: float, D: float,

@@ -63,6 +63,7 @@ class JobOptions:
     visibility: str | None = None       # per-frame visibility planes, EXR (job/visibility_out.py)
     visibility_view: str | None = None  # ... its false-colour view over the frame
     target_size: float = 10.0           # --target-size, arcmin
+    veil_halo: bool = False             # --veil-halo: Lveil with the flare's lenticular halo
     target: tuple | None = None         # --target X,Y,SIZE: one target tracked through the shot
     ocio_export: str | None = None      # a folder: the observer as an OCIO view (colour/export.py)
     ocio_export_size: int | str = "auto"    # lattice nodes per axis, or auto

@@ -353,7 +353,7 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
             if vis is not None and run.opts.visibility:
                 write_visibility(visibility_path(run.opts.visibility, f), vis, f,
                                  viewing(run.opts, tm.effects.settings.age),
-                                 tm.op.name, tm.effects.settings.fov_deg)
+                                 tm.op.name, tm.effects.settings.fov_deg, run.opts.veil_halo)
             if vis is not None and run.opts.visibility_view:
                 shown = run.colour.encode_fast(res.output[..., :3]) if linear else \
                     shown_codes(pixels)

@@ -38,12 +38,22 @@ def viewing(opts, age: float | None) -> Viewing:
                    MAP_TIME_S).check()
 
 
-def veil(Y: np.ndarray, flare: dict, settings) -> np.ndarray | None:
+#: What ``Lveil`` counts (the header's ``ocltm:visibility:veil``), without and with
+#: ``--veil-halo``.
+VEIL_KINDS = {False: "disability glare: the flare's scatter (Spencer's f0-f2 at the "
+                     "observer's age), without the lenticular halo",
+              True: "the flare's whole PSF, the lenticular halo (f3) included"}
+
+
+def veil(Y: np.ndarray, flare: dict, settings, halo: bool = False) -> np.ndarray | None:
     """The flare's photopic veil (cd/m^2, H x W) of a frame of luminance ``Y`` (cd/m^2)
-    whose flare ran: the flare's PSF (of ``settings.age``, the channels' PSFs weighted
-    by Y) at the frame's pupil over the light above the frame's source limit, on a
-    grid of :data:`VEIL_CELL_DEG` cells (the exact PSF's cached FFTs), less the
-    sources themselves."""
+    whose flare ran: the flare's PSF (of ``settings.age``) at the frame's pupil over
+    the light above the frame's source limit, on a grid of :data:`VEIL_CELL_DEG`
+    cells (the exact PSF's cached FFTs), less the sources themselves. Without
+    ``halo`` the disability veil, the PSF's smooth scatter (CIE 146's veil within
+    10 % at 2-20 degrees; the lenticular halo is a ring of appearance the CIE's
+    measured veils do not show: docs/models.md, "Visibility maps"); with it the
+    whole PSF, the channels' halos weighted by Y."""
     if not flare or not flare.get("ran") or "pupil_mm" not in flare:
         return None
     lim = float(flare.get("source_limit_cd", np.inf))
@@ -55,9 +65,12 @@ def veil(Y: np.ndarray, flare: dict, settings) -> np.ndarray | None:
     S = np.maximum(small - lim, 0.0)               # (source_part of a grey: Y - lim)
     if not S.any():
         return None
-    S3 = np.repeat(S[..., None], 3, axis=2)
-    F = fx.convolve_exact_cached(S3, settings.fov_deg / small.shape[1],
-                                 float(flare["pupil_mm"]), settings.age) @ Y_WEIGHTS
+    deg_per_cell, D = settings.fov_deg / small.shape[1], float(flare["pupil_mm"])
+    if halo:
+        S3 = np.repeat(S[..., None], 3, axis=2)
+        F = fx.convolve_exact_cached(S3, deg_per_cell, D, settings.age) @ Y_WEIGHTS
+    else:
+        F = fx.convolve_scatter_cached(S, deg_per_cell, D, settings.age)
     return upsample(np.maximum(F - S, 0.0).astype(np.float32), (h, w), s)
 
 
@@ -87,7 +100,7 @@ def frame_seen(tm, fin, info) -> tuple[np.ndarray, dict]:
 def frame_visibility(tm, seen, info, opts) -> dict:
     """The planes of one mapped frame (``seen``: :func:`frame_seen`'s)."""
     Y, obs = seen
-    V = veil(Y, info.effects.get("flare"), tm.effects.settings)
+    V = veil(Y, info.effects.get("flare"), tm.effects.settings, opts.veil_halo)
     px_per_arcmin = Y.shape[1] / (tm.effects.settings.fov_deg * 60.0)
     return frame_planes(tm.op, obs, Y, V, viewing(opts, tm.effects.settings.age),
                         px_per_arcmin)
@@ -142,7 +155,7 @@ def target_visibility(tm, seen, opts, planes: dict) -> dict:
 
 
 def write_visibility(path: str, planes: dict, f, view: Viewing, operator: str,
-                     fov_deg: float) -> None:
+                     fov_deg: float, halo: bool = False) -> None:
     """The planes as a float32 EXR, channels named and described in the header,
     verified before it counts."""
     names = [n for n, _, _ in PLANES]
@@ -158,6 +171,7 @@ def write_visibility(path: str, planes: dict, f, view: Viewing, operator: str,
     spec.attribute("ocltm:visibility:observation_s", float(view.time_s))
     spec.attribute("ocltm:visibility:k", float(view.k))
     spec.attribute("ocltm:visibility:fov_deg", float(fov_deg))
+    spec.attribute("ocltm:visibility:veil", VEIL_KINDS[bool(halo)])
     spec.attribute("ocltm:operator", operator)
     if f is not None:
         spec.attribute("ocltm:frame", int(f))

@@ -203,3 +203,42 @@ def test_extremes_give_finite_planes(tmp_path, op):
         P, _ = _planes(tmp_path / f"{name}_v.exr")
         assert all(np.isfinite(v).all() for v in P.values()), name
         assert "target at (0, 0), 10 arcmin:" in r.stdout
+
+
+@pytest.mark.parametrize("age", [25, 70])
+def test_the_veil_of_a_point_source_is_cie146s(tmp_path, age):
+    """Issue 48: a small lamp at night, E lux at the eye, veils the plane's pixels
+    theta degrees away by Lveil = E x CIE 146's general equation at the observer's
+    age, within 25 % at 2-20 degrees, through the whole run (the flare's pupil and
+    source limit, the veil's cells and their bilinear return). The lenticular halo
+    is the picture's, not the disability veil's: with --veil-halo it is counted, a
+    ring at ~3 degrees far above the CIE's veil."""
+    from ocl_tonemap.models import cie146
+    w, h, fov = 400, 226, 50.0
+    deg = fov / w
+    a = np.full((h, w, 3), 0.01, np.float32)
+    a[112:114, 40:42] = 1e5                      # 2 x 2 pixels on the veil's cells
+    src = tmp_path / "lamp.exr"
+    b = oiio.ImageBuf(oiio.ImageSpec(w, h, 3, oiio.FLOAT))
+    b.set_pixels(oiio.ROI(), a)
+    assert b.write(str(src))
+    E = 1e5 * 4 * np.radians(deg) ** 2           # lux at the eye
+    x = np.arange(42, 240)
+    theta = (x + 0.5 - 41.0) * deg                # along the lamp's row, from its centre
+    keep = (theta >= 2.0) & (theta <= 20.0)
+    got = {}
+    for halo in (False, True):
+        out = tmp_path / f"v{int(halo)}.exr"
+        r = _cli("run", src, tmp_path / f"d{int(halo)}.png", "--operator", "pattanaik00",
+                 "--backend", "reference", "--luminance-scale", "1", "--age", age,
+                 "--visibility", out, *(["--veil-halo"] if halo else []))
+        assert r.returncode == 0, r.stderr
+        P, spec = _planes(out)
+        assert ("halo (f3) included" in spec.getattribute("ocltm:visibility:veil")) == halo
+        got[halo] = (P["Lveil"][112, x] + P["Lveil"][113, x]) / 2.0
+    ratio = got[False][keep] / (E * cie146.veil_per_lux(theta[keep], age))
+    assert np.all(np.abs(ratio - 1.0) < 0.25), (ratio.min(), ratio.max())
+    ring = (theta > 2.5) & (theta < 3.5)
+    assert np.all(got[True][ring] > 1.4 * got[False][ring])
+    far = theta > 7.0
+    np.testing.assert_allclose(got[True][far], got[False][far], rtol=0.02)
