@@ -178,8 +178,11 @@ def visibility(a, argv) -> int:
     polarity = "negative" if a.negative else "positive"
     if a.target is not None:          # the target says its polarity
         polarity = "negative" if a.target < a.background else "positive"
+    from .models import cie203  # lazy: a command loads its own layers
     th = ad.threshold(a.background, a.size, a.age, a.time, polarity, a.k)
     out = th.as_dict()
+    media = cie203.media_factors(a.age)
+    out["media"] = {"photopic": media[0], "scotopic": media[1], "ref_age": cie203.AGE_REF}
     if a.target is not None:
         out["L_target"] = a.target
         out["VL"] = ad.visibility_level(a.target - a.background, th)
@@ -199,6 +202,8 @@ def visibility(a, argv) -> int:
             ("field factor k", f"{th.k:g}"), ("polarity factor F_cp", f"{th.F_cp:.4f}"),
             ("time factor (a+t)/t", f"{th.time_factor:.4f}"),
             ("age factor AF", f"{th.age_factor:.4f}"),
+            ("ocular media (CIE 203)", f"{media[0]:.3f} photopic, {media[1]:.3f} scotopic of "
+             f"a {cie203.AGE_REF:g}-year-old's (the step's light; AF holds the threshold's)"),
             ("threshold dL_th", f"{th.dL_th:.5g} cd/m^2"),
             ("threshold contrast dL_th/L_b", f"{th.contrast:.4g}")]
     if a.target is not None:

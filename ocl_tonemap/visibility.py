@@ -20,6 +20,7 @@ import numpy as np
 
 from .backends.flare_exec import fft_size
 from .models import adrian1989 as ad
+from .models import cie203
 
 #: The default target: 10 arcmin (the issue's and RP-8's small target is 7.3-10).
 TARGET_ARCMIN = 10.0
@@ -61,10 +62,19 @@ class Viewing:
                                                                   self.time_s)
         return self.k * base * fcp * tf * ad.age_factor(self.age)
 
+    @property
+    def media_gain(self) -> float:
+        """The scene-to-retina factor of this observer's ocular media (CIE 203), the
+        run's at the same age: the operators' states hold the light behind the media,
+        so their responses are read at gain x L_b (Adrian's AF holds the threshold's
+        own part of the media, measured on observers with their lenses)."""
+        return cie203.media_gain(self.age)
 
-def transient(op, obs: dict, L_b) -> np.ndarray:
-    """TAF of backgrounds ``L_b`` for an observer in state ``obs`` of operator ``op``."""
-    L = np.asarray(L_b, np.float64)
+
+def transient(op, obs: dict, L_b, gain: float = 1.0) -> np.ndarray:
+    """TAF of backgrounds ``L_b`` (scene cd/m^2) for an observer in state ``obs`` of
+    operator ``op`` whose media pass ``gain`` of the light (:attr:`Viewing.media_gain`)."""
+    L = np.asarray(L_b, np.float64) * gain
     return ad.transient_factor(op.observer_steady_slope(L), op.observer_slope(obs, L))
 
 
@@ -88,24 +98,26 @@ def trace(op, L_from: float, seconds: float | None, L_b: float, times, view: Vie
     """The observer of ``op`` adapted to a neutral field of ``L_from`` (for ``seconds``;
     None: fully), which steps to ``L_b`` at t = 0: its threshold at each of ``times``
     (s after the step, >= 0; the field held at L_b)."""
-    obs = op.observer_preadapted(float(L_from), seconds)
+    g = view.media_gain                       # the operator sees the light behind the media
+    obs = op.observer_preadapted(float(L_from) * g, seconds)
     steady = float(view.steady(L_b, polarity))
-    s_ss = float(op.observer_steady_slope(float(L_b)))
+    s_ss = float(op.observer_steady_slope(float(L_b) * g))
     out, now = [], 0.0
     for t in sorted(float(x) for x in times):
-        obs = op.observer_advance(obs, float(L_b), t - now)
+        obs = op.observer_advance(obs, float(L_b) * g, t - now)
         now = t
-        taf = float(ad.transient_factor(s_ss, op.observer_slope(obs, L_b)))
+        taf = float(ad.transient_factor(s_ss, op.observer_slope(obs, float(L_b) * g)))
         dl = steady * taf
         vl = None if L_target is None else abs(L_target - L_b) / dl
-        out.append(TracePoint(t, float(op.observer_level(obs)), taf, dl, vl))
+        out.append(TracePoint(t, float(op.observer_level(obs)) / g, taf, dl, vl))
     return out
 
 
 # --- the per-frame planes (``run --visibility``) -----------------------------------------
 
 #: The planes of a visibility EXR, in order, with their units (the header says them).
-PLANES = (("La", "cd/m^2", "the eye's (cone) adaptation luminance, from the operator's state"),
+PLANES = (("La", "cd/m^2", "the eye's (cone) adaptation luminance, from the operator's state "
+          "(scene luminance: the light behind the media over their gain)"),
           ("Lveil", "cd/m^2", "the glare veil (the flare's scattered light)"),
           ("Lb", "cd/m^2", "the background: the surround's luminance plus the veil"),
           ("dLth", "cd/m^2", "Adrian 1989's threshold x the transient factor"),
@@ -269,9 +281,8 @@ class ThresholdTable:
     def exact(self, L, negative) -> np.ndarray:
         if self.obs is None:
             return self.view.steady(L, negative)
-        taf = ad.transient_factor(self.op.observer_steady_slope(L),
-                                  self.op.observer_slope(self.obs, L))
-        return self.view.steady(L, negative) * taf
+        return self.view.steady(L, negative) * transient(self.op, self.obs, L,
+                                                          self.view.media_gain)
 
     def __call__(self, Lb: np.ndarray, negative: np.ndarray) -> np.ndarray:
         """dL_th (float32) of backgrounds ``Lb`` (float32), ``negative`` per pixel."""
@@ -315,13 +326,17 @@ def frame_planes(op, obs: dict, Y: np.ndarray, veil: np.ndarray | None, view: Vi
     neg = dL < 0
     if op.observer_per_pixel:
         # the steady threshold and gain from tables of L_b, the gain now per pixel
+        g = view.media_gain                  # the states hold the light behind the media
         lo, hi = float(Lb.min()), float(Lb.max())
         L64 = Lb.astype(np.float64)
-        taf = ad.transient_factor(SlopeTable(op, lo, hi)(L64), op.observer_slope(obs, L64))
+        if g != 1.0:
+            L64 *= g
+        taf = ad.transient_factor(SlopeTable(op, lo * g, hi * g)(L64),
+                                  op.observer_slope(obs, L64))
         th = ThresholdTable(op, None, view, lo, hi)(Lb, neg) * taf
-        La = np.broadcast_to(op.observer_level(obs), Y.shape)
+        La = np.broadcast_to(op.observer_level(obs) / g, Y.shape)
     else:
         th = ThresholdTable(op, obs, view, float(Lb.min()), float(Lb.max()))(Lb, neg)
-        La = np.full(Y.shape, float(op.observer_level(obs)), np.float32)
+        La = np.full(Y.shape, float(op.observer_level(obs)) / view.media_gain, np.float32)
     return {"La": np.asarray(La, np.float32), "Lveil": V, "Lb": Lb,
             "dLth": th.astype(np.float32), "VL": (np.abs(dL) / th).astype(np.float32)}

@@ -127,6 +127,7 @@ def frame_ops(tm, effects: dict, pixels: np.ndarray, scale: float,
     both made and the better kept (else the log-opponent one)."""
     op, params, gains = tm.last_mapping()
     raw = frozen_raw(op, params, gains, effects.get("purkinje"))
+    scale = scale * tm.media_gain                  # the observer's media (CIE 203, --age)
     px = np.asarray(pixels, np.float64).reshape(-1, 3)
     px = lattice.sample_rows(px[np.isfinite(px).all(axis=1)])
     cd = np.maximum(px, 0.0) * scale
@@ -147,7 +148,7 @@ def reference_codes(tm, effects: dict, pixels: np.ndarray, scale: float, encode)
     through ``encode`` (display-linear -> code values): what the export is held to."""
     op, params, gains = tm.last_mapping()
     raw = frozen_raw(op, params, gains, effects.get("purkinje"))
-    cd = np.maximum(np.asarray(pixels, np.float64), 0.0) * scale
+    cd = np.maximum(np.asarray(pixels, np.float64), 0.0) * (scale * tm.media_gain)
     return encode(frozen_shoulder(params)(np.maximum(raw(cd), 0.0)).astype(np.float32))
 
 

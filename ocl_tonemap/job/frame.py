@@ -141,6 +141,7 @@ def output_metadata(run: RunSetup, tm: Tonemapper, fr, fin: FrameInput, info,
         "ocltm:repairs": json.dumps(info.repairs.as_dict(), sort_keys=True),
         "ocltm:effects": json.dumps(info.effects, sort_keys=True, default=float),
         "ocltm:effects_ran": ",".join(k for k, v in info.effects.items() if v.get("ran")) or "none",
+        "ocltm:media_gain": float(tm.media_gain),
         "ocltm:fov": f"{tm.effects.settings.fov_deg:.6g} degrees ("
                      f"{run.fov_note or run.opts.fov_source or ('--fov' if run.opts.fov_given else 'default')})",
     }

@@ -147,10 +147,10 @@ def target_visibility(tm, seen, opts, planes: dict) -> dict:
     if op.observer_per_pixel:
         obs = {k: np.asarray(v)[int(y), int(x)] for k, v in obs.items()}
     pol = "negative" if L_t < L_s else "positive"
-    taf = float(transient(op, obs, L_b))
+    taf = float(transient(op, obs, L_b, view.media_gain))
     dl = float(view.steady(L_b, pol)) * taf
     return {"x": x, "y": y, "size_arcmin": size, "L_target": L_t, "L_surround": L_s,
-            "Lveil": veil, "Lb": L_b, "La": float(np.mean(op.observer_level(obs))),
+            "Lveil": veil, "Lb": L_b, "La": float(np.mean(op.observer_level(obs))) / view.media_gain,
             "TAF": taf, "dLth": dl, "VL": abs(L_t - L_s) / dl}
 
 

@@ -10,6 +10,7 @@ from ..backends.quality import quality_tier
 from ..backends.select import make_backend
 from ..effects import EffectSettings, Effects
 from ..mechanisms import MechanismPlan
+from ..models import cie203
 from ..models.display import DisplaySpec, display_for
 from ..models.metering import MeteringSpec
 from ..models.photometry import Y_WEIGHTS
@@ -75,6 +76,11 @@ class Tonemapper:
             if getattr(effects, name) != "off":
                 raise ValueError(f"{operator} models the {name} effect itself; leave "
                                  f"--{name.replace('_', '-')} off")
+        #: The ocular media's scene-to-retina factor (``cie203.media_gain``): every
+        #: frame's luminance scale and the pre-adaptation take it.
+        self.media_gain = cie203.media_gain(effects.age)
+        if preadapt is not None and self.media_gain != 1.0:
+            preadapt = (float(preadapt[0]) * self.media_gain, *tuple(preadapt)[1:])
         self.backend = make_backend(backend, device, max_band_pixels)
         self.metering = metering if isinstance(metering, MeteringSpec) else MeteringSpec.parse(metering)
         self.display = display or display_for("sRGB - Display")
@@ -201,23 +207,22 @@ class Tonemapper:
         ``encoded``). ``weights``: the plan's weights instead of the frame's own (a
         shot's integrate pass measuring a frame as the serial run weighs it)."""
         img = None if isinstance(frame, np.ndarray) else self.backend.device_image(frame)
+        check_scale(luminance_scale)
+        luminance_scale = luminance_scale * self.media_gain      # what reaches the retina
         if img is not None:
             if wavelengths is not None:
                 raise ValueError("a spectral frame comes as a host array (wavelengths=...)")
-            check_scale(luminance_scale)
             res = self.graph.run_device(img, dt, time_s, frame_number, luminance_scale,
                                         illuminant, encoding, measure_only, weights)
             return res if measure_only else self._remember(res)
         if wavelengths is not None:
             fr = spectral_frame(self.op, self.operator_name, self.effects, frame, wavelengths,
                                 luminance_scale, self.graph.primaries)
-            check_scale(luminance_scale)
             res = self.graph.run(fr, dt, time_s, frame_number, None, encoding, measure_only)
             return res if measure_only else self._remember(res)
         pix, grey = rgb_pixels(frame)
         if grey is not None or pix.shape[2] != 3:
             encoding = None                           # code values only for RGB in and out
-        check_scale(luminance_scale)
         if not (pix.dtype == np.float16 and pix.shape[2] == 3 and self.backend.half_input):
             pix = np.ascontiguousarray(pix, np.float32)   # (half RGB: up as it is stored)
         alpha = None
@@ -264,5 +269,7 @@ class Tonemapper:
             self.last = info
             if start is not None:
                 start(info)
-        return run_banded(self.graph, source, sink, dt, time_s, frame_number, luminance_scale,
-                          illuminant, measure_only, begin, weights)
+        check_scale(luminance_scale)
+        return run_banded(self.graph, source, sink, dt, time_s, frame_number,
+                          luminance_scale * self.media_gain, illuminant, measure_only, begin,
+                          weights)

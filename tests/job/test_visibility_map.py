@@ -39,27 +39,27 @@ def drive(tmp_path_factory):
     return d
 
 
-def _run(drive, op, backend, tag):
+def _run(drive, op, backend, tag, *extra):
     out = drive / f"{op}-{backend}-{tag}"
     r = _cli("run", drive / "s" / "tunnel.####.exr", out / "d.####.png", "--operator", op,
              "--backend", backend, "--visibility", out / "v.####.exr",
-             "--state-out", out / "state.json")
+             "--state-out", out / "state.json", *extra)
     assert r.returncode == 0, r.stderr
     return out
 
 
-def _check_against_calculator(out, op_name):
+def _check_against_calculator(out, op_name, age=25.0):
     last = sorted(p for p in os.listdir(out) if p.startswith("v."))[-1]
     P, spec = _planes(out / last)
     op = get_operator(op_name)({})
     obs = op.observer_of(load_state(out / "state.json"))
-    view = Viewing(10.0, 25.0, MAP_TIME_S)
+    view = Viewing(10.0, age, MAP_TIME_S)
     Lb = P["Lb"].astype(np.float64)
     rng = np.random.default_rng(1)
     ys, xs = rng.integers(0, Lb.shape[0], 40), rng.integers(0, Lb.shape[1], 40)
     for y, x in zip(ys, xs):
         o = {k: np.asarray(v)[y, x] for k, v in obs.items()} if op.observer_per_pixel else obs
-        taf = float(transient(op, o, Lb[y, x]))
+        taf = float(transient(op, o, Lb[y, x], view.media_gain))
         th = [float(view.steady(Lb[y, x], pol)) * taf for pol in ("positive", "negative")]
         got = float(P["dLth"][y, x])
         # the table's interpolation (<= 1e-6) and the plane's float32
@@ -76,6 +76,16 @@ def test_planes_equal_the_calculator_reference(drive, op):
     frames = sorted(p for p in os.listdir(out) if p.startswith("v."))
     assert len(frames) == 12
     _check_against_calculator(out, op)
+
+
+@pytest.mark.parametrize("op", ["pattanaik00", "ledda04"])
+def test_an_older_observers_planes_equal_the_calculator(drive, op):
+    """--age 70: the state holds the light behind a 70-year-old's media (CIE 203), and
+    the planes read it so (TAF at that light, La in scene cd/m^2): each plane equals
+    the calculator at age 70 as at 25; the threshold is the older one's (Adrian's AF)."""
+    young = _check_against_calculator(_run(drive, op, "reference", "a25"), op)
+    P = _check_against_calculator(_run(drive, op, "reference", "a70", "--age", "70"), op, 70.0)
+    assert np.median(P["dLth"] / young["dLth"]) > 2.0          # AF(70) / AF(25) ~ 3
 
 
 @pytest.mark.parametrize("op", ["pattanaik00", "ledda04"])

@@ -231,6 +231,20 @@ def test_an_adapted_observer_has_no_transient(op):
             pytest.approx(1.0, abs=1e-9)
 
 
+@pytest.mark.parametrize("op", OPS)
+def test_an_older_observer_adapted_to_the_background_has_no_transient(op):
+    """A 70-year-old's state holds the light behind the media (0.84 of the scene's):
+    adapted to L_b, the calculator's TAF is 1 and La is L_b in scene cd/m^2. (Read at
+    the scene's L_b instead, the state would look dazzled: TAF > 1.)"""
+    o = get_operator(op)({})
+    view = Viewing(10.0, 70.0, 2.0)
+    assert view.media_gain == pytest.approx(0.838, abs=2e-3)
+    for L in (0.01, 1.0, 300.0):
+        (p,) = trace(o, L, None, L, (0.0,), view)
+        assert p.TAF == pytest.approx(1.0, abs=1e-6) and p.L_a == pytest.approx(L, rel=1e-6)
+        assert p.dL_th == pytest.approx(float(view.steady(L)), rel=1e-6)
+
+
 def test_ledda04_keeps_the_longest_memory_of_the_approach():
     """Ledda's cones wait a second, then recover over seconds to minutes; the
     light-adaptation models (Pattanaik's neural 80 ms, Durand's 0.1 s) within ~2 s."""
