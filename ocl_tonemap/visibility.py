@@ -287,7 +287,8 @@ class ThresholdTable:
     def __call__(self, Lb: np.ndarray, negative: np.ndarray) -> np.ndarray:
         """dL_th (float32) of backgrounds ``Lb`` (float32), ``negative`` per pixel."""
         i, x = _cells(self.a, self.n, Lb)
-        np.add(i, self.n, out=i, where=np.asarray(negative, bool))
+        i += np.asarray(negative, bool).astype(np.int32) * np.int32(self.n)   # (not a
+        # masked add: np.add(..., where=) took 10 ms of the lookup's 30 at 1080p)
         near = self.exact_cell[i]
         x *= self.step[i]
         x += self.base[i]
