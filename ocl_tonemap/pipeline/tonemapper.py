@@ -23,6 +23,13 @@ from .observer import Observer
 from .results import FrameInfo, FrameResult, check_scale, rgb_pixels
 
 
+def _behind_media(preadapt, gain: float):
+    """A pre-adaptation (L cd/m^2, seconds) as the light behind the ocular media."""
+    if preadapt is None or gain == 1.0:
+        return preadapt
+    return (float(preadapt[0]) * gain, *tuple(preadapt)[1:])
+
+
 class Tonemapper:
     """Time-dependent tone mapping of frames for one observer.
 
@@ -79,8 +86,7 @@ class Tonemapper:
         #: The ocular media's scene-to-retina factor (``cie203.media_gain``): every
         #: frame's luminance scale and the pre-adaptation take it.
         self.media_gain = cie203.media_gain(effects.age)
-        if preadapt is not None and self.media_gain != 1.0:
-            preadapt = (float(preadapt[0]) * self.media_gain, *tuple(preadapt)[1:])
+        preadapt = _behind_media(preadapt, self.media_gain)
         self.backend = make_backend(backend, device, max_band_pixels)
         self.metering = metering if isinstance(metering, MeteringSpec) else MeteringSpec.parse(metering)
         self.display = display or display_for("sRGB - Display")
@@ -128,7 +134,7 @@ class Tonemapper:
     def reset_adaptation(self, preadapt=None) -> None:
         """A scene cut (``--cuts``): the observer starts again fully adapted to the next
         frame, as at the start of a shot (``preadapt``: this one, ``--stills``)."""
-        self.observer.reset(preadapt)
+        self.observer.reset(_behind_media(preadapt, self.media_gain))
 
     def frame_clock(self, dt, time_s):
         return self.observer.clock(dt, time_s)

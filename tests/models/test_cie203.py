@@ -89,6 +89,17 @@ def test_the_run_gives_the_operator_the_light_behind_the_media():
             a = old.process(rgb, luminance_scale=night, dt=1.0)
             b = young.process(rgb, luminance_scale=night * old.media_gain, dt=1.0)
             np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-7)
+        # a pre-adaptation is the light behind the media too, at the start and at a cut
+        old = Tonemapper(op, backend="reference", age=70, flare="off", preadapt=(100.0, None))
+        g = old.media_gain
+        young = Tonemapper(op, backend="reference", flare="off", preadapt=(100.0 * g, None))
+        for cut in (None, (3.0, 2.0)):
+            if cut:
+                old.reset_adaptation(cut)
+                young.reset_adaptation((cut[0] * g, cut[1]))
+            a = old.process(rgb, luminance_scale=0.1, dt=0.5)
+            b = young.process(rgb, luminance_scale=0.1 * g, dt=0.5)
+            np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-7)
         # an older eye sees the night's frame darker than a young one
         c = Tonemapper(op, backend="reference", flare="off").process(rgb, luminance_scale=1e-3)
         d = Tonemapper(op, backend="reference", age=70, flare="off").process(
