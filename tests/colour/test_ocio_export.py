@@ -247,18 +247,22 @@ def test_the_shot_export_pass_writes_what_apply_writes(tunnel, tmp_path):
     assert cfg.getCurrentContext().resolveStringVar("$FRAME") == "1"   # the shot's first
 
 
-@pytest.mark.parametrize("backend", ["reference",
-                                     pytest.param("opencl", marks=pytest.mark.requires_opencl)])
-def test_the_api_export_replays_the_run_on_either_backend(tmp_path, backend):
+@pytest.mark.parametrize("backend,age", [
+    ("reference", 25.0), ("reference", 70.0),
+    pytest.param("opencl", 25.0, marks=pytest.mark.requires_opencl)])
+def test_the_api_export_replays_the_run_on_either_backend(tmp_path, backend, age):
     """From the API: OcioExport beside Tonemapper.process; the view read back by OCIO
     against the frames the run itself returned (OpenCL: float32 kernels), within the
-    bound."""
+    bound; an older observer's view takes the light behind the media as the run
+    does."""
     from ocl_tonemap import EffectSettings, OcioExport, Tonemapper
     from ocl_tonemap.colour import ColourPipeline
     from ocl_tonemap.sample import render_frame
     colour = ColourPipeline("ocl-tonemap")
     tm = Tonemapper("durand00", backend=backend,
-                    effects=EffectSettings(chromatic_adaptation="auto", purkinje="auto"))
+                    effects=EffectSettings(chromatic_adaptation="auto", purkinje="auto",
+                                           age=age))
+    assert (tm.media_gain < 0.9) == (age == 70.0)
     view = OcioExport(str(tmp_path / "v"), colour, tm, first_frame=1)
     for n, t in enumerate((0.0, 3.0, 6.0), 1):
         frame = np.ascontiguousarray(render_frame(t, 96, 54, 8.0)[..., :3], np.float32)
