@@ -335,6 +335,11 @@ def step_reference(state: dict, I_c, I_r, dt: float, change_log10: float = CHANG
     }
 
 
+def has_direction(sin: np.ndarray, sfin: np.ndarray) -> np.ndarray:
+    """True where the course sin -> sfin moves (dark or light) by more than 1e-5."""
+    return np.abs(sfin - sin) > 1e-5 * sin
+
+
 def goal_ahead(sigma_in, sigma_fin, sigma_now, sigma_goal):
     """True where the course sigma_in -> sigma_fin has a direction (dark or light)
     and the new goal lies beyond the current sigma in it, or within AHEAD_TOL of it
@@ -342,7 +347,7 @@ def goal_ahead(sigma_in, sigma_fin, sigma_now, sigma_goal):
     must not take different branches)."""
     sin, sfin = np.asarray(sigma_in, np.float64), np.asarray(sigma_fin, np.float64)
     now = np.asarray(sigma_now, np.float64)
-    d = np.where(np.abs(sfin - sin) > 1e-5 * sin, np.sign(sfin - sin), 0.0)
+    d = np.where(has_direction(sin, sfin), np.sign(sfin - sin), 0.0)
     return (d != 0.0) & ((np.asarray(sigma_goal, np.float64) - now) * d > -AHEAD_TOL * now)
 
 
@@ -352,7 +357,7 @@ def course_done(sigma_in, sigma_fin, sigma_now):
     sin, sfin = np.asarray(sigma_in, np.float64), np.asarray(sigma_fin, np.float64)
     span = sfin - sin
     with np.errstate(divide="ignore", invalid="ignore"):
-        left = np.where(np.abs(span) > 1e-5 * sin, (sfin - np.asarray(sigma_now)) / span, 0.0)
+        left = np.where(has_direction(sin, sfin), (sfin - np.asarray(sigma_now)) / span, 0.0)
     return left <= COURSE_RUNNING
 
 
@@ -413,12 +418,6 @@ def logmean(x: np.ndarray) -> float:
 
 
 # --- the observer: one frame on a backend ---------------------------------------------
-
-#: Neutral Y'/Y of Eqs. 6-7 (a grey of Y cd/m^2 has Y' = 0.777 Y).
-NEUTRAL_ROD_RATIO = sum(YS_COEFFS) / sum(Y_COEFFS)
-#: mes = 1 from here up (Eq. 11): rods saturated, their output weight is 0.
-PHOTOPIC_FLOOR = 10.0 ** 0.6
-
 
 #: Neutral Y'/Y of Eqs. 6-7 (a grey of Y cd/m^2 has Y' = 0.777 Y).
 NEUTRAL_ROD_RATIO = sum(YS_COEFFS) / sum(Y_COEFFS)
