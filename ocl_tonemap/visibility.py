@@ -99,14 +99,15 @@ def trace(op, L_from: float, seconds: float | None, L_b: float, times, view: Vie
     None: fully), which steps to ``L_b`` at t = 0: its threshold at each of ``times``
     (s after the step, >= 0; the field held at L_b)."""
     g = view.media_gain                       # the operator sees the light behind the media
+    Lg = float(L_b) * g
     obs = op.observer_preadapted(float(L_from) * g, seconds)
     steady = float(view.steady(L_b, polarity))
-    s_ss = float(op.observer_steady_slope(float(L_b) * g))
+    s_ss = float(op.observer_steady_slope(Lg))
     out, now = [], 0.0
     for t in sorted(float(x) for x in times):
-        obs = op.observer_advance(obs, float(L_b) * g, t - now)
+        obs = op.observer_advance(obs, Lg, t - now)
         now = t
-        taf = float(ad.transient_factor(s_ss, op.observer_slope(obs, float(L_b) * g)))
+        taf = float(ad.transient_factor(s_ss, op.observer_slope(obs, Lg)))
         dl = steady * taf
         vl = None if L_target is None else abs(L_target - L_b) / dl
         out.append(TracePoint(t, float(op.observer_level(obs)) / g, taf, dl, vl))

@@ -31,6 +31,7 @@ import functools
 import numpy as np
 
 from .lmsr import colour_module
+from .spencer1995 import is_literal
 
 #: The observer the operators' data stand for (the default ``--age``): the media
 #: factors are 1 there. (The CIE's standard observer is usually put at 32 years,
@@ -105,6 +106,6 @@ def media_gain(age) -> float:
     """The scene-to-retina factor the run applies for an observer of ``age``: the
     media's photopic factor (:func:`media_factors`); 1 at :data:`AGE_REF` and for
     Spencer's ageless observer (``age`` None or ``"spencer"``)."""
-    if age is None or isinstance(age, str):
+    if is_literal(age):
         return 1.0
     return media_factors(float(age))[0]

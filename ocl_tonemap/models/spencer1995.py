@@ -103,6 +103,8 @@ LITERAL_AGE = "spencer"
 def is_literal(age) -> bool:
     """True for no age (None or :data:`LITERAL_AGE`): Eq. 8 and its pupil as printed."""
     return age is None or age == LITERAL_AGE
+
+
 #: The visual field's largest angular area, deg^2 (a fisheye frame counts as this).
 FIELD_AREA_MAX = 180.0 * 130.0
 
