@@ -47,7 +47,18 @@
  * indices): a float16 argument, so that a frame's new values travel with the launch
  * instead of as an upload (issue 47); FRAME_PARAMS_LOAD makes them p[0..15]. */
 #define FRAME_PARAMS const float16 pv
-#define FRAME_PARAMS_LOAD float p[16]; vstore16(pv, 0, p)
+#define FRAME_PARAMS_LOAD float p[16]; unpack16(pv, p)
+
+/* v's 16 lanes into p[0..15]. Not vstore16 to private memory: PoCL 3.0's LLVM 14 takes
+ * a Zen 4 host (family 25, model 17: AVX-512) for znver3 (none), links its AVX-512
+ * built-ins, and aborts compiling that store ("LLVM ERROR: Do not know how to scalarize
+ * this operator's operand", or a segmentation fault when the binary is fetched). */
+inline void unpack16(const float16 v, float *p)
+{
+    p[0] = v.s0; p[1] = v.s1; p[2] = v.s2; p[3] = v.s3; p[4] = v.s4; p[5] = v.s5;
+    p[6] = v.s6; p[7] = v.s7; p[8] = v.s8; p[9] = v.s9; p[10] = v.sa; p[11] = v.sb;
+    p[12] = v.sc; p[13] = v.sd; p[14] = v.se; p[15] = v.sf;
+}
 
 /* fmax, fmin, clamp, select and comparisons inline on CPU devices. PoCL as
  * pyopencl's wheel ships it calls these built-ins out of line: perf put ~5% of a 1080p sequence's CPU in _cl_clamp,

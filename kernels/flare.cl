@@ -346,7 +346,7 @@ __kernel void flare_finish0(__global const float *rgb, __global const float4 *S,
         }
 #if L0_NK > 0
         float kw[16];                       /* the frame's weights: an argument, not a buffer */
-        vstore16(kw16, 0, kw);
+        unpack16(kw16, kw);
         const size_t plane = (size_t)trows * w;
         if (TILE_ON(tiles, tw, x, y, w, h)) {    /* else no source near: all 0 */
 #pragma unroll
@@ -373,8 +373,8 @@ __kernel void flare_finish0(__global const float *rgb, __global const float4 *S,
             Fsum = (F.s0123 + F.s4567) + (F.s89ab + F.scdef);
         } else {                        /* a row's last 1-3 pixels, or w not 4k */
             float fs[16], ss[16];
-            vstore16(F, 0, fs);
-            vstore16(s, 0, ss);
+            unpack16(F, fs);
+            unpack16(s, ss);
             for (int j = 0; j < min(4, w - x); ++j) {
                 for (int c = 0; c < 3; ++c)
                     o[3 * j + c] = in[3 * j + c] - ss[4 * j + c] + fs[4 * j + c];

@@ -110,7 +110,7 @@ __kernel void kirk11_shift(__global const float *q, const int n, const float16 p
     const int i = get_global_id(0);
     if (i >= n) return;
     float par[16];                          /* the frame's shift: an argument, no upload */
-    vstore16(parv, 0, par);
+    unpack16(parv, par);
     float lum;
     int fb;
     const float3 best = shift_pixel(vload4(i, q), par, Minv, solvers, M, &lum, &fb,
@@ -183,7 +183,7 @@ __kernel void purkinje_rgb(__global float *rgb, const int n, __constant float *H
                            __global int *fallbacks)
 {
     float par[16];                          /* the frame's shift: an argument, no upload */
-    vstore16(parv, 0, par);
+    unpack16(parv, par);
     __local int fbs[PURKINJE_WG];
     const int q = get_global_id(0), lid = get_local_id(0), i0 = ITEM_PIXELS(4) * q;
     int fb = 0;
