@@ -1,17 +1,32 @@
 /* Separable convolution of float planes (row-major, width w): one pass along
  * x or along y with a symmetric tap table (taps[0] is the centre, taps[r] the
  * weight at distance r, radius R). Used by the loss-of-acuity blur (clamped
- * edges) and the flare pyramid's Gaussians (zero outside the image).
+ * edges), the flare pyramid's Gaussians (zero outside the image) and the
+ * visibility planes' target and surround (reflected edges).
  * Reference: ocl_tonemap/models/convolution.py (blur_reference). */
 
 #define EDGE_ZERO 0
 #define EDGE_CLAMP 1
+#define EDGE_REFLECT 2
+
+/* i mirrored into 0..n-1 without repeating the edge, folded as often as it needs
+ * (models/convolution.py reflect_index). */
+inline int reflect_index(const int i, const int n)
+{
+    if (n == 1) return 0;
+    const int p = 2 * (n - 1);
+    int m = i % p;
+    if (m < 0) m += p;
+    return m >= n ? p - m : m;
+}
 
 inline float fetch(__global const float *src, const int x, const int y, const int w,
                    const int h, const int edge)
 {
     if (x >= 0 && x < w && y >= 0 && y < h) return src[(size_t)y * w + x];
     if (edge == EDGE_ZERO) return 0.0f;
+    if (edge == EDGE_REFLECT)
+        return src[(size_t)reflect_index(y, h) * w + reflect_index(x, w)];
     return src[(size_t)clamp(y, 0, h - 1) * w + clamp(x, 0, w - 1)];
 }
 

@@ -3,7 +3,7 @@
 
 /* V_FLOOR, ALPHA, BETA_CONE, BETA_ROD, TAU_CONE, TAU_ROD, LN_RHO_CONE, LN_RHO_ROD,
  * K_MAX, K_SLOPE, E_MAX, E_CEILING, T_DONE, T_HOLD, COURSE_DONE, COURSE_RUNNING,
- * AHEAD_TOL, JUMP_LOG2, MES_LOG_OFFSET, MES_LOG_SPAN,
+ * AHEAD_TOL, JUMP_LOG2, MES_LOG_OFFSET, MES_LOG_SPAN, N_EXP (Eqs. 1-3's n),
  * Y_COEFF_R/G/B (Eq. 6) and YS_COEFF_R/G/B (Eq. 7) are given as build options from
  * ocl_tonemap/models/ledda2004.py (backends/opencl/ledda04.py, KERNEL_CONSTANTS);
  * DISPLAY_LINEAR_MAX and SIGNAL_CEILING with common.h's: one definition, not retyped
@@ -58,6 +58,21 @@ inline float sigma_rod_at(float s_in, float s_fin, float t, float K)
 {
     float f = s_fin < s_in ? dark_fraction(t - TAU_CONE, K, TAU_ROD) : light_fraction(t, LN_RHO_ROD);
     return s_fin + f * (s_in - s_fin);
+}
+
+/* dR/dln L of Eqs. 2-3 for a small neutral increment on L (cd/m^2) seen with the cone and
+ * rod sigmas sc, sr, mixed by Eq. 11's mes at the cone level sc gives
+ * (ledda2004.response_slope); x (1 - x) as r / (1 + r)^2, r = (sigma / L)^n (no
+ * cancellation where L >> sigma). */
+inline float ledda_response_slope(const float L, const float sc, const float sr,
+                                  const float rod_ratio)
+{
+    const float Ia = powp(sc / BETA_CONE, 1.0f / ALPHA);
+    const float u = clamp((log10(fmax(Ia, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
+    const float mes = u * u * (3.0f - 2.0f * u);
+    const float rc = powp(sc / L, N_EXP), rr = powp(sr / (L * rod_ratio), N_EXP);
+    return N_EXP * (mes * rc / ((1.0f + rc) * (1.0f + rc))
+                    + (1.0f - mes) * rr / ((1.0f + rr) * (1.0f + rr)));
 }
 
 /* Each pixel's adaptation levels (cones, rods) of this frame: the filtered levels,
@@ -185,6 +200,24 @@ __kernel void ledda04_step(__global const float *Ic, __global const float *Ir,
         atomic_inc(&lrestart);
     barrier(CLK_LOCAL_MEM_FENCE);
     if (get_local_id(0) == 0 && lrestart) atomic_add(&counts[0], lrestart);
+}
+
+/* Pixel i's observer for a visibility threshold (kernels/visibility.cl, its
+ * OBSERVER_LEDDA04 build; ledda04.py observer_slope, observer_steady_slope,
+ * observer_level): (gain now, gain when adapted to L, cone level I_A) at a background
+ * of L cd/m^2 (the light behind the media), from its state's current sigmas. */
+inline float3 ledda04_observer(__global const float *state, const int stride, const int i,
+                               const float L, const float rod_ratio)
+{
+    __global const float *s = state + i;
+    const float K = s[9 * stride];
+    const float sc = sigma_cone_at(s[0], s[stride], s[6 * stride], K);
+    const float sr = sigma_rod_at(s[3 * stride], s[4 * stride], s[7 * stride], K);
+    const float Lf = fmax(L, V_FLOOR);
+    return (float3)(ledda_response_slope(Lf, sc, sr, rod_ratio),
+                    ledda_response_slope(Lf, sigma_of(Lf, BETA_CONE),
+                                         sigma_of(Lf * rod_ratio, BETA_ROD), rod_ratio),
+                    powp(sc / BETA_CONE, 1.0f / ALPHA));
 }
 
 /* apply: Eqs. 11-13 with the current sigmas of the state, then the shoulder.

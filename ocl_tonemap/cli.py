@@ -104,29 +104,47 @@ def _simulate_args(p) -> None:
 
 
 def _visibility_args(p) -> None:
-    p.add_argument("--background", type=float, required=True, metavar="L",
-                   help="background luminance L_b, cd/m^2 (the eye adapted to it)")
-    p.add_argument("--size", type=float, default=10.0, metavar="ARCMIN",
-                   help="target size, arcmin (a disc of the same area; default 10)")
-    p.add_argument("--age", type=float, default=25.0, metavar="YEARS",
-                   help="observer age, 1..100 (default 25)")
-    p.add_argument("--time", type=float, default=2.0, metavar="S",
-                   help="observation time, s (default 2; inf: a long look)")
+    # lazy: this parser is built for its own command only (NumPy with the models)
+    from .models.adrian1989 import FIELD_FACTOR, VARIANTS
+    from .visibility import INPUTS, OBSERVATION_S, TARGET_ARCMIN  # lazy: as above
+
+    def q(flag, name, help_, **kw):
+        d = INPUTS[name]
+        p.add_argument(flag, type=d.arg(flag), help=f"{help_}, {d.range_text()}"
+                       .replace("%", "%%"), **kw)
+    q("--background", "background", "background luminance L_b, cd/m^2 (of the target's "
+      "surround, the veil apart)", required=True, metavar="L")
+    q("--veil", "veil", "veiling luminance over the background, cd/m^2 (CIE 88's L_seq, "
+      "a --visibility map's Lveil; default 0)", default=0.0, metavar="L")
+    q("--size", "size", f"target size, arcmin (a disc of the same area; default "
+      f"{TARGET_ARCMIN:g})", default=TARGET_ARCMIN, metavar="ARCMIN")
+    q("--age", "age", "observer age, years (default 25)", default=25.0, metavar="YEARS")
+    q("--time", "time", f"observation time, s (default {OBSERVATION_S:g}, RP-8's: the "
+      "run's --observation-time too)", default=OBSERVATION_S, metavar="S")
     p.add_argument("--negative", action="store_true",
-                   help="a target darker than its background (default: brighter)")
-    p.add_argument("--target", type=float, metavar="L",
-                   help="target luminance, cd/m^2: its visibility level VL")
-    p.add_argument("--k", type=float, default=2.6,
-                   help="field factor (2.6: 99.93%% detection, RP-8; 1: the laboratory's "
-                   "50%%)")
-    p.add_argument("--operator", default="pattanaik00", metavar="NAME",
+                   help="a target darker than its background (default: brighter; with "
+                   "--target, its luminance says)")
+    q("--target", "target", "target luminance, cd/m^2: its visibility level VL",
+      metavar="L")
+    q("--k", "k", f"field factor (default {FIELD_FACTOR:g}: 99.93%% detection, RP-8; "
+      "1: the laboratory's 50%%)", default=FIELD_FACTOR)
+    p.add_argument("--adrian", choices=sorted(VARIANTS), default="1989",
+                   help="Adrian's model as this project reads it (1989, default) or as "
+                   "ANSI/IES RP-8-00 prints it (rp8): docs/models.md, D1-D7")
+    p.add_argument("--state", metavar="FILE",
+                   help="the eye as a run left it: a state JSON (--state-out, a checkpoint) "
+                   "or an output frame (its ocltm:state); its operator's observer")
+    p.add_argument("--pixel", metavar="X,Y",
+                   help="--state of a local operator (ledda04): the pixel whose observer")
+    p.add_argument("--operator", default=None, metavar="NAME",
                    help="whose adaptation time course drives the step (default pattanaik00)")
-    p.add_argument("--adapted-to", type=float, metavar="L0", dest="adapted_to",
-                   help="the eye adapted to L0 cd/m^2 before the background steps to L_b")
-    p.add_argument("--for", type=float, metavar="S0", dest="adapted_for",
-                   help="... for S0 seconds (default: fully adapted)")
-    p.add_argument("--after", default="0.5,2,10", metavar="T1,T2,...",
-                   help="seconds after the step to report (default 0.5,2,10)")
+    q("--adapted-to", "adapted_to", "the eye adapted to L0 cd/m^2 before the background "
+      "steps to L_b", metavar="L0", dest="adapted_to")
+    q("--for", "for", "... for S0 seconds (default: fully adapted)", metavar="S0",
+      dest="adapted_for")
+    p.add_argument("--after", metavar="T1,T2,...",
+                   help="seconds after the step to report (default 0.5,2,10; needs "
+                   "--adapted-to)")
     p.add_argument("--plot", metavar="FILE.png",
                    help="draw dL_th over the seconds after the step (needs --adapted-to)")
     p.add_argument("--json", action="store_true", help="the terms as JSON")
@@ -178,9 +196,10 @@ COMMANDS = (
             "ocl-tonemap simulate --at T1,T2,... [options] INPUT OUTPUT", runs=True),
     Command("visibility", "the threshold luminance difference of a target (Adrian 1989) and "
             "its visibility level, with each term", commands.visibility, _visibility_args,
-            "ocl-tonemap visibility --background L [--size ARCMIN] [--age A] [--time S] "
-            "[--target L] [--adapted-to L0 [--for S0] [--after T,..] [--operator NAME] "
-            "[--plot FILE]] [--json]"),
+            "ocl-tonemap visibility --background L [--veil L] [--size ARCMIN] [--age A] "
+            "[--time S] [--k K] [--adrian 1989|rp8] [--target L | --negative] "
+            "[--state FILE [--pixel X,Y] | --adapted-to L0 [--for S0] [--after T,..] "
+            "[--operator NAME] [--plot FILE]] [--json]"),
     Command("radiance-env", "the shell lines that put Radiance's programs from pip install "
             "'ocl-tonemap[radiance]' on PATH (eval \"$(ocl-tonemap radiance-env)\")",
             commands.radiance_env),
@@ -200,7 +219,7 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
     """The whole parser; with ``command``, that sub-command's options only (the others
     keep their name and help; None: no sub-command's, as for ``--version`` or the
     top-level ``--help``): the run options of seven sub-commands take ~15 ms to build,
-    and the operators they list import NumPy."""
+    and the operators they list, and the calculator's declared inputs, import NumPy."""
     ap = _Parser(prog="ocl-tonemap", description=(
         "Show an HDR scene or shot as a human observer would see it (time-dependent "
         "visual adaptation on OpenCL, OIIO/OCIO pipelines)."))
@@ -219,7 +238,7 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
         if c.runs and c.name != "run":
             kw["description"] = c.help + ALSO
         p = sub.add_parser(c.name, **kw)
-        if c.args is not None:
+        if c.args is not None and command in (ALL_COMMANDS, c.name):
             c.args(p)
         if c.runs and command in (ALL_COMMANDS, c.name):
             add_run_options(p, shown=c.name == "run")

@@ -104,13 +104,15 @@ def _target_report(res) -> None:
     if not rows:
         return
     v0 = rows[0][2]
-    print(f"target at ({v0['x']:g}, {v0['y']:g}), {v0['size_arcmin']:g} arcmin:")
-    print(f"{'frame':>6} {'t (s)':>8} {'L_t':>10} {'L_b':>10} {'La':>10} {'TAF':>8} "
-          f"{'dL_th':>10} {'VL':>8}")
+    print(f"target at ({v0['x']:g}, {v0['y']:g}), {v0['size_arcmin']:g} arcmin "
+          f"(a {v0['observation_s']:g} s look, Adrian {v0['adrian']}; L_b = L_s + Lveil):")
+    print(f"{'frame':>6} {'t (s)':>8} {'L_t':>10} {'L_s':>10} {'Lveil':>10} {'L_b':>10} "
+          f"{'La':>10} {'TAF':>8} {'dL_th':>10} {'VL':>8}")
     for f, t, v in rows:
         flag = "  below threshold" if v["VL"] < 1 else ""
-        print(f"{'' if f is None else f:>6} {t:8.3f} {v['L_target']:10.4g} {v['Lb']:10.4g} "
-              f"{v['La']:10.4g} {v['TAF']:8.3f} {v['dLth']:10.4g} {v['VL']:8.3f}{flag}")
+        print(f"{'' if f is None else f:>6} {t:8.3f} {v['L_target']:10.4g} "
+              f"{v['L_surround']:10.4g} {v['Lveil']:10.4g} {v['Lb']:10.4g} {v['La']:10.4g} "
+              f"{v['TAF']:8.3f} {v['dLth']:10.4g} {v['VL']:8.3f}{flag}")
 
 
 def shot_pass(a, argv) -> int:
@@ -166,36 +168,40 @@ def simulate(a, argv) -> int:
 
 
 def visibility(a, argv) -> int:
+    """The calculator: Adrian's threshold of a target (``visibility.Viewing``: the run's
+    observer) with each term; with ``--state`` under the eye a run left, with
+    ``--adapted-to`` over the seconds after a step."""
+    from . import visibility as vis  # lazy: a command loads its own layers
     from .models import adrian1989 as ad  # lazy: a command loads its own layers
-    if not 1.0 <= a.age <= 100.0:
-        raise ValueError(f"--age must be 1..100 years (got {a.age:g})")
-    if not a.size > 0:
-        raise ValueError(f"--size must be > 0 arcmin (got {a.size:g})")
-    if not a.time > 0:
-        raise ValueError(f"--time must be > 0 s (got {a.time:g})")
-    if a.target is not None and not (a.target >= 0 and math.isfinite(a.target)):
-        raise ValueError(f"--target must be a luminance >= 0 cd/m^2 (got {a.target:g})")
-    polarity = "negative" if a.negative else "positive"
-    if a.target is not None:          # the target says its polarity
-        polarity = "negative" if a.target < a.background else "positive"
     from .models import cie203  # lazy: a command loads its own layers
-    th = ad.threshold(a.background, a.size, a.age, a.time, polarity, a.k)
+    view = vis.Viewing(a.size, a.age, a.time, a.k, a.adrian).check()
+    polarity = _polarity(a)
+    L_b = a.background + a.veil                       # CIE 88: the veil adds to L_b
+    th = ad.threshold(L_b, a.size, a.age, a.time, polarity, a.k, a.adrian)
     out = th.as_dict()
+    out.update(background=a.background, veil=a.veil, observer=view.describe())
     media = cie203.media_factors(a.age)
     out["media"] = {"photopic": media[0], "scotopic": media[1], "ref_age": cie203.AGE_REF}
+    state = _visibility_state(a, view, polarity)
+    if state is not None:
+        out["state"] = state
+        out["dL_th"] = state["dL_th"]
     if a.target is not None:
         out["L_target"] = a.target
-        out["VL"] = ad.visibility_level(a.target - a.background, th)
-    step = _visibility_step(a, polarity)
+        out["VL"] = abs(a.target - a.background) / out["dL_th"]
+    step = _visibility_step(a, view, polarity)
     if step is not None:
         out["step"] = step
     if a.json:
         print(json.dumps(out, indent=1))
         return 0
-    rows = [("background L_b", f"{th.L_b:.6g} cd/m^2"),
+    rows = [("background L_b", f"{a.background:.6g} cd/m^2"),
+            ("veil L_veil", f"{a.veil:.6g} cd/m^2"),
+            ("adaptation L_b + L_veil", f"{L_b:.6g} cd/m^2"),
             ("target size", f"{th.alpha_arcmin:g} arcmin"),
             ("observer age", f"{th.age:g} years"),
             ("observation time", f"{th.time_s:g} s"), ("contrast polarity", th.polarity),
+            ("Adrian's model", f"{a.adrian} (docs/models.md, D1-D7)"),
             ("sqrt(Phi) (Ricco)", f"{th.sqrt_phi:.5g}"),
             ("sqrt(L) (Weber)", f"{th.sqrt_weber:.5g}"),
             ("(sqrt(Phi)/alpha + sqrt(L))^2", f"{th.basic:.5g} cd/m^2"),
@@ -204,8 +210,12 @@ def visibility(a, argv) -> int:
             ("age factor AF", f"{th.age_factor:.4f}"),
             ("ocular media (CIE 203)", f"{media[0]:.3f} photopic, {media[1]:.3f} scotopic of "
              f"a {cie203.AGE_REF:g}-year-old's (the step's light; AF holds the threshold's)"),
-            ("threshold dL_th", f"{th.dL_th:.5g} cd/m^2"),
-            ("threshold contrast dL_th/L_b", f"{th.contrast:.4g}")]
+            ("threshold, adapted to L_b", f"{th.dL_th:.5g} cd/m^2")]
+    if state is not None:
+        rows += [("the eye of " + state["operator"], f"La {state['La']:.5g} cd/m^2, TAF "
+                  f"{state['TAF']:.4f} ({state['file']})"),
+                 ("threshold dL_th", f"{state['dL_th']:.5g} cd/m^2")]
+    rows.append(("threshold contrast dL_th/L_b", f"{out['dL_th'] / L_b:.4g}"))
     if a.target is not None:
         rows += [("target L_t", f"{a.target:.6g} cd/m^2"),
                  ("visibility level VL", f"{out['VL']:.3f}" +
@@ -228,36 +238,91 @@ def visibility(a, argv) -> int:
     return 0
 
 
-def _visibility_step(a, polarity: str) -> dict | None:
+def _polarity(a) -> str:
+    """The target's polarity: its luminance against the background's, else
+    ``--negative``; a ``--negative`` the target contradicts is refused."""
+    if a.target is None:
+        return "negative" if a.negative else "positive"
+    if a.negative and not a.target < a.background:
+        raise ValueError(f"--negative: the target ({a.target:g} cd/m^2) is not darker than "
+                         f"the background ({a.background:g} cd/m^2); leave --negative out "
+                         "(the target's luminance says its polarity)")
+    return "negative" if a.target < a.background else "positive"
+
+
+def _visibility_state(a, view, polarity: str) -> dict | None:
+    """``--state FILE [--pixel X,Y]``: the target seen by the observer a run left
+    (``visibility.seen``, the run's ``--target`` line's formula); None without it."""
+    if a.state is None:
+        if a.pixel is not None:
+            raise ValueError("--pixel needs --state FILE (a local operator's state)")
+        return None
+    for flag, given in (("--adapted-to", a.adapted_to), ("--for", a.adapted_for),
+                        ("--after", a.after), ("--plot", a.plot)):
+        if given is not None:
+            raise ValueError(f"--state gives the eye as a run left it; {flag} (a step "
+                             "from a uniform field) cannot go with it")
+    from .operators import get_operator  # lazy: a command loads its own layers
+    from .state_files import load_state  # lazy: a command loads its own layers
+    from .visibility import seen  # lazy: a command loads its own layers
+    st = load_state(a.state)
+    if a.operator is not None and a.operator != st.operator:
+        raise ValueError(f"--operator {a.operator}: the state {a.state} is {st.operator}'s")
+    op = get_operator(st.operator)({})
+    obs = op.observer_of(st)
+    if op.observer_per_pixel:
+        if a.pixel is None:
+            raise ValueError(f"--state {a.state}: {st.operator} adapts per pixel; say "
+                             "which with --pixel X,Y")
+        obs = _observer_at(obs, a.pixel, a.state)
+    elif a.pixel is not None:
+        raise ValueError(f"--pixel: {st.operator} adapts globally; its state has one "
+                         "observer")
+    s = seen(op, obs, view, a.background, a.veil, a.target, polarity == "negative")
+    return {"operator": st.operator, "file": os.path.basename(a.state), "frame": st.frame,
+            "La": s.L_a, "TAF": s.TAF, "dL_th": s.dL_th}
+
+
+def _observer_at(obs: dict, text: str, path: str) -> dict:
+    try:
+        x, y = (int(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--pixel must be X,Y (pixel column and row; got {text!r})") from None
+    h, w = next(iter(obs.values())).shape
+    if not (0 <= x < w and 0 <= y < h):
+        raise ValueError(f"--pixel {x},{y}: outside the state's {w} x {h} pixels ({path})")
+    return {k: v[y, x] for k, v in obs.items()}
+
+
+def _visibility_step(a, view, polarity: str) -> dict | None:
     """The calculator's step: the observer of ``--operator`` adapted to ``--adapted-to``
     (``--for``), the background stepping to L_b; None without a step."""
     if a.adapted_to is None:
-        if a.adapted_for is not None or a.plot:
-            raise ValueError("--for and --plot need --adapted-to L0 (the step's start)")
+        for flag, given in (("--for", a.adapted_for), ("--after", a.after),
+                            ("--plot", a.plot)):
+            if given is not None:
+                raise ValueError(f"{flag} needs --adapted-to L0 (the step's start)")
         return None
     from . import visibility as vis  # lazy: a command loads its own layers
     from .operators import get_operator  # lazy: a command loads its own layers
-    if not (a.adapted_to >= 0 and math.isfinite(a.adapted_to)):
-        raise ValueError(f"--adapted-to must be a luminance >= 0 cd/m^2 (got {a.adapted_to:g})")
-    if a.adapted_for is not None and not (a.adapted_for > 0 and math.isfinite(a.adapted_for)):
-        raise ValueError(f"--for must be > 0 s (got {a.adapted_for:g})")
-    try:
-        after = [float(x) for x in a.after.split(",") if x.strip()]
-    except ValueError:
-        raise ValueError(f"--after must be seconds, comma-separated (got {a.after!r})") from None
-    if not after or not all(t >= 0 and math.isfinite(t) for t in after):
-        raise ValueError(f"--after must be seconds >= 0, comma-separated (got {a.after!r})")
-    op = get_operator(a.operator)({})
-    view = vis.Viewing(a.size, a.age, a.time, a.k).check()
+    after = [vis.check_input("after", x, "--after") for x in _times(a.after or "0.5,2,10")]
+    op = get_operator(a.operator or "pattanaik00")({})
     pts = vis.trace(op, a.adapted_to, a.adapted_for, a.background, after, view, polarity,
-                    a.target)
+                    a.target, a.veil)
     if a.plot:
         from .plot import plot_visibility_step  # lazy: matplotlib only for --plot
         plot_visibility_step(a.plot, op, a.adapted_to, a.adapted_for, a.background, view,
-                             polarity, max(after + [30.0]))
+                             polarity, max(after + [30.0]), a.veil)
     return {"operator": op.name, "adapted_to": a.adapted_to, "for_s": a.adapted_for,
-            "steady_dL_th": float(view.steady(a.background, polarity)),
+            "steady_dL_th": float(view.steady(a.background + a.veil, polarity)),
             "points": [p.as_dict() for p in pts]}
+
+
+def _times(text: str) -> list:
+    items = [x.strip() for x in text.split(",")]
+    if not all(items):
+        raise ValueError(f"--after must be seconds, comma-separated (got {text!r})")
+    return items
 
 
 def demo(a, argv) -> int:

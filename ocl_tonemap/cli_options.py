@@ -249,12 +249,21 @@ def _output_flags(g) -> None:
     g.add_argument("--visibility-view", metavar="OUT.####.png",
                    help="also write VL in false colour over the shown frame")
     g.add_argument("--target", metavar="X,Y,SIZE",
-                   help="a target (pixels, arcmin): its VL per frame in the report, --plot")
-    g.add_argument("--target-size", type=float, default=10.0, metavar="ARCMIN",
-                   help="--visibility: the target's size, arcmin (default 10)")
+                   help="a target (pixels, arcmin): its VL per frame, --plot")
+    from .quantities import OBSERVATION_S, TARGET_ARCMIN, VISIBILITY  # lazy: no NumPy
+    size, look = VISIBILITY["size"], VISIBILITY["time"]
+    g.add_argument("--target-size", type=size.arg("--target-size"), default=TARGET_ARCMIN,
+                   metavar="ARCMIN", help=f"--visibility: the target, {size.range_text()}")
+    g.add_argument("--observation-time", type=look.arg("--observation-time"),
+                   default=OBSERVATION_S, metavar="S", help=f"... the look (default "
+                   f"{OBSERVATION_S:g}, RP-8's)")
+    from .models.adrian1989 import VARIANTS  # lazy: the run's parser (NumPy already there)
+    g.add_argument("--adrian", choices=sorted(VARIANTS), default="1989",
+                   help="... Adrian's threshold: 1989 (default) or RP-8-00's")
+    g.add_argument("--visibility-type", choices=("half", "float"), default="half",
+                   help="... the planes' samples (default half)")
     g.add_argument("--veil-halo", action="store_true",
-                   help="--visibility: count the flare's lenticular halo in Lveil (default: "
-                   "the disability veil, the flare's smooth scatter, as CIE 146)")
+                   help="... add the flare's lenticular halo to Lveil")
     g.add_argument("--ocio-export", metavar="DIR",
                    help="also write the observer as an OCIO view: DIR/<name>.ocio and a CLF per "
                    "frame (docs/ocio_export.md)")
@@ -264,18 +273,27 @@ def _output_flags(g) -> None:
 
 def _output_build(a, tier) -> dict:
     from .job.options import parse_export_size  # lazy: the parser loads no OIIO
+    from .quantities import OBSERVATION_S, TARGET_ARCMIN
     from .job.visibility_out import parse_target  # lazy: the parser loads no OIIO
     if a.plot_frames and not a.plot:
         log.warning("--plot-frames applies to --plot: ignored")
-    if a.veil_halo and not (a.visibility or a.visibility_view or a.target):
-        log.warning("--veil-halo applies to --visibility, --visibility-view and --target: "
-                    "ignored")
+    seen = a.visibility or a.visibility_view or a.target
+    for flag, given in (("--veil-halo", a.veil_halo),
+                        ("--observation-time", a.observation_time != OBSERVATION_S),
+                        ("--adrian", a.adrian != "1989"),
+                        ("--target-size", a.target_size != TARGET_ARCMIN)):
+        if given and not seen:
+            log.warning("%s applies to --visibility, --visibility-view and --target: "
+                        "ignored", flag)
+    if a.visibility_type != "half" and not a.visibility:
+        log.warning("--visibility-type applies to --visibility: ignored")
     return {"encode": a.encode, "out_bits": a.out_bits, "png_level": a.png_level,
             "png_filter": a.png_filter, "plot": a.plot,
             "plot_frames": [int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
             "ocio_export": a.ocio_export, "ocio_export_size": parse_export_size(a.ocio_export_size),
             "visibility": a.visibility, "target_size": a.target_size,
-            "veil_halo": a.veil_halo,
+            "observation_time": a.observation_time, "adrian": a.adrian,
+            "visibility_type": a.visibility_type, "veil_halo": a.veil_halo,
             "visibility_view": a.visibility_view,
             "target": parse_target(a.target) if a.target else None}
 

@@ -165,18 +165,21 @@ def save_figure(fig, path: str) -> None:
 
 
 def plot_visibility_step(path: str, ops, L_from: float, seconds, L_b: float, view,
-                         polarity: str = "positive", t_max: float = 30.0) -> None:
+                         polarity: str = "positive", t_max: float = 30.0,
+                         L_veil: float = 0.0) -> None:
     """dL_th (Adrian 1989 x each operator's transient factor) over the seconds after a
-    step from ``L_from`` to ``L_b``; ``ops``: an operator or a list of them."""
+    step from ``L_from`` to ``L_b`` (with the veil ``L_veil`` over it); ``ops``: an
+    operator or a list of them."""
     plt = _pyplot()
     ops = ops if isinstance(ops, (list, tuple)) else [ops]
     t = np.concatenate([[0.0], np.logspace(-2, np.log10(max(t_max, 0.02)), 160)])
     fig, ax = plt.subplots(figsize=(8, 5))
     for op in ops:
-        pts = trace(op, L_from, seconds, L_b, t, view, polarity)
+        pts = trace(op, L_from, seconds, L_b, t, view, polarity, L_veil=L_veil)
         ax.plot(t[1:], [p.dL_th for p in pts[1:]], label=op.name)
-    steady = float(view.steady(L_b, polarity))
-    ax.axhline(steady, color="0.4", ls="--", lw=1, label=f"steady at {L_b:g} cd/m^2")
+    steady = float(view.steady(L_b + L_veil, polarity))
+    ax.axhline(steady, color="0.4", ls="--", lw=1,
+               label=f"steady at {L_b + L_veil:g} cd/m^2")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("seconds after the step")

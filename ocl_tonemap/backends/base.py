@@ -19,10 +19,13 @@ from __future__ import annotations
 
 import importlib
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
+from ..models import cie146
+from ..models import visibility_map as vmap
 from ..models.metering import MeteringSpec
 from ..models.photometry import RepairCounts
 from ..operators.base import Frame, FrameStats
@@ -62,6 +65,50 @@ class Levels(NamedTuple):
     illuminant: Callable[[], np.ndarray] | None   # the grey-world estimate, made when called
     max_Y: float | None = None         # the largest working luminance, where known
     proxy: np.ndarray | None = None    # s x s block means of rgb (float64), where asked
+
+
+@dataclass
+class VisibilityRequest:
+    """What :meth:`Backend.visibility` makes one mapped frame's planes from (``run
+    --visibility``; the algorithm: ``models/visibility_map.py``)."""
+
+    pixels: np.ndarray          # the frame's working-space pixels as read (host)
+    scale: float                # cd/m^2 per unit (the media's gain apart)
+    recipe: object              # visibility_map.Recipe: the grids' steps, taps, veil weights
+    view: object                # visibility.Viewing: the target and the observer
+    op: object                  # the operator (its observer_* methods)
+    observer: Callable          # () -> its observer state (op.observer_of; for a local
+                                # operator whose state is on a device, a download)
+    schedule: object = None     # the operator's schedule (a device's per-pixel state)
+    halo: Callable | None = None  # --veil-halo: luminance cells -> the halo's veil there
+    dtype: type = np.float16    # the planes' samples
+
+
+@dataclass
+class VisibilityPlanes:
+    """One frame's planes: ``data`` H x W x 5 in ``visibility_map.PLANE_NAMES`` order
+    (the request's dtype), the veil at its cells' centres (float64, cd/m^2), and how
+    many values were beyond half's range and held at its largest."""
+
+    data: np.ndarray
+    veil_cells: np.ndarray
+    clamped: int = 0
+
+    def plane(self, name: str) -> np.ndarray:
+        return self.data[..., vmap.PLANE_NAMES.index(name)]
+
+
+def planes_on_host(req: VisibilityRequest) -> VisibilityPlanes:
+    """The float64 reference of a request (``visibility_map.reference_planes``)."""
+    Y = vmap.scene_luminance(req.pixels, req.scale)
+    r = req.recipe
+    cells = vmap.block_mean(Y, r.veil_step)
+    veil = cie146.field_veil(cells, r.veil_weights)
+    if req.halo is not None:
+        veil = veil + req.halo(cells)
+    planes = vmap.reference_planes(req.op, req.observer(), Y, r, req.view, veil)
+    data, clamped = vmap.as_samples(planes, req.dtype)
+    return VisibilityPlanes(data, planes["veil_cells"], clamped)
 
 
 class Schedule(Protocol):
@@ -179,6 +226,13 @@ class Backend(Protocol):
         """``encoding`` with the acuity blur (``taps``, blended by ``t``) on the device
         before it, or None where the backend cannot."""
 
+    def visibility(self, request: VisibilityRequest) -> VisibilityPlanes:
+        """The visibility planes of one mapped frame (``run --visibility``)."""
+
+    def keep_scene_luminance(self, pixels) -> None:
+        """Keep what the next colour stage of ``pixels`` makes of them for
+        :meth:`visibility` (None: nothing), where the backend can."""
+
 
 class HostBackend:
     """What a backend without a device answers: nothing on a device, frames whole."""
@@ -218,6 +272,13 @@ class HostBackend:
 
     def acuity_encoding(self, encoding, h: int, w: int, taps, t: float, blur):
         return None
+
+    def keep_scene_luminance(self, pixels) -> None:
+        return None
+
+    def visibility(self, request: VisibilityRequest) -> VisibilityPlanes:
+        """The float64 reference of the planes (:func:`planes_on_host`)."""
+        return planes_on_host(request)
 
     def source_proxy_ahead(self, shape, stride: int, lim: float) -> None:
         return None

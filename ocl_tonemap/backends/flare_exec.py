@@ -15,25 +15,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..models import spencer1995 as fl
-from ..models.convolution import EDGE_ZERO, blur_reference, gaussian_taps
+from ..models.convolution import EDGE_ZERO, blur_reference, fft_size, gaussian_taps
 
 # --- FFT convolution (the exact method, the fast method's ring) --------------------------
-
-def fft_size(n: int) -> int:
-    """The smallest 2^a 3^b 5^c >= n (a length pocketfft transforms fast)."""
-    best = 1 << max(0, (n - 1).bit_length())
-    f5 = 1
-    while f5 < best:
-        f35 = f5
-        while f35 < best:
-            f = f35
-            while f < n:
-                f *= 2
-            best = min(best, f)
-            f35 *= 3
-        f5 *= 5
-    return best
-
 
 def _fft_shape(h: int, w: int) -> tuple[int, int]:
     """Circular size for a linear 'same' convolution of an (h, w) image with a

@@ -19,6 +19,7 @@ from ..backends.base import Later
 from ..models import spencer1995 as fl
 from ..models.convolution import EDGE_ZERO
 from ..models.photometry import Y_WEIGHTS
+from ..quantities import AGE
 from ..resources import cached_json
 from .base import Effect, EffectOption, positive
 
@@ -50,8 +51,8 @@ FOV_OPTION = EffectOption("fov_deg", "--fov", "angular width of the image, degre
 
 
 def _check_age(v):
-    if not fl.is_literal(v) and not (isinstance(v, (int, float)) and 1.0 <= v <= 100.0):
-        raise ValueError(f"--age must be 1..100 years, or spencer (got {v})")
+    if not fl.is_literal(v) and not (isinstance(v, (int, float)) and AGE.accepts(float(v))):
+        raise ValueError(f"--age must be {AGE.range_text()}, or spencer (got {v})")
 
 
 def _age(text: str):
@@ -61,7 +62,8 @@ def _age(text: str):
     try:
         return float(text)
     except ValueError:
-        raise ValueError(f"--age must be 1..100 years, or spencer (got {text!r})") from None
+        raise ValueError(f"--age must be {AGE.range_text()}, or spencer (got {text!r})") \
+            from None
 
 
 #: The observer's age: the flare's pupil (Watson & Yellott 2012) and glare (CIE 146's

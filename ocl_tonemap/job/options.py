@@ -63,6 +63,9 @@ class JobOptions:
     visibility: str | None = None       # per-frame visibility planes, EXR (job/visibility_out.py)
     visibility_view: str | None = None  # ... its false-colour view over the frame
     target_size: float = 10.0           # --target-size, arcmin
+    observation_time: float = 0.2       # --observation-time, s (visibility.OBSERVATION_S)
+    adrian: str = "1989"                # --adrian 1989|rp8 (models/adrian1989.py, D1-D7)
+    visibility_type: str = "half"       # --visibility-type half|float: the planes' samples
     veil_halo: bool = False             # --veil-halo: Lveil with the flare's lenticular halo
     target: tuple | None = None         # --target X,Y,SIZE: one target tracked through the shot
     ocio_export: str | None = None      # a folder: the observer as an OCIO view (colour/export.py)

@@ -24,9 +24,9 @@ from ..models.photometry import RepairCounts
 from ..patterns import is_sequence
 from ..pipeline import FrameInfo, Tonemapper
 from ..plot import plot_adaptation
-from .visibility_out import (check_visibility, frame_seen, frame_visibility, shown_codes,
-                             target_visibility, viewing, visibility_path, visibility_view,
-                             write_view, write_visibility)
+from .visibility_out import (check_visibility, frame_request, frame_visibility, shown_codes,
+                             target_visibility, visibility_path, visibility_view, write_view,
+                             write_visibility)
 from ..state import AdaptationState
 from ..state_files import save_state
 from .banded_io import read_whole, stream_frame, stream_rows
@@ -322,17 +322,20 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
         # only code values come back (encode_pixels, below, for frames that cannot)
         enc = None if linear else run.colour.device_output_encoding(
             bits, tm.backend.device_runtime())
+        seen = run.opts.visibility or run.opts.visibility_view or run.opts.target
+        # the planes read the scene's luminance where the frame's colour stage made it
+        tm.backend.keep_scene_luminance(fin.pixels if seen else None)
         res = map_frame(tm, fin, t, f, encoding=enc)
         if exporter is not None and fin.wavelengths is None:
             exporter.add_frame(f, np.asarray(fin.pixels, np.float32), fin.scale,
                                res.info.effects,
                                run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
-        vis = None
-        if run.opts.visibility or run.opts.visibility_view or run.opts.target:
-            seen = frame_seen(tm, fin, res.info)
-            vis = frame_visibility(tm, seen, res.info, run.opts)
+        vis = req = None
+        if seen:
+            req = frame_request(tm, fin, res.info, run.opts)
+            vis = frame_visibility(tm, req)
             if run.opts.target:
-                res.info.visibility = target_visibility(tm, seen, run.opts, vis)
+                res.info.visibility = target_visibility(tm, req, vis, run.opts)
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,
                                res.output.shape[2] == 4, fps)
@@ -351,14 +354,13 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
                         chromaticities=chroma, white_luminance=white, straight_alpha=straight,
                         png_level=run.opts.png_level, png_filter=run.opts.png_filter)
             if vis is not None and run.opts.visibility:
-                write_visibility(visibility_path(run.opts.visibility, f), vis, f,
-                                 viewing(run.opts, tm.effects.settings.age),
+                write_visibility(visibility_path(run.opts.visibility, f), vis, f, req.view,
                                  tm.op.name, tm.effects.settings.fov_deg, run.opts.veil_halo)
             if vis is not None and run.opts.visibility_view:
                 shown = run.colour.encode_fast(res.output[..., :3]) if linear else \
                     shown_codes(pixels)
                 write_view(visibility_path(run.opts.visibility_view, f),
-                           visibility_view(shown, vis["VL"]), f)
+                           visibility_view(shown, vis.plane("VL")), f)
         except FrameError:
             raise
         except Exception as exc:

@@ -1,10 +1,12 @@
 """``run --visibility OUT.####.exr``: what the observer can see, per frame.
 
-Reads the frame the run mapped (its scene luminance, the operator's state after
-it, the flare's record) and writes ``ocl_tonemap.visibility.PLANES`` as a float32
-EXR, the channels' meaning and units in its header. The planes are made on the
-host in NumPy from what every backend gives alike (the frame's input and the
-state), so both backends write the same planes.
+For each frame the run mapped: a ``backends.base.VisibilityRequest`` (its input,
+the run's observer and target, the operator's state after it), made into
+``models/visibility_map.PLANES`` by the backend (``Backend.visibility``: kernels on
+an OpenCL device, the float64 reference on the host) and written as a half-float
+(``--visibility-type float``: float) EXR, the channels' meaning and units in its
+header; ``--target`` follows one target through the shot with the same observer
+(``visibility.seen``, the calculator's formula).
 """
 
 from __future__ import annotations
@@ -17,95 +19,80 @@ import OpenImageIO as oiio
 
 from .. import safeio
 from ..backends import flare_exec as fx
+from ..models import adrian1989 as ad
 from ..models import spencer1995 as fl
-from ..models.photometry import Y_WEIGHTS, sanitize
+from ..models.cie146 import EXCLUDE_DEG
+from ..models.photometry import Y_WEIGHTS
 from ..patterns import frame_path, is_sequence, same_file
 from ..imageio import FrameError
 from ..imagewrite import verify_written
-from ..visibility import (MAP_TIME_S, PLANES, Viewing, block_mean, frame_planes, transient,
-                          upsample)
+from ..backends.base import VisibilityPlanes, VisibilityRequest
+from ..models.visibility_map import PLANES, Geometry, recipe, scene_luminance, value_at
+from ..visibility import Viewing, seen
 
-#: The veil is made on a grid of cells about this wide, degrees (a power of two of
-#: pixels; it is smooth at the angles where it matters, CIE 146's 1-30 degrees),
-#: then brought back bilinearly.
-VEIL_CELL_DEG = 0.4
+#: The flags that give the run's observer (``Viewing.check`` names them in errors).
+RUN_FLAGS = {"size": "--target-size", "time": "--observation-time", "age": "--age"}
 
 
-def viewing(opts, age: float | None) -> Viewing:
-    """The map's target and observer: ``--target-size``, the run's ``--age`` (the
-    flare's option; ``spencer``, no age, takes Adrian's at the default 25)."""
+def viewing(opts, age) -> Viewing:
+    """The map's target and observer: ``--target-size``, ``--observation-time``,
+    ``--adrian`` and the run's ``--age`` (the flare's option; ``spencer``, no age,
+    takes Adrian's at the default 25)."""
     return Viewing(opts.target_size, fl.DEFAULT_AGE if fl.is_literal(age) else float(age),
-                   MAP_TIME_S).check()
+                   opts.observation_time, ad.FIELD_FACTOR, opts.adrian).check(RUN_FLAGS)
 
 
 #: What ``Lveil`` counts (the header's ``ocltm:visibility:veil``), without and with
 #: ``--veil-halo``.
-VEIL_KINDS = {False: "disability glare: the flare's scatter (Spencer's f0-f2 at the "
-                     "observer's age), without the lenticular halo",
-              True: "the flare's whole PSF, the lenticular halo (f3) included"}
+VEIL_KINDS = {False: f"disability glare of the whole field: CIE 146's general equation at "
+                     f"the observer's age over every pixel's light, the field within "
+                     f"{EXCLUDE_DEG:g} degree of the point left out (CIE 88's fixation field)",
+              True: "the disability glare of the whole field plus the flare's lenticular "
+                    "halo (f3) of the light above its source limit"}
 
 
-def veil(Y: np.ndarray, flare: dict, settings, halo: bool = False) -> np.ndarray | None:
-    """The flare's photopic veil (cd/m^2, H x W) of a frame of luminance ``Y`` (cd/m^2)
-    whose flare ran: the flare's PSF (of ``settings.age``) at the frame's pupil over
-    the light above the frame's source limit, on a grid of :data:`VEIL_CELL_DEG`
-    cells (the exact PSF's cached FFTs), less the sources themselves. Without
-    ``halo`` the disability veil, the PSF's smooth scatter (CIE 146's veil within
-    10 % at 2-20 degrees; the lenticular halo is a ring of appearance the CIE's
-    measured veils do not show: docs/models.md, "Visibility maps"); with it the
-    whole PSF, the channels' halos weighted by Y."""
+def halo(flare: dict | None, settings, geometry: Geometry, step: int):
+    """``--veil-halo``: a function of the veil's luminance cells giving the flare's
+    lenticular halo there (Spencer's f3 at the frame's pupil over the light above the
+    frame's source limit, the picture's flare), or None where the flare did not run."""
     if not flare or not flare.get("ran") or "pupil_mm" not in flare:
         return None
-    lim = float(flare.get("source_limit_cd", np.inf))
-    h, w = Y.shape
-    s = 1
-    while 2 * s * settings.fov_deg / w <= VEIL_CELL_DEG and min(h, w) // (2 * s) >= 16:
-        s *= 2
-    small = block_mean(Y, s).astype(np.float64)
-    S = np.maximum(small - lim, 0.0)               # (source_part of a grey: Y - lim)
-    if not S.any():
-        return None
-    deg_per_cell, D = settings.fov_deg / small.shape[1], float(flare["pupil_mm"])
-    if halo:
-        S3 = np.repeat(S[..., None], 3, axis=2)
-        F = fx.convolve_exact_cached(S3, deg_per_cell, D, settings.age) @ Y_WEIGHTS
-    else:
-        F = fx.convolve_scatter_cached(S, deg_per_cell, D, settings.age)
-    return upsample(np.maximum(F - S, 0.0).astype(np.float32), (h, w), s)
+    lim, D = float(flare.get("source_limit_cd", math.inf)), float(flare["pupil_mm"])
+    deg = geometry.deg_per_px * step
+
+    def ring(cells: np.ndarray) -> np.ndarray:
+        S = np.maximum(cells - lim, 0.0)
+        if not S.any():
+            return np.zeros_like(cells)
+        whole = fx.convolve_exact_cached(np.repeat(S[..., None], 3, axis=2), deg, D,
+                                         settings.age) @ Y_WEIGHTS
+        return np.maximum(whole - fx.convolve_scatter_cached(S, deg, D, settings.age), 0.0)
+    return ring
 
 
-def scene_luminance(pixels: np.ndarray, scale: float) -> np.ndarray:
-    """Photopic luminance, cd/m^2 (float32), of working-space ``pixels`` x ``scale``,
-    bad values repaired by the pipeline's policy (``photometry.sanitize``: NaN,
-    -Inf, negatives, denormals 0; +Inf the ceiling) where there are any."""
-    # one contiguous float32 copy first: a matmul over half floats or an RGBA slice
-    # runs 2-3x slower than the copy and the matmul together
-    rgb = np.ascontiguousarray(pixels[..., :3], np.float32)
-    Y = (rgb @ Y_WEIGHTS.astype(np.float32)).astype(np.float32) * np.float32(scale)
-    if np.isfinite(Y).all() and (np.asarray(rgb) >= 0).all():
-        return Y
-    clean, _ = sanitize(rgb, scale)
-    return (clean @ Y_WEIGHTS).astype(np.float32)
-
-
-def frame_seen(tm, fin, info) -> tuple[np.ndarray, dict]:
-    """(scene luminance, observer state) of one mapped frame: what the planes and the
-    target read."""
+def frame_request(tm, fin, info, opts) -> VisibilityRequest:
+    """The planes' request of one mapped frame (its input ``fin``, its record ``info``)."""
     if fin.wavelengths is not None:
         raise ValueError("--visibility needs the frame's luminance: this operator takes "
                          "the spectrum (give RGB input, or an operator that maps RGB)")
-    # a local operator's observer is its per-pixel state (from the schedule: a download)
-    obs = tm.op.observer_of(tm.state if tm.op.observer_per_pixel else info.state)
-    return scene_luminance(fin.pixels, fin.scale), obs
+    s = tm.effects.settings
+    h, w = fin.pixels.shape[:2]
+    view = viewing(opts, s.age)
+    g = Geometry(h, w, s.fov_deg)
+    r = recipe(g, view.size_arcmin, view.age)
+    op = tm.op
+    # a local operator's observer is its per-pixel state (on a device: the backend
+    # reads it where it is; the host's planes download it)
+    observer = (lambda: op.observer_of(tm.state)) if op.observer_per_pixel else \
+        (lambda: op.observer_of(info.state))
+    return VisibilityRequest(fin.pixels, fin.scale, r, view, op, observer, tm.schedule,
+                   halo(info.effects.get("flare"), s, g, r.veil_step) if opts.veil_halo
+                   else None, np.float16 if opts.visibility_type == "half" else np.float32)
 
 
-def frame_visibility(tm, seen, info, opts) -> dict:
-    """The planes of one mapped frame (``seen``: :func:`frame_seen`'s)."""
-    Y, obs = seen
-    V = veil(Y, info.effects.get("flare"), tm.effects.settings, opts.veil_halo)
-    px_per_arcmin = Y.shape[1] / (tm.effects.settings.fov_deg * 60.0)
-    return frame_planes(tm.op, obs, Y, V, viewing(opts, tm.effects.settings.age),
-                        px_per_arcmin)
+def frame_visibility(tm, req: VisibilityRequest) -> VisibilityPlanes:
+    """The planes of one mapped frame, made by the run's backend."""
+    return tm.backend.visibility(req)
 
 
 def parse_target(text: str) -> tuple[float, float, float]:
@@ -123,62 +110,68 @@ def parse_target(text: str) -> tuple[float, float, float]:
     return x, y, size
 
 
-def target_visibility(tm, seen, opts, planes: dict) -> dict:
+def target_visibility(tm, req: VisibilityRequest, planes: VisibilityPlanes, opts) -> dict:
     """The tracked target (``--target X,Y,SIZE``) on one frame: its luminance (a disc
-    of SIZE), its surround (the ring out to 3 sizes), the veil there, dLth and VL."""
+    of SIZE), its surround (the ring out to 3 sizes), the veil there (the planes'
+    cells, brought to the pixel as the planes bring them), and what the run's
+    observer sees of it (``visibility.seen``: the calculator's formula)."""
     x, y, size = opts.target
-    Y, obs = seen
-    h, w = Y.shape
+    h, w = req.pixels.shape[:2]
     if not (0 <= x < w and 0 <= y < h):
         raise ValueError(f"--target {x:g},{y:g}: outside the frame ({w} x {h} pixels)")
-    px = w / (tm.effects.settings.fov_deg * 60.0) * size
+    px = req.recipe.geometry.px_per_arcmin * size
     r = max(0.5, px / 2.0)
     R = int(math.ceil(3.0 * r)) + 1
     y0, y1, x0, x1 = max(0, int(y) - R), min(h, int(y) + R + 1), max(0, int(x) - R), \
         min(w, int(x) + R + 1)
+    Yc = scene_luminance(req.pixels[y0:y1, x0:x1], req.scale)
     yy, xx = np.mgrid[y0:y1, x0:x1]
     d = np.hypot(xx + 0.5 - (x + 0.5), yy + 0.5 - (y + 0.5))
-    Yc = Y[y0:y1, x0:x1]
     inner, ring = d <= r, (d > r) & (d <= 3.0 * r)
     L_t = float(Yc[inner].mean()) if inner.any() else float(Yc[int(y) - y0, int(x) - x0])
     L_s = float(Yc[ring].mean()) if ring.any() else L_t
-    veil = float(planes["Lveil"][int(y), int(x)])
-    L_b = max(L_s + veil, 1e-6)
-    view = Viewing(size, viewing(opts, tm.effects.settings.age).age, MAP_TIME_S)
+    veil = max(value_at(planes.veil_cells, req.recipe.veil_step, int(x), int(y)), 0.0)
+    view = Viewing(size, req.view.age, req.view.time_s, req.view.k, req.view.adrian)
     op = tm.op
     if op.observer_per_pixel:
-        obs = {k: np.asarray(v)[int(y), int(x)] for k, v in obs.items()}
-    pol = "negative" if L_t < L_s else "positive"
-    taf = float(transient(op, obs, L_b, view.media_gain))
-    dl = float(view.steady(L_b, pol)) * taf
+        at = getattr(tm.schedule, "observer_at", None)
+        obs = at(int(x), int(y)) if at is not None else \
+            {k: np.asarray(v)[int(y), int(x)] for k, v in req.observer().items()}
+    else:
+        obs = req.observer()
+    s = seen(op, obs, view, L_s, veil, L_t)
     return {"x": x, "y": y, "size_arcmin": size, "L_target": L_t, "L_surround": L_s,
-            "Lveil": veil, "Lb": L_b, "La": float(np.mean(op.observer_level(obs))) / view.media_gain,
-            "TAF": taf, "dLth": dl, "VL": abs(L_t - L_s) / dl}
+            "Lveil": veil, "Lb": s.L_b, "La": s.L_a, "TAF": s.TAF, "dLth": s.dL_th,
+            "VL": s.VL, "observation_s": view.time_s, "adrian": view.adrian}
 
 
-def write_visibility(path: str, planes: dict, f, view: Viewing, operator: str,
+def write_visibility(path: str, planes: VisibilityPlanes, f, view: Viewing, operator: str,
                      fov_deg: float, halo: bool = False) -> None:
-    """The planes as a float32 EXR, channels named and described in the header,
-    verified before it counts."""
+    """The planes as a half (or float) EXR, channels named and described in the
+    header with the observer, verified before it counts."""
     names = [n for n, _, _ in PLANES]
-    h, w = planes[names[0]].shape
-    spec = oiio.ImageSpec(w, h, len(names), oiio.FLOAT)
+    h, w = planes.data.shape[:2]
+    fmt = oiio.HALF if planes.data.dtype == np.float16 else oiio.FLOAT
+    spec = oiio.ImageSpec(w, h, len(names), fmt)
     spec.channelnames = tuple(names)
     # uncompressed: zip took a quarter of a 1080p frame's time (0.26 s of ~1 s)
     spec.attribute("compression", "none")
     for n, unit, what in PLANES:
         spec.attribute(f"ocltm:visibility:{n}", f"{what} [{unit}]")
-    spec.attribute("ocltm:visibility:target_arcmin", float(view.size_arcmin))
-    spec.attribute("ocltm:visibility:age", float(view.age))
-    spec.attribute("ocltm:visibility:observation_s", float(view.time_s))
-    spec.attribute("ocltm:visibility:k", float(view.k))
+    d = view.describe()
+    spec.attribute("ocltm:visibility:target_arcmin", d["target_arcmin"])
+    spec.attribute("ocltm:visibility:age", d["age"])
+    spec.attribute("ocltm:visibility:observation_s", d["observation_s"])
+    spec.attribute("ocltm:visibility:k", d["k"])
+    spec.attribute("ocltm:visibility:adrian", d["adrian"])
     spec.attribute("ocltm:visibility:fov_deg", float(fov_deg))
     spec.attribute("ocltm:visibility:veil", VEIL_KINDS[bool(halo)])
+    if fmt == oiio.HALF:
+        spec.attribute("ocltm:visibility:clamped", int(planes.clamped))
     spec.attribute("ocltm:operator", operator)
     if f is not None:
         spec.attribute("ocltm:frame", int(f))
-    data = np.stack([planes[n] for n in names], axis=-1)
-    _write_verified(path, data, spec, f)
+    _write_verified(path, planes.data, spec, f)
 
 
 def _write_verified(path: str, data: np.ndarray, spec, f) -> None:

@@ -15,6 +15,7 @@ from ocl_tonemap.backends.opencl import constants
 from ocl_tonemap.backends.opencl.lmsr import KERNEL_CONSTANTS as KIRK11
 from ocl_tonemap.backends.opencl.ledda04 import KERNEL_CONSTANTS as LEDDA04
 from ocl_tonemap.backends.opencl.runtime import define_value, kernel_dir
+from ocl_tonemap.backends.opencl.visibility import KERNEL_CONSTANTS as VISIBILITY
 from ocl_tonemap.models import display, kirk2011, photometry
 from ocl_tonemap.operators.pattanaik00 import KERNEL_CONSTANTS as PATTANAIK00
 
@@ -25,7 +26,8 @@ from ocl_tonemap.operators.pattanaik00 import KERNEL_CONSTANTS as PATTANAIK00
 ALLOWED: dict[tuple[str, str], str] = {}
 
 #: The constants each kernel file gets, beside common.h's (constants.COMMON).
-PER_FILE = {"ledda04.cl": LEDDA04, "kirk11.cl": KIRK11, "pattanaik00.cl": PATTANAIK00}
+PER_FILE = {"ledda04.cl": LEDDA04, "kirk11.cl": KIRK11, "pattanaik00.cl": PATTANAIK00,
+            "visibility.cl": VISIBILITY}
 
 _COMMENTS = re.compile(r"/\*.*?\*/|//[^\n]*", re.S)
 #: Decimal literals (integer or floating, with an exponent and suffix or not); hex
@@ -84,8 +86,8 @@ def _f32(text: str) -> np.float32:
     return np.float32(text.rstrip("f"))
 
 
-@pytest.mark.parametrize("pairs", [constants.COMMON, LEDDA04, KIRK11, PATTANAIK00],
-                         ids=["common", "ledda04", "kirk11", "pattanaik00"])
+@pytest.mark.parametrize("pairs", [constants.COMMON, LEDDA04, KIRK11, PATTANAIK00, VISIBILITY],
+                         ids=["common", "ledda04", "kirk11", "pattanaik00", "visibility"])
 def test_defines_are_the_models_values_in_float32(pairs):
     names = [k for k, _ in pairs]
     assert len(set(names)) == len(names)

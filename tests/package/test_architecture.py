@@ -90,7 +90,7 @@ def test_models_are_pure_numpy():
 #: layer or those below, imports inside functions included; each name is a module or a
 #: package of ``ocl_tonemap`` ("" is the package's own ``__init__``, the API).
 LAYERS = (
-    ("base", ("version", "resources", "interrupts", "safeio", "reuse")),
+    ("base", ("version", "resources", "interrupts", "safeio", "reuse", "quantities")),
     ("models", ("models",)),
     ("operators", ("operators",)),
     ("backends", ("backends",)),

@@ -28,9 +28,10 @@ from . import pinned
 from .pinned import HostArrays
 from .stats import TAIL, statistics
 from .transfers import ConstantBuffers, Transfers, counted, transfer
+from .visibility import VisibilityStage
 
 
-class OpenCLBackend(MeteringPasses):
+class OpenCLBackend(MeteringPasses, VisibilityStage):
     """Float32 OpenCL kernels (kernels/*.cl)."""
 
     name = "opencl"
@@ -52,6 +53,8 @@ class OpenCLBackend(MeteringPasses):
                                         (("LOG16_STEPS", met.LOG16_STEPS),
                                          ("LOG16_OFFSET", met.LOG16_OFFSET)))
         self._resident = None          # (h, w) of the working frame whole in bufs["rgb"]
+        self._visibility = None        # the visibility planes' kernels, made on first use
+        self._keep = self._kept = None  # keep_scene_luminance: the array, what was kept
         self._ahead = None             # source_proxy_ahead's: (its arguments, sums, collect)
         if max_band_pixels is None:
             # Per pixel: src (<=4 floats), rgb 3, Y, Y', out 3 = 48 B; keep to 1/4
@@ -266,6 +269,7 @@ class OpenCLBackend(MeteringPasses):
         self._colour(q, (round_up(self.rt.pixel_items(n, 4), 64),), (64,), b["src"],
                      np.int32(channels), np.int32(n), np.float32(scale), b["rgb"], b["Y"],
                      b["Ys"], b["counts"], np.int32(lo * width), np.int32(hi * width))
+        self.keep_luminance_of(band, scale, n)
         return self.read_repairs(b["counts"]) if count else RepairCounts()
 
     def read_repairs(self, counts) -> RepairCounts:

@@ -40,7 +40,7 @@ KERNEL_CONSTANTS = (
     ("E_CEILING", L.E_CEILING), ("T_DONE", L.T_DONE), ("T_HOLD", L.T_HOLD),
     ("COURSE_DONE", L.COURSE_DONE), ("COURSE_RUNNING", L.COURSE_RUNNING),
     ("AHEAD_TOL", L.AHEAD_TOL), ("JUMP_LOG2", L.JUMP_LOG10 * math.log2(10.0)),
-    ("MES_LOG_OFFSET", L.MES_LOG_OFFSET), ("MES_LOG_SPAN", L.MES_LOG_SPAN),
+    ("MES_LOG_OFFSET", L.MES_LOG_OFFSET), ("MES_LOG_SPAN", L.MES_LOG_SPAN), ("N_EXP", L.N),
     *((f"Y_COEFF_{c}", v) for c, v in zip("RGB", L.Y_COEFFS)),
     *((f"YS_COEFF_{c}", v) for c, v in zip("RGB", L.YS_COEFFS)),
 )
@@ -77,6 +77,15 @@ class LeddaSchedule(LeddaPixelState):
         self._step_vector = vector
         self._k_step = self.backend.rt.kernel("ledda04.cl", "ledda04_step4" if vector
                                               else "ledda04_step", KERNEL_CONSTANTS)
+
+    def visibility_observer(self):
+        """(kernel file, its constants, state buffer, plane stride, rod ratio) of the
+        per-pixel observer where the state is resident on the device
+        (``backends/opencl/visibility.py``: ledda04.cl's ``ledda04_observer``), else None."""
+        if self._dev is None:
+            return None
+        buf, (h, w) = self._dev
+        return "ledda04.cl", KERNEL_CONSTANTS, buf, h * w, float(self.op.rod_ratio)
 
     # -- measure -----------------------------------------------------------------------
     def _colour_and_lum(self, frame, a: int, b: int, own):

@@ -32,6 +32,20 @@ class LeddaPixelState(PixelStateMixin):
         super().set_pixel_state(pixels)
         self._dev = None
 
+    def observer_at(self, x: int, y: int) -> dict:
+        """The per-pixel state at pixel (x, y), float64 scalars (a small read per plane
+        where the state is on the device; ``run --target``)."""
+        if self._dev is None:
+            return {k: np.float64(np.asarray(v)[y, x]) for k, v in
+                    (self.pixel_state() or {}).items()}
+        buf, (h, w) = self._dev
+        one = np.empty(1, np.float32)
+        out = {}
+        for i, k in enumerate(self.planes):
+            transfer(self.backend.rt.queue, one, buf, src_offset=4 * (i * h * w + y * w + x))
+            out[k] = np.float64(one[0])
+        return out
+
     def state_shape(self):
         return self._dev[1] if self._dev is not None else super().state_shape()
 

@@ -184,7 +184,8 @@ class Runtime:
         return self.device.name.strip()
 
     def kernel(self, file: str, name: str, defines: tuple = ()):
-        """A kernel of ``file``, retrieved once per process (kernel objects are costly).
+        """A kernel of ``file`` (``a.cl+b.cl``: the files one after the other in one
+        program), retrieved once per process (kernel objects are costly).
         ``defines``: (NAME, value) pairs given to the compiler as -DNAME=value (constants
         and parameter indices generated from the Python side, never retyped).
         With ``OCLTM_PROFILE=1`` in the environment each launch is timed
@@ -236,7 +237,7 @@ class Runtime:
             try:
                 file, name, defs = item
                 defines = tuple((str(k), _frozen(v)) for k, v in defs)
-                src, opts = _source(self.device, (file,), defines)
+                src, opts = _source(self.device, _files(file), defines)
                 cached = program_cache_path(self.device, src, opts)
                 if cached is None or not cached.exists():
                     continue
@@ -437,10 +438,15 @@ def _keep_binary(prog, path: Path) -> None:
     cache_write(path, bytes(binary))
 
 
+def _files(file: str) -> tuple[str, ...]:
+    """The kernel files of a program named ``a.cl`` or ``a.cl+b.cl``."""
+    return tuple(file.split("+"))
+
+
 @functools.lru_cache(maxsize=None)
 def _kernel(context, device, file: str, name: str, defines: tuple = ()):
     cl = cl_api()
-    return cl.Kernel(_build(context, device, (file,), defines), name)
+    return cl.Kernel(_build(context, device, _files(file), defines), name)
 
 
 def frame_params(values):
