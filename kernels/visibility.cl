@@ -283,3 +283,37 @@ __kernel void vis_planes(const int w, const int h, VIS_GRIDS,
     }
     if (over) atomic_add(clamped, over);
 }
+
+/* --visibility-view: the shown frame (its output's code values, 8- or 16-bit
+ * integers, or floats: SHOWN_BITS 8, 16 or 0) under VL's bands, from the planes just
+ * made (their VL, interleaved fifth). paint: 4 band edges, 5 scales, 5 x 3 colours to
+ * add, the hatch's colour (backends.base.ViewPaint: paint_view is the reference). Out:
+ * 8-bit code values rounded as OIIO writes them (VIEW_U8) or floats, RGB. */
+__kernel void vis_view(__global const void *shown, const int w, const int h,
+                       __global const void *planes, __constant float *paint,
+                       const int step, __global void *out)
+{
+    const int x = get_global_id(0), y = get_global_id(1);
+    if (x >= w || y >= h) return;
+    const size_t i = (size_t)y * w + x;
+#if VIS_HALF
+    const float vl = vload_half(i * 5 + 4, (__global const half *)planes);
+#else
+    const float vl = ((__global const float *)planes)[i * 5 + 4];
+#endif
+    const int band = (vl >= paint[0]) + (vl >= paint[1]) + (vl >= paint[2]) + (vl >= paint[3]);
+#if SHOWN_BITS == 8
+    const float3 c = convert_float3(vload3(i, (__global const uchar *)shown)) / 255.0f;
+#elif SHOWN_BITS == 16
+    const float3 c = convert_float3(vload3(i, (__global const ushort *)shown)) / 65535.0f;
+#else
+    const float3 c = vload3(i, (__global const float *)shown);
+#endif
+    float3 o = clamp(c, 0.0f, 1.0f) * paint[4 + band] + vload3(band, paint + 9);
+    if (band == 1 && ((x + y) / step) % 3 == 0) o = vload3(0, paint + 24);
+#if VIEW_U8
+    vstore3(convert_uchar3_sat_rte(clamp(o, 0.0f, 1.0f) * 255.0f), i, (__global uchar *)out);
+#else
+    vstore3(o, i, (__global float *)out);
+#endif
+}

@@ -105,14 +105,16 @@ def _target_report(res) -> None:
         return
     v0 = rows[0][2]
     print(f"target at ({v0['x']:g}, {v0['y']:g}), {v0['size_arcmin']:g} arcmin "
-          f"(a {v0['observation_s']:g} s look, Adrian {v0['adrian']}; L_b = L_s + Lveil):")
-    print(f"{'frame':>6} {'t (s)':>8} {'L_t':>10} {'L_s':>10} {'Lveil':>10} {'L_b':>10} "
-          f"{'La':>10} {'TAF':>8} {'dL_th':>10} {'VL':>8}")
+          f"(a {v0['observation_s']:g} s look, Adrian {v0['adrian']}; L_b = L_s + Lveil; "
+          "Lseq88: CIE 88's L_seq):")
+    print(f"{'frame':>6} {'t (s)':>8} {'L_t':>10} {'L_s':>10} {'Lveil':>10} {'Lseq88':>10} "
+          f"{'L_b':>10} {'La':>10} {'TAF':>8} {'dL_th':>10} {'VL':>8}")
     for f, t, v in rows:
         flag = "  below threshold" if v["VL"] < 1 else ""
         print(f"{'' if f is None else f:>6} {t:8.3f} {v['L_target']:10.4g} "
-              f"{v['L_surround']:10.4g} {v['Lveil']:10.4g} {v['Lb']:10.4g} {v['La']:10.4g} "
-              f"{v['TAF']:8.3f} {v['dLth']:10.4g} {v['VL']:8.3f}{flag}")
+              f"{v['L_surround']:10.4g} {v['Lveil']:10.4g} {v['Lseq_cie88']:10.4g} "
+              f"{v['Lb']:10.4g} {v['La']:10.4g} {v['TAF']:8.3f} {v['dLth']:10.4g} "
+              f"{v['VL']:8.3f}{flag}")
 
 
 def shot_pass(a, argv) -> int:

@@ -111,6 +111,40 @@ def planes_on_host(req: VisibilityRequest) -> VisibilityPlanes:
     return VisibilityPlanes(data, planes["veil_cells"], clamped)
 
 
+class ViewPaint(NamedTuple):
+    """How ``run --visibility-view`` paints VL over the shown frame: a pixel's band is
+    the number of ``edges`` its VL reaches (0 .. len(edges)); its colour is the shown
+    code value (0..1) x ``scale[band]`` + ``add[band]``; band 1 is hatched in ``hatch``
+    on every third diagonal of ``step`` pixels."""
+
+    edges: tuple
+    scale: tuple
+    add: tuple                    # (r, g, b) a band
+    hatch: tuple
+    step: int
+
+    def as_array(self) -> np.ndarray:
+        return np.concatenate([self.edges, self.scale, np.ravel(self.add),
+                               self.hatch]).astype(np.float32)
+
+
+def paint_view(shown: np.ndarray, VL: np.ndarray, paint: ViewPaint) -> np.ndarray:
+    """The view's pixels on the host (float32 code values, H x W x 3): the reference of
+    :meth:`Backend.visibility_view`."""
+    h, w = VL.shape
+    band = np.zeros(VL.shape, np.uint8)
+    for edge in paint.edges:
+        band += VL >= np.float32(edge)
+    scale = np.asarray(paint.scale, np.float32)
+    add = np.asarray(paint.add, np.float32)
+    out = np.clip(np.asarray(shown[..., :3], np.float32), 0.0, 1.0)
+    out *= scale[band][..., None]
+    out += add[band]
+    diagonal = (np.arange(w, dtype=np.int32)[None, :] + np.arange(h, dtype=np.int32)[:, None])
+    out[(band == 1) & (diagonal // paint.step % 3 == 0)] = np.asarray(paint.hatch, np.float32)
+    return out
+
+
 class Schedule(Protocol):
     """One operator's phases on one backend."""
 
@@ -233,6 +267,13 @@ class Backend(Protocol):
         """Keep what the next colour stage of ``pixels`` makes of them for
         :meth:`visibility` (None: nothing), where the backend can."""
 
+    def visibility_view(self, planes: VisibilityPlanes, shown: np.ndarray, paint: ViewPaint,
+                        u8: bool) -> np.ndarray | None:
+        """``--visibility-view``'s pixels of the frame whose planes :meth:`visibility`
+        made last (``shown``: its output's code values as written, integers or floats),
+        uint8 (``u8``) or float32 code values; None where the backend leaves it to the
+        host (:func:`paint_view`)."""
+
 
 class HostBackend:
     """What a backend without a device answers: nothing on a device, frames whole."""
@@ -274,6 +315,9 @@ class HostBackend:
         return None
 
     def keep_scene_luminance(self, pixels) -> None:
+        return None
+
+    def visibility_view(self, planes, shown, paint, u8: bool):
         return None
 
     def visibility(self, request: VisibilityRequest) -> VisibilityPlanes:

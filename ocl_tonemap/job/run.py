@@ -24,8 +24,8 @@ from ..models.photometry import RepairCounts
 from ..patterns import is_sequence
 from ..pipeline import FrameInfo, Tonemapper
 from ..plot import plot_adaptation
-from .visibility_out import (check_visibility, frame_request, frame_visibility, shown_codes,
-                             target_visibility, visibility_path, visibility_view, write_view,
+from .visibility_out import (check_visibility, frame_request, frame_visibility,
+                             target_visibility, view_pixels, visibility_path, write_view,
                              write_visibility)
 from ..state import AdaptationState
 from ..state_files import save_state
@@ -323,6 +323,8 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
         enc = None if linear else run.colour.device_output_encoding(
             bits, tm.backend.device_runtime())
         seen = run.opts.visibility or run.opts.visibility_view or run.opts.target
+        view_u8 = bool(run.opts.visibility_view) and \
+            not run.opts.visibility_view.lower().endswith(".exr")
         # the planes read the scene's luminance where the frame's colour stage made it
         tm.backend.keep_scene_luminance(fin.pixels if seen else None)
         res = map_frame(tm, fin, t, f, encoding=enc)
@@ -330,12 +332,14 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
             exporter.add_frame(f, np.asarray(fin.pixels, np.float32), fin.scale,
                                res.info.effects,
                                run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
-        vis = req = None
+        vis = req = view = None
         if seen:
             req = frame_request(tm, fin, res.info, run.opts)
             vis = frame_visibility(tm, req)
             if run.opts.target:
                 res.info.visibility = target_visibility(tm, req, vis, run.opts)
+            if run.opts.visibility_view and res.encoded:   # the codes as written are here:
+                view = view_pixels(tm.backend, vis, res.output, view_u8)   # where the planes are
         extra = {"ocltm:held_from": os.path.basename(inp)} if held else None
         meta = output_metadata(run, tm, fr, fin, res.info, extra, linear,
                                res.output.shape[2] == 4, fps)
@@ -357,10 +361,10 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
                 write_visibility(visibility_path(run.opts.visibility, f), vis, f, req.view,
                                  tm.op.name, tm.effects.settings.fov_deg, run.opts.veil_halo)
             if vis is not None and run.opts.visibility_view:
-                shown = run.colour.encode_fast(res.output[..., :3]) if linear else \
-                    shown_codes(pixels)
-                write_view(visibility_path(run.opts.visibility_view, f),
-                           visibility_view(shown, vis.plane("VL")), f)
+                v = view if view is not None else view_pixels(
+                    None, vis, run.colour.encode_fast(res.output[..., :3]) if linear
+                    else pixels, view_u8)
+                write_view(visibility_path(run.opts.visibility_view, f), v, f)
         except FrameError:
             raise
         except Exception as exc:

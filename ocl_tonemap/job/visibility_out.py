@@ -20,13 +20,14 @@ import OpenImageIO as oiio
 from .. import safeio
 from ..backends import flare_exec as fx
 from ..models import adrian1989 as ad
+from ..models import cie88
 from ..models import spencer1995 as fl
 from ..models.cie146 import EXCLUDE_DEG
 from ..models.photometry import Y_WEIGHTS
 from ..patterns import frame_path, is_sequence, same_file
 from ..imageio import FrameError
 from ..imagewrite import verify_written
-from ..backends.base import VisibilityPlanes, VisibilityRequest
+from ..backends.base import (ViewPaint, VisibilityPlanes, VisibilityRequest, paint_view)
 from ..models.visibility_map import PLANES, Geometry, recipe, scene_luminance, value_at
 from ..visibility import Viewing, seen
 
@@ -114,7 +115,8 @@ def target_visibility(tm, req: VisibilityRequest, planes: VisibilityPlanes, opts
     """The tracked target (``--target X,Y,SIZE``) on one frame: its luminance (a disc
     of SIZE), its surround (the ring out to 3 sizes), the veil there (the planes'
     cells, brought to the pixel as the planes bring them), and what the run's
-    observer sees of it (``visibility.seen``: the calculator's formula)."""
+    observer sees of it (``visibility.seen``: the calculator's formula); beside the
+    veil, CIE 88's L_seq of the same picture there (``models/cie88.py``)."""
     x, y, size = opts.target
     h, w = req.pixels.shape[:2]
     if not (0 <= x < w and 0 <= y < h):
@@ -140,9 +142,13 @@ def target_visibility(tm, req: VisibilityRequest, planes: VisibilityPlanes, opts
     else:
         obs = req.observer()
     s = seen(op, obs, view, L_s, veil, L_t)
+    # CIE 88's L_seq at the target, from the same picture (the polar diagram)
+    Lseq, _ = cie88.l_seq(scene_luminance(req.pixels, req.scale), x, y,
+                          req.recipe.geometry.deg_per_px)
     return {"x": x, "y": y, "size_arcmin": size, "L_target": L_t, "L_surround": L_s,
             "Lveil": veil, "Lb": s.L_b, "La": s.L_a, "TAF": s.TAF, "dLth": s.dL_th,
-            "VL": s.VL, "observation_s": view.time_s, "adrian": view.adrian}
+            "VL": s.VL, "observation_s": view.time_s, "adrian": view.adrian,
+            "Lseq_cie88": Lseq}
 
 
 def write_visibility(path: str, planes: VisibilityPlanes, f, view: Viewing, operator: str,
@@ -208,28 +214,39 @@ VIEW_BANDS = ((0.1, None, "VL < 0.1: no detail"), (1.0, (0.9, 0.05, 0.05), "0.1-
 VIEW_OPACITY = 0.5
 
 
-def visibility_view(shown: np.ndarray, VL: np.ndarray) -> np.ndarray:
-    """The false-colour view: the tone-mapped frame (``shown``, display code values
-    0..1) dimmed under the VL bands' colours (:data:`VIEW_BANDS`), detail below
-    threshold hatched in full red, a legend below. Float32, H + legend rows x W x 3."""
-    h, w = VL.shape
-    band = np.zeros(VL.shape, np.uint8)             # the VL band of each pixel, 0..4
-    for edge, _, _ in VIEW_BANDS[:-1]:
-        band += VL >= np.float32(edge)
-    cols = np.array([c or (0.0, 0.0, 0.0) for _, c, _ in VIEW_BANDS], np.float32)
-    # each band: the picture dimmed to 60 %, then (above the first) VIEW_OPACITY of
-    # its colour over it: out = shown x scale[band] + add[band]
-    scale = np.full(len(VIEW_BANDS), 0.6 * (1.0 - VIEW_OPACITY), np.float32)
-    scale[0] = 0.6
-    add = cols * np.float32(VIEW_OPACITY)
-    add[0] = 0.0
-    out = np.clip(np.asarray(shown[..., :3], np.float32), 0.0, 1.0)
-    out *= scale[band][..., None]
-    out += add[band]
-    step = max(2, min(h, w) // 120)
-    diagonal = (np.arange(w, dtype=np.int32)[None, :] + np.arange(h, dtype=np.int32)[:, None])
-    hatch = (band == 1) & (diagonal // step % 3 == 0)
-    out[hatch] = cols[1]
+#: The bands as the backends paint them (``backends.base.ViewPaint``): each band the
+#: picture dimmed to 60 %, then (above the first) VIEW_OPACITY of its colour over it.
+VIEW_PAINT = dict(
+    edges=tuple(e for e, _, _ in VIEW_BANDS[:-1]),
+    scale=(0.6,) + (0.6 * (1.0 - VIEW_OPACITY),) * (len(VIEW_BANDS) - 1),
+    add=((0.0, 0.0, 0.0),) + tuple(tuple(VIEW_OPACITY * c for c in col)
+                                   for _, col, _ in VIEW_BANDS[1:]),
+    hatch=VIEW_BANDS[1][1])
+
+
+def view_paint(h: int, w: int) -> ViewPaint:
+    """The view's paint for an h x w frame (the hatch's step: a 120th of its short side)."""
+    return ViewPaint(**VIEW_PAINT, step=max(2, min(h, w) // 120))
+
+
+def view_pixels(backend, planes: VisibilityPlanes, shown: np.ndarray, u8: bool) -> np.ndarray:
+    """The view's pixels (without the legend) of a frame whose output's code values are
+    ``shown`` (integers as written, or floats): on the backend's device where it made
+    the planes, else (``backend`` None: off the main thread) on the host
+    (``backends.base.paint_view``)."""
+    h, w = planes.data.shape[:2]
+    paint = view_paint(h, w)
+    out = None if backend is None else backend.visibility_view(planes, shown, paint, u8)
+    if out is None:
+        out = paint_view(shown_codes(shown), planes.plane("VL").astype(np.float32), paint)
+        if u8:
+            out = np.round(np.clip(out, 0.0, 1.0) * 255.0).astype(np.uint8)
+    return out
+
+
+def view_legend(w: int, h: int) -> np.ndarray:
+    """The view's legend, float32 code values (lh x w x 3): a box and a label a band
+    (no font: boxes without labels)."""
     lh = max(18, min(48, h // 10))
     legend = np.full((lh, w, 3), 0.08, np.float32)
     buf = oiio.ImageBuf(oiio.ImageSpec(w, lh, 3, oiio.FLOAT))
@@ -243,8 +260,8 @@ def visibility_view(shown: np.ndarray, VL: np.ndarray) -> np.ndarray:
                                       (1.0, 1.0, 1.0))
         tw = oiio.ImageBufAlgo.text_size(label, size, "")
         x += lh // 2 + 4 + (tw.width if tw.defined else size * len(label) // 2) + lh // 2
-    oiio.geterror()                       # (no font: boxes without labels)
-    return np.concatenate([out, buf.get_pixels(oiio.FLOAT)[..., :3]], axis=0)
+    oiio.geterror()
+    return buf.get_pixels(oiio.FLOAT)[..., :3]
 
 
 def shown_codes(pixels: np.ndarray) -> np.ndarray:
@@ -255,16 +272,21 @@ def shown_codes(pixels: np.ndarray) -> np.ndarray:
     return a[..., :3].astype(np.float32)
 
 
-def write_view(path: str, image: np.ndarray, f) -> None:
-    h, w = image.shape[:2]
-    spec = oiio.ImageSpec(w, h, 3, oiio.UINT8 if not path.lower().endswith(".exr")
-                          else oiio.HALF)
+def write_view(path: str, pixels: np.ndarray, f) -> None:
+    """The view (its pixels, :func:`view_pixels`) with the legend below: 8-bit, or half
+    floats for an EXR."""
+    h, w = pixels.shape[:2]
+    exr = path.lower().endswith(".exr")
+    legend = view_legend(w, h)
+    if exr:
+        data = np.concatenate([np.clip(pixels, 0.0, 1.0), legend], axis=0)
+    else:
+        data = np.concatenate([pixels, np.round(np.clip(legend, 0.0, 1.0) * 255.0)
+                               .astype(np.uint8)], axis=0)
+    spec = oiio.ImageSpec(w, data.shape[0], 3, oiio.HALF if exr else oiio.UINT8)
     spec.attribute("oiio:ColorSpace", "sRGB")
     spec.attribute("ImageDescription", "ocl-tonemap visibility view: VL bands "
                    + ", ".join(lab for _, _, lab in VIEW_BANDS))
-    data = np.clip(image, 0.0, 1.0)
-    if spec.format == oiio.UINT8:
-        data = np.round(data * 255.0).astype(np.uint8)
     _write_verified(path, data, spec, f)
 
 

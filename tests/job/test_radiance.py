@@ -206,12 +206,26 @@ def test_the_readmes_radiance_block_runs_as_written(tmp_path):
 
 def test_the_readmes_lighting_designers_block_runs_as_written(tmp_path):
     """README "For lighting designers": the portal rendered with rpict, its visibility
-    planes, view and target, and the threshold over time, as written there."""
+    planes, view and target, and the calculator's seconds after entering, as written
+    there; the numbers the README states are what the run and the calculator print
+    (issue 56): the veil over the road inside the portal, within 1.5x of CIE 88's
+    L_seq of the same picture, the box's VL."""
     r = _readme_block("## For lighting designers", tmp_path)
     for f in ("portal.png", "portal_vis.exr", "portal_vl.png", "vl_over_time.png"):
         assert (tmp_path / f).stat().st_size > 1000, f
-    row = r.stdout.split("target at (320, 185), 6 arcmin:", 1)[1].splitlines()[2].split()
-    TAF, VL = float(row[-3]), float(row[-1])
-    assert TAF > 3 and 0.2 < VL < 5          # the black hole: the eye still at 5000
+    head = "target at (320, 185), 6 arcmin"
+    row = r.stdout.split(head, 1)[1].splitlines()[2].split()
+    L_t, L_s, veil, lseq, L_b, La, TAF, dL, VL = (float(x) for x in row[1:])
+    # as the README states them (its rounding)
+    assert (round(L_t, 2), round(L_s), round(veil), round(lseq), round(L_b)) == \
+        (1.96, 106, 80, 103, 186)
+    assert (round(La), round(TAF, 2), round(dL, 1), round(VL, 2)) == (5000, 3.98, 33.4, 3.12)
+    assert 1 / 1.5 < veil / lseq < 1.5
+    steps = r.stdout.split("time course:", 1)[1].splitlines()[2:5]
+    assert round(float(steps[0].split()[-1]), 1) == 12.2               # VL 0.5 s after
     b = oiio.ImageBuf(str(tmp_path / "portal_vis.exr"))
     assert set(b.spec().channelnames) == {"La", "Lveil", "Lb", "dLth", "VL"}
+    assert b.spec().format == oiio.HALF
+    P = b.get_pixels(oiio.FLOAT)
+    veil_plane = P[..., list(b.spec().channelnames).index("Lveil")]
+    assert veil_plane[190:200, 300:340].min() > 50                      # the road inside

@@ -24,10 +24,10 @@ from ocl_tonemap.state_files import load_state
 from ocl_tonemap.visibility import OBSERVATION_S, Viewing
 
 
-def _cli(*args):
+def _cli(*args, env=None):
     return subprocess.run([sys.executable, "-m", "ocl_tonemap", *map(str, args)],
                           capture_output=True, text=True,
-                          env={**os.environ, "PYTHONPATH": os.getcwd()})
+                          env={**os.environ, "PYTHONPATH": os.getcwd(), **(env or {})})
 
 
 def _planes(path):
@@ -46,12 +46,12 @@ def drive(tmp_path_factory):
     return d
 
 
-def _run(drive, op, backend, tag, *extra):
+def _run(drive, op, backend, tag, *extra, env=None):
     out = drive / f"{op}-{backend}-{tag}"
     if not out.exists():
         r = _cli("run", drive / "s" / "tunnel.####.exr", out / "d.####.png", "--operator", op,
                  "--backend", backend, "--visibility", out / "v.####.exr",
-                 "--state-out", out / "state.json", *extra)
+                 "--state-out", out / "state.json", *extra, env=env)
         assert r.returncode == 0, r.stderr
     return out
 
@@ -137,6 +137,23 @@ def test_the_device_planes_are_the_reference(drive, op, rt):
             np.testing.assert_allclose(H[n][big], A[n][big], rtol=1e-3, err_msg=f"{name} {n}")
             assert np.max(np.abs(H[n] - A[n])[~big], initial=0.0) < 1e-7
     assert os.path.getsize(_last(half)) < 0.55 * os.path.getsize(_last(dev))
+
+
+@pytest.mark.requires_opencl
+@pytest.mark.parametrize("op", ["pattanaik00", "ledda04"])
+def test_the_gpus_kernels_are_the_reference_too(drive, op, rt):
+    """OCLTM_VECTOR_PIXELS=0: a pixel a work-item, as on a GPU, and the veil's cells
+    summed on the device (a GPU's way): the same tolerances against the reference."""
+    ref = _run(drive, op, "reference", "float", "--visibility-type", "float")
+    gpu = _run(drive, op, "opencl", "scalar", "--visibility-type", "float",
+               env={"OCLTM_VECTOR_PIXELS": "0"})
+    for name in sorted(p for p in os.listdir(ref) if p.startswith("v.")):
+        A, B = (_planes(d / name)[0] for d in (gpu, ref))
+        for n in ("La", "Lveil", "Lb"):
+            np.testing.assert_allclose(A[n], B[n], rtol=1e-4, atol=1e-9, err_msg=f"{name} {n}")
+        seen_ = B["VL"] >= 0.01
+        for n in ("dLth", "VL"):
+            np.testing.assert_allclose(A[n][seen_], B[n][seen_], rtol=1e-3, err_msg=f"{name} {n}")
 
 
 def test_the_target_line_is_the_calculator(drive, tmp_path):

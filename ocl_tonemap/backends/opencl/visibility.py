@@ -63,6 +63,7 @@ class DeviceVisibility:
         self._k_veil = rt.kernel("visibility.cl", "vis_veil_cells", KERNEL_CONSTANTS)
         self._k_blur = rt.kernel("convolution.cl", "blur_axis")
         self._weights = {}                    # id(recipe) -> (recipe, device weights)
+        self._last = None                     # (planes, their device buffer, half)
         self.host_veil = HOST_VEIL and rt.vector_pixels
 
     def _planes_kernel(self, half: bool, observer):
@@ -179,7 +180,32 @@ class DeviceVisibility:
         transfer(q, data, out)
         c = np.empty(1, np.int32)
         transfer(q, c, clamped)
-        return VisibilityPlanes(data, veil_cells, int(c[0]))
+        planes = VisibilityPlanes(data, veil_cells, int(c[0]))
+        self._last = (planes, out, half)
+        return planes
+
+    def view(self, planes: VisibilityPlanes, shown: np.ndarray, paint, u8: bool):
+        """``vis_view`` of the planes :meth:`planes` made last (their VL where it still
+        is: the view's only upload is the shown frame's codes), or None for others."""
+        if self._last is None or self._last[0] is not planes:
+            return None
+        _, buf, half = self._last
+        h, w = planes.data.shape[:2]
+        a = np.ascontiguousarray(np.asarray(shown)[..., :3])
+        bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(a.dtype, 0)
+        if not bits:
+            a = a.astype(np.float32)
+        be, q = self.be, self.rt.queue
+        src = be.buffer("vis_shown", a.nbytes)
+        transfer(q, src, a)
+        out = np.empty((h, w, 3), np.uint8 if u8 else np.float32)
+        dst = be.buffer("vis_view", out.nbytes)
+        k = self.rt.kernel("visibility.cl", "vis_view", KERNEL_CONSTANTS + (
+            ("VIS_HALF", int(half)), ("SHOWN_BITS", bits), ("VIEW_U8", int(u8))))
+        k(q, (round_up(w, 16), round_up(h, 4)), (16, 4), src, np.int32(w), np.int32(h), buf,
+          be.constant(paint.as_array()), np.int32(paint.step), dst)
+        transfer(q, out, dst)
+        return out
 
 
 def _array_key(a) -> tuple | None:
@@ -200,6 +226,12 @@ class VisibilityStage:
             self._visibility = DeviceVisibility(self)
         planes = self._visibility.planes(request)
         return planes if planes is not None else planes_on_host(request)
+
+    def visibility_view(self, planes: VisibilityPlanes, shown: np.ndarray, paint,
+                        u8: bool):
+        """The view's pixels on the device, from the planes just made there."""
+        return None if self._visibility is None else \
+            self._visibility.view(planes, shown, paint, u8)
 
     def keep_scene_luminance(self, pixels) -> None:
         """Keep the luminance the next colour stage of ``pixels`` (the very array,
