@@ -82,23 +82,32 @@ def _through_the_run() -> list:
             b = oiio.ImageBuf(oiio.ImageSpec(w, h, 3, oiio.FLOAT))
             b.set_pixels(oiio.ROI(), a)
             b.write(src)
-            E = float(a[112, 40, 0]) * 4 * np.radians(deg) ** 2
+            E = float(a[112, 40, 0] - L) * 4 * np.radians(deg) ** 2
+            b.set_pixels(oiio.ROI(), np.full((h, w, 3), L, np.float32))
+            b.write(f"{d}/field.exr")
+
+            def veil(path, A, halo):
+                subprocess.run([sys.executable, "-m", "ocl_tonemap", "run", path, f"{d}/d.png",
+                                "--luminance-scale", "1", "--age", f"{A:g}", "--visibility",
+                                f"{d}/v.exr", "--visibility-type", "float", "-q", *halo],
+                               check=True)
+                buf = oiio.ImageBuf(f"{d}/v.exr")
+                i = list(buf.spec().channelnames).index("Lveil")
+                return buf.get_pixels(oiio.FLOAT)[112:114, x, i].mean(axis=0)
             for A in AGES:
                 got = []
+                field = veil(f"{d}/field.exr", A, [])        # the field's own veil apart
                 for halo in ([], ["--veil-halo"]):
-                    subprocess.run([sys.executable, "-m", "ocl_tonemap", "run", src,
-                                    f"{d}/d.png", "--luminance-scale", "1", "--age", f"{A:g}",
-                                    "--visibility", f"{d}/v.exr", "-q", *halo], check=True)
-                    buf = oiio.ImageBuf(f"{d}/v.exr")
-                    i = list(buf.spec().channelnames).index("Lveil")
-                    V = buf.get_pixels(oiio.FLOAT)[112:114, x, i].mean(axis=0)
-                    r = V[keep] / (E * cie146.veil_per_lux(th[keep], A))
+                    r = (veil(src, A, halo) - field)[keep] / (E * cie146.veil_per_lux(th[keep], A))
                     got.append(f"{r.min():.2f}-{r.max():.2f}")
                 rows.append(f"| {A:g} | {n} (field {L:g} cd/m^2) | {got[0]} | {got[1]} |")
     return ["## Through the run (`ocl-tonemap run --visibility`, defaults)", "",
             "A 2 x 2-pixel lamp 1e5 times its field (400 x 226 pixels, 50 degrees), E lux at "
             "the eye: the plane's Lveil along the lamp's row over E x CIE 146 at 2-20 degrees "
-            "(min-max), with the run's own pupil, source limit and 0.4-degree veil cells.", "",
+            "(min-max), the veil of the field without the lamp taken off: the disability veil "
+            "of the whole field (CIE 146 over every 0.4-degree cell's light, brought back "
+            "bilinearly; issue 56), and with the flare's lenticular halo added "
+            "(`--veil-halo`, the picture's ring).", "",
             "| age | level | Lveil / CIE 146 | with `--veil-halo` |", "|---|---|---|---|",
             *rows]
 
@@ -155,7 +164,8 @@ def main(argv=None) -> int:
               "pupil) adds to it at 1.8-4.9 degrees, most at night, where CIE 146 (a smooth "
               "fit to measured veils, no ring) has none (docs/models.md, \"Observer age\"). "
               "The picture's flare keeps the halo; `--visibility`'s Lveil, the disability "
-              "veil, is the smooth scatter (`--veil-halo` counts the halo too).", ""]
+              "veil, is CIE 146 over the whole field (`--veil-halo` adds the flare's halo).",
+              ""]
     lines += _through_the_run()
     out = out_path(a, "glare_cie146.md")
     write_markdown(out, lines, [])

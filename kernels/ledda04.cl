@@ -286,6 +286,36 @@ inline float4 blend_global4(const float4 v, const float strength, const float ln
     return exp(strength * log(fmax(v, V_FLOOR)) + (1.0f - strength) * ln_global);
 }
 
+/* ledda_response_slope on four pixels (logarithms inline: log2_positive4). */
+inline float4 ledda_response_slope4(const float4 L, const float4 sc, const float4 sr,
+                                    const float rod_ratio)
+{
+    const float4 lsc = log2_positive4(sc);
+    const float4 Ia_log2 = (lsc - log2(BETA_CONE)) / ALPHA;             /* log2 I_A */
+    const float4 u = clamp((fmax(Ia_log2, log2(V_FLOOR)) * M_LN2_F / M_LN10_F + MES_LOG_OFFSET)
+                           / MES_LOG_SPAN, 0.0f, 1.0f);
+    const float4 mes = u * u * (3.0f - 2.0f * u);
+    const float4 lL = log2_positive4(L);
+    const float4 rc = exp2(N_EXP * (lsc - lL));
+    const float4 rr = exp2(N_EXP * (log2_positive4(sr) - lL - log2(rod_ratio)));
+    return N_EXP * (mes * rc / ((1.0f + rc) * (1.0f + rc))
+                    + (1.0f - mes) * rr / ((1.0f + rr) * (1.0f + rr)));
+}
+
+/* ledda04_observer of the four pixels i .. i + 3: their gains now at L (float4), and
+ * their cone levels I_A in *Ia; the steady gain comes from the run's table. */
+inline float4 ledda04_observer_now4(__global const float *state, const int stride, const int i,
+                                    const float4 L, const float rod_ratio, float4 *Ia)
+{
+    __global const float *s = state + i;
+    const float4 K = vload4(0, s + 9 * stride);
+    const float4 sc = sigma_cone_at4(vload4(0, s), vload4(0, s + stride), vload4(0, s + 6 * stride), K);
+    const float4 sr = sigma_rod_at4(vload4(0, s + 3 * stride), vload4(0, s + 4 * stride),
+                                    vload4(0, s + 7 * stride), K);
+    *Ia = exp2((log2_positive4(sc) - log2(BETA_CONE)) / ALPHA);
+    return ledda_response_slope4(fmax(L, V_FLOOR), sc, sr, rod_ratio);
+}
+
 __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
                            __global const float *Ic, __global const float *state,
                            const int stride, const int n, const float sigma_disp,

@@ -252,12 +252,12 @@ __kernel void vis_planes(const int w, const int h, VIS_GRIDS,
         float4 r = table_at4(lg, select((int4)(0), (int4)(nodes), dL < 0.0f), seg, tab);
         float La[4] = {p[V_LA], p[V_LA], p[V_LA], p[V_LA]};
 #ifdef OBSERVER_LEDDA04
-        const float4 ss = table_at4(lg, (int4)(2 * nodes), seg, tab);
-        for (int j = 0; j < 4; ++j) {
-            const float3 o = ledda04_observer(state, stride, i + j, Lb[j] * p[V_GAIN], p[V_ROD]);
-            r[j] += clamp(ss[j] - log2(fmax(o.x, 1.0e-30f)), 0.0f, TAF_LOG2_MAX);
-            La[j] = o.z / p[V_GAIN];
-        }
+        float4 Ia;
+        const float4 now = ledda04_observer_now4(state, stride, i, Lb * p[V_GAIN], p[V_ROD], &Ia);
+        r += clamp(table_at4(lg, (int4)(2 * nodes), seg, tab) - log2_positive4(fmax(now, 1.0e-30f)),
+                   0.0f, TAF_LOG2_MAX);
+        Ia /= p[V_GAIN];
+        La[0] = Ia.x; La[1] = Ia.y; La[2] = Ia.z; La[3] = Ia.w;
 #endif
         const float4 dl = exp2(r);
         const float4 vl = fabs(dL) / dl;

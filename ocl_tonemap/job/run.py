@@ -364,7 +364,8 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
                 v = view if view is not None else view_pixels(
                     None, vis, run.colour.encode_fast(res.output[..., :3]) if linear
                     else pixels, view_u8)
-                write_view(visibility_path(run.opts.visibility_view, f), v, f)
+                write_view(visibility_path(run.opts.visibility_view, f), v, f,
+                           run.opts.png_level, run.opts.png_filter)
         except FrameError:
             raise
         except Exception as exc:

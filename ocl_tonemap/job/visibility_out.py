@@ -25,7 +25,7 @@ from ..models import spencer1995 as fl
 from ..models.cie146 import EXCLUDE_DEG
 from ..models.photometry import Y_WEIGHTS
 from ..patterns import frame_path, is_sequence, same_file
-from ..imageio import FrameError
+from ..imageio import PNG_FILTER, PNG_FILTERS, PNG_LEVEL, FrameError
 from ..imagewrite import verify_written
 from ..backends.base import (ViewPaint, VisibilityPlanes, VisibilityRequest, paint_view)
 from ..models.visibility_map import PLANES, Geometry, recipe, scene_luminance, value_at
@@ -272,9 +272,10 @@ def shown_codes(pixels: np.ndarray) -> np.ndarray:
     return a[..., :3].astype(np.float32)
 
 
-def write_view(path: str, pixels: np.ndarray, f) -> None:
-    """The view (its pixels, :func:`view_pixels`) with the legend below: 8-bit, or half
-    floats for an EXR."""
+def write_view(path: str, pixels: np.ndarray, f, png_level: int = PNG_LEVEL,
+               png_filter: str = PNG_FILTER) -> None:
+    """The view (its pixels, :func:`view_pixels`) with the legend below: 8-bit (a PNG
+    at the run's zlib level and row filter, as its frames), or half floats for an EXR."""
     h, w = pixels.shape[:2]
     exr = path.lower().endswith(".exr")
     legend = view_legend(w, h)
@@ -287,6 +288,8 @@ def write_view(path: str, pixels: np.ndarray, f) -> None:
     spec.attribute("oiio:ColorSpace", "sRGB")
     spec.attribute("ImageDescription", "ocl-tonemap visibility view: VL bands "
                    + ", ".join(lab for _, _, lab in VIEW_BANDS))
+    spec.attribute("png:compressionLevel", int(png_level))
+    spec.attribute("png:filter", PNG_FILTERS[png_filter])
     _write_verified(path, data, spec, f)
 
 

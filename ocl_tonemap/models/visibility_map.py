@@ -133,9 +133,8 @@ def block_mean(a: np.ndarray, s: int) -> np.ndarray:
     they have), in ``a``'s float type: the whole blocks as a sum of s^2 strided
     slices (no reshaped reductions over short axes, which NumPy runs slowly).
 
-    >>> block_mean(np.arange(15.0).reshape(3, 5), 2)
-    array([[ 3. ,  5. ,  6.5],
-           [10.5, 12.5, 14. ]])
+    >>> block_mean(np.arange(15.0).reshape(3, 5), 2).tolist()
+    [[3.0, 5.0, 6.5], [10.5, 12.5, 14.0]]
     """
     a = np.asarray(a)
     dt = a.dtype if a.dtype in (np.float32, np.float64) else np.float32
