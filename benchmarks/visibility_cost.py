@@ -36,6 +36,50 @@ def _timed(cmd) -> tuple[float, float]:
     return dt, int(r.stderr.strip().splitlines()[-1]) / 1024.0
 
 
+def _stages(size: str, frames: int = 8) -> list:
+    """Where a frame's visibility goes, in this process (the median of ``frames``): the
+    planes on the device (``Backend.visibility``, a 1080p tunnel frame, pattanaik00's
+    observer; ledda04's per-pixel one needs its schedule's state and is in the table
+    above), the write of the half and float EXR with its read-back, the view's pixels
+    and its PNG."""
+    import numpy as np
+    from ocl_tonemap.backends.base import VisibilityRequest
+    from ocl_tonemap.backends.opencl import OpenCLBackend
+    from ocl_tonemap.job.visibility_out import view_pixels, write_view, write_visibility
+    from ocl_tonemap.models.visibility_map import Geometry, recipe
+    from ocl_tonemap.operators import get_operator
+    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.visibility import Viewing
+    w, h = (int(v) for v in size.split("x"))
+    pix = render_frame(1.0, w, h, 8.0, ss=1).astype(np.float16)
+    be = OpenCLBackend()
+    op = get_operator("pattanaik00")({})
+    obs = op.observer_preadapted(1000.0, None)
+    view = Viewing()
+    r = recipe(Geometry(h, w, 50.0), view.size_arcmin, view.age)
+    shown = (np.clip(np.asarray(pix[..., :3], np.float32) / 5000.0, 0, 1) * 255).astype(np.uint8)
+    t: dict = {}
+
+    def timed(name, fn):
+        t0 = time.perf_counter()
+        out = fn()
+        t.setdefault(name, []).append(1e3 * (time.perf_counter() - t0))
+        return out
+    with tempfile.TemporaryDirectory() as d:
+        for _ in range(frames):
+            for kind, dt in (("half", np.float16), ("float", np.float32)):
+                req = VisibilityRequest(pix, 1.0, r, view, op, lambda: obs, None, None, dt)
+                P = timed(f"planes on the device ({kind})", lambda: be.visibility(req))
+                timed(f"EXR write + read-back ({kind}, {P.data.nbytes / 2**20:.0f} MiB)",
+                      lambda: write_visibility(os.path.join(d, "v.exr"), P, None, view,
+                                               "pattanaik00", 50.0))
+            v = timed("view's pixels (device)", lambda: view_pixels(be, P, shown, True))
+            timed("view's PNG (level 1, sub)", lambda: write_view(os.path.join(d, "w.png"),
+                                                                  v, None))
+    return ["| stage, a frame | ms (median) |", "|---|---|",
+            *(f"| {k} | {statistics.median(v):.1f} |" for k, v in t.items())]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_out_args(ap, "visibility_cost.md")
@@ -77,10 +121,11 @@ def main(argv=None) -> int:
              "runs of the whole command; peak: the largest resident set).", "",
              "| operator | run | s | ms / frame | ms / frame more | share of the run | "
              "peak MiB |", "|---|---|---|---|---|---|---|", *rows, "",
-             "The planes are made on the host in NumPy (the surround and target blurs on "
-             "coarser grids, the veil on 0.4-degree cells, the threshold from a table) and "
-             "written uncompressed on the writer thread: docs/models.md, \"Visibility "
-             "maps\"."]
+             "The planes are made on the OpenCL device from the luminance the frame's "
+             "colour stage kept there (grids, the veil's cells, one kernel a pixel; a CPU "
+             "device's veil by the host's FFT), come down as half floats and are written "
+             "uncompressed on the writer thread: docs/models.md, \"Visibility maps\".", "",
+             *_stages(a.size)]
     out = out_path(a, "visibility_cost.md")
     write_markdown(out, lines, [])
     print(f"wrote {out}")

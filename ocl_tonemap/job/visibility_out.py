@@ -19,16 +19,16 @@ import OpenImageIO as oiio
 
 from .. import safeio
 from ..backends import flare_exec as fx
+from ..backends.base import ViewPaint, VisibilityPlanes, VisibilityRequest, paint_view
+from ..imageio import PNG_FILTER, PNG_FILTERS, PNG_LEVEL, FrameError
+from ..imagewrite import verify_written
 from ..models import adrian1989 as ad
 from ..models import cie88
 from ..models import spencer1995 as fl
 from ..models.cie146 import EXCLUDE_DEG
 from ..models.photometry import Y_WEIGHTS
-from ..patterns import frame_path, is_sequence, same_file
-from ..imageio import PNG_FILTER, PNG_FILTERS, PNG_LEVEL, FrameError
-from ..imagewrite import verify_written
-from ..backends.base import (ViewPaint, VisibilityPlanes, VisibilityRequest, paint_view)
 from ..models.visibility_map import PLANES, Geometry, recipe, scene_luminance, value_at
+from ..patterns import frame_path, is_sequence, same_file
 from ..visibility import Viewing, seen
 
 #: The flags that give the run's observer (``Viewing.check`` names them in errors).
@@ -296,12 +296,14 @@ def write_view(path: str, pixels: np.ndarray, f, png_level: int = PNG_LEVEL,
 def check_visibility(opts, jobs) -> None:
     """Refuse a bad ``--visibility`` or ``--visibility-view`` before the first frame:
     their names, their patterns against the run's frames, an input or output they
-    would overwrite, the target size."""
+    would overwrite, the observer (``Viewing.check``: what the API gives unchecked by
+    the flags' parsers too)."""
     if not (opts.visibility or opts.visibility_view or opts.target):
         return
-    if not (opts.target_size > 0 and math.isfinite(opts.target_size)):
-        raise ValueError(f"--target-size: the target size must be > 0 arcmin (got "
-                         f"{opts.target_size:g})")
+    viewing(opts, getattr(opts.effects, "age", None) or fl.DEFAULT_AGE)
+    if opts.visibility_type not in ("half", "float"):
+        raise ValueError(f"--visibility-type must be half or float (got "
+                         f"{opts.visibility_type!r})")
     if opts.visibility and not opts.visibility.lower().endswith(".exr"):
         raise ValueError(f"--visibility writes OpenEXR: name it .exr (got {opts.visibility})")
     numbered = any(f is not None for f, *_ in jobs)
