@@ -192,19 +192,26 @@ inline void vis_store(const float v, const size_t at, __global void *out, int *o
                   __global const float *vg, const int vw, const int vh, const int vs
 #define VIS_GRID_ARGS tg, tw, th, ts, sg, sw, sh, ss, vg, vw, vh, vs
 
-inline int vis_pixel(const int x, const int y, const int w, VIS_GRIDS,
+/* The three grids' rows at row y: each grid's two rows and the second's weight. */
+typedef struct { int t0, t1, s0, s1, v0, v1; float ta, sa, va; } VisRows;
+
+inline VisRows vis_rows(const int y, VIS_GRIDS)
+{
+    VisRows r;
+    vis_cells(y, th, ts, &r.t0, &r.t1, &r.ta);
+    vis_cells(y, sh, ss, &r.s0, &r.s1, &r.sa);
+    vis_cells(y, vh, vs, &r.v0, &r.v1, &r.va);
+    return r;
+}
+
+inline int vis_pixel(const int x, const int y, const int w, const VisRows r, VIS_GRIDS,
                      __constant float *seg, __global const float *tab,
                      __global const float *state, const int stride, const float *p,
                      __global void *out)
 {
-    int t0, t1, s0, s1, v0, v1;
-    float ta, sa, va;
-    vis_cells(y, th, ts, &t0, &t1, &ta);
-    vis_cells(y, sh, ss, &s0, &s1, &sa);
-    vis_cells(y, vh, vs, &v0, &v1, &va);
-    const float tgt = fmax(vis_up(tg, tw, ts, x, t0, t1, ta), 0.0f);
-    const float sur = fmax(vis_up(sg, sw, ss, x, s0, s1, sa), 0.0f);
-    const float veil = fmax(vis_up(vg, vw, vs, x, v0, v1, va), 0.0f);
+    const float tgt = fmax(vis_up(tg, tw, ts, x, r.t0, r.t1, r.ta), 0.0f);
+    const float sur = fmax(vis_up(sg, sw, ss, x, r.s0, r.s1, r.sa), 0.0f);
+    const float veil = fmax(vis_up(vg, vw, vs, x, r.v0, r.v1, r.va), 0.0f);
     const float Lb = fmax(sur + veil, LB_FLOOR);
     const float dL = tgt - sur;
     const int i = y * w + x;
@@ -236,30 +243,26 @@ __kernel void vis_planes(const int w, const int h, VIS_GRIDS,
     float p[16];
     unpack16(pv, p);
     int over = 0;
+    const VisRows r = vis_rows(y, VIS_GRID_ARGS);
     if (K == 4 && x0 + 3 < w) {
-        int t0, t1, s0, s1, v0, v1;
-        float ta, sa, va;
-        vis_cells(y, th, ts, &t0, &t1, &ta);
-        vis_cells(y, sh, ss, &s0, &s1, &sa);
-        vis_cells(y, vh, vs, &v0, &v1, &va);
-        const float4 tgt = fmax(vis_up4(tg, tw, ts, x0, t0, t1, ta), 0.0f);
-        const float4 sur = fmax(vis_up4(sg, sw, ss, x0, s0, s1, sa), 0.0f);
-        const float4 veil = fmax(vis_up4(vg, vw, vs, x0, v0, v1, va), 0.0f);
+        const float4 tgt = fmax(vis_up4(tg, tw, ts, x0, r.t0, r.t1, r.ta), 0.0f);
+        const float4 sur = fmax(vis_up4(sg, sw, ss, x0, r.s0, r.s1, r.sa), 0.0f);
+        const float4 veil = fmax(vis_up4(vg, vw, vs, x0, r.v0, r.v1, r.va), 0.0f);
         const float4 Lb = fmax(sur + veil, LB_FLOOR), dL = tgt - sur;
         const float4 lg = log2_positive4(Lb);
         const int i = y * w + x0;
         const int nodes = (int)p[V_NODES];
-        float4 r = table_at4(lg, select((int4)(0), (int4)(nodes), dL < 0.0f), seg, tab);
+        float4 lt = table_at4(lg, select((int4)(0), (int4)(nodes), dL < 0.0f), seg, tab);
         float La[4] = {p[V_LA], p[V_LA], p[V_LA], p[V_LA]};
 #ifdef OBSERVER_LEDDA04
         float4 Ia;
         const float4 now = ledda04_observer_now4(state, stride, i, Lb * p[V_GAIN], p[V_ROD], &Ia);
-        r += clamp(table_at4(lg, (int4)(2 * nodes), seg, tab) - log2_positive4(fmax(now, 1.0e-30f)),
-                   0.0f, TAF_LOG2_MAX);
+        lt += clamp(table_at4(lg, (int4)(2 * nodes), seg, tab)
+                    - log2_positive4(fmax(now, 1.0e-30f)), 0.0f, TAF_LOG2_MAX);
         Ia /= p[V_GAIN];
         La[0] = Ia.x; La[1] = Ia.y; La[2] = Ia.z; La[3] = Ia.w;
 #endif
-        const float4 dl = exp2(r);
+        const float4 dl = exp2(lt);
         const float4 vl = fabs(dL) / dl;
         const size_t at = (size_t)i * 5;                     /* 20 values: 5 x 4 */
         const float4 v[5] = {(float4)(La[0], veil.x, Lb.x, dl.x),
@@ -279,7 +282,7 @@ __kernel void vis_planes(const int w, const int h, VIS_GRIDS,
         }
     } else {
         for (int x = x0; x < min(x0 + K, w); ++x)
-            over += vis_pixel(x, y, w, VIS_GRID_ARGS, seg, tab, state, stride, p, out);
+            over += vis_pixel(x, y, w, r, VIS_GRID_ARGS, seg, tab, state, stride, p, out);
     }
     if (over) atomic_add(clamped, over);
 }
@@ -305,7 +308,7 @@ __kernel void vis_view(__global const void *shown, const int w, const int h,
 #if SHOWN_BITS == 8
     const float3 c = convert_float3(vload3(i, (__global const uchar *)shown)) / 255.0f;
 #elif SHOWN_BITS == 16
-    const float3 c = convert_float3(vload3(i, (__global const ushort *)shown)) / 65535.0f;
+    const float3 c = convert_float3(vload3(i, (__global const ushort *)shown)) / (float)USHRT_MAX;
 #else
     const float3 c = vload3(i, (__global const float *)shown);
 #endif
