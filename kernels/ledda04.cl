@@ -203,20 +203,17 @@ __kernel void ledda04_step(__global const float *Ic, __global const float *Ir,
 }
 
 /* Pixel i's observer for a visibility threshold (kernels/visibility.cl, its
- * OBSERVER_LEDDA04 build; ledda04.py observer_slope, observer_steady_slope,
- * observer_level): (gain now, gain when adapted to L, cone level I_A) at a background
- * of L cd/m^2 (the light behind the media), from its state's current sigmas. */
-inline float3 ledda04_observer(__global const float *state, const int stride, const int i,
+ * OBSERVER_LEDDA04 build; ledda04.py observer_slope, observer_level): (gain now, cone
+ * level I_A) at a background of L cd/m^2 (the light behind the media), from its
+ * state's current sigmas; the gain when adapted there comes from the run's table. */
+inline float2 ledda04_observer(__global const float *state, const int stride, const int i,
                                const float L, const float rod_ratio)
 {
     __global const float *s = state + i;
     const float K = s[9 * stride];
     const float sc = sigma_cone_at(s[0], s[stride], s[6 * stride], K);
     const float sr = sigma_rod_at(s[3 * stride], s[4 * stride], s[7 * stride], K);
-    const float Lf = fmax(L, V_FLOOR);
-    return (float3)(ledda_response_slope(Lf, sc, sr, rod_ratio),
-                    ledda_response_slope(Lf, sigma_of(Lf, BETA_CONE),
-                                         sigma_of(Lf * rod_ratio, BETA_ROD), rod_ratio),
+    return (float2)(ledda_response_slope(fmax(L, V_FLOOR), sc, sr, rod_ratio),
                     powp(sc / BETA_CONE, 1.0f / ALPHA));
 }
 

@@ -1,14 +1,14 @@
 /* Visibility planes (run --visibility): the target's and the surround's luminance, the
  * veil of the whole field, the threshold under the observer's state and the visibility
- * level, per pixel. Reference: ocl_tonemap/visibility.py (reference_planes, float64).
- * The threshold comes from the run's tables of log2 dL_th over log2 L_b
- * (visibility.threshold_tables: Adrian's steady threshold of both polarities, times a
+ * level, per pixel. Reference: ocl_tonemap/models/visibility_map.py (reference_planes,
+ * float64). The threshold comes from the run's tables of log2 dL_th over log2 L_b
+ * (models/threshold_tables.py: Adrian's steady threshold of both polarities, times a
  * global observer's TAF; its segments split at Adrian's joins and the operator's steps,
  * so that a lookup is exact there). TAF_LOG2_MAX, LB_FLOOR and VIS_HALF_MAX come as
  * build options from ocl_tonemap/ (backends/opencl/visibility.py, KERNEL_CONSTANTS). */
 
 /* Means of s x s blocks of a w x h plane into cw x ch cells (the edge blocks of the
- * pixels they have: visibility.block_mean), x unit. One cell a work-item. */
+ * pixels they have: visibility_map.block_mean), x unit. One cell a work-item. */
 __kernel void vis_block_means(__global const float *Y, const int w, const int h,
                               const int s, const float unit, __global float *out,
                               const int cw, const int ch)
@@ -60,7 +60,7 @@ inline void vis_cells(const int i, const int n, const int l, int *c0, int *c1, f
 
 /* Pixel x of a grid 2^l times coarser (gw block centres a row, its edges held),
  * bilinearly: along y (rows r0, r1 and weight ay given), then along x
- * (visibility.upsample). */
+ * (visibility_map.upsample). */
 inline float vis_up(__global const float *g, const int gw, const int l, const int x,
                     const int y0, const int y1, const float ay)
 {
@@ -105,7 +105,7 @@ inline float4 vis_up4(__global const float *g, const int gw, const int l, const 
 }
 
 /* A table's value at log2 L_b = lg: its segment (seg: [n, starts, steps, offsets,
- * total nodes]), then linear between the segment's nodes (visibility.table_lookup). */
+ * total nodes]), then linear between the segment's nodes (threshold_tables.table_lookup). */
 inline float table_at(const float lg, __constant float *seg, __global const float *t)
 {
     const int n = (int)seg[0];
@@ -143,7 +143,7 @@ inline float4 table_at4(const float4 lg, const int4 row_off, __constant float *s
     return t0 * (1.0f - f) + t1 * f;
 }
 
-/* The run's scalars (the float16 argument; backends/opencl/visibility.py run_params). */
+/* The run's scalars (the float16 argument; backends/opencl/visibility.py planes()). */
 #define V_GAIN 0            /* the ocular media's gain (the states hold the light behind it) */
 #define V_LA 1              /* a global observer's cone level, scene cd/m^2 */
 #define V_NODES 2           /* the tables' nodes (a row's length) */
@@ -160,10 +160,10 @@ inline float vis_log2_threshold(const float Lb, const float lg, const int negati
     const int nodes = (int)p[V_NODES];
     float r = table_at(lg, seg, tab + (negative ? nodes : 0));
 #ifdef OBSERVER_LEDDA04
-    const float3 o = ledda04_observer(state, stride, i, Lb * p[V_GAIN], p[V_ROD]);
+    const float2 o = ledda04_observer(state, stride, i, Lb * p[V_GAIN], p[V_ROD]);
     const float ss = table_at(lg, seg, tab + 2 * nodes);
     r += clamp(ss - log2(fmax(o.x, 1.0e-30f)), 0.0f, TAF_LOG2_MAX);
-    *La = o.z / p[V_GAIN];
+    *La = o.y / p[V_GAIN];
 #else
     *La = p[V_LA];
 #endif
@@ -182,7 +182,8 @@ inline void vis_store(const float v, const size_t at, __global void *out, int *o
 #endif
 }
 
-/* The planes of one pixel (x, y): La, Lveil, Lb, dLth, VL interleaved (visibility.PLANES).
+/* The planes of one pixel (x, y): La, Lveil, Lb, dLth, VL interleaved
+ * (visibility_map.PLANES).
  *   tg, sg, vg: the target's and the surround's blurred grids, the veil's cells, each
  *   with its width, height and log2 of its step;
  *   tab: the run's tables on their segments (seg); state: ledda04's per-pixel state

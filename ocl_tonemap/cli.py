@@ -105,7 +105,7 @@ def _simulate_args(p) -> None:
 
 def _visibility_args(p) -> None:
     # lazy: this parser is built for its own command only (NumPy with the models)
-    from .models.adrian1989 import FIELD_FACTOR, VARIANTS
+    from .models.adrian1989 import ADRIAN_1989, FIELD_FACTOR, VARIANTS
     from .visibility import INPUTS, OBSERVATION_S, TARGET_ARCMIN  # lazy: as above
 
     def q(flag, name, help_, **kw):
@@ -118,7 +118,8 @@ def _visibility_args(p) -> None:
       "a --visibility map's Lveil; default 0)", default=0.0, metavar="L")
     q("--size", "size", f"target size, arcmin (a disc of the same area; default "
       f"{TARGET_ARCMIN:g})", default=TARGET_ARCMIN, metavar="ARCMIN")
-    q("--age", "age", "observer age, years (default 25)", default=25.0, metavar="YEARS")
+    q("--age", "age", "observer age, years (default 25; with --state the run's)",
+      metavar="YEARS")
     q("--time", "time", f"observation time, s (default {OBSERVATION_S:g}, RP-8's: the "
       "run's --observation-time too)", default=OBSERVATION_S, metavar="S")
     p.add_argument("--negative", action="store_true",
@@ -128,7 +129,7 @@ def _visibility_args(p) -> None:
       metavar="L")
     q("--k", "k", f"field factor (default {FIELD_FACTOR:g}: 99.93%% detection, RP-8; "
       "1: the laboratory's 50%%)", default=FIELD_FACTOR)
-    p.add_argument("--adrian", choices=sorted(VARIANTS), default="1989",
+    p.add_argument("--adrian", choices=sorted(VARIANTS), default=ADRIAN_1989.name,
                    help="Adrian's model as this project reads it (1989, default) or as "
                    "ANSI/IES RP-8-00 prints it (rp8): docs/models.md, D1-D7")
     p.add_argument("--state", metavar="FILE",

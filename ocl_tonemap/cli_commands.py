@@ -176,26 +176,31 @@ def visibility(a, argv) -> int:
     from . import visibility as vis  # lazy: a command loads its own layers
     from .models import adrian1989 as ad  # lazy: a command loads its own layers
     from .models import cie203  # lazy: a command loads its own layers
-    view = vis.Viewing(a.size, a.age, a.time, a.k, a.adrian).check()
+    from .models.spencer1995 import DEFAULT_AGE  # lazy: a command loads its own layers
+    st = _run_state(a)
+    age = a.age if a.age is not None else DEFAULT_AGE
+    view = vis.Viewing(a.size, age, a.time, a.k, a.adrian).check()
     polarity = _polarity(a)
     L_b = a.background + a.veil                       # CIE 88: the veil adds to L_b
-    th = ad.threshold(L_b, a.size, a.age, a.time, polarity, a.k, a.adrian)
+    th = ad.threshold(L_b, a.size, age, a.time, polarity, a.k, a.adrian)
     out = th.as_dict()
-    out.update(background=a.background, veil=a.veil, observer=view.describe())
-    media = cie203.media_factors(a.age)
+    out.update(background=a.background, veil=a.veil, observer=view.describe(),
+               dL_th_adapted=th.dL_th)
+    media = cie203.media_factors(age)
     out["media"] = {"photopic": media[0], "scotopic": media[1], "ref_age": cie203.AGE_REF}
-    state = _visibility_state(a, view, polarity)
+    state = _visibility_state(a, st, view, polarity)
     if state is not None:
         out["state"] = state
         out["dL_th"] = state["dL_th"]
+        out["C_th"] = state["dL_th"] / L_b
     if a.target is not None:
         out["L_target"] = a.target
         out["VL"] = abs(a.target - a.background) / out["dL_th"]
     step = _visibility_step(a, view, polarity)
     if step is not None:
         out["step"] = step
-    if a.json:
-        print(json.dumps(out, indent=1))
+    if a.json:                       # (a long look's inf as a string: JSON has no Infinity)
+        print(json.dumps(_finite_json(out), indent=1))
         return 0
     rows = [("background L_b", f"{a.background:.6g} cd/m^2"),
             ("veil L_veil", f"{a.veil:.6g} cd/m^2"),
@@ -252,25 +257,59 @@ def _polarity(a) -> str:
     return "negative" if a.target < a.background else "positive"
 
 
-def _visibility_state(a, view, polarity: str) -> dict | None:
-    """``--state FILE [--pixel X,Y]``: the target seen by the observer a run left
-    (``visibility.seen``, the run's ``--target`` line's formula); None without it."""
+def _run_state(a):
+    """``--state FILE``: the state a run left (None without it), the run's observer age
+    taken where ``--age`` is not given (the state holds the light behind that age's
+    media: another age would read it wrongly, so a different one is refused)."""
     if a.state is None:
         if a.pixel is not None:
             raise ValueError("--pixel needs --state FILE (a local operator's state)")
+        if a.operator is not None and a.adapted_to is None:
+            raise ValueError("--operator needs --adapted-to L0 (whose time course after a "
+                             "step); with --state the state says whose eye")
         return None
     for flag, given in (("--adapted-to", a.adapted_to), ("--for", a.adapted_for),
                         ("--after", a.after), ("--plot", a.plot)):
         if given is not None:
             raise ValueError(f"--state gives the eye as a run left it; {flag} (a step "
                              "from a uniform field) cannot go with it")
-    from .operators import get_operator  # lazy: a command loads its own layers
+    from .models import spencer1995 as fl  # lazy: a command loads its own layers
     from .state_files import load_state  # lazy: a command loads its own layers
-    from .visibility import seen  # lazy: a command loads its own layers
     st = load_state(a.state)
     if a.operator is not None and a.operator != st.operator:
         raise ValueError(f"--operator {a.operator}: the state {a.state} is {st.operator}'s")
-    op = get_operator(st.operator)({})
+    run = st.extra.get("run") or {}
+    age = (run.get("effects") or {}).get("age")
+    if age is not None:
+        age = fl.DEFAULT_AGE if fl.is_literal(age) else float(age)
+        if a.age is not None and a.age != age:
+            raise ValueError(f"--age {a.age:g}: the state {a.state} is a {age:g}-year-old's "
+                             "run (its light behind that age's lenses); give --age "
+                             f"{age:g} or leave --age out")
+        a.age = age
+    return st
+
+
+def _finite_json(v):
+    """``v`` with infinite floats as the strings "inf" and "-inf" (strict JSON)."""
+    if isinstance(v, dict):
+        return {k: _finite_json(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_finite_json(x) for x in v]
+    if isinstance(v, float) and math.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    return v
+
+
+def _visibility_state(a, st, view, polarity: str) -> dict | None:
+    """The target seen by the observer the run left (``--state FILE [--pixel X,Y]``:
+    ``visibility.seen``, the run's ``--target`` line's formula; its operator with the
+    run's options); None without it."""
+    if st is None:
+        return None
+    from .operators import get_operator  # lazy: a command loads its own layers
+    from .visibility import seen  # lazy: a command loads its own layers
+    op = get_operator(st.operator)(dict((st.extra.get("run") or {}).get("options") or {}))
     obs = op.observer_of(st)
     if op.observer_per_pixel:
         if a.pixel is None:

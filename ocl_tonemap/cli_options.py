@@ -257,8 +257,9 @@ def _output_flags(g) -> None:
     g.add_argument("--observation-time", type=look.arg("--observation-time"),
                    default=OBSERVATION_S, metavar="S", help=f"... the look (default "
                    f"{OBSERVATION_S:g}, RP-8's)")
-    from .models.adrian1989 import VARIANTS  # lazy: the run's parser (NumPy already there)
-    g.add_argument("--adrian", choices=sorted(VARIANTS), default="1989",
+    # lazy: the run's parser (NumPy already there)
+    from .models.adrian1989 import ADRIAN_1989, VARIANTS
+    g.add_argument("--adrian", choices=sorted(VARIANTS), default=ADRIAN_1989.name,
                    help="... Adrian's threshold: 1989 (default) or RP-8-00's")
     g.add_argument("--visibility-type", choices=("half", "float"), default="half",
                    help="... the planes' samples (default half)")
@@ -273,18 +274,22 @@ def _output_flags(g) -> None:
 
 def _output_build(a, tier) -> dict:
     from .job.options import parse_export_size  # lazy: the parser loads no OIIO
+    from .models.adrian1989 import ADRIAN_1989  # lazy: the parser's NumPy, as above
     from .quantities import OBSERVATION_S, TARGET_ARCMIN
     from .job.visibility_out import parse_target  # lazy: the parser loads no OIIO
     if a.plot_frames and not a.plot:
         log.warning("--plot-frames applies to --plot: ignored")
     seen = a.visibility or a.visibility_view or a.target
-    for flag, given in (("--veil-halo", a.veil_halo),
-                        ("--observation-time", a.observation_time != OBSERVATION_S),
-                        ("--adrian", a.adrian != "1989"),
-                        ("--target-size", a.target_size != TARGET_ARCMIN)):
-        if given and not seen:
-            log.warning("%s applies to --visibility, --visibility-view and --target: "
-                        "ignored", flag)
+    maps = a.visibility or a.visibility_view
+    every = "--visibility, --visibility-view and --target"
+    for flag, given, used, where in (
+            ("--veil-halo", a.veil_halo, seen, every),
+            ("--observation-time", a.observation_time != OBSERVATION_S, seen, every),
+            ("--adrian", a.adrian != ADRIAN_1989.name, seen, every),
+            ("--target-size", a.target_size != TARGET_ARCMIN, maps,
+             "--visibility and --visibility-view (--target has its SIZE)")):
+        if given and not used:
+            log.warning("%s applies to %s: ignored", flag, where)
     if a.visibility_type != "half" and not a.visibility:
         log.warning("--visibility-type applies to --visibility: ignored")
     return {"encode": a.encode, "out_bits": a.out_bits, "png_level": a.png_level,

@@ -26,7 +26,7 @@ from .models import cie203
 from .models.visibility_map import transient
 from .quantities import LUMINANCE_RANGE, OBSERVATION_S, TARGET_ARCMIN, VISIBILITY
 
-_LO, _HI = LUMINANCE_RANGE
+_LO = LUMINANCE_RANGE[0]
 #: Every number the visibility takes, declared once (``quantities.VISIBILITY``).
 INPUTS = VISIBILITY
 

@@ -11,8 +11,10 @@ from pathlib import Path
 from ..backends.quality import quality_tier
 from ..calibration import check_luminance
 from ..imageio import LINEAR_FORMATS, PNG_FILTERS
+from ..models.adrian1989 import ADRIAN_1989
 from ..models.photometry import RepairCounts
 from ..patterns import MAX_FRAME
+from ..quantities import OBSERVATION_S, TARGET_ARCMIN
 from ..safeio import read_text
 
 DEFAULT_FPS = 24.0
@@ -62,9 +64,9 @@ class JobOptions:
     plot_frames: list[int] | None = None
     visibility: str | None = None       # per-frame visibility planes, EXR (job/visibility_out.py)
     visibility_view: str | None = None  # ... its false-colour view over the frame
-    target_size: float = 10.0           # --target-size, arcmin
-    observation_time: float = 0.2       # --observation-time, s (visibility.OBSERVATION_S)
-    adrian: str = "1989"                # --adrian 1989|rp8 (models/adrian1989.py, D1-D7)
+    target_size: float = TARGET_ARCMIN  # --target-size, arcmin
+    observation_time: float = OBSERVATION_S  # --observation-time, s
+    adrian: str = ADRIAN_1989.name      # --adrian 1989|rp8 (models/adrian1989.py, D1-D7)
     visibility_type: str = "half"       # --visibility-type half|float: the planes' samples
     veil_halo: bool = False             # --veil-halo: Lveil with the flare's lenticular halo
     target: tuple | None = None         # --target X,Y,SIZE: one target tracked through the shot

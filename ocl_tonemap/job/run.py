@@ -334,7 +334,7 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
                                run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
         vis = req = view = None
         if seen:
-            req = frame_request(tm, fin, res.info, run.opts)
+            req = frame_request(tm, fin, res.info, run.opts, run.once)
             vis = frame_visibility(tm, req)
             if run.opts.target:
                 res.info.visibility = target_visibility(tm, req, vis, run.opts)
@@ -359,7 +359,7 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
                         png_level=run.opts.png_level, png_filter=run.opts.png_filter)
             if vis is not None and run.opts.visibility:
                 write_visibility(visibility_path(run.opts.visibility, f), vis, f, req.view,
-                                 tm.op.name, tm.effects.settings.fov_deg, run.opts.veil_halo)
+                                 tm.op.name, tm.effects.settings.fov_deg, req.halo is not None)
             if vis is not None and run.opts.visibility_view:
                 v = view if view is not None else view_pixels(
                     None, vis, run.colour.encode_fast(res.output[..., :3]) if linear

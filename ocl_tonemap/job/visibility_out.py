@@ -11,6 +11,7 @@ header; ``--target`` follows one target through the shot with the same observer
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 
@@ -27,20 +28,26 @@ from ..models import cie88
 from ..models import spencer1995 as fl
 from ..models.cie146 import EXCLUDE_DEG
 from ..models.photometry import Y_WEIGHTS
-from ..models.visibility_map import PLANES, Geometry, recipe, scene_luminance, value_at
+from ..models.visibility_map import (PLANES, Geometry, below_a_pixel, recipe, scene_luminance,
+                                     value_at)
 from ..patterns import frame_path, is_sequence, same_file
+from ..quantities import VISIBILITY
 from ..visibility import Viewing, seen
+
+log = logging.getLogger("ocl_tonemap")
 
 #: The flags that give the run's observer (``Viewing.check`` names them in errors).
 RUN_FLAGS = {"size": "--target-size", "time": "--observation-time", "age": "--age"}
 
 
-def viewing(opts, age) -> Viewing:
+def viewing(opts, age, check: bool = True) -> Viewing:
     """The map's target and observer: ``--target-size``, ``--observation-time``,
     ``--adrian`` and the run's ``--age`` (the flare's option; ``spencer``, no age,
-    takes Adrian's at the default 25)."""
-    return Viewing(opts.target_size, fl.DEFAULT_AGE if fl.is_literal(age) else float(age),
-                   opts.observation_time, ad.FIELD_FACTOR, opts.adrian).check(RUN_FLAGS)
+    takes Adrian's at the default 25); checked (and Adrian's extrapolations said) once
+    a run, before its first frame."""
+    view = Viewing(opts.target_size, fl.DEFAULT_AGE if fl.is_literal(age) else float(age),
+                   opts.observation_time, ad.FIELD_FACTOR, opts.adrian)
+    return view.check(RUN_FLAGS) if check else view
 
 
 #: What ``Lveil`` counts (the header's ``ocltm:visibility:veil``), without and with
@@ -71,24 +78,34 @@ def halo(flare: dict | None, settings, geometry: Geometry, step: int):
     return ring
 
 
-def frame_request(tm, fin, info, opts) -> VisibilityRequest:
-    """The planes' request of one mapped frame (its input ``fin``, its record ``info``)."""
+def frame_request(tm, fin, info, opts, once=None) -> VisibilityRequest:
+    """The planes' request of one mapped frame (its input ``fin``, its record ``info``);
+    ``once(level, msg, *args)`` says a warning once a run."""
     if fin.wavelengths is not None:
         raise ValueError("--visibility needs the frame's luminance: this operator takes "
                          "the spectrum (give RGB input, or an operator that maps RGB)")
     s = tm.effects.settings
     h, w = fin.pixels.shape[:2]
-    view = viewing(opts, s.age)
+    view = viewing(opts, s.age, check=False)          # (checked before the first frame)
     g = Geometry(h, w, s.fov_deg)
     r = recipe(g, view.size_arcmin, view.age)
+    say = once or (lambda level, msg, *args: log.log(level, msg, *args))
+    if (opts.visibility or opts.visibility_view) and below_a_pixel(g, view.size_arcmin):
+        say(logging.WARNING, "--target-size %g arcmin is below a pixel of this %dx%d frame "
+            "at %g degrees: target and surround are the same, VL is 0 (give a larger size)",
+            view.size_arcmin, w, h, s.fov_deg)
+    flare = info.effects.get("flare")
+    if opts.veil_halo and not (flare and flare.get("ran")):
+        say(logging.WARNING, "--veil-halo: the flare did not run on a frame; its Lveil is "
+            "the disability veil alone (the header says which)")
     op = tm.op
     # a local operator's observer is its per-pixel state (on a device: the backend
     # reads it where it is; the host's planes download it)
     observer = (lambda: op.observer_of(tm.state)) if op.observer_per_pixel else \
         (lambda: op.observer_of(info.state))
     return VisibilityRequest(fin.pixels, fin.scale, r, view, op, observer, tm.schedule,
-                   halo(info.effects.get("flare"), s, g, r.veil_step) if opts.veil_halo
-                   else None, np.float16 if opts.visibility_type == "half" else np.float32)
+                             halo(flare, s, g, r.veil_step) if opts.veil_halo else None,
+                             np.float16 if opts.visibility_type == "half" else np.float32)
 
 
 def frame_visibility(tm, req: VisibilityRequest) -> VisibilityPlanes:
@@ -104,10 +121,15 @@ def parse_target(text: str) -> tuple[float, float, float]:
     except ValueError:
         raise ValueError(f"--target must be X,Y,SIZE (pixels, pixels, arcmin; got "
                          f"{text!r})") from None
-    if not all(math.isfinite(v) for v in (x, y, size)):
-        raise ValueError(f"--target must be finite numbers (got {text!r})")
-    if not size > 0:
-        raise ValueError(f"--target: the size must be > 0 arcmin (got {size:g})")
+    return check_target((x, y, size), text)
+
+
+def check_target(target, given=None) -> tuple[float, float, float]:
+    """``--target``'s X, Y finite, its SIZE the declared target size (0.1..600')."""
+    x, y, size = (float(v) for v in target)
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise ValueError(f"--target must be finite numbers (got {given or target!r})")
+    VISIBILITY["size"].check(size, "--target: SIZE")
     return x, y, size
 
 
@@ -142,8 +164,11 @@ def target_visibility(tm, req: VisibilityRequest, planes: VisibilityPlanes, opts
     else:
         obs = req.observer()
     s = seen(op, obs, view, L_s, veil, L_t)
-    # CIE 88's L_seq at the target, from the same picture (the polar diagram)
-    Lseq, _ = cie88.l_seq(scene_luminance(req.pixels, req.scale), x, y,
+    # CIE 88's L_seq at the target, from the same picture (the polar diagram's reach)
+    R = int(math.ceil(cie88.ring_radii()[-1] / req.recipe.geometry.deg_per_px)) + 1
+    cy0, cx0 = max(0, int(y) - R), max(0, int(x) - R)
+    crop = req.pixels[cy0:int(y) + R + 1, cx0:int(x) + R + 1]
+    Lseq, _ = cie88.l_seq(scene_luminance(crop, req.scale), x - cx0, y - cy0,
                           req.recipe.geometry.deg_per_px)
     return {"x": x, "y": y, "size_arcmin": size, "L_target": L_t, "L_surround": L_s,
             "Lveil": veil, "Lb": s.L_b, "La": s.L_a, "TAF": s.TAF, "dLth": s.dL_th,
@@ -301,6 +326,8 @@ def check_visibility(opts, jobs) -> None:
     if not (opts.visibility or opts.visibility_view or opts.target):
         return
     viewing(opts, getattr(opts.effects, "age", None) or fl.DEFAULT_AGE)
+    if opts.target is not None:
+        check_target(opts.target)
     if opts.visibility_type not in ("half", "float"):
         raise ValueError(f"--visibility-type must be half or float (got "
                          f"{opts.visibility_type!r})")

@@ -45,7 +45,7 @@ L_LOW, L_HIGH = 0.00418, 0.6
 #: Adrian's ages: AF's fits hold for 23 .. 75 years; younger observers take AF(23),
 #: older ones the second fit continued (docs/models.md).
 AGE_MIN, AGE_MID, AGE_MAX = 23.0, 64.0, 75.0
-#: The fits' coefficients (named once: kernels/visibility.cl takes them as build options).
+#: The fits' coefficients, named once.
 #: sqrt(Phi): log10(c L^PHI_HIGH[0]) + PHI_HIGH[1] L^PHI_HIGH[2] above L_HIGH (c the
 #: variant's ricco_high, D1); 10^(PHI_MID . (1, x, x^2)) between; 10^(PHI_LOW . (1, x))
 #: below (x = log10 L_b).

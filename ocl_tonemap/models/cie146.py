@@ -74,8 +74,10 @@ def field_weights(shape: tuple[int, int], deg_per_cell: float, age: float = 25.0
     integral over that cell of (L_veil/E)(theta) cos(theta) dOmega, the general
     equation (:func:`veil_per_lux`) at ``age`` and ``p``, theta the angle from the
     point (the eye looking at it: E on the plane facing it), the part within
-    ``exclude_deg`` left out; a ``sub`` x ``sub`` midpoint rule over square cells
-    ``deg_per_cell`` wide (the picture taken as an angular grid, as the flare does)."""
+    ``exclude_deg`` left out, and what lies 90 degrees or more away (behind the plane
+    the eye faces: no illuminance on it; CIE 146 holds to ~100 degrees); a ``sub`` x
+    ``sub`` midpoint rule over square cells ``deg_per_cell`` wide (the picture taken as
+    an angular grid, as the flare does)."""
     h, w = shape
     d = float(deg_per_cell)
     o = (np.arange(sub) + 0.5) / sub - 0.5                       # midpoints in a cell
@@ -85,8 +87,8 @@ def field_weights(shape: tuple[int, int], deg_per_cell: float, age: float = 25.0
     dA = np.radians(d / sub) ** 2                                # sr of a midpoint's area
     for i in range(sub):                                         # (rows a slice at a time)
         th = np.hypot(ty[i::sub, None], tx[None, :])             # (2h-1, (2w-1) sub)
-        f = np.where(th >= exclude_deg, veil_per_lux(th, age, p) * np.cos(np.radians(th)),
-                     0.0)
+        f = np.where((th >= exclude_deg) & (th < 90.0),
+                     veil_per_lux(th, age, p) * np.cos(np.radians(th)), 0.0)
         K += f.reshape(2 * h - 1, 2 * w - 1, sub).sum(axis=2)
     return K * dA
 

@@ -121,11 +121,22 @@ def recipe(g: Geometry, size_arcmin: float, age: float) -> Recipe:
     steps = []
     for sigma in (size_px / 2.355, SURROUND * size_px / 2.355):   # FWHM = the size
         s = blur_step(sigma, g.height, g.width)
-        steps += [s, gaussian_taps(sigma / s) if sigma / s > 0.3 else np.ones(1)]
+        # (a Gaussian 4 times wider than the grid, its edges reflected, is the grid's
+        # mean to float precision: held there, its taps stay within a kernel's
+        # constant memory at any size and field)
+        sc = min(sigma / s, 4.0 * max(-(-g.height // s), -(-g.width // s)))
+        steps += [s, gaussian_taps(sc) if sc > 0.3 else np.ones(1)]
     sv = veil_step(g)
     shape = (-(-g.height // sv), -(-g.width // sv))
     K = cie146.field_weights(shape, g.deg_per_px * sv, age)
     return Recipe(g, float(size_arcmin), *steps, sv, K)
+
+
+def below_a_pixel(g: Geometry, size_arcmin: float) -> bool:
+    """Whether a target of ``size_arcmin`` is too small for the frame's pixels: its
+    surround's Gaussian (:data:`SURROUND` sizes) then blurs nothing, target and surround
+    are the same, and VL is 0 everywhere."""
+    return SURROUND * size_arcmin * g.px_per_arcmin / 2.355 <= 0.3
 
 
 def block_mean(a: np.ndarray, s: int) -> np.ndarray:

@@ -259,7 +259,9 @@ def test_view_and_target_through_the_drive(drive):
 
 @pytest.mark.parametrize("args,says", [
     (("--target", "500,10,10"), "outside the frame"),
-    (("--target", "10,10,0"), "size must be > 0"),
+    (("--target", "10,10,0"), "--target: SIZE must be 0.1..600 arcmin"),
+    (("--target", "10,10,1e9"), "--target: SIZE must be 0.1..600 arcmin"),
+    (("--target", "nan,10,10"), "--target must be finite numbers"),
     (("--target", "10,10"), "must be X,Y,SIZE"),
     (("--visibility-view", "v.####.xyz"), "no image format"),
 ])
@@ -364,3 +366,31 @@ def test_a_uniform_field_filling_the_view(tmp_path):
     assert P["Lveil"][h // 2, w // 2] == pytest.approx(want, rel=0.01)
     assert want == pytest.approx(4.95, rel=0.01)
     assert P["VL"].max() < 1e-6                              # no detail, nothing to see
+
+
+def test_the_state_carries_the_runs_age(drive):
+    """--state of a 70-year-old's run: the calculator takes 70 (the state holds the
+    light behind those lenses); another --age is refused in one line."""
+    out = _run(drive, "pattanaik00", "reference", "a70", "--age", "70",
+               "--visibility-type", "float")
+    r = _cli("visibility", "--background", "10", "--state", out / "state.json", "--json")
+    assert r.returncode == 0 and json.loads(r.stdout)["observer"]["age"] == 70.0
+    r = _cli("visibility", "--background", "10", "--state", out / "state.json", "--age", "25")
+    assert r.returncode == 2 and "a 70-year-old's run" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_warnings_once_a_run_and_a_target_below_a_pixel(drive, tmp_path):
+    """Adrian's extrapolation (--age 80) said once for the twelve frames; a target below
+    a pixel (its surround blurs nothing: VL 0) said; --veil-halo without the flare's
+    sources: the header says the veil is the disability veil alone."""
+    r = _cli("run", drive / "s" / "tunnel.####.exr", tmp_path / "d.####.png", "--backend",
+             "reference", "--visibility", tmp_path / "v.####.exr", "--age", "80",
+             "--target-size", "0.2", "--veil-halo", "--flare", "off")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.count("--age 80 years is beyond") == 1
+    assert r.stderr.count("is below a pixel") == 1
+    assert r.stderr.count("--veil-halo: the flare did not run") == 1
+    P, spec = _planes(tmp_path / "v.0005.exr")
+    assert P["VL"].max() == 0.0
+    assert "lenticular" not in spec.getattribute("ocltm:visibility:veil")

@@ -97,3 +97,14 @@ def test_the_whole_field_veil_against_cie88_for_a_bright_upper_field():
     K = cie146.field_weights(cells.shape, deg * s, 25.0)
     V = cie146.field_veil(cells, K)[h // s // 2, w // s // 2]
     assert 1 / 1.5 < V / Lseq < 1.5, (V, Lseq)
+
+
+def test_nothing_behind_the_eye_and_never_a_negative_weight():
+    """A fisheye's field reaches past 90 degrees from a point: light there gives no
+    illuminance on the plane the eye faces (cos theta < 0 would subtract)."""
+    K = cie146.field_weights((30, 30), 6.0, 25.0)              # 180 degrees across
+    assert K.min() >= 0.0
+    h, w = 30, 30
+    far = np.hypot(*np.meshgrid(np.arange(-(h - 1), h) * 6.0, np.arange(-(w - 1), w) * 6.0,
+                                indexing="ij")) > 95.0          # (a cell 6 degrees wide)
+    assert np.all(K[far] == 0.0) and K[~far].max() > 0.0

@@ -160,6 +160,15 @@ def test_the_calculator_refuses_bad_input_in_one_line(args, why):
     assert len(r.stderr.strip().splitlines()) == 1 and not r.stdout
 
 
+def test_the_calculators_json_is_strict_and_operator_needs_a_step():
+    r = _cli("--background", "10", "--time", "inf", "--json")
+    assert r.returncode == 0
+    d = json.loads(r.stdout, parse_constant=lambda c: pytest.fail(f"non-JSON {c}"))
+    assert d["time_s"] == "inf" and d["time_factor"] == 1.0
+    r = _cli("--background", "10", "--operator", "ledda04")
+    assert r.returncode == 2 and "--operator needs --adapted-to" in r.stderr
+
+
 def test_the_calculator_honours_negative_and_warns_beyond_adrians_data():
     r = _cli("--background", "10", "--negative", "--json")
     assert r.returncode == 0 and json.loads(r.stdout)["polarity"] == "negative"

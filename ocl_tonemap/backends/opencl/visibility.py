@@ -11,7 +11,7 @@ of ``models/visibility_map.reference_planes`` in float32:
    which is faster there than the sum; ``--veil-halo`` adds the flare's halo on the
    host;
 4. per pixel (``vis_planes``): the three grids brought back bilinearly, the
-   background, log2 dL_th from the run's tables (``visibility.threshold_tables``:
+   background, log2 dL_th from the run's tables (``threshold_tables.threshold_tables``:
    Adrian's threshold x a global observer's TAF, made on the host each frame, ~110
    KiB), or for ledda04 TAF from its per-pixel state where it is (``OBSERVER_LEDDA04``:
    ledda04.cl's observer), the visibility level; the five planes as half or float
@@ -47,7 +47,7 @@ KERNEL_CONSTANTS = (("TAF_LOG2_MAX", math.log2(ad.TAF_MAX)),
 
 
 def _log2(s: int) -> int:
-    """log2 of a grid's step (a power of two: visibility.blur_step, veil_step)."""
+    """log2 of a grid's step (a power of two: visibility_map.blur_step, veil_step)."""
     if s < 1 or s & (s - 1):
         raise ValueError(f"a grid's step must be a power of two (got {s})")
     return s.bit_length() - 1
