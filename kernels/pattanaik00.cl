@@ -14,6 +14,15 @@ inline float saturation(float L, float log2_sigma)
     return 1.0f / (1.0f + exp2(PN * (log2_sigma - log2(fmax(L, L_FLOOR)))));
 }
 
+/* Sec. 4.3's gain R + offset, with the default mode's shadow toe below 2 R_0 (toe):
+ * display black Rk + gain R^2 / (4 R_0) (pattanaik2000.display_response). */
+inline float display_response(const float R, const float gain, const float offset,
+                              const float toe, const float Rk)
+{
+    return (toe > 0.0f && R < 2.0f * toe) ? Rk + gain * R * R / (4.0f * toe)
+                                          : gain * R + offset;
+}
+
 /* One pixel (the scalar path; also the tail of the float8 kernel). */
 inline void map_one(const int i, __global const float *rgb, __global const float *Y,
                     __global const float *Ys, __global float *out,
@@ -21,7 +30,7 @@ inline void map_one(const int i, __global const float *rgb, __global const float
                     const float B_rod, const float B_cone, const float gain, const float offset,
                     const float dB_rod, const float dB_cone, const float ds_rod, const float ds_cone,
                     const float colour_k, const float out_black, const float out_scale,
-                    const float inv_white, const float knee, const float chroma)
+                    const float inv_white, const float knee, const float chroma, const float toe)
 {
     const float Lc = Y[i];
     const float xc = saturation(Lc, log2_sigma_cone);
@@ -30,14 +39,18 @@ inline void map_one(const int i, __global const float *rgb, __global const float
 
     /* inverse display response: (Br+Bc-R) x^2 + (Br sc + Bc sr - R(sr+sc)) x - R sr sc = 0 */
     const float rmax = dB_rod + dB_cone;
-    const float Rd = clamp(gain * R + offset, 0.0f, rmax * (1.0f - RESPONSE_MARGIN));
+    const float Rk = gain * toe + offset;                   /* the display's black response */
+    const float Rd = clamp(display_response(R, gain, offset, toe, Rk), 0.0f,
+                           rmax * (1.0f - RESPONSE_MARGIN));
     const float a = rmax - Rd;
     const float b = dB_rod * ds_cone + dB_cone * ds_rod - Rd * (ds_rod + ds_cone);
     const float c = Rd * ds_rod * ds_cone;
     const float disc = sqrt(b * b + 4.0f * a * c);
     const float x = b > 0.0f ? 2.0f * c / (b + disc) : (disc - b) / (2.0f * a);
-    const float Ld = fmin(fmax((x > 0.0f ? exp2(log2(x) * (1.0f / PN)) : 0.0f) - out_black, 0.0f)
-                          * out_scale, SIGNAL_CEILING);
+    const bool black = Rd <= Rk || (Lc <= L_FLOOR && Ys[i] <= L_FLOOR);   /* no light */
+    const float Ld = (toe > 0.0f && out_black > 0.0f && black) ? 0.0f          /* exactly */
+        : fmin(fmax((x > 0.0f ? exp2(log2(x) * (1.0f / PN)) : 0.0f) - out_black, 0.0f)
+               * out_scale, SIGNAL_CEILING);
 
     float4 col = (float4)(vload3(i, rgb), 1.0f);
     float4 ratio = Lc > L_FLOOR ? col / Lc : (float4)(1.0f);
@@ -49,7 +62,8 @@ inline void map_one(const int i, __global const float *rgb, __global const float
 }
 
 #define MAP_ARGS log2_sigma_rod, log2_sigma_cone, B_rod, B_cone, gain, offset, \
-                 dB_rod, dB_cone, ds_rod, ds_cone, colour_k, out_black, out_scale, inv_white, knee, chroma
+                 dB_rod, dB_cone, ds_rod, ds_cone, colour_k, out_black, out_scale, inv_white, knee, \
+                 chroma, toe
 /* The frame's scalars, packed by ocl_tonemap/operators/pattanaik00.py (kernel_call);
  * P_<name> (their indices) come from the same place, as build options (common.h
  * FRAME_PARAMS). */
@@ -60,12 +74,13 @@ inline void map_one(const int i, __global const float *rgb, __global const float
     const float B_rod = p[P_B_rod], B_cone = p[P_B_cone], gain = p[P_gain], offset = p[P_offset]; \
     const float dB_rod = p[P_dB_rod], dB_cone = p[P_dB_cone];              /* display */ \
     const float ds_rod = p[P_ds_rod], ds_cone = p[P_ds_cone];              /* display sigma^n */ \
-    const float colour_k = p[P_colour_k];                /* ln10 n B_cone / S_d */ \
+    const float colour_k = fmax(p[P_colour], 0.0f);      /* ln10 n B_cone / S_d (paper) */ \
+    const float chroma = -fmin(p[P_colour], 0.0f);       /* default colour scale */ \
     const float out_black = p[P_out_black];              /* display black taken out, cd/m^2 */ \
     const float out_scale = p[P_out_scale];              /* display-linear per cd/m^2 */ \
     const float inv_white = p[P_inv_white];              /* 1 / display white signal */ \
     const float knee = p[P_knee];                        /* shoulder knee, 0: none */ \
-    const float chroma = p[P_chroma]                     /* default colour scale */
+    const float toe = p[P_toe]                           /* shadow toe R_0, 0: none */
 
 /* Scalar kernel: one pixel per work-item (kept for comparison in benchmarks). */
 __kernel void pattanaik00_map(__global const float *rgb, __global const float *Y,
@@ -125,20 +140,26 @@ __kernel void pattanaik00_map8(__global const float *rgb, __global const float *
         for (int i = i0; i < min(i0 + ITEM_PIXELS(8), n); ++i) map_one(i, rgb, Y, Ys, out, MAP_ARGS);
         return;
     }
-    const float8 Lc = vload8(o, Y);
+    const float8 Lc = vload8(o, Y), Ls = vload8(o, Ys);
     const float8 xc = 1.0f / (1.0f + exp2(PN * (log2_sigma_cone - log2(fmax(Lc, L_FLOOR)))));
-    const float8 xr = 1.0f / (1.0f + exp2(PN * (log2_sigma_rod - log2(fmax(vload8(o, Ys), L_FLOOR)))));
+    const float8 xr = 1.0f / (1.0f + exp2(PN * (log2_sigma_rod - log2(fmax(Ls, L_FLOOR)))));
     const float8 R = B_rod * xr + B_cone * xc;                                  /* Eq. 2 */
     const float8 e = colour_k * xc * (1.0f - xc);                               /* S_color/S_d */
     const float rmax = dB_rod + dB_cone;
-    const float8 Rd = clamp(gain * R + offset, 0.0f, rmax * (1.0f - RESPONSE_MARGIN));
+    const float Rk = gain * toe + offset;                   /* the display's black response */
+    const float8 line = gain * R + offset;
+    const float8 Rd = clamp(toe > 0.0f ? select(line, Rk + gain * R * R / (4.0f * toe),
+                                                R < 2.0f * toe) : line,
+                            0.0f, rmax * (1.0f - RESPONSE_MARGIN));
     const float8 a = rmax - Rd;
     const float8 b = dB_rod * ds_cone + dB_cone * ds_rod - Rd * (ds_rod + ds_cone);
     const float8 c = Rd * ds_rod * ds_cone;
     const float8 disc = sqrt(b * b + 4.0f * a * c);
     const float8 x = select((disc - b) / (2.0f * a), 2.0f * c / (b + disc), b > 0.0f);
-    const float8 Ld = fmin(fmax(select((float8)(0.0f), exp2(log2(x) * (1.0f / PN)), x > 0.0f)
-                                - out_black, 0.0f) * out_scale, SIGNAL_CEILING);
+    float8 Ld = fmin(fmax(select((float8)(0.0f), exp2(log2(x) * (1.0f / PN)), x > 0.0f)
+                          - out_black, 0.0f) * out_scale, SIGNAL_CEILING);
+    if (toe > 0.0f && out_black > 0.0f)                     /* black (no light): exactly */
+        Ld = select(Ld, (float8)(0.0f), Rd <= Rk || (Lc <= L_FLOOR && Ls <= L_FLOOR));
     colour4(2 * o, rgb, out, Lc.lo, e.lo, Ld.lo, colour_k, chroma, inv_white, knee);
     colour4(2 * o + 1, rgb, out, Lc.hi, e.hi, Ld.hi, colour_k, chroma, inv_white, knee);
 }

@@ -293,6 +293,30 @@ def appearance_map(scene_white, scene_black, disp: DisplayObserver, stevens: flo
     return 1.0, dk - scene_black, 4                        # rule 4: offset up
 
 
+def display_response(R_lum, gain: float, offset: float, toe: float = 0.0):
+    """R_display of scene responses ``R_lum``: Sec. 4.3's gain R_lum + offset, and in
+    the default mode (``toe`` R_0 > 0: the scene response that line puts at the
+    display's black) a toe below 2 R_0, display black + gain R_lum^2 / (4 R_0): C1 at
+    2 R_0, R_lum = 0 at the display's black, above the line everywhere below it. The
+    paper clips what the line puts below the display's black: an observer adapted to
+    the scene sees detail there (docs/models.md, "Shadows").
+
+    >>> display_response(np.array([0.0, 0.02, 0.04, 0.1]), 1.0, -0.02, 0.02).round(4).tolist()
+    [0.0, 0.005, 0.02, 0.08]
+    """
+    R = np.asarray(R_lum, np.float64)
+    line = gain * R + offset
+    if not toe > 0.0:
+        return line
+    return np.where(R < 2.0 * toe, (gain * toe + offset) + gain * R * R / (4.0 * toe), line)
+
+
+def toe_response(gain: float, offset: float, display_black: float) -> float:
+    """R_0 of :func:`display_response`: the scene response ``gain R + offset`` puts at
+    the display's black response (0: the line never goes below it)."""
+    return max((display_black - offset) / gain, 0.0) if gain > 0.0 else 0.0
+
+
 # --- Colour in the default mode -----------------------------------------------------
 
 
@@ -334,6 +358,7 @@ class FrameParams:
     white_signal: float = 1.0              # display-linear value of display white
     chroma: float | None = None            # default mode's chroma scale; None: Eq. 3
     raw: bool = False                      # the smooth part alone (see map_reference)
+    toe: float = 0.0                       # default mode's shadow toe R_0; 0: the paper's clip
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -357,7 +382,8 @@ def frame_params(state, display: DisplaySpec,
                        v["B_rod"] * amp, v["B_cone"], gain, offset, rule, disp, mode,
                        0.0 if printed else SHOULDER_KNEE,
                        float(display.to_signal(display.white_cd)),
-                       None if printed else float(chroma_scale(v["A_cone"], display.adapt_cd)))
+                       None if printed else float(chroma_scale(v["A_cone"], display.adapt_cd)),
+                       toe=0.0 if printed else toe_response(gain, offset, disp.ref_black))
 
 
 def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams) -> np.ndarray:
@@ -374,8 +400,15 @@ def map_reference(rgb: np.ndarray, Y: np.ndarray, Ys: np.ndarray, p: FrameParams
     xc = saturation(Y, p.sigma_cone)
     R_lum = p.B_rod * saturation(Ys, p.sigma_rod) + p.B_cone * xc      # Eq. 2, R_rod + R_cone
     s_color = LN10 * N * p.B_cone * xc * (1.0 - xc)                   # Eq. 3
-    R_disp = p.gain * R_lum + p.offset                                  # Sec. 4.3 rules
+    R_disp = display_response(R_lum, p.gain, p.offset, p.toe)           # Sec. 4.3 rules
     L_disp = p.display.luminance(R_disp)                                # inverse Eq. 2
+    if p.toe > 0.0 and p.display.signal_offset > 0.0:
+        # the toe's floor is the display's black: no light (both luminances at the floor,
+        # R = the floor's 1e-8-ish response) and what rounds to it show there exactly, not
+        # at the inverse's rounding about it (black stays black)
+        black = (R_disp <= p.gain * p.toe + p.offset) | (
+            (np.asarray(Y) <= L_FLOOR) & (np.asarray(Ys) <= L_FLOOR))
+        L_disp = np.where(black, p.display.signal_offset, L_disp)
     Yc = np.asarray(Y, np.float64)[..., None]
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(Yc > L_FLOOR, rgb / np.where(Yc > L_FLOOR, Yc, 1.0), 1.0)

@@ -21,8 +21,8 @@ MODE_OPTION = Option("mode", "--mode", "default: the operator as it looks right 
 
 #: Parameters of the per-pixel kernel, in their packed order (P_<name> in the kernel).
 KERNEL_PARAMS = ("log2_sigma_rod", "log2_sigma_cone", "B_rod", "B_cone", "gain", "offset",
-                 "dB_rod", "dB_cone", "ds_rod", "ds_cone", "colour_k", "out_black", "out_scale",
-                 "inv_white", "knee", "chroma")
+                 "dB_rod", "dB_cone", "ds_rod", "ds_cone", "colour", "out_black", "out_scale",
+                 "inv_white", "knee", "toe")
 #: Model constants of the per-pixel kernel, given as build options (never retyped there).
 KERNEL_CONSTANTS = (("PN", model.N), ("L_FLOOR", model.L_FLOOR),
                     ("RATIO_FLOOR", model.RATIO_FLOOR),
@@ -55,11 +55,12 @@ class Pattanaik00(ModelOperator):
     def kernel_call(self, p, vector: bool = True):
         d = p.display
         N = model.N
+        # colour: > 0 Eq. 3's exponent factor ln10 n B_cone / S_d (the paper), else
+        # minus the default mode's chroma scale (16 frame scalars at most: one slot)
         vals = (math.log2(p.sigma_rod), math.log2(p.sigma_cone), p.B_rod, p.B_cone, p.gain,
                 p.offset, d.B_rod, d.B_cone, d.sigma_rod ** N, d.sigma_cone ** N,
-                model.LN10 * N * p.B_cone / d.S_d if p.chroma is None else 0.0,
-                d.signal_offset, d.gain, 1.0 / p.white_signal, p.shoulder_knee,
-                p.chroma if p.chroma is not None else 0.0)
+                model.LN10 * N * p.B_cone / d.S_d if p.chroma is None else -p.chroma,
+                d.signal_offset, d.gain, 1.0 / p.white_signal, p.shoulder_knee, p.toe)
         return KernelCall("pattanaik00.cl", "pattanaik00_map8" if vector else "pattanaik00_map",
                           tuple(zip(KERNEL_PARAMS, vals)), 8 if vector else 1,
                           defines=KERNEL_CONSTANTS, frame_params=True)

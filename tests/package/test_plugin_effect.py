@@ -82,7 +82,11 @@ print(json.dumps(out))
     assert night["diff_off"] > 1e-3                                # and it shows
     assert night["diff_again"] == 0.0                              # the same frame: same grain
     assert night["diff_other"] > 1e-3                              # another frame: other grain
-    assert night["black"] == 0.0 and day["black"] == 0.0           # black stays black
+    assert night["black"] == 0.0                                   # black stays black
+    # by day the frame's brightest texels are the flare's sources and their veil lies on
+    # the border: light, which the shadow toe (issue 57) keeps above black, far below a
+    # 16-bit code
+    assert 0.0 <= day["black"] < 0.5 / 65535
     assert not day["weight"] and day["diff_off"] == 0.0            # day: gated off
     assert res["grain_sd"] == pytest.approx(0.3, rel=0.15)         # its declared strength
 
