@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .models.photometry import Y_WEIGHTS
+from .quantities import NAMED_LEVELS, luminance_scale  # noqa: F401 (NAMED_LEVELS: its API)
 
 #: ISO 2720 reflected-light meter calibration constant K (cd s m^-2 ISO).
 METER_K = 12.5
@@ -41,27 +42,6 @@ METER_K = 12.5
 MID_GREY = 0.18
 #: Radiance RGBE: 1.0 = 179 cd/m^2 (WHITE_EFFICACY, lm/W).
 RADIANCE_EFFICACY = 179.0
-
-#: Named log-average scene luminances, cd/m^2: an 18% grey surface under the
-#: typical illuminance E (lux), L = 0.18 E / pi, rounded:
-#: full moon 0.2 lx; deep civil twilight ~20 lx; a lit interior 500 lx (EN 12464
-#: offices); an overcast day 10 000 lx; direct sun + sky ~90 000 lx.
-NAMED_LEVELS = {"night": 0.01, "dusk": 1.0, "interior": 30.0, "overcast": 500.0,
-                "daylight": 5000.0}
-
-#: The physical range of adaptation luminances a user gives (``--help`` states it),
-#: cd/m^2 (0: darkness; starlight is ~1e-4, the sun's disc ~1e9 but no eye adapts
-#: to it).
-ADAPT_LUMINANCE = (1e-6, 1e8)
-
-
-def check_luminance(L: float, flag: str, zero_ok: bool = True) -> float:
-    lo, hi = ADAPT_LUMINANCE
-    if not (math.isfinite(L) and ((zero_ok and L == 0) or lo <= L <= hi)):
-        raise ValueError(f"{flag} {L:g} cd/m^2 is outside {lo:g}..{hi:g} cd/m^2"
-                         + (" (or 0: darkness)" if zero_ok else ""))
-    return L
-
 
 @dataclass(frozen=True)
 class CalibrationRequest:
@@ -73,37 +53,12 @@ class CalibrationRequest:
 
     @classmethod
     def parse(cls, text: str | float | None) -> "CalibrationRequest":
-        """``S`` (cd/m^2 of 1.0) or ``auto:LEVEL`` (cd/m^2 or a named level)."""
+        """``S`` (cd/m^2 of 1.0) or ``auto:LEVEL`` (cd/m^2 or a named level), as
+        declared (``quantities.luminance_scale``)."""
         if text is None:
             return cls()
-        if isinstance(text, (int, float)):
-            return cls(scale=_positive(float(text), "--luminance-scale"))
-        t = str(text).strip()
-        if t.lower().startswith("auto"):
-            _, _, lvl = t.partition(":")
-            lvl = lvl.strip().lower()
-            if not lvl:
-                raise ValueError("--luminance-scale auto needs a level: auto:LEVEL with LEVEL "
-                                 f"in cd/m^2 or one of {', '.join(NAMED_LEVELS)}")
-            if lvl in NAMED_LEVELS:
-                return cls(auto_level=NAMED_LEVELS[lvl], auto_name=lvl)
-            return cls(auto_level=check_luminance(_float(lvl, "--luminance-scale auto:"),
-                                                  "--luminance-scale auto:", zero_ok=False))
-        return cls(scale=_positive(_float(t, "--luminance-scale"), "--luminance-scale"))
-
-
-def _float(text: str, flag: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise ValueError(f"bad {flag} {text!r}: use a number of cd/m^2, or auto:LEVEL with LEVEL "
-                         f"a number or one of {', '.join(NAMED_LEVELS)}") from None
-
-
-def _positive(v: float, flag: str) -> float:
-    if not (math.isfinite(v) and 0 < v < 1e30):
-        raise ValueError(f"{flag} must be a positive finite number of cd/m^2 (got {v:g})")
-    return v
+        scale, level, name = luminance_scale(text)
+        return cls(scale=scale, auto_level=level, auto_name=name)
 
 
 def _attr_number(spec, *names) -> float | None:

@@ -5,13 +5,15 @@ from __future__ import annotations
 
 import argparse
 import logging
+import re
 import sys
 from typing import Callable, NamedTuple
 
 from . import cli_commands as commands
 from . import interrupts
-from .cli_options import add_run_options, add_shot_options
+from .cli_options import declared_flag, add_run_options, add_shot_options
 from .interrupts import Terminated, exit_code, install
+from .quantities import SAMPLE, VISIBILITY
 from .version import __version__
 
 log = logging.getLogger("ocl_tonemap")
@@ -19,6 +21,8 @@ log = logging.getLogger("ocl_tonemap")
 #: build_parser's default: every sub-command with all its options.
 ALL_COMMANDS = "*"
 ALSO = "; also every option of run (ocl-tonemap run --help)"
+VERBOSE = "more messages: -v what each step does, -vv debugging"
+QUIET = "errors only"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -30,6 +34,12 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kw)
 
     def error(self, message):
+        # "argument --x: --x must be ...": a declared syntax's parser names the flag itself
+        m = re.fullmatch(r"argument (-[-\w]+)(?:/[-\w]+)*: (.*)", message, re.S)
+        if m and m.group(2).startswith(m.group(1)):
+            message = m.group(2)
+        elif m and m.group(2).startswith("must be"):     # a declared value's words
+            message = f"{m.group(1)} {m.group(2)}"
         self.exit(2, f"ocl-tonemap ERROR: {message} (see {self.prog} --help)\n")
 
 
@@ -63,7 +73,7 @@ def _run_shot_args(p) -> None:
     g.add_argument("--scheduler", metavar="dask|tcp://HOST:PORT",
                    help="run the three passes on Dask: dask starts a local cluster of "
                    "--workers processes, an address uses a running one (default: serial)")
-    g.add_argument("--workers", type=int, default=2, help="local cluster size (default 2)")
+    declared_flag(g, "--workers", "local cluster size (default 2)", default=2, metavar="N")
     g.add_argument("--scheduler-security", metavar="FILE",
                    help="TLS for a tls:// scheduler: a YAML or JSON file with ca, cert and key "
                    "(PEM paths, relative to the file), Dask's Security; without it, Dask's own "
@@ -99,8 +109,8 @@ def _farm_args(p) -> None:
 def _simulate_args(p) -> None:
     _io_args("one image", "output name (a _t<T>s suffix is added) or a frame pattern "
              "(frames 1..n in --at order)")(p)
-    p.add_argument("--at", required=True, help="elapsed times since the switch: T1,T2,... "
-                   "seconds, or with an m suffix minutes (e.g. 1m,2m,4m,16m)")
+    declared_flag(p, "--at", "elapsed times since the switch (e.g. 30,1m,2m,16m)",
+              required=True, metavar="T1,T2,...")
 
 
 def _visibility_args(p) -> None:
@@ -135,36 +145,46 @@ def _visibility_args(p) -> None:
     p.add_argument("--state", metavar="FILE",
                    help="the eye as a run left it: a state JSON (--state-out, a checkpoint) "
                    "or an output frame (its ocltm:state); its operator's observer")
-    p.add_argument("--pixel", metavar="X,Y",
-                   help="--state of a local operator (ledda04): the pixel whose observer")
+    pix = VISIBILITY["pixel"]
+    p.add_argument("--pixel", metavar="X,Y", type=pix.arg("--pixel"), help=pix.help(
+        "--state of a local operator (ledda04): the pixel whose observer"))
     p.add_argument("--operator", default=None, metavar="NAME",
                    help="whose adaptation time course drives the step (default pattanaik00)")
     q("--adapted-to", "adapted_to", "the eye adapted to L0 cd/m^2 before the background "
       "steps to L_b", metavar="L0", dest="adapted_to")
     q("--for", "for", "... for S0 seconds (default: fully adapted)", metavar="S0",
       dest="adapted_for")
-    p.add_argument("--after", metavar="T1,T2,...",
-                   help="seconds after the step to report (default 0.5,2,10; needs "
-                   "--adapted-to)")
+    after = VISIBILITY["times_after"]
+    p.add_argument("--after", metavar="T1,T2,...", type=after.arg("--after"), help=after.help(
+        "seconds after the step to report (default 0.5,2,10; needs --adapted-to)"))
     p.add_argument("--plot", metavar="FILE.png",
                    help="draw dL_th over the seconds after the step (needs --adapted-to)")
     p.add_argument("--json", action="store_true", help="the terms as JSON")
 
 
+def _sample_size(p, seconds_default: float = 8.0) -> None:
+    for flag, key, text, kw in (
+            ("--size", "size", "frame size (default 320x180)", {"default": (320, 180),
+                                                                  "metavar": "WxH"}),
+            ("--seconds", "seconds", "length of the drive (default 8)",
+             {"default": seconds_default, "metavar": "S"})):
+        p.add_argument(flag, type=SAMPLE[key].arg(flag), help=SAMPLE[key].help(text), **kw)
+
+
 def _sample_args(p) -> None:
-    p.add_argument("outdir")
+    p.add_argument("outdir", help="folder for the frames (tunnel.####.exr, made if missing)")
     p.add_argument("--spectral", action="store_true",
                    help="also write a spectral OpenEXR ColorChecker lit by tungsten at "
                    "0.05 cd/m^2 (colorchecker_spectral.exr, for kirk11)")
-    p.add_argument("--size", default="320x180")
-    p.add_argument("--seconds", type=float, default=8.0)
-    p.add_argument("--fps", type=float, default=30.0)
+    _sample_size(p)
+    p.add_argument("--fps", type=SAMPLE["fps"].arg("--fps"), default=30.0, metavar="FPS",
+                   help=SAMPLE["fps"].help("frames per second (default 30)"))
 
 
 def _demo_args(p) -> None:
-    p.add_argument("outdir")
-    p.add_argument("--size", default="320x180")
-    p.add_argument("--seconds", type=float, default=8.0)
+    p.add_argument("outdir", help="folder for the sample (scene/), the mapped frames "
+                   "(display/), the plot and the state")
+    _sample_size(p)
 
 
 def _devices_args(p) -> None:
@@ -207,7 +227,9 @@ COMMANDS = (
     Command("devices", "list OpenCL devices, each probed: ok or broken", commands.devices,
             _devices_args),
     Command("displays", "list the OCIO config's displays and views", commands.displays,
-            lambda p: p.add_argument("--colorconfig")),
+            lambda p: p.add_argument("--colorconfig", help="OCIO config: file, ocio:// URI "
+                                     "or 'ocl-tonemap' (default: $OCIO, else "
+                                     "ocio://default)")),
     Command("sample", "write the built-in tunnel-drive sample (EXR, cd/m^2)", commands.sample,
             _sample_args),
     Command("demo", "write the sample and run the main job on it", commands.demo, _demo_args,
@@ -225,12 +247,14 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
         "Show an HDR scene or shot as a human observer would see it (time-dependent "
         "visual adaptation on OpenCL, OIIO/OCIO pipelines)."))
     ap.add_argument("--version", action="version", version=f"ocl-tonemap {__version__}")
-    ap.add_argument("-v", "--verbose", action="count", default=0)
-    ap.add_argument("-q", "--quiet", action="store_true")
+    ap.add_argument("-v", "--verbose", action="count", default=0, help=VERBOSE)
+    ap.add_argument("-q", "--quiet", action="store_true", help=QUIET)
     # -v/-q also after the sub-command (ocl-tonemap run ... -v)
     common = _Parser(add_help=False)
-    common.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS)
-    common.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS)
+    common.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
+                        help=VERBOSE)
+    common.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                        help=QUIET)
     sub = ap.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
     for c in COMMANDS:
         kw = {"help": c.help, "parents": [common]}
@@ -269,6 +293,21 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print("ocl-tonemap: interrupted", file=sys.stderr)
         return exit_code()
+    finally:
+        _clear_library_errors()
+
+
+def _clear_library_errors() -> None:
+    """OIIO's error left unread on this thread, read and dropped: every failure was
+    said in our words already, and OIIO prints one still pending as the process exits
+    ("exited with a pending error message that was never retrieved")."""
+    oiio = sys.modules.get("OpenImageIO")
+    if oiio is None:
+        return
+    try:
+        oiio.geterror()
+    except Exception:  # noqa: BLE001 -- nothing to clear is not an error
+        pass
 
 
 def _main(argv: list[str] | None = None) -> int:

@@ -45,16 +45,6 @@ def run_option_tokens(argv: list[str], a) -> list[str]:
     return out
 
 
-def size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-        if w < 1 or h < 1:
-            raise ValueError
-        return w, h
-    except ValueError:
-        raise SystemExit(f"ocl-tonemap ERROR: bad --size {text!r} (use WxH)") from None
-
-
 def run(a, argv) -> int:
     """``run``: the main job, serially or as a shot on Dask (``--scheduler``)."""
     if a.scheduler:
@@ -88,7 +78,7 @@ def run(a, argv) -> int:
     if not a.quiet:
         rep = f"; repaired values: {res.repairs.summary()}" if res.repairs.total else ""
         print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s{rep}")
-        moved = res.transfers()
+        moved = res.transfers() if a.verbose else None     # a developer's figure: -v
         if moved:
             print(f"host <-> device per frame: {moved}")
         _target_report(res)
@@ -157,14 +147,13 @@ def farm_template(a, argv) -> int:
 
 
 def simulate(a, argv) -> int:
-    from .job.options import parse_times  # lazy: a command loads its own layers
     from .job.simulate import run_simulate  # lazy: a command loads its own layers
     from .job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
     opts = job_options(a, a.input, a.output)
     refuse_visibility(opts, "simulate")
-    res = run_simulate(opts, parse_times(a.at))
+    res = run_simulate(opts, a.at)
     if not a.quiet:                   # (rendered in time order)
-        for t, o in zip(sorted(parse_times(a.at)), res.outputs):
+        for t, o in zip(sorted(a.at), res.outputs):
             print(f"t = {t:g} s -> {o}")
     return 0
 
@@ -324,11 +313,8 @@ def _visibility_state(a, st, view, polarity: str) -> dict | None:
             "La": s.L_a, "TAF": s.TAF, "dL_th": s.dL_th}
 
 
-def _observer_at(obs: dict, text: str, path: str) -> dict:
-    try:
-        x, y = (int(v) for v in text.split(","))
-    except ValueError:
-        raise ValueError(f"--pixel must be X,Y (pixel column and row; got {text!r})") from None
+def _observer_at(obs: dict, pixel: tuple, path: str) -> dict:
+    x, y = pixel
     h, w = next(iter(obs.values())).shape
     if not (0 <= x < w and 0 <= y < h):
         raise ValueError(f"--pixel {x},{y}: outside the state's {w} x {h} pixels ({path})")
@@ -346,7 +332,7 @@ def _visibility_step(a, view, polarity: str) -> dict | None:
         return None
     from . import visibility as vis  # lazy: a command loads its own layers
     from .operators import get_operator  # lazy: a command loads its own layers
-    after = [vis.check_input("after", x, "--after") for x in _times(a.after or "0.5,2,10")]
+    after = list(a.after or vis.AFTER_S)
     op = get_operator(a.operator or "pattanaik00")({})
     pts = vis.trace(op, a.adapted_to, a.adapted_for, a.background, after, view, polarity,
                     a.target, a.veil)
@@ -359,21 +345,17 @@ def _visibility_step(a, view, polarity: str) -> dict | None:
             "points": [p.as_dict() for p in pts]}
 
 
-def _times(text: str) -> list:
-    items = [x.strip() for x in text.split(",")]
-    if not all(items):
-        raise ValueError(f"--after must be seconds, comma-separated (got {text!r})")
-    return items
-
-
 def demo(a, argv) -> int:
     from .job.run import run_job  # lazy: a command loads its own layers
-    from .sample import write_tunnel_sequence  # lazy: a command loads its own layers
-    w, h = size(a.size)
-    pattern, _ = write_tunnel_sequence(os.path.join(a.outdir, "scene"), w, h, 30.0, a.seconds)
+    from .sample import plan_sample, write_tunnel_sequence  # lazy: its own layers
+    w, h = a.size
+    scene = os.path.join(a.outdir, "scene")
     out = os.path.join(a.outdir, "display", "tunnel.####.png")
+    opts = job_options(a, os.path.join(scene, "tunnel.####.exr"), out)  # checked first
+    plan_sample(a.outdir, w, h, 30.0, a.seconds, flag_fps="its 30 fps")
+    pattern, _ = write_tunnel_sequence(scene, w, h, 30.0, a.seconds)
     os.makedirs(os.path.dirname(out), exist_ok=True)
-    opts = job_options(a, pattern, out)
+    opts.input = pattern
     opts.plot = opts.plot or os.path.join(a.outdir, "adaptation.png")
     opts.state_out = opts.state_out or os.path.join(a.outdir, "state.json")
     res = run_job(opts)
@@ -384,8 +366,9 @@ def demo(a, argv) -> int:
 
 def sample(a, argv) -> int:
     # lazy: a command loads its own layers
-    from .sample import write_spectral_image, write_tunnel_sequence
-    w, h = size(a.size)
+    from .sample import plan_sample, write_spectral_image, write_tunnel_sequence
+    w, h = a.size
+    plan_sample(a.outdir, w, h, a.fps, a.seconds)
     pattern, frames = write_tunnel_sequence(a.outdir, w, h, a.fps, a.seconds)
     print(f"wrote {len(frames)} frames: {pattern} (frames {frames[0]}-{frames[-1]})")
     if a.spectral:

@@ -11,7 +11,7 @@ import logging
 import sys
 from typing import Callable, NamedTuple
 
-from .patterns import parse_frames
+from .quantities import RUN
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -49,15 +49,21 @@ def _registry() -> dict:
     return registry()
 
 
+def declared_flag(g, flag: str, text: str, key: str | None = None, **kw) -> None:
+    """A flag whose value is declared in ``quantities.RUN`` (by its JobOptions field, by
+    default the flag's name): its parser's check and its help's range come from there."""
+    d = RUN[key or flag[2:].replace("-", "_")]
+    g.add_argument(flag, type=d.arg(flag), help=d.help(text), **kw)
+
+
 def _ignored(flag: str, where: str, operator: str) -> None:
     log.warning("%s applies to %s: ignored for %s", flag, where, operator)
 
 
 # -- input -----------------------------------------------------------------------------------
 def _input_flags(g) -> None:
-    g.add_argument("--frames", help="frame range for sequence patterns: A-B, A-BxSTEP, or a list")
-    g.add_argument("--fps", type=float, help="frames per second, up to 1e6 (default: "
-                   "FramesPerSecond metadata, else 24)")
+    declared_flag(g, "--frames", "frame range for sequence patterns", metavar="A-B[xSTEP],...")
+    declared_flag(g, "--fps", "frames per second (default: FramesPerSecond metadata, else 24)")
     g.add_argument("--iscolorspace", help="input colourspace (default: file metadata, file "
                    "rules, scene_linear)")
     x = g.add_mutually_exclusive_group()
@@ -76,7 +82,7 @@ def _input_flags(g) -> None:
 
 
 def _input_build(a, tier) -> dict:
-    return {"frames": parse_frames(a.frames) if a.frames else None, "fps": a.fps,
+    return {"frames": a.frames, "fps": a.fps,
             "iscolorspace": a.iscolorspace, "unpremult": a.unpremult, "stills": a.stills,
             "missing": a.missing,
             "channels": [c.strip() for c in a.channels.split(",")] if a.channels else None}
@@ -84,12 +90,10 @@ def _input_build(a, tier) -> dict:
 
 # -- calibration -----------------------------------------------------------------------------
 def _calibration_flags(g) -> None:
-    g.add_argument("--luminance-scale", metavar="S|auto:LEVEL",
-                   help="cd/m^2 of pixel value 1.0, or auto:LEVEL (1e-6..1e8 cd/m^2, or night, "
-                   "dusk, interior, overcast, daylight) for the first frame's log-average "
-                   "(default: the file's calibration, else 1 with a warning)")
-    g.add_argument("--exposure", type=float, default=0.0, help="extra scale in stops (EV), "
-                   "-100..100")
+    declared_flag(g, "--luminance-scale", "cd/m^2 of pixel value 1.0, or auto:LEVEL: the first "
+              "frame's log-average (default: the file's calibration, else 1 with a warning)",
+              metavar="S|auto:LEVEL")
+    declared_flag(g, "--exposure", "extra scale in stops (default 0)", default=0.0)
 
 
 def _calibration_build(a, tier) -> dict:
@@ -99,22 +103,19 @@ def _calibration_build(a, tier) -> dict:
 # -- operator --------------------------------------------------------------------------------
 def _operator_flags(g) -> None:
     g.add_argument("--operator", default="pattanaik00", choices=sorted(_registry()),
-                   help="the model (default pattanaik00; README: the operators)")
+                   help="the model (default pattanaik00; the README's table, docs/models.md)")
     g.add_argument("--mode", choices=["default", "paper"],
                    help="default: the operator as it looks right on photographs; paper: its "
                    "paper taken literally (docs/models.md says where they differ)")
     g.add_argument("--metering", default="logmean",
                    help="logmean (default) | mean | max | centre[:mean] | spot:X,Y[,SIGMA] | "
-                   "percentile:P | mask:WEIGHTS.exr (README: Metering)")
-    g.add_argument("--preadapt", help="initial adaptation: CD_M2 (0 or 1e-6..1e8; fully "
-                   "adapted) or CD_M2:SECONDS (0..1e7, an m suffix: minutes; exposed that "
-                   "long from dark)")
+                   "percentile:P | mask:WEIGHTS.exr (docs/models.md: Metering)")
+    declared_flag(g, "--preadapt", "initial adaptation (default: to the first frame)",
+              metavar="CD_M2[:SECONDS]")
 
 
 def _operator_build(a, tier) -> dict:
-    from .job.options import parse_preadapt  # lazy: the parser loads no OIIO
-    return {"operator": a.operator, "metering": a.metering,
-            "preadapt": parse_preadapt(a.preadapt) if a.preadapt else None,
+    return {"operator": a.operator, "metering": a.metering, "preadapt": a.preadapt,
             "operator_options": _operator_options(a, tier)}
 
 
@@ -159,7 +160,7 @@ def operator_flags() -> list:
 
 def _add_declared(g, o, default=None) -> None:
     """A flag made from a declared option (an operator's or an effect's)."""
-    kw = {"help": o.help, "default": default}
+    kw = {"help": o.help_text, "default": default}
     for k in ("type", "choices", "metavar"):
         if getattr(o, k) is not None:
             kw[k] = getattr(o, k)
@@ -214,12 +215,12 @@ def _display_flags(g) -> None:
     g.add_argument("--display-model", default="display", choices=["display", "paper-crt"],
                    help="display observer: from the chosen display (default), or Pattanaik "
                    "2000's CRT")
-    g.add_argument("--display-white", type=float, help="display white, cd/m^2 (default: 100 "
-                   "SDR, peak for HDR)")
-    g.add_argument("--display-peak", type=float, default=1000.0, help="HDR display peak, "
-                   "cd/m^2 (default 1000)")
-    g.add_argument("--display-black", type=float, help="display black, cd/m^2 (default: "
-                   "white/1000 for SDR, 0.005 for HDR)")
+    declared_flag(g, "--display-white", "display white (default: 100 SDR, peak for HDR)",
+              metavar="CD_M2")
+    declared_flag(g, "--display-peak", "HDR display peak (default 1000)", default=1000.0,
+              metavar="CD_M2")
+    declared_flag(g, "--display-black", "display black, below its white (default: white/1000 "
+              "for SDR, 0.005 for HDR)", metavar="CD_M2")
     g.add_argument("--display-encode", choices=["auto", "table", "ocio"], default=None,
                    help="auto (default: OCIO's display baked into a table on the device where "
                    "within one 10-bit code), table or ocio (OCIO's CPU processor)")
@@ -238,25 +239,24 @@ def _output_flags(g) -> None:
                    "colourspace) instead of display-linear light (the default for float outputs)")
     g.add_argument("--out-bits", choices=["8", "16", "half", "float"],
                    help="output sample type (default by extension: EXR half, TIFF 16, PNG/JPEG 8)")
-    g.add_argument("--png-level", type=int, default=1, metavar="0-9",
-                   help="zlib level of PNG outputs (default 1)")
+    declared_flag(g, "--png-level", "zlib level of PNG outputs (default 1)", default=1,
+              metavar="0-9")
     g.add_argument("--png-filter", choices=("sub", "none", "adaptive"), default="sub",
                    help="PNG row filter (default sub)")
     g.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
-    g.add_argument("--plot-frames", help="frame indices (0-based) for the mapping curves")
+    declared_flag(g, "--plot-frames", "frame indices (0-based) for the mapping curves",
+              metavar="I1,I2,...")
     g.add_argument("--visibility", metavar="OUT.####.exr",
                    help="also write what the observer can see: La, Lveil, Lb, dLth, VL")
     g.add_argument("--visibility-view", metavar="OUT.####.png",
                    help="also write VL in false colour over the shown frame")
-    g.add_argument("--target", metavar="X,Y,SIZE",
-                   help="a target (pixels, arcmin): its VL per frame, --plot")
-    from .quantities import OBSERVATION_S, TARGET_ARCMIN, VISIBILITY  # lazy: no NumPy
-    size, look = VISIBILITY["size"], VISIBILITY["time"]
-    g.add_argument("--target-size", type=size.arg("--target-size"), default=TARGET_ARCMIN,
-                   metavar="ARCMIN", help=f"--visibility: the target, {size.range_text()}")
-    g.add_argument("--observation-time", type=look.arg("--observation-time"),
-                   default=OBSERVATION_S, metavar="S", help=f"... the look (default "
-                   f"{OBSERVATION_S:g}, RP-8's)")
+    declared_flag(g, "--target", "a target (its centre's pixel, its size): its VL per frame, "
+              "--plot", metavar="X,Y,SIZE")
+    from .quantities import OBSERVATION_S, TARGET_ARCMIN  # lazy: no NumPy
+    declared_flag(g, "--target-size", f"--visibility: the target (default {TARGET_ARCMIN:g})",
+              default=TARGET_ARCMIN, metavar="ARCMIN")
+    declared_flag(g, "--observation-time", f"... the look (default {OBSERVATION_S:g}, RP-8's)",
+              default=OBSERVATION_S, metavar="S")
     # lazy: the run's parser (NumPy already there)
     from .models.adrian1989 import ADRIAN_1989, VARIANTS
     g.add_argument("--adrian", choices=sorted(VARIANTS), default=ADRIAN_1989.name,
@@ -268,15 +268,13 @@ def _output_flags(g) -> None:
     g.add_argument("--ocio-export", metavar="DIR",
                    help="also write the observer as an OCIO view: DIR/<name>.ocio and a CLF per "
                    "frame (docs/ocio_export.md)")
-    g.add_argument("--ocio-export-size", default="auto", metavar="N|auto",
-                   help="nodes per axis of the exported LUTs: 17, 25, 33, 49, 65 or auto (default)")
+    declared_flag(g, "--ocio-export-size", "nodes per axis of the exported LUTs (default auto)",
+              default="auto", metavar="N|auto")
 
 
 def _output_build(a, tier) -> dict:
-    from .job.options import parse_export_size  # lazy: the parser loads no OIIO
     from .models.adrian1989 import ADRIAN_1989  # lazy: the parser's NumPy, as above
     from .quantities import OBSERVATION_S, TARGET_ARCMIN
-    from .job.visibility_out import parse_target  # lazy: the parser loads no OIIO
     if a.plot_frames and not a.plot:
         log.warning("--plot-frames applies to --plot: ignored")
     seen = a.visibility or a.visibility_view or a.target
@@ -294,13 +292,13 @@ def _output_build(a, tier) -> dict:
         log.warning("--visibility-type applies to --visibility: ignored")
     return {"encode": a.encode, "out_bits": a.out_bits, "png_level": a.png_level,
             "png_filter": a.png_filter, "plot": a.plot,
-            "plot_frames": [int(x) for x in a.plot_frames.split(",")] if a.plot_frames else None,
-            "ocio_export": a.ocio_export, "ocio_export_size": parse_export_size(a.ocio_export_size),
+            "plot_frames": list(a.plot_frames) if a.plot_frames else None,
+            "ocio_export": a.ocio_export, "ocio_export_size": a.ocio_export_size,
             "visibility": a.visibility, "target_size": a.target_size,
             "observation_time": a.observation_time, "adrian": a.adrian,
             "visibility_type": a.visibility_type, "veil_halo": a.veil_halo,
             "visibility_view": a.visibility_view,
-            "target": parse_target(a.target) if a.target else None}
+            "target": a.target}
 
 
 def _run_flags(g) -> None:
@@ -313,8 +311,8 @@ def _run_flags(g) -> None:
                    help="continue an interrupted run from its checkpoint, to the frames of one run")
     g.add_argument("--no-checkpoint", dest="checkpoint", action="store_false",
                    help="do not write the state after every frame")
-    g.add_argument("--checkpoint-every", type=int, default=1, metavar="N",
-                   help="write the state every N frames (default 1)")
+    declared_flag(g, "--checkpoint-every", "write the state every N frames (default 1)",
+              default=1, metavar="N")
     g.add_argument("--cuts", metavar="FILE|detect",
                    help="scene cuts, where the observer starts afresh: a file of frame numbers, "
                    "or detect (a jump of more than 1 log10 in the cone goal; shot passes)")
@@ -322,27 +320,23 @@ def _run_flags(g) -> None:
                    help="opencl (default) or reference (float64 NumPy)")
     g.add_argument("--quality", choices=list(QUALITY_NAMES), default=None,
                    help="draft, balanced (default) or reference: the default of every "
-                   "speed/accuracy knob (README: Speed or accuracy)")
+                   "speed/accuracy knob (docs/guide.md: Speed or accuracy)")
     g.add_argument("--device", help="OpenCL device: P:D index, gpu, cpu or a name substring")
-    g.add_argument("--max-memory", type=float, metavar="MIB",
-                   help="host memory budget: larger frames are read, mapped and written in row "
-                   "bands (default: a quarter of the machine's memory)")
+    declared_flag(g, "--max-memory", "host memory budget: larger frames are read, mapped and "
+              "written in row bands (default: a quarter of the machine's memory)",
+              metavar="MIB")
     g.add_argument("--serial-io", action="store_true",
                    help="read, map and write each frame in turn (default: the next frames read "
                    "and the last written while the device works)")
-    g.add_argument("--threads", type=int, metavar="N",
-                   help="threads that decode and encode frames beside the device's work (half "
-                   "read ahead, half write behind; default: the machine's cores, at least 2); "
-                   "memory: about (2 + N) frames")
-    g.add_argument("--max-band-pixels", type=int, help=argparse.SUPPRESS)
+    declared_flag(g, "--threads", "threads that decode and encode frames beside the device's "
+              "work (half read ahead, half write behind; default: the machine's cores, at "
+              "least 2); memory: about (2 + N) frames", metavar="N")
+    g.add_argument("--max-band-pixels", type=RUN["max_band_pixels"].arg("--max-band-pixels"),
+                   help=argparse.SUPPRESS)
 
 
 def _run_build(a, tier) -> dict:
     from .job.options import parse_cuts  # lazy: the parser loads no OIIO
-    if a.max_band_pixels is not None and a.max_band_pixels < 1:
-        raise ValueError("--max-band-pixels must be >= 1")
-    if a.threads is not None and not 1 <= a.threads <= 1024:
-        raise ValueError("--threads must be 1 to 1024")
     return {"state_in": a.state_in, "state_out": a.state_out, "resume": a.resume,
             "checkpoint": a.checkpoint, "checkpoint_every": a.checkpoint_every,
             "cuts": parse_cuts(a.cuts), "device": a.device, "quality": tier.name,
@@ -412,10 +406,8 @@ def add_shot_options(g, chunk: bool = False, chunk_frames: bool = False,
         g.add_argument("--chunk", metavar="A-B",
                        help="this task's frames (default: the whole shot, --frames)")
     if chunk_frames:
-        g.add_argument("--chunk-frames", type=int, metavar="N",
-                       help="frames per task (and per-pixel keyframe interval); default: "
-                       "four tasks per worker (dask), 50 (farm)")
+        declared_flag(g, "--chunk-frames", "frames per task (and per-pixel keyframe interval); "
+                  "default: four tasks per worker (dask), 50 (farm)", metavar="N")
     if keyframes:
-        g.add_argument("--keyframe-every", type=int, metavar="N",
-                       help="local operators: keep the per-pixel state every N frames "
-                       "(the apply chunk size; default 50)")
+        declared_flag(g, "--keyframe-every", "local operators: keep the per-pixel state every N "
+                  "frames (the apply chunk size; default 50)", metavar="N")

@@ -11,6 +11,8 @@ import glob
 import os
 import re
 
+from .quantities import MAX_FRAME, MAX_FRAMES, parse_frames  # noqa: F401 (re-exported)
+
 _PAT = re.compile(r"(#+|@+|%0?(\d*)d)")
 
 
@@ -24,12 +26,9 @@ def without_frame_token(name: str) -> str:
     return re.sub(r"[._-]?" + _PAT.pattern, "", name)
 
 
-#: Frame numbers are within +-MAX_FRAME, padded to at most MAX_PAD digits, and a
-#: run renders at most MAX_FRAMES of them (a day at 30 fps is 2.6 M; bounded so
-#: that a typo cannot take the memory or the time of the machine).
-MAX_FRAME = 999_999_999
+#: Frame numbers are padded to at most MAX_PAD digits (their range and a run's count:
+#: ``quantities.MAX_FRAME``, ``MAX_FRAMES``; ``--frames``: ``quantities.parse_frames``).
 MAX_PAD = 16
-MAX_FRAMES = 1_000_000
 
 
 def _digits(tok: str) -> int:
@@ -80,30 +79,6 @@ def find_frames(pattern: str) -> list[int]:
         if m:
             frames.add(int(m.group(1)))
     return sorted(frames)
-
-
-def parse_frames(text: str) -> list[int]:
-    """``"1001-1100"``, ``"1-10x2"`` or ``"1,5,9-12"`` -> frame numbers."""
-    out: list[int] = []
-    if len(text) > 100_000:
-        raise ValueError("--frames: more than 100 000 characters")
-    for part in text.split(","):
-        part = part.strip()
-        m = re.fullmatch(r"(-?\d{1,10})(?:-(-?\d{1,10})(?:x(\d{1,10}))?)?", part)
-        if not m:
-            raise ValueError(f"bad --frames {text[:80]!r} (use A-B, A-BxSTEP or a comma list)")
-        a = int(m.group(1))
-        b = int(m.group(2)) if m.group(2) is not None else a
-        step = int(m.group(3) or 1)
-        if b < a or step < 1:
-            raise ValueError(f"bad --frames range {part!r}")
-        if max(abs(a), abs(b)) > MAX_FRAME:
-            raise ValueError(f"--frames {part}: frame numbers are within +-{MAX_FRAME}")
-        if len(out) + (b - a) // step + 1 > MAX_FRAMES:
-            raise ValueError(f"--frames {text[:80]}: more than {MAX_FRAMES} frames in one run; "
-                             "split the shot")
-        out.extend(range(a, b + 1, step))
-    return out
 
 
 def same_file(a: str, b: str) -> bool:

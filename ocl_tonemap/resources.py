@@ -19,6 +19,40 @@ def package_data_dir(name: str, probe: str) -> Path:
     raise FileNotFoundError(f"{name}/{probe} not found in the installed package or the source tree")
 
 
+def available_memory() -> int:
+    """Bytes this machine can give a process now: ``MemAvailable`` of /proc/meminfo
+    (Linux), else its physical memory."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return 16 << 30
+
+
+def free_disk(path: str) -> tuple[str, int]:
+    """(the folder, its free bytes) of the nearest existing folder at or above ``path``
+    (where a file under ``path`` would go)."""
+    import shutil
+    p = Path(os.path.abspath(path))
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    if not p.is_dir():
+        p = p.parent
+    return str(p), shutil.disk_usage(p).free
+
+
+def gib(n: float) -> str:
+    """Bytes in the words of an error line (``3.2 GiB``, ``640 MiB``)."""
+    for unit, k in (("PiB", 50), ("TiB", 40), ("GiB", 30)):
+        if n >= 2**k:
+            return f"{n / 2**k:,.3g} {unit}" if n < 1000 * 2**50 else f"{n / 2**50:,.0f} PiB"
+    return f"{n / 2**20:.3g} MiB"
 
 
 def user_cache_dir() -> Path:

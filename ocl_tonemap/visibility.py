@@ -29,6 +29,8 @@ from .quantities import LUMINANCE_RANGE, OBSERVATION_S, TARGET_ARCMIN, VISIBILIT
 _LO = LUMINANCE_RANGE[0]
 #: Every number the visibility takes, declared once (``quantities.VISIBILITY``).
 INPUTS = VISIBILITY
+#: The seconds after a step the calculator reports by default (``--after``).
+AFTER_S = (0.5, 2.0, 10.0)
 
 
 def check_input(name: str, value, flag: str) -> float:

@@ -35,7 +35,7 @@ class QualityTier:
 QUALITY_TIERS = {
     "draft": QualityTier(
         "draft", "opencl",
-        (("bilateral", "fast"), ("bilateral_sampling", "1")),
+        (("bilateral", "fast"), ("bilateral_sampling", (1.0,))),
         (("flare_method", "fast"), ("flare_per_octave", 1)), "table",
         "coarsest bilateral grid (1 sample per sigma), fast flare, the display transform "
         "through device tables (durand00's --lut is left off: its kernel is ~1% of the "

@@ -41,13 +41,15 @@ from ..models.photometry import Y_WEIGHTS, photopic_luminance, scotopic_luminanc
 from ..operators import get_operator
 from . import clf, lattice
 
+from ..quantities import EXPORT_SIZES
+
 log = logging.getLogger("ocl_tonemap")
 
 #: The bound an exported frame is held to (issue 32): 8-bit code values against the
 #: run's own mapping, at the 99th percentile and anywhere.
 BOUND_P99, BOUND_MAX = 1.0, 3.0
-#: Lattice sizes offered (``--ocio-export-size``).
-SIZES = (17, 25, 33, 49, 65)
+#: Lattice sizes offered (``--ocio-export-size``; declared in quantities.py).
+SIZES = EXPORT_SIZES
 #: ``--ocio-export-size auto`` (the default): these in turn, until a frame is within
 #: the bound (measured on the frame), else the closest.
 AUTO_SIZES = (33, 49, 65)

@@ -60,14 +60,6 @@ def mode_option(name: str, help: str) -> EffectOption:
     return EffectOption(name, flag, help, choices=MODES, check=check, value="off")
 
 
-def positive(flag: str):
-    """A check: a positive finite number."""
-    def check(v):
-        if not (isinstance(v, (int, float)) and v > 0 and math.isfinite(v)):
-            raise ValueError(f"{flag} must be a positive number")
-    return check
-
-
 @dataclass
 class FrameContext:
     """What the effects of one frame are given: the frame's levels (the scene's

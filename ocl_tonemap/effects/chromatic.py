@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.durand2000 import (cct_duv, chromatic_step, degree_of_adaptation,
-                                 normalise_illuminant, parse_illuminant, partial_illuminant,
-                                 plausible_illuminant, von_kries_gains)
+from ..models.durand2000 import (ILLUMINANTS_XY, cct_duv, chromatic_step,
+                                 degree_of_adaptation, normalise_illuminant, parse_illuminant,
+                                 partial_illuminant, plausible_illuminant, von_kries_gains)
+from ..quantities import Numbers, Quantity, Text
 from .base import Effect, EffectOption
 
 STATE_KEY = "illuminant_rgb"
@@ -65,9 +66,19 @@ def run(settings, extra: dict, goal, source: str, dt: float, fresh: bool, preada
     return (g if ran else None), info
 
 
-def _check_illuminant(v):
-    if v is not None:
-        parse_illuminant(v)
+def _illuminant(v) -> str:
+    """``--illuminant``: a name (D65, A, F2 ...) or a chromaticity ``x,y`` (each 0..1,
+    x + y < 1: within the diagram), kept as written."""
+    t = str(v).strip()
+    if t.upper() in ILLUMINANTS_XY:
+        return t
+    XY.check(t, "--illuminant")
+    return t
+
+
+XY = Numbers("illuminant's chromaticity", "x,y", rule=lambda xy: "" if xy[0] + xy[1] < 1.0
+             else "x + y below 1 (a chromaticity)", parts=(
+                 Quantity("x", "", 0.0, 1.0, above=True), Quantity("y", "", 0.0, 1.0, above=True)))
 
 
 class ChromaticAdaptation(Effect):
@@ -87,7 +98,9 @@ class ChromaticAdaptation(Effect):
         EffectOption("illuminant", "--illuminant", "illuminant for chromatic adaptation: "
                      "x,y or a name (D65, D50, A, F2, F11, LED-B3 ...); default: EXR "
                      "adoptedNeutral, else estimated from the frame",
-                     check=_check_illuminant, value=None),
+                     metavar="x,y|NAME", value=None,
+                     decl=Text("illuminant", "x,y (each 0..1, x + y below 1) or a name: "
+                               + ", ".join(sorted(ILLUMINANTS_XY)), _illuminant)),
     )
 
     def __init__(self, fx):

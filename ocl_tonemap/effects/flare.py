@@ -19,19 +19,13 @@ from ..backends.base import Later
 from ..models import spencer1995 as fl
 from ..models.convolution import EDGE_ZERO
 from ..models.photometry import Y_WEIGHTS
-from ..quantities import AGE
+from ..quantities import AGE, Quantity, Text, word_or
 from ..resources import cached_json
-from .base import Effect, EffectOption, positive
+from .base import Effect, EffectOption
 
 log = logging.getLogger("ocl_tonemap")
 #: Default angular width of the image, degrees (the paper's 50-degree example, Sec. 8).
 DEFAULT_FOV = 50.0
-
-
-def _check_fov(v):
-    if not (isinstance(v, (int, float)) and 0 < v <= 360):
-        raise ValueError(f"--fov must be above 0 and at most 360 degrees (a fisheye's "
-                         f"width; got {v})")
 
 
 def _check_method(v):
@@ -39,40 +33,22 @@ def _check_method(v):
         raise ValueError(f"--flare-method must be fast or exact (got {v!r})")
 
 
-def _check_sampling(v):
-    if v not in (1, 2, 3, 4):
-        raise ValueError("--flare-sampling (Gaussians per octave) must be 1..4")
-
-
 #: The field of view, an option of the flare and of acuity (one option of both).
-FOV_OPTION = EffectOption("fov_deg", "--fov", "angular width of the image, degrees, 0..360 "
-                          "(default: a Radiance picture's VIEW, else 50)", type=float,
-                          check=_check_fov, value=DEFAULT_FOV)
-
-
-def _check_age(v):
-    if not fl.is_literal(v) and not (isinstance(v, (int, float)) and AGE.accepts(float(v))):
-        raise ValueError(f"--age must be {AGE.range_text()}, or spencer (got {v})")
-
-
-def _age(text: str):
-    """``--age``: years, or ``spencer`` (Eq. 8's printed weights and pupil, no age)."""
-    if text.strip().lower() == fl.LITERAL_AGE:
-        return fl.LITERAL_AGE
-    try:
-        return float(text)
-    except ValueError:
-        raise ValueError(f"--age must be {AGE.range_text()}, or spencer (got {text!r})") \
-            from None
-
+FOV_OPTION = EffectOption("fov_deg", "--fov", "angular width of the image (default: a "
+                          "Radiance picture's VIEW, else 50; beyond 180: panoramas)",
+                          metavar="DEGREES", value=DEFAULT_FOV,
+                          decl=Quantity("angular width of the image", "degrees", 0.0, 360.0,
+                                        above=True))
 
 #: The observer's age: the flare's pupil (Watson & Yellott 2012) and glare (CIE 146's
 #: equation at that age); the visibility threshold's age factor (Adrian 1989). Default
 #: 25 years; ``spencer`` (spencer1995.LITERAL_AGE): the flare as Eq. 8 prints it with
 #: Moon & Spencer's pupil, the threshold at 25 (docs/models.md, "Observer age").
-AGE_OPTION = EffectOption("age", "--age", "observer's age, 1..100: pupil, glare, threshold "
-                          "(default 25; spencer: the flare's Eq. 8 as printed)",
-                          type=_age, metavar="YEARS", check=_check_age, value=fl.DEFAULT_AGE)
+AGE_OPTION = EffectOption("age", "--age", "observer's age: pupil, glare, threshold (default "
+                          "25; spencer: the flare's Eq. 8 as printed)", metavar="YEARS",
+                          value=fl.DEFAULT_AGE,
+                          decl=Text("observer's age", f"{AGE.range_text()} or "
+                                    f"{fl.LITERAL_AGE}", word_or(AGE, fl.LITERAL_AGE)))
 
 
 def run(settings, rgb: np.ndarray, G_rod: float, G_cone: float, lim: float, blur=None,
@@ -309,11 +285,13 @@ class Flare(Effect):
                      "(default); exact: FFT of the full PSF", choices=("fast", "exact"),
                      check=_check_method, value="fast"),
         EffectOption("flare_threshold", "--flare-threshold", "light sources are pixels "
-                     "above this x the adaptation level (default 7)", type=float,
-                     check=positive("--flare-threshold"), value=fl.DEFAULT_THRESHOLD),
+                     "above this x the adaptation level (default 7)", metavar="X",
+                     value=fl.DEFAULT_THRESHOLD,
+                     decl=Quantity("flare source threshold", "x the adaptation level",
+                                   0.0, 1e6, above=True)),
         EffectOption("flare_per_octave", "--flare-sampling", "fast flare: Gaussians per "
-                     "octave (default 1)", type=int, metavar="N", check=_check_sampling,
-                     value=1),
+                     "octave (default 1)", metavar="N", value=1,
+                     decl=Quantity("Gaussians per octave", "", 1, 4, integer=True)),
     )
 
     def __init__(self, fx):

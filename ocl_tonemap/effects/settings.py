@@ -90,7 +90,9 @@ class EffectSettings:
         for k in sorted(opts, key=lambda k: (k not in registry(), list(opts).index(k))):
             o = opts[k][0]
             if o.check is not None and (k in given or o.value is not None):
-                o.check(v[k])
+                checked = o.check(v[k])
+                if o.decl is not None and k in given:     # the declared value (text parsed)
+                    v[k] = checked
 
     def __getattr__(self, name):
         try:

@@ -9,12 +9,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..backends.quality import quality_tier
-from ..calibration import check_luminance
 from ..imageio import LINEAR_FORMATS, PNG_FILTERS
 from ..models.adrian1989 import ADRIAN_1989
 from ..models.photometry import RepairCounts
 from ..patterns import MAX_FRAME
-from ..quantities import OBSERVATION_S, TARGET_ARCMIN
+from ..quantities import OBSERVATION_S, RUN, TARGET_ARCMIN
 from ..safeio import read_text
 
 DEFAULT_FPS = 24.0
@@ -98,19 +97,15 @@ class JobOptions:
         self.quality = tier.name
         self.backend = self.backend or tier.backend
         self.display_encode = self.display_encode or tier.display_encode
-        if self.fps is not None and not (math.isfinite(self.fps) and 0 < self.fps <= 1e6):
-            raise ValueError(f"--fps must be a positive number of frames per second, at most "
-                             f"1e6 (got {self.fps:g})")
-        if not math.isfinite(self.exposure) or abs(self.exposure) > 100:
-            raise ValueError(f"--exposure must be a number of stops in [-100, 100] "
-                             f"(got {self.exposure:g})")
-        if self.max_memory is not None and not (math.isfinite(self.max_memory)
-                                                and self.max_memory >= 8):
-            raise ValueError(f"--max-memory must be at least 8 MiB (got {self.max_memory:g})")
-        if not (isinstance(self.checkpoint_every, int) and self.checkpoint_every >= 1):
-            raise ValueError(f"--checkpoint-every must be >= 1 (got {self.checkpoint_every})")
-        if not (isinstance(self.png_level, int) and 0 <= self.png_level <= 9):
-            raise ValueError(f"--png-level must be 0..9 (got {self.png_level})")
+        for name, decl in RUN.items():      # each declared value, as its flag checks it
+            v = getattr(self, name, None)
+            if v is not None:
+                setattr(self, name, decl.check(v, "--" + name.replace("_", "-")))
+        if self.display_black is not None and self.display_white is not None and \
+                not self.display_black < self.display_white:
+            raise ValueError(f"--display-black {self.display_black:g} cd/m^2 must be below "
+                             f"the display's white (--display-white {self.display_white:g} "
+                             "cd/m^2)")
         if self.png_filter not in PNG_FILTERS:
             raise ValueError(f"--png-filter must be {', '.join(PNG_FILTERS)} "
                              f"(got {self.png_filter!r})")
@@ -147,58 +142,6 @@ def transfers_line(moved: list) -> str:
     mean = {k: sum(m[k] for m in moved) / len(moved) for k in moved[0]}
     return (f"up {mean['up_bytes'] / 2**20:.2f} MiB in {mean['up_calls']:.3g} calls, "
             f"down {mean['down_bytes'] / 2**20:.2f} MiB in {mean['down_calls']:.3g} calls")
-
-
-#: The physical range of durations a user gives, seconds (115 days); that of
-#: adaptation luminances: ``calibration.ADAPT_LUMINANCE``.
-SECONDS_MAX = 1e7
-
-
-def check_seconds(s: float, flag: str) -> float:
-    if not (math.isfinite(s) and 0 <= s <= SECONDS_MAX):
-        raise ValueError(f"{flag} {s:g} s is outside 0..{SECONDS_MAX:g} s")
-    return s
-
-
-def parse_preadapt(text: str) -> tuple[float, float | None]:
-    """``L`` or ``L:SECONDS`` (``m`` suffix: minutes)."""
-    lum, _, sec = text.partition(":")
-    try:
-        L = float(lum)
-        s = None
-        if sec:
-            s = float(sec[:-1]) * 60.0 if sec.endswith("m") else float(sec)
-    except ValueError:
-        raise ValueError(f"bad --preadapt {text!r}: use CD_M2 or CD_M2:SECONDS") from None
-    check_luminance(L, "--preadapt")
-    if s is not None:
-        check_seconds(s, "--preadapt")
-    return L, s
-
-
-def parse_times(text: str) -> list[float]:
-    """``T1,T2,...`` in seconds; an ``m`` suffix means minutes."""
-    out = []
-    for item in text.split(","):
-        item = item.strip()
-        try:
-            v = float(item[:-1]) * 60.0 if item.endswith("m") else float(item.rstrip("s"))
-        except ValueError:
-            raise ValueError(f"bad --at value {item!r}: use seconds or minutes (e.g. 30,2m)") from None
-        out.append(check_seconds(v, "--at"))
-    if not out:
-        raise ValueError("--at needs at least one time")
-    return out
-
-
-def parse_export_size(text: str):
-    """``--ocio-export-size``: ``auto`` or a number of lattice nodes per axis."""
-    if text == "auto":
-        return text
-    try:
-        return int(text)
-    except ValueError:
-        raise ValueError(f"--ocio-export-size must be auto or a number (got {text!r})") from None
 
 
 #: Largest --cuts file (a list of frame numbers), bytes.

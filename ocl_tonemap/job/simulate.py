@@ -11,6 +11,7 @@ from ..imageio import FrameError, read_frame
 
 from ..imagewrite import write_frame
 from ..patterns import is_sequence, same_file
+from ..quantities import RUN
 from ..plot import plot_adaptation
 from ..state_files import load_state, save_state
 from .frame import frame_input, map_frame, render_output
@@ -41,6 +42,7 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
         raise FrameError(opts.input, None, "simulate takes one still image, not a sequence")
     if opts.preadapt is None:
         raise ValueError("simulate needs --preadapt CD_M2[:SECONDS] (what the observer saw before)")
+    times = RUN["at"].check(times, "--at")
     outs = simulate_outputs(opts.output, times)
     for _, o in outs:
         if same_file(o, opts.input):

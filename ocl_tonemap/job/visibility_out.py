@@ -31,7 +31,7 @@ from ..models.photometry import Y_WEIGHTS
 from ..models.visibility_map import (PLANES, Geometry, below_a_pixel, recipe, scene_luminance,
                                      value_at)
 from ..patterns import frame_path, is_sequence, same_file
-from ..quantities import VISIBILITY
+from ..quantities import RUN
 from ..visibility import Viewing, seen
 
 log = logging.getLogger("ocl_tonemap")
@@ -113,24 +113,10 @@ def frame_visibility(tm, req: VisibilityRequest) -> VisibilityPlanes:
     return tm.backend.visibility(req)
 
 
-def parse_target(text: str) -> tuple[float, float, float]:
-    """``--target X,Y,SIZE``: pixel column and row of the target's centre (0, 0 the
-    top-left pixel), its size in arcmin."""
-    try:
-        x, y, size = (float(v) for v in text.split(","))
-    except ValueError:
-        raise ValueError(f"--target must be X,Y,SIZE (pixels, pixels, arcmin; got "
-                         f"{text!r})") from None
-    return check_target((x, y, size), text)
-
-
-def check_target(target, given=None) -> tuple[float, float, float]:
-    """``--target``'s X, Y finite, its SIZE the declared target size (0.1..600')."""
-    x, y, size = (float(v) for v in target)
-    if not (math.isfinite(x) and math.isfinite(y)):
-        raise ValueError(f"--target must be finite numbers (got {given or target!r})")
-    VISIBILITY["size"].check(size, "--target: SIZE")
-    return x, y, size
+def check_target(target) -> tuple[float, float, float]:
+    """``--target X,Y,SIZE`` as declared (``quantities.RUN``): pixel column and row of
+    the target's centre (0, 0 the top-left pixel), its size in arcmin."""
+    return tuple(float(v) for v in RUN["target"].check(target, "--target"))
 
 
 def target_visibility(tm, req: VisibilityRequest, planes: VisibilityPlanes, opts) -> dict:

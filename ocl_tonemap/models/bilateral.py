@@ -172,12 +172,14 @@ class BilateralSpec:
             raise ValueError("bilateral sampling rates must be >= 0.5")
 
     @classmethod
-    def parse(cls, method: str, sampling: str | None = None) -> "BilateralSpec":
+    def parse(cls, method: str, sampling=None) -> "BilateralSpec":
+        """``sampling``: (Q,) or (QS, QR), or their text ``Q[,QR]``."""
         if sampling:
             try:
-                parts = [float(x) for x in sampling.split(",")]
+                parts = [float(x) for x in (sampling.split(",") if isinstance(sampling, str)
+                                            else sampling)]
                 q_s, q_r = (parts[0], parts[-1])
-            except ValueError:
+            except (ValueError, IndexError):
                 raise ValueError(f"bad --bilateral-sampling {sampling!r}: use Q or QS,QR") from None
             return cls(method, q_s, q_r)
         return cls(method)

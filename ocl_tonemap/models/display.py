@@ -65,8 +65,9 @@ class DisplaySpec:
             raise ValueError(f"display white must be a positive number of cd/m^2 (got {white_cd})")
         black = white_cd / contrast if black_cd is None else black_cd
         if not (0 < black < white_cd and math.isfinite(black)):
-            raise ValueError(f"display black must be > 0 and below white ({white_cd:g} cd/m^2); "
-                             f"got {black:g}")
+            raise ValueError(f"--display-black {black:g} cd/m^2 must be above 0 and below the "
+                             f"display's white ({white_cd:g} cd/m^2{'' if hdr else ', SDR'}; "
+                             f"--display-white sets it)")
         return cls(name, white_cd, black, white_cd / 5.0, unit_cd, hdr, False, subtract_black)
 
     def to_signal(self, L_cd):

@@ -90,9 +90,19 @@ def acuity_a_px(L_waR, fov_deg: float, width: int, mode: str = "default") -> np.
     return ACUITY_A_PER_OMEGA * acuity_cutoff(L_waR, mode) * fov_deg / width
 
 
-def acuity_sigma_px(a_px) -> np.ndarray:
-    """Standard deviation (px) of the unit-volume Gaussian a^2 exp(-pi (a r)^2)."""
-    return 1.0 / (np.asarray(a_px, np.float64) * math.sqrt(2.0 * math.pi))
+#: The widest blur kept, in frame widths: a Gaussian of two frame widths is flat
+#: across the frame to within 12 % (exp(-1/8)): nothing of the frame's detail is left
+#: at the blend that reaches it (a < 1/(2 sqrt(2 pi) W) px^-1, far below ACUITY_FULL),
+#: and a wider one costs taps in proportion (a field of view of 0.01 degrees at night
+#: asks for ~1e4 frame widths).
+SIGMA_MAX_WIDTHS = 2.0
+
+
+def acuity_sigma_px(a_px, width: int | None = None) -> np.ndarray:
+    """Standard deviation (px) of the unit-volume Gaussian a^2 exp(-pi (a r)^2); with
+    ``width``, at most :data:`SIGMA_MAX_WIDTHS` frame widths."""
+    s = 1.0 / (np.asarray(a_px, np.float64) * math.sqrt(2.0 * math.pi))
+    return s if width is None else np.minimum(s, SIGMA_MAX_WIDTHS * max(int(width), 1))
 
 
 def acuity_blend(a_px) -> np.ndarray:
@@ -110,7 +120,7 @@ def apply_acuity(img: np.ndarray, L_waR: float, fov_deg: float, blur=None,
     a = float(acuity_a_px(L_waR, fov_deg, w, mode))
     t = float(acuity_blend(a))
     info = {"a_px": a, "cutoff_cpd": float(acuity_cutoff(L_waR, mode)), "blend": t,
-            "sigma_px": float(acuity_sigma_px(a))}
+            "sigma_px": float(acuity_sigma_px(a, w))}
     if t <= 0.0:
         return img, info
     taps = gaussian_taps(info["sigma_px"])
@@ -125,4 +135,4 @@ def acuity_info(L_waR: float, fov_deg: float, width: int, mode: str = "default")
     a = float(acuity_a_px(L_waR, fov_deg, width, mode))
     return {"a_px": a, "cutoff_cpd": float(acuity_cutoff(L_waR, mode)),
             "blend": float(acuity_blend(a)),
-            "sigma_px": float(acuity_sigma_px(a))}
+            "sigma_px": float(acuity_sigma_px(a, width))}

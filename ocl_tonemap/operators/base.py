@@ -67,6 +67,24 @@ class Option:
     metavar: str | None = None
     convert: Callable | None = None
     check: Callable | None = None
+    decl: Any = None
+
+    def __post_init__(self):
+        """``decl`` (a ``quantities`` declaration: what the value is, its unit and
+        range) makes the flag's parser and the API's check, in the same words."""
+        if self.decl is None:
+            return
+        flag = self.flag or self.name
+        if self.type is None:
+            object.__setattr__(self, "type", self.decl.arg(flag))
+        if self.check is None:
+            object.__setattr__(self, "check", lambda v, d=self.decl, f=flag:
+                               None if v is None else d.check(v, f))   # None: not given
+
+    @property
+    def help_text(self) -> str:
+        """The flag's help with the declared range."""
+        return self.decl.help(self.help) if self.decl is not None else self.help
 
     @property
     def dest(self) -> str:
@@ -187,7 +205,9 @@ class Operator:
                 raise ValueError(f"{o.flag} must be one of {', '.join(map(str, o.choices))} "
                                  f"(got {v!r})")
             if o.check is not None:
-                o.check(v)
+                checked = o.check(v)
+                if o.decl is not None:            # the declared value (text parsed)
+                    given[k] = checked
         return given
 
     def option(self, name: str, default=None):
@@ -419,13 +439,3 @@ def finite_positive(flag: str, upper: float = math.inf):
             raise ValueError(f"{flag} must be a positive number (got {v!r})")
     return check
 
-
-def parse_triple(text: str, flag: str) -> tuple:
-    """``a,b,c``: three non-negative numbers (command-line options)."""
-    try:
-        t = tuple(float(v) for v in text.split(","))
-        if len(t) != 3 or min(t) < 0:
-            raise ValueError
-        return t
-    except ValueError:
-        raise ValueError(f"bad {flag} {text!r}: three non-negative numbers a,b,c") from None

@@ -10,13 +10,13 @@ module declares the operator and packs the frame's scalars for
 from __future__ import annotations
 
 from ..models import durand2000 as model
-from .base import COLOUR_STAGE, METER_STAGE, KernelCall, ModelOperator, Option, Stage, StateSpec, parse_triple
+from ..quantities import Numbers, Quantity
+from .base import COLOUR_STAGE, METER_STAGE, KernelCall, ModelOperator, Option, Stage, StateSpec
 from .pattanaik00 import MODE_OPTION
 
 
-def _lut_check(v):
-    if v and not (2 <= int(v) <= 1 << 20):
-        raise ValueError(f"--lut must be 0 or 2 .. 1048576 entries (got {v})")
+def _some_light(rgb) -> str:
+    return "" if max(rgb) > 0 else "at least one of R, G, B above 0 (the rods' signal)"
 
 
 #: The packed scalars of kernels/durand00.cl, one layout for both its kernels
@@ -39,10 +39,14 @@ class Durand00(ModelOperator):
         MODE_OPTION,
         Option("tint", "--blue-shift", "colour of rod signals (Eq. 5): default a 480 nm blue, xy "
                "0.289,0.308 (the paper's 1.05,0.97,1.27 with --mode paper); 1,1,1 for none",
-               metavar="R,G,B", convert=lambda v: parse_triple(v, "--blue-shift")),
+               metavar="R,G,B",
+               decl=Numbers("colour of the rods' signal", "R,G,B", rule=_some_light,
+                            parts=tuple(Quantity(c, "", 0.0, 10.0)
+                                        for c in ("red", "green", "blue")))),
         Option("lut", "--lut", "evaluate the mapping through per-frame tables of N entries over "
                "12 decades (Sec. 5; the paper uses 2000); 0 = direct (default)",
-               type=int, default=0, metavar="N", check=_lut_check),
+               default=0, metavar="N",
+               decl=Quantity("table entries", "", 2, 1 << 20, zero=True, integer=True)),
     )
     state = StateSpec(scalars=("inv_eps_rod", "inv_eps_cone", "L_waR", "L_wa"))
     stages = (

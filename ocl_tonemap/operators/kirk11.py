@@ -23,11 +23,16 @@ from ..models.pattanaik2000 import (K_CONE, K_ROD, TAU_CONE, TAU_ROD, bleach_sta
                                     receptor_levels_advance, receptor_levels_preadapted,
                                     receptor_levels_steady, response_slope, rod_sensitivity)
 from ..models.photometry import Y_WEIGHTS
-from .base import Operator, Option, Stage, StateSpec, parse_triple
+from ..quantities import Numbers, Quantity
+from .base import Operator, Option, Stage, StateSpec
 from .ledda04 import BILATERAL_OPTIONS
 from .pattanaik00 import MODE_OPTION
 
 LEVEL_KEYS = ("A_rod", "A_cone", "B_rod", "B_cone")
+
+
+def _ordered(lo_hi) -> str:
+    return "" if lo_hi[0] < lo_hi[1] else "LO below HI"
 
 
 @dataclass
@@ -59,16 +64,21 @@ class Kirk11(Operator):
                "photopic scenes unshifted) or fixed at full scotopic values (the paper's choice)",
                choices=("full", "adaptive")),
         Option("shift_xyz", "--shift-scale", "Purkinje shift scales of Eq. 12 (default 15,15,5)",
-               metavar="X,Y,Z", convert=lambda v: parse_triple(v, "--shift-scale")),
+               metavar="X,Y,Z",
+               decl=Numbers("Purkinje shift scales", "X,Y,Z", parts=tuple(
+                   Quantity(f"{c} scale", "", 0.0, 1000.0) for c in "XYZ"))),
         Option("gamma", "--night-dim", "range kept by fully scotopic pixels (default 0.25; 1 = "
-               "no dimming)", type=float, metavar="GAMMA"),
+               "no dimming)", metavar="GAMMA",
+               decl=Quantity("range kept by scotopic pixels", "", 0.0, 1.0)),
         Option("target_contrast", "--target-contrast", "base-layer contrast after Durand & "
                "Dorsey 2002 compression (default 300; the paper's 5 with --mode paper)",
-               type=float),
+               metavar="C", decl=Quantity("base-layer contrast", "", 1.0, 1e8, above=True)),
         Option("base_percentiles", "--base-percentiles", "percentiles of the base layer "
                "taken as its range and white (default 1,99 as pfstmo_durand02; 0,100 = its "
                "minimum and maximum, the paper's and --mode paper's)", metavar="LO,HI",
-               convert=lambda v: tuple(float(x) for x in str(v).split(","))),
+               decl=Numbers("base-layer percentiles", "LO,HI", rule=_ordered, parts=(
+                   Quantity("low percentile", "%", 0.0, 100.0),
+                   Quantity("high percentile", "%", 0.0, 100.0)))),
     )
     state = StateSpec(scalars=("logmean_I_A_cone", "logmean_I_A_rod", *LEVEL_KEYS))
     inputs = ("rgb", "spectral")

@@ -19,23 +19,22 @@ from ..models.bilateral import BilateralSpec
 from ..models.display import SHOULDER_KNEE
 from ..models.ledda2004 import (CHANGE_LOG10, LOCAL_STRENGTH, MODES, STATE_CHANNELS,
                                 anchored_sigma, display_sigma, neutral_rod_ratio)
+from ..quantities import Numbers, Quantity
 from .base import Operator, Option, Stage, StateSpec, white_luminance
 from .pattanaik00 import MODE_OPTION
 
 
-def _sigma_check(v):
-    if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= 1e5):
-        raise ValueError(f"--sigma-spatial must be a positive number of pixels (got {v:g})")
-
-
 #: Options of the bilateral filter, shared with kirk11.
 BILATERAL_OPTIONS = (
-    Option("sigma_spatial", "--sigma-spatial", "bilateral spatial sigma, pixels (default: 2%% of "
-           "the larger side)", type=float, check=_sigma_check),
+    Option("sigma_spatial", "--sigma-spatial", "bilateral spatial sigma (default: 2%% of the "
+           "larger side)", metavar="PX",
+           decl=Quantity("bilateral spatial sigma", "px", 0.0, 1e5, above=True)),
     Option("bilateral", "--bilateral", "exact brute force, fast bilateral grid, or auto (exact "
            "when cheap)", choices=("auto", "exact", "fast"), default="auto"),
     Option("bilateral_sampling", "--bilateral-sampling", "grid sampling rate per sigma in "
-           "space[,range] (default 2,2; higher is slower and closer to exact)", metavar="Q[,QR]"),
+           "space[,range] (default 2,2; higher is slower and closer to exact)", metavar="Q[,QR]",
+           decl=Numbers("bilateral grid sampling", "Q[,QR]", count=(1, 2),
+                        each=Quantity("samples per sigma", "", 0.5, 16.0))),
 )
 
 
@@ -115,11 +114,14 @@ class Ledda04(Operator):
                choices=("auto", "always"), default="auto"),
         Option("local_strength", "--local-strength", "ledda04: share of the local (bilateral) "
                "level in each pixel's adaptation, 0 (global) .. 1 (the paper's fully local); "
-               "default 0.5", type=float, metavar="S"),
+               "default 0.5", metavar="S",
+               decl=Quantity("share of the local level", "", 0.0, 1.0)),
         Option("mode", "--ledda-mode", "ledda04: the same as --mode", choices=MODES),
         Option("display_adapt_cd", None, "display adaptation level for sigma_disp, cd/m^2 "
-               "(default 0.4 x white)"),
-        Option("change_log10", None, "restart threshold of the time course, log10 of sigma"),
+               "(default 0.4 x white)",
+               decl=Quantity("display adaptation level", "cd/m^2", 0.0, 1e4, above=True)),
+        Option("change_log10", None, "restart threshold of the time course, log10 of sigma",
+               decl=Quantity("restart threshold", "log10", 0.0, 10.0, above=True)),
     )
     state = StateSpec(scalars=("logmean_I_A_cone", "logmean_I_A_rod"), planes=STATE_CHANNELS)
     metering = "local"

@@ -14,9 +14,11 @@ from ..models import cie203
 from ..models.display import DisplaySpec, display_for
 from ..models.metering import MeteringSpec
 from ..models.photometry import Y_WEIGHTS
+from ..quantities import RUN
 from ..operators import get_operator
 from ..operators.base import Frame
 from ..state import AdaptationState
+
 from .banded import run_banded
 from .frame import FrameGraph, spectral_frame
 from .observer import Observer
@@ -28,6 +30,12 @@ def _behind_media(preadapt, gain: float):
     if preadapt is None or gain == 1.0:
         return preadapt
     return (float(preadapt[0]) * gain, *tuple(preadapt)[1:])
+
+
+def _declared(**given) -> tuple:
+    """The API's keywords that the run declares (``quantities.RUN``), checked in its
+    words; None: not given."""
+    return tuple(None if v is None else RUN[k].check(v, k) for k, v in given.items())
 
 
 class Tonemapper:
@@ -68,6 +76,7 @@ class Tonemapper:
                  model: str = "auto", **effect_options):
         self.operator_name = operator
         op_cls = get_operator(operator)
+        preadapt, max_band_pixels = _declared(preadapt=preadapt, max_band_pixels=max_band_pixels)
         tier = quality_tier(quality)
         self.quality, self.model = tier.name, model
         backend = backend or ("auto" if tier.backend == "opencl" and device is None

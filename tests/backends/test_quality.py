@@ -53,7 +53,7 @@ def test_tier_backend_and_effects():
     assert Tonemapper("ledda04", quality="draft").effects.s.flare_per_octave == 1
     assert Tonemapper("ledda04", quality="reference").effects.s.flare_method == "exact"
     led = Tonemapper("ledda04", quality="draft", options={"bilateral_sampling": "2"})
-    assert led.options["bilateral_sampling"] == "2" and led.options["bilateral"] == "fast"
+    assert led.options["bilateral_sampling"] == (2.0,) and led.options["bilateral"] == "fast"
 
 
 def test_job_options_resolve_the_tier():

@@ -344,7 +344,7 @@ def test_no_abbreviated_flags_and_a_grouped_help(capsys):
     out = capsys.readouterr().out
     for g in GROUPS:
         assert f"\n{g.title}:\n" in out, g.title
-    assert len(out.splitlines()) < 230
+    assert len(out.splitlines()) < 260     # (each declared flag says its range and unit)
     for cmd in ("measure", "integrate", "apply", "export", "farm-template", "simulate"):
         with pytest.raises(SystemExit):
             main([cmd, "--help"])

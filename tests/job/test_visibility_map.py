@@ -208,13 +208,13 @@ def test_the_threshold_follows_the_time_course(drive):
 @pytest.mark.parametrize("args,says", [
     (("--visibility", "v.####.png"), "name it .exr"),
     (("--visibility", "v.exr"), "give a frame pattern"),
-    (("--visibility", "v.####.exr", "--age", "0"), "--age must be 1..100"),
-    (("--visibility", "v.####.exr", "--age", "101"), "--age must be 1..100"),
-    (("--visibility", "v.####.exr", "--target-size", "0"), "--target-size: must be 0.1..600"),
-    (("--visibility", "v.####.exr", "--target-size", "nan"), "--target-size: must be"),
+    (("--visibility", "v.####.exr", "--age", "0"), "--age must be spencer or 1..100"),
+    (("--visibility", "v.####.exr", "--age", "101"), "--age must be spencer or 1..100"),
+    (("--visibility", "v.####.exr", "--target-size", "0"), "--target-size must be 0.1..600"),
+    (("--visibility", "v.####.exr", "--target-size", "nan"), "--target-size must be"),
     (("--visibility", "v.####.exr", "--observation-time", "0"),
-     "--observation-time: must be 0.001..1e+07 s (or inf)"),
-    (("--visibility", "v.####.exr", "--observation-time=-inf"), "--observation-time: must"),
+     "--observation-time must be 0.001..1e+07 s (or inf)"),
+    (("--visibility", "v.####.exr", "--observation-time=-inf"), "--observation-time must"),
     (("--visibility", "v.####.exr", "--adrian", "rp9"), "invalid choice: 'rp9'"),
     (("--visibility", "v.####.exr", "--visibility-type", "int"), "invalid choice: 'int'"),
 ])
@@ -259,9 +259,9 @@ def test_view_and_target_through_the_drive(drive):
 
 @pytest.mark.parametrize("args,says", [
     (("--target", "500,10,10"), "outside the frame"),
-    (("--target", "10,10,0"), "--target: SIZE must be 0.1..600 arcmin"),
-    (("--target", "10,10,1e9"), "--target: SIZE must be 0.1..600 arcmin"),
-    (("--target", "nan,10,10"), "--target must be finite numbers"),
+    (("--target", "10,10,0"), "SIZE 0.1..600 arcmin: the target (its SIZE is 0;"),
+    (("--target", "10,10,1e9"), "SIZE 0.1..600 arcmin: the target (its SIZE is 1e9;"),
+    (("--target", "nan,10,10"), "the target (its X is nan;"),
     (("--target", "10,10"), "must be X,Y,SIZE"),
     (("--visibility-view", "v.####.xyz"), "no image format"),
 ])

@@ -70,5 +70,5 @@ write_tunnel_sequence({str(tmp_path / 'in')!r}, 64, 36, 30.0, 0.2)
                                 str(tmp_path / "bad.png"), "--operator", "exposure",
                                 "--exposure-key", "-1"], capture_output=True, text=True,
                          env=plugin_env)
-    assert bad.returncode == 2 and "--exposure-key must be a positive number" in bad.stderr
+    assert bad.returncode == 2 and "--exposure-key must be > 0 and at most 1" in bad.stderr
     assert "Traceback" not in bad.stderr

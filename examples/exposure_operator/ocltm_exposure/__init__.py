@@ -18,15 +18,9 @@ import numpy as np
 from ocl_tonemap.models.display import DISPLAY_LINEAR_MAX
 from ocl_tonemap.models.integrators import exponential_step
 from ocl_tonemap.operators.base import KernelCall, Operator, Option, Stage, StateSpec
+from ocl_tonemap.quantities import Quantity
 
 KERNEL = str(Path(__file__).with_name("exposure.cl"))
-
-
-def _positive(flag):
-    def check(v):
-        if not (isinstance(v, (int, float)) and 0 < v < float("inf")):
-            raise ValueError(f"{flag} must be a positive number (got {v!r})")
-    return check
 
 
 @dataclass(frozen=True)
@@ -44,9 +38,10 @@ class TimeAdaptedExposure(Operator):
     citation = "ocl-tonemap docs/architecture.md (example)"
     options = (
         Option("key", "--exposure-key", "display level of the adaptation level, as a fraction "
-               "of display white (default 0.18)", type=float, check=_positive("--exposure-key")),
-        Option("tau", "--exposure-tau", "adaptation time constant, seconds (default 0.4)",
-               type=float, check=_positive("--exposure-tau")),
+               "of display white (default 0.18)", metavar="K",
+               decl=Quantity("display level of the adaptation level", "", 0.0, 1.0, above=True)),
+        Option("tau", "--exposure-tau", "adaptation time constant (default 0.4)", metavar="S",
+               decl=Quantity("adaptation time constant", "s", 0.0, 1e7, above=True)),
     )
     state = StateSpec(scalars=("A",))
     stages = (

@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from ocl_tonemap.effects import Effect, EffectOption
-from ocl_tonemap.effects.base import positive
+from ocl_tonemap.quantities import Quantity
 from ocl_tonemap.mechanisms.predict import display_ictcp, p99, sampled
 
 #: Cone levels (cd/m^2) where the grain starts and where it is full.
@@ -77,8 +77,8 @@ class NightNoise(Effect):
     capabilities = frozenset({"host", "banded"})
     options = (EffectOption("night_noise_amount", "--night-noise-amount",
                             "relative grain (one standard deviation) at 0.001 cd/m^2 and "
-                            "below (default 0.1)", type=float, metavar="A",
-                            check=positive("--night-noise-amount"), value=0.1),)
+                            "below (default 0.1)", metavar="A", value=0.1,
+                            decl=Quantity("relative grain", "", 0.0, 10.0, above=True)),)
 
     def _strength(self, ctx) -> float:
         return strength(ctx.G_cone, self.fx.s.night_noise_amount) * self.fx.weight(self.name)
