@@ -5,7 +5,7 @@ exits 130, SIGTERM 143, in one line, never a traceback."""
 import os
 import sys
 
-from .interrupts import Terminated, exit_code, ignore_for_exit, install, ready
+from .interrupts import Terminated, enable_watchdog, exit_code, ignore_for_exit, install, ready
 
 
 def _leave(code: int) -> None:
@@ -82,6 +82,7 @@ def _one_blas_thread() -> None:
 
 def _entry() -> int:
     try:
+        enable_watchdog()                 # every wait ends within a second of a signal
         install()
         ready("handlers")
         _malloc_for_frames()

@@ -173,8 +173,7 @@ def read_frame(path: str, frame: int | None = None, channels: list[str] | None =
     ``pool``: a scanline image is read in row bands into one of its arrays;
     ``keep_half``: a half-float file of R, G, B alone stays half (float16: half the
     memory, and the upload to a device of half the bytes; every half is a float32)."""
-    if not os.path.exists(path):
-        raise FrameError(path, frame, "no such file")
+    check_readable(path, frame)
     # Ask for alpha as the file stores it: straight-alpha formats (PNG, TIFF with
     # unassociated alpha) then say so in oiio:UnassociatedAlpha, and are not
     # premultiplied and divided again on the way through (8-bit rounding).
@@ -204,6 +203,28 @@ def read_frame(path: str, frame: int | None = None, channels: list[str] | None =
     return radiance.as_read(fr, rad)
 
 
+def check_readable(path: str, frame: int | None = None) -> None:
+    """An input image, before anything opens it: there, and a regular file (a FIFO,
+    a socket, a device or a folder is refused here: OIIO's open would wait on a FIFO
+    inside the library, where no signal reaches), in one :class:`FrameError`."""
+    try:
+        safeio.check_input(path)
+    except safeio.NotAFile as exc:
+        raise FrameError(path, frame, exc.why) from None
+    if not os.path.exists(path):
+        raise FrameError(path, frame, "no such file")
+
+
+#: What a deep image (OpenEXR's per-pixel sample lists) is told.
+DEEP_WHY = "a deep image (per-pixel samples); flatten it first (oiiotool --flatten)"
+
+
+def check_flat(spec, path: str, frame: int | None) -> None:
+    """A deep image is refused on read: its pixels are lists of samples, not colours."""
+    if getattr(spec, "deep", False):
+        raise FrameError(path, frame, DEEP_WHY)
+
+
 def radiance_source(path: str, frame: int | None):
     """(header or None, the file OIIO reads) of a picture: a Radiance picture's header
     (``radiance.py``); an XYZE picture is read from a copy that says rgbe."""
@@ -225,6 +246,8 @@ def _extra_channels(path: str) -> bool:
         return False
     try:
         s = inp.spec()
+        if s.deep:
+            return False               # (refused where it is read, in its own words)
         if s.nchannels <= 4 or s.depth > 1:
             return False
         short = [n.split(".")[-1].upper() for n in s.channelnames]
@@ -258,6 +281,7 @@ def frame_from_imagebuf(buf, path: str = "<ImageBuf>", frame: int | None = None,
         raise FrameError(path, frame, f"cannot read: {exc}") from None
     if not buf.initialized:
         raise FrameError(path, frame, "cannot read: the ImageBuf holds no image")
+    check_flat(spec, path, frame)
     _check_size(spec, path, frame)
     pix = buf.get_pixels(oiio.FLOAT)
     if buf.has_error or pix is None:
@@ -278,6 +302,7 @@ def frame_from_file(src: str, hint, path: str, frame: int | None = None,
         raise FrameError(path, frame, f"cannot read: {oiio_error(oiio.geterror())}")
     try:
         spec = inp.spec()
+        check_flat(spec, path, frame)
         _check_size(spec, path, frame)
         if pool is not None and spec.tile_width == 0 and spec.depth <= 1:
             half = keep_half and spec.format == oiio.TypeDesc("half") and \
@@ -376,8 +401,7 @@ class BandReader:
     channels (R, G, B [, A]) as float32."""
 
     def __init__(self, path: str, frame: int | None = None, channels: list[str] | None = None):
-        if not os.path.exists(path):
-            raise FrameError(path, frame, "no such file")
+        check_readable(path, frame)
         hint = oiio.ImageSpec()
         hint.attribute("oiio:UnassociatedAlpha", 1)
         self.path, self.frame = path, frame
@@ -387,8 +411,9 @@ class BandReader:
             self._drop_copy()
             raise FrameError(path, frame, f"cannot read: {oiio_error(oiio.geterror())}")
         spec = self.inp.spec()
-        if spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
-            raise FrameError(path, frame, "empty image")
+        if spec.deep or spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
+            self.close()
+            raise FrameError(path, frame, DEEP_WHY if spec.deep else "empty image")
         try:
             self.idx, note = select_channels(spec, channels)
         except ValueError as exc:

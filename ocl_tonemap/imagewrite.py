@@ -99,7 +99,9 @@ def room_for(path: str, frame, ext: str, width: int, height: int, nch: int) -> N
 
 def output_folder(path: str, frame: int | None = None, what: str = "output") -> str:
     """The folder of a file to write, made where missing (as oiiotool and Nuke's
-    Write do); ``what`` names the file in the error (output, state)."""
+    Write do); ``what`` names the file in the error (output, state). A folder this
+    process cannot write in (a read-only file system, or its permissions) is refused
+    in our words: ``<folder>: read-only, cannot write o.png``."""
     d = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(d):
         try:
@@ -107,7 +109,39 @@ def output_folder(path: str, frame: int | None = None, what: str = "output") -> 
         except OSError as exc:
             raise FrameError(path, frame, f"cannot make the {what} folder {d}: "
                              f"{safeio.reason(exc)}") from None
+    if not os.access(d, os.W_OK | os.X_OK):
+        raise FrameError(os.path.dirname(path) or ".", frame,
+                         f"read-only, cannot write {os.path.basename(path)}")
     return d
+
+
+#: The formats named in the error for an output name no writer takes.
+KNOWN_OUTPUTS = ".exr, .png, .tif, .jpg, .hdr ..."
+
+
+def check_output(path: str, frame: int | None = None) -> None:
+    """An output name, before any frame is made: not a folder nor another thing that is
+    not a file, a name some image format writes (its extension), in a folder this
+    process can write in; each refused in one :class:`FrameError` in our words
+    (OIIO's own error is read, so none is left pending for it to print at exit)."""
+    if os.path.isdir(path):
+        raise FrameError(path, frame, "is a folder; give an image file name in it "
+                         f"({os.path.join(path, 'out.exr')} ...)")
+    try:
+        safeio.check_input(path)
+    except safeio.NotAFile as exc:
+        raise FrameError(path, frame, exc.why) from None
+    out = oiio.ImageOutput.create(path)
+    if out is None:
+        oiio.geterror()
+        ext = Path(path).suffix
+        raise FrameError(path, frame, (f"no image format writes the extension {ext}"
+                                       if ext else "no extension, so no image format to "
+                                       "write it") + f" (use {KNOWN_OUTPUTS})")
+    d = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(d) and not os.access(d, os.W_OK | os.X_OK):
+        raise FrameError(os.path.dirname(path) or ".", frame,
+                         f"read-only, cannot write {os.path.basename(path)}")
 
 
 def _write_error(tmp: str, text: str) -> str:
@@ -178,6 +212,7 @@ def format_supports_alpha(path: str) -> bool:
     """Whether OIIO's writer for this file name stores alpha (JPEG, Radiance do not)."""
     out = oiio.ImageOutput.create(path)
     if out is None:
+        oiio.geterror()                  # (nothing left pending: OIIO prints it at exit)
         return True
     return bool(out.supports("alpha"))
 

@@ -22,15 +22,101 @@ class Terminated(BaseException):
 received = 0
 
 
+#: Seconds a signal gives the command to end on its own (the frame in flight
+#: finished or discarded, its locks released) before :func:`arm`'s watchdog ends the
+#: process itself: a wait the signal cannot cut short (a thread stuck in a C call
+#: that the main thread waits for, a pool's shutdown joining it) ends all the same.
+GRACE_S = 1.0
+
+#: The watchdog is the command's own (``__main__``: :func:`enable_watchdog`), never
+#: a host's that embeds the library or runs ``cli.main`` in its own process.
+_watchdog = False
+_armed = False
+
+#: What the watchdog says after "interrupted" (a run sets it: where its state is).
+checkpoint: str | None = None
+#: Folders where this process writes temporary files (a run's outputs and state):
+#: the watchdog removes its own (``.NAME.tmp<pid>EXT``) before it leaves.
+temp_folders: set = set()
+
+
+def enable_watchdog(on: bool = True) -> None:
+    """Let :func:`arm` end the process (the ``ocl-tonemap`` command only)."""
+    global _watchdog
+    _watchdog = bool(on)
+
+
+def arm(signum: int) -> None:
+    """The first signal's watchdog: unless the process has ended :data:`GRACE_S`
+    seconds from now, it says so in one line and leaves with 128 + ``signum``
+    (``os._exit``: no thread is waited for; the run locks are released, a
+    temporary file of the frame in flight is removed by the next run). A daemon
+    thread, so nothing when the command ends first; only where
+    :func:`enable_watchdog` was called.
+
+    It runs wherever the main thread waits with the interpreter free (a lock, a
+    future, a pool's join, a system call); a library call that holds the
+    interpreter (OIIO's or OCIO's open of a FIFO) cannot be reached from Python,
+    which is why such files are refused before they are opened
+    (``safeio.check_input``)."""
+    global _armed
+    if not _watchdog or _armed:
+        return
+    _armed = True
+    import threading
+    threading.Thread(target=_watch, args=(int(signum),), name="ocltm-signal-watchdog",
+                     daemon=True).start()
+
+
+def _watch(signum: int) -> None:
+    import os
+    import sys
+    import time
+    time.sleep(GRACE_S)
+    try:
+        ck = sys.modules.get("ocl_tonemap.job.checkpoint")
+        if ck is not None:
+            ck.release_held()
+        _remove_own_temps()
+        where = (f"; the state of the frames written is in {checkpoint} (run it again "
+                 "with --resume)") if checkpoint and os.path.exists(checkpoint) else ""
+        sys.stderr.write(f"ocl-tonemap: {'terminated' if signum == 15 else 'interrupted'}; "
+                         f"the work in flight did not stop within {GRACE_S:g} s and was "
+                         f"discarded{where}\n")
+        sys.stderr.flush()
+        sys.stdout.flush()
+    except BaseException:  # noqa: BLE001 -- leaving is all that is left to do
+        pass
+    os._exit(128 + signum)
+
+
+def _remove_own_temps() -> None:
+    import os
+    mark = f".tmp{os.getpid()}"
+    for d in list(temp_folders):
+        try:
+            names = os.listdir(d)
+        except OSError:
+            continue
+        for n in names:
+            if n.startswith(".") and mark in n:
+                try:
+                    os.unlink(os.path.join(d, n))
+                except OSError:
+                    pass
+
+
 def _terminate(signum, frame):
     global received
     received = signum
+    arm(signum)
     raise Terminated(signum)
 
 
 def _interrupt(signum, frame):
     global received
     received = signum
+    arm(signum)
     raise KeyboardInterrupt
 
 

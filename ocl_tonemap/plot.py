@@ -123,9 +123,10 @@ def _plot_target(ax, infos) -> None:
     ax.grid(alpha=0.3, which="both")
 
 
-def _plot_plan(ax, infos) -> None:
+def _plot_plan(ax, infos, model: str | None = None) -> None:
     """The mechanism plan's weights over time (``mechanisms/``), one line each,
-    offset a little so that lines on top of each other stay visible."""
+    offset a little so that lines on top of each other stay visible; the title says
+    what the plan did over the shot (:func:`plan_summary`)."""
     rows = [(i.time_s, i.plan["weights"]) for i in infos if i.plan]
     t = np.array([r[0] for r in rows])
     present = [m for m in mechanisms() if any(m in w for _, w in rows)]
@@ -135,9 +136,54 @@ def _plot_plan(ax, infos) -> None:
     ax.set_ylim(-0.1, 1.25)
     ax.set_ylabel("weight")
     ax.set_xlabel("time (s)")
-    ax.set_title("mechanism plan (--model auto): 0 skipped, 1 applied")
+    ax.set_title(plan_title([r[1] for r in rows], model), fontsize=9)
     ax.legend(loc="center right", fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
+
+
+def plan_summary(weights: list[dict]) -> dict:
+    """What a shot's mechanism plan did, from its frames' weights (mechanism -> 0..1,
+    in frame order): ``{"applied": [...], "skipped": [...], "partial": [...],
+    "switched": {mechanism: (frames on, frames, changes)}}`` -- applied: weight 1 on
+    every frame; skipped: 0 on every frame; partial: one weight between 0 and 1 on
+    every frame; switched: the weight changed over the shot (on: weight above 0)."""
+    order = [m for m in mechanisms() if any(m in w for w in weights)]
+    order += sorted({m for w in weights for m in w} - set(order))
+    out = {"applied": [], "skipped": [], "partial": [], "switched": {}}
+    for m in order:
+        vals = [float(w[m]) for w in weights if m in w]
+        if len(set(vals)) > 1:
+            changes = sum(1 for a, b in zip(vals, vals[1:]) if a != b)
+            out["switched"][m] = (sum(1 for v in vals if v > 0), len(vals), changes)
+        elif vals[0] >= 1.0:
+            out["applied"].append(m)
+        elif vals[0] <= 0.0:
+            out["skipped"].append(m)
+        else:
+            out["partial"].append(f"{m} {vals[0]:g}")
+    return out
+
+
+def plan_title(weights: list[dict], model: str | None = None) -> str:
+    """The plan's title: what it applied, skipped and switched on and off over the
+    shot (:func:`plan_summary`), wrapped to the plot's width."""
+    import textwrap
+    s = plan_summary(weights)
+    parts = []
+    if s["applied"]:
+        parts.append("applied throughout: " + ", ".join(s["applied"]))
+    if s["partial"]:
+        parts.append("in part throughout: " + ", ".join(s["partial"]))
+    if s["switched"]:
+        parts.append("switched on/off: " + ", ".join(
+            f"{m} (on in {on} of {n} frames, {c} change{'s' if c != 1 else ''})"
+            for m, (on, n, c) in s["switched"].items()))
+    if s["skipped"]:
+        parts.append("skipped throughout: " + ", ".join(s["skipped"]))
+    head = f"mechanism plan (--model {model})" if model else "mechanism plan"
+    n = len(weights)
+    text = f"{head} over {n} frame{'s' if n != 1 else ''}: " + ("; ".join(parts) or "empty")
+    return "\n".join(textwrap.wrap(text, 110))
 
 
 def _pyplot():

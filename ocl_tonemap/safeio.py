@@ -182,18 +182,55 @@ def read_text(path, what: str, cap: int = TEXT_CAP) -> str:
         raise ValueError(f"{what} {path} is not text (UTF-8)") from None
 
 
-def _check_regular(st, path, what: str) -> None:
-    if not stat.S_ISREG(st.st_mode):
-        kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a folder" if stat.S_ISDIR(st.st_mode)
-                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
-                else "not a regular file")
-        raise ValueError(f"{what} {path} is {kind}; a regular file is needed")
+class NotAFile(ValueError):
+    """A user's path that is not a regular file (a FIFO, a socket, a device, a folder):
+    ``<path>: is a named pipe (FIFO), not a file``. Refused before it is opened: a
+    FIFO's open waits for a writer inside the library that opens it, where no signal
+    can reach."""
+
+    def __init__(self, path, kind: str):
+        self.path, self.kind = str(path), kind
+        super().__init__(f"{self.path}: is {kind}, not a file")
+
+    @property
+    def why(self) -> str:
+        return f"is {self.kind}, not a file"
 
 
-def regular_file(path, what: str) -> None:
-    """Refuse a path that is not a regular file (a FIFO would hang a reader)."""
+def file_kind(mode: int) -> str | None:
+    """What a ``st_mode`` that is not a regular file is, in words (None: a regular file)."""
+    if stat.S_ISREG(mode):
+        return None
+    return ("a named pipe (FIFO)" if stat.S_ISFIFO(mode) else "a folder" if stat.S_ISDIR(mode)
+            else "a socket" if stat.S_ISSOCK(mode)
+            else "a character device" if stat.S_ISCHR(mode)
+            else "a block device" if stat.S_ISBLK(mode) else "not a regular file")
+
+
+def _check_regular(st, path, what: str = "") -> None:
+    kind = file_kind(st.st_mode)
+    if kind is not None:
+        raise NotAFile(path, kind)
+
+
+def regular_file(path, what: str = "") -> None:
+    """Refuse a path that is not a regular file, before anything opens it (a FIFO
+    would hang its reader): :class:`NotAFile`; one that is not there, in words
+    (``what`` names it: ``--state-in x: no such file or directory``)."""
     try:
         st = os.stat(path)
     except OSError as exc:
-        raise ValueError(f"{what} {path}: {reason(exc)}") from None
+        raise ValueError(f"{what + ' ' if what else ''}{path}: {reason(exc)}") from None
     _check_regular(st, path, what)
+
+
+def check_input(path) -> None:
+    """The one check of every file the tool opens for reading (images, masks, OCIO
+    configs, state files, cut lists), made before it is opened: a regular file, else
+    :class:`NotAFile` (``<path>: is a named pipe (FIFO), not a file``). A path that
+    is not there (or cannot be looked at) is left to the caller's own words."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return
+    _check_regular(st, path)

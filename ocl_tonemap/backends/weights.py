@@ -9,10 +9,13 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
+from ..safeio import check_input
+
 
 @functools.lru_cache(maxsize=8)
 def read_weight_mask(path: str, width: int, height: int) -> np.ndarray:
     """A ``mask:`` metering weight image resized to (height, width), float32 weights >= 0."""
+    check_input(path)                     # a FIFO is refused, never opened
     if not os.path.exists(path):
         raise ValueError(f"metering mask {path}: no such file")
     buf = oiio.ImageBuf(path)

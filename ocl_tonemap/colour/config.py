@@ -42,6 +42,7 @@ import PyOpenColorIO as ocio
 
 from ..models.photometry import RGB709_TO_XYZ
 from ..resources import package_data_dir
+from ..safeio import check_input
 
 BUNDLED_NAMES = ("ocl-tonemap", "bundled")
 WORKING_CANDIDATES = ("lin_rec709", "Linear Rec.709 (sRGB)", "Utility - Linear - sRGB",
@@ -74,6 +75,13 @@ def is_builtin_source(src: str) -> bool:
 
 def load_config(colorconfig: str | None = None) -> ocio.Config:
     src = resolve_config_source(colorconfig)
+    if not is_builtin_source(src):
+        # a FIFO (--colorconfig or $OCIO) is refused before OCIO opens it: its open
+        # would wait inside the library, where no signal reaches
+        check_input(src)
+        if not os.path.exists(src):
+            where = "--colorconfig" if colorconfig else "$OCIO"
+            raise ColourError(f"cannot load OCIO config {src}: no such file ({where})")
     try:
         cfg = ocio.Config.CreateFromFile(src)
         cfg.validate()

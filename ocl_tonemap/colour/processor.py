@@ -15,6 +15,38 @@ from .config import (PLAIN_VIEWS, USE_DISPLAY_NAME, ColourError, InputColour, ap
 from .config import load_config
 from .table import DISPLAY_ENCODE_MODES, DisplayTable, cached_display_table
 
+def _listed(names) -> str:
+    return ", ".join(repr(n) for n in names) or "none"
+
+
+def check_display_view(cfg: "ocio.Config", display: str | None,
+                       view: str | None) -> tuple[str, str]:
+    """(display, view) of a run: the ones asked for (``--display``, ``--view``), else the
+    config's default display and its un-tone-mapped view. One that the config lacks is
+    refused naming itself and listing what the config has."""
+    displays = list(cfg.getDisplays())
+    name = display or default_display(cfg)
+    if name not in displays:
+        what = f"--display {name!r}" if display else f"the default display {name!r}"
+        raise ColourError(f"{what} is not in the OCIO config{_source(cfg)}; its displays: "
+                          f"{_listed(displays)}")
+    views = list(cfg.getViews(name))
+    v = view or default_view(cfg, name)
+    if v not in views:
+        raise ColourError(f"--view {v!r} is not a view of display {name!r} in the OCIO "
+                          f"config{_source(cfg)}; its views: {_listed(views)}")
+    return name, v
+
+
+def _source(cfg) -> str:
+    """`` (NAME)`` of a config that has a name, else nothing."""
+    try:
+        name = cfg.getName()
+    except Exception:  # noqa: BLE001
+        name = ""
+    return f" ({name})" if name else ""
+
+
 class ColourPipeline:
     """OCIO processors for one run: input -> working, working -> display."""
 
@@ -26,16 +58,10 @@ class ColourPipeline:
             cfg = load_config(None if cfg is None else str(cfg if not isinstance(cfg, bytes)
                                                                else cfg.decode()))
         self.cfg = cfg
+        # what the user named first: a missing display or view names itself and what
+        # the config has, before what the config lacks for us (its working space)
+        self.display, self.view = check_display_view(cfg, display, view)
         self.working = working_space(cfg)
-        displays = list(cfg.getDisplays())
-        self.display = display or default_display(cfg)
-        if self.display not in displays:
-            raise ColourError(f"display {self.display!r} not in the OCIO config; "
-                              f"available: {', '.join(displays)}")
-        self.view = view or default_view(cfg, self.display)
-        if self.view not in list(cfg.getViews(self.display)):
-            raise ColourError(f"view {self.view!r} not in display {self.display!r}; available: "
-                              + ", ".join(cfg.getViews(self.display)))
         self._in_procs: dict[str, object] = {}
         proc = cfg.getProcessor(self.working, self.display, self.view, ocio.TRANSFORM_DIR_FORWARD)
         self._out = proc.getDefaultCPUProcessor()

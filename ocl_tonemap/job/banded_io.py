@@ -64,6 +64,8 @@ def _over_budget(opts: JobOptions, inp: str):
     budget = opts.max_memory * 2**20 if opts.max_memory else max_frame_bytes()
     if opts.max_memory is None and not os.path.exists(inp):
         return None, budget
+    if os.path.exists(inp) and not os.path.isfile(inp):
+        return None, budget      # a FIFO is never opened: read_frame refuses it in words
     try:
         import OpenImageIO as oiio
         i = oiio.ImageInput.open(inp)

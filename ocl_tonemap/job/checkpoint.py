@@ -10,7 +10,7 @@ import re
 from ..imageio import FrameError
 
 from ..imagewrite import output_folder
-from ..patterns import same_file, without_frame_token
+from ..patterns import is_sequence, same_file, without_frame_token
 from ..state import AdaptationState
 from ..state_files import load_state
 from .options import RUN_KEY, JobOptions, run_fingerprint
@@ -19,67 +19,123 @@ log = logging.getLogger("ocl_tonemap")
 
 
 class RunLock:
-    """An advisory lock (``flock``) held for a whole run on ``.<state file>.lock``
-    beside its checkpoint: a second run on the same outputs and state is refused
-    in one line rather than overwriting the first one's frames and state. Removed
-    when the run ends (a lock left by a killed run is free: the system released it)."""
+    """Advisory locks (``flock``) held for a whole run: on ``.<state file>.lock`` beside
+    its checkpoint, and for a sequence on its output frames, ``.<output pattern without
+    its frame number>.frames.lock`` beside them (``out/o.####.png`` ->
+    ``out/.o.png.frames.lock``): a second run on the same state, or on the same output
+    frames with another state, is refused in one line naming the file and the other
+    run's pid rather than mixing its frames and state with the first one's. Removed
+    when the run ends (a lock left by a killed run is free: the system released it).
+    A still takes no output lock (its write is atomic, and it makes no side file)."""
 
-    def __init__(self, state_path: str):
-        d, name = os.path.split(os.path.abspath(state_path))
+    def __init__(self, state_path: str | None, output: str | None = None):
         self.state_path = state_path
-        self.path = os.path.join(d, f".{name}.lock")
-        self.fd = None
+        self.output = output if output is not None and is_sequence(output) else None
+        #: (lock file, the file it guards, what the second run is told)
+        self.locks = []
+        if self.output is not None:
+            d, name = os.path.split(os.path.abspath(self.output))
+            key = without_frame_token(name) or "frames"
+            self.locks.append((os.path.join(d, f".{key}.frames.lock"), self.output,
+                               "is writing these output frames; wait for it, or give "
+                               "another OUTPUT"))
+        if state_path:
+            d, name = os.path.split(os.path.abspath(state_path))
+            path = os.path.join(d, f".{name}.lock")
+            if all(path != q for q, _, _ in self.locks):
+                self.locks.append((path, path, "is writing these outputs and this state; "
+                                   "wait for it, or give another OUTPUT or --state-out"))
+        #: the state's lock file (the first run's, for the messages and the tests)
+        self.path = self.locks[-1][0] if self.locks else None
+        self.fds: dict = {}
+        #: the folders the lock made (removed again when the run leaves them empty)
+        self.made: list = []
+
+    @property
+    def fd(self):                               # (held: any lock)
+        return next(iter(self.fds.values()), None)
 
     def __enter__(self):
         try:
             import fcntl
         except ImportError:                   # pragma: no cover -- not POSIX
             return self
-        output_folder(self.state_path, None, "state's")
-        for _ in range(10):
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                try:
-                    who = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
-                finally:
-                    os.close(fd)
-                raise FrameError(self.path, None, "another ocl-tonemap run"
-                                 + (f" (pid {who})" if who.isdigit() else "")
-                                 + " is writing these outputs and this state; wait for it, "
-                                 "or give another OUTPUT or --state-out") from None
-            try:                               # the file we locked is still the lock's name
-                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
-                os.ftruncate(fd, 0)
-                os.pwrite(fd, str(os.getpid()).encode(), 0)
-                self.fd = fd
+        try:
+            for f, what in ((self.output, "output"), (self.state_path, "state's")):
+                if f:
+                    self.made += _missing_folders(f)
+                    output_folder(f, None, what)
+            for path, guarded, why in self.locks:
+                self.fds[path] = _take(fcntl, path, guarded, why)
                 _HELD.add(self)
-                return self
-            os.close(fd)                        # removed by the run that just ended: again
-        raise FrameError(self.path, None, "cannot take the run's lock")
+        except BaseException:
+            self.release()
+            raise
+        return self
 
     def __exit__(self, *exc):
         self.release()
         return False
 
     def release(self) -> None:
-        """Remove the lock file and let the lock go; again, after a signal cut it short
+        """Remove the lock files and let the locks go; again, after a signal cut it short
         anywhere, it does what is left (a second unlink or close: nothing)."""
-        if self.fd is not None:
+        for path in list(self.fds):
+            if self.fds.get(path) is None:
+                continue
             try:
-                os.unlink(self.path)
+                os.unlink(path)
             except OSError:
                 pass
-            fd, self.fd = self.fd, None
+            fd = self.fds.pop(path)
             try:
                 os.close(fd)
             except OSError:
                 pass
+        made, self.made = self.made, []
+        for d in made:                  # (deepest first) a refused run leaves no folder
+            try:
+                os.rmdir(d)
+            except OSError:
+                pass
         _HELD.discard(self)
+
+
+def _missing_folders(path: str) -> list:
+    """The folders above ``path`` that do not exist yet, deepest first."""
+    out = []
+    d = os.path.dirname(os.path.abspath(path))
+    while d and not os.path.isdir(d) and d != os.path.dirname(d):
+        out.append(d)
+        d = os.path.dirname(d)
+    return out
+
+
+def _take(fcntl, path: str, guarded: str, why: str) -> int:
+    """The descriptor of the lock file ``path``, locked by this process, with its pid in
+    it; FrameError naming ``guarded`` and the other run's pid when another holds it."""
+    for _ in range(10):
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            try:
+                who = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
+            finally:
+                os.close(fd)
+            raise FrameError(guarded, None, "another ocl-tonemap run"
+                             + (f" (pid {who})" if who.isdigit() else "")
+                             + f" {why}") from None
+        try:                               # the file we locked is still the lock's name
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, str(os.getpid()).encode(), 0)
+            return fd
+        os.close(fd)                        # removed by the run that just ended: again
+    raise FrameError(path, None, "cannot take the run's lock")
 
 
 #: The run locks this process holds: a signal landing as a run ends may cut
@@ -130,10 +186,18 @@ def resume_point(opts: JobOptions, jobs, ckpt: str, operator: str):
     if st.frame is None:
         raise ValueError(f"--resume: the checkpoint {ckpt} has no frame number (a still); "
                          "run it again")
+    frames = [j[0] for j in jobs if j[0] is not None]
+    if st.frame not in frames:
+        shot = (f"{frames[0]}-{frames[-1]}" if len(frames) > 1 else str(frames[0])) \
+            if frames else "none"
+        raise ValueError(f"--resume: the checkpoint {ckpt} is at frame {st.frame}, which is "
+                         f"not a frame of this shot (frames {shot}, {len(frames)} of them); "
+                         "give the frames of the run that wrote it, or start again without "
+                         "--resume")
     st.extra.pop(RUN_KEY, None)
     todo = [j for j in jobs if j[0] is not None and j[0] > st.frame]
-    log.warning("resuming after frame %d from %s: %d of %d frame(s) left", st.frame, ckpt,
-                len(todo), len(jobs))
+    log.info("resuming after frame %d from %s: %d of %d frame(s) left", st.frame, ckpt,
+             len(todo), len(jobs))
     return st, todo
 
 

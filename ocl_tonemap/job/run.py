@@ -14,12 +14,13 @@ import time
 
 import numpy as np
 
-from .. import safeio
+from .. import interrupts, safeio
 from ..backends.select import resolve_backend
 from ..colour import ColourPipeline
 from ..imageio import FrameError, read_frame
 from ..imagewrite import ocltm_metadata, output_bits, write_frame
 from ..interrupts import Terminated, ready
+from ..models.metering import MeteringSpec
 from ..models.photometry import RepairCounts
 from ..patterns import is_sequence
 from ..pipeline import FrameInfo, Tonemapper
@@ -91,6 +92,23 @@ def resolved_backend(opts: JobOptions) -> JobOptions:
     return dataclasses.replace(opts, backend=resolve_backend("auto", opts.device))
 
 
+def check_read_files(opts: JobOptions) -> None:
+    """The files a run reads besides its frames (``--metering mask:``, ``--state-in``),
+    each a regular file, checked before anything opens one (``safeio.check_input``: a
+    FIFO is refused, never waited on); the frames are checked as each is read
+    (``imageio.check_readable``), the OCIO config where it is loaded
+    (``colour.config.load_config``: a name such as ``ocl-tonemap`` is no path), cut
+    lists and checkpoints where they are read (``safeio.read_text``, ``load_state``)."""
+    try:
+        mask = MeteringSpec.parse(opts.metering).mask if isinstance(opts.metering, str) \
+            else getattr(opts.metering, "mask", None)
+    except ValueError:
+        mask = None                      # (refused in its own words where it is used)
+    for p in (mask, opts.state_in):
+        if p:
+            safeio.check_input(p)
+
+
 def check_stills(opts: JobOptions) -> None:
     """``--stills``: independent frames keep no state; what needs one is refused."""
     for flag, given in (("--state-in", opts.state_in), ("--state-out", opts.state_out),
@@ -110,15 +128,23 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None) -
     t_start = time.perf_counter()
     whole = jobs is None
     jobs = frame_jobs(opts) if jobs is None else list(jobs)
+    check_read_files(opts)
     # a still keeps its state in its own metadata (ocltm:state): no side file unless
     # asked for (--state-out); a sequence checkpoints it beside its frames
     still = (not is_sequence(opts.input) and len(jobs) == 1 and not opts.resume) or opts.stills
     if opts.stills:
         check_stills(opts)
     ckpt = checkpoint_path(opts) if ((opts.checkpoint and not still) or opts.resume) else None
+    if whole:
+        interrupts.checkpoint = ckpt
+    interrupts.temp_folders.update(os.path.dirname(os.path.abspath(p)) for p in
+                                   {j[2] for j in jobs} | {ckpt, opts.state_out} if p)
     if not whole:                    # a chunk of a shot's apply pass: the chunks run together
         return _run_job(opts, jobs, state, ckpt, t_start, chunk=True)
-    with RunLock(ckpt or opts.state_out or checkpoint_path(opts)):
+    single = not is_sequence(opts.input) and len(jobs) == 1
+    if single and not ckpt and not opts.state_out:   # a still makes no side file, not even
+        return _run_job(opts, jobs, state, ckpt, t_start)   # a lock (its write is atomic)
+    with RunLock(ckpt or opts.state_out or checkpoint_path(opts), output=opts.output):
         return _run_job(opts, jobs, state, ckpt, t_start)
 
 
@@ -282,7 +308,7 @@ def infos_from_outputs(jobs) -> list:
 
     out = []
     for f, _, outp, _ in jobs:
-        inp = oiio.ImageInput.open(outp)
+        inp = oiio.ImageInput.open(outp) if os.path.isfile(outp) else None   # (no FIFO)
         if inp is None:
             oiio.geterror()
             log.warning("%s: cannot read its record for --plot; left out", outp)
@@ -383,6 +409,7 @@ class _StopSignals:
         self._old = {}
 
     def _handler(self, signum, frame):
+        interrupts.arm(signum)           # a frame that cannot end is not waited for long
         if self.signum is not None:
             raise Terminated(signum)
         self.signum = signum

@@ -6,7 +6,8 @@ import logging
 import math
 import os
 
-from ..imageio import FrameError
+from ..imageio import FrameError, check_readable
+from ..imagewrite import check_output
 
 from ..patterns import find_frames, frame_path, is_sequence, same_file
 from .options import DEFAULT_FPS, JobOptions
@@ -89,10 +90,9 @@ def frame_jobs(opts: JobOptions) -> list[tuple[int | None, str, str, bool]]:
     if any(b <= a for a, b in zip(numbered, numbered[1:])):
         raise FrameError(opts.input, None, "--frames must go forward in time (increasing "
                          "frame numbers, each once)")
-    import OpenImageIO as oiio
-    if oiio.ImageOutput.create(jobs[0][2]) is None:
-        raise FrameError(jobs[0][2], None, "no image format for this output name (use .exr, "
-                         ".png, .tif, .jpg, .hdr ...)")
+    check_output(jobs[0][2])             # a folder, no format, a read-only folder: refused
+    for f, i, _, _ in jobs:              # a FIFO among the frames: refused before any frame
+        check_readable(i, f)             # is made (each is checked again as it is read)
     inputs = {i for _, i, _, _ in jobs}
     for f, _, o, _ in jobs:
         for j in inputs:
