@@ -22,6 +22,7 @@ lines up to the blank line that ends it; Radiance's ``getinfo`` shows the same):
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import shutil
@@ -31,6 +32,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .safeio import regular_file
+
+log = logging.getLogger("ocl_tonemap")
 
 #: Largest header read (bytes): Radiance headers are a few hundred bytes to a few KiB.
 HEADER_CAP = 1 << 16
@@ -72,6 +75,8 @@ class RadianceHeader:
     renderer: str | None = None
     photographic: bool = False
     lines: list = field(default_factory=list)
+    #: header lines whose value is not used, each with why (:func:`warn_ignored`)
+    ignored: list = field(default_factory=list)
 
     @property
     def chromaticities(self) -> tuple | None:
@@ -101,6 +106,8 @@ class HeaderError(ValueError):
 
 
 def is_radiance(path: str) -> bool:
+    if not os.path.isfile(path):       # a FIFO is never opened (its reader refuses it)
+        return False
     try:
         with open(path, "rb") as fh:
             return fh.read(2) == b"#?"
@@ -120,7 +127,29 @@ def read_header(path: str) -> RadianceHeader:
     if end < 0:
         raise HeaderError(f"its header does not end within {HEADER_CAP} bytes")
     text = data[:end].decode("latin-1")
-    return parse_header(text.split("\n")[1:])
+    h = parse_header(text.split("\n")[1:])
+    warn_ignored(path, h)
+    return h
+
+
+#: The ignored header lines already said (a sequence's frames, or a picture read twice:
+#: its view, then its pixels, say them once).
+_SAID: set = set()
+
+
+def warn_ignored(path: str, h: RadianceHeader) -> None:
+    """One warning line for the header values of ``path`` that are not used (a
+    non-positive or non-finite EXPOSURE, a COLORCORR that is not three positive
+    numbers, a PRIMARIES line that is not eight chromaticities); said once per run for
+    the same lines."""
+    if not h.ignored:
+        return
+    key = tuple(h.ignored)
+    if key in _SAID:
+        return
+    _SAID.add(key)
+    log.warning("%s: Radiance header value%s ignored: %s", path,
+                "s" if len(h.ignored) > 1 else "", "; ".join(h.ignored))
 
 
 def parse_header(lines) -> RadianceHeader:
@@ -133,16 +162,26 @@ def parse_header(lines) -> RadianceHeader:
         key = key.strip().upper()
         if eq and key == "EXPOSURE":
             v = _number(value)
-            if v is not None and v > 0:
+            if v is not None and 0 < v < math.inf:
                 h.exposure *= v
+            else:
+                h.ignored.append(f"{_shown(line)} (EXPOSURE must be a positive number)")
         elif eq and key == "COLORCORR":
             v = [_number(x) for x in value.split()]
-            if len(v) == 3 and all(x is not None and x > 0 for x in v):
+            if len(v) == 3 and all(x is not None and 0 < x < math.inf for x in v):
                 h.colorcorr = tuple(a * b for a, b in zip(h.colorcorr, v))
+            else:
+                h.ignored.append(f"{_shown(line)} (COLORCORR must be three positive numbers)")
         elif eq and key == "PRIMARIES":
             v = [_number(x) for x in value.split()]
-            # (Photoshop writes PRIMARIES=0 0 0 0 0 0 0 0: a placeholder, not primaries)
-            if len(v) == 8 and all(x is not None for x in v) and all(y > 0 for y in v[1::2]):
+            # (Photoshop writes PRIMARIES=0 0 0 0 0 0 0 0: a placeholder, not primaries;
+            # ignored without a word, as the picture is then OIIO's Rec.709)
+            if len(v) == 8 and all(x == 0 for x in v):
+                continue
+            why = _primaries_why(v)
+            if why:
+                h.ignored.append(f"{_shown(line)} (PRIMARIES must be {why})")
+            else:
                 h.primaries = tuple(v)
         elif eq and key == "FORMAT":
             h.xyze = "xyze" in value.lower()
@@ -158,6 +197,27 @@ def parse_header(lines) -> RadianceHeader:
             elif prog in PHOTOGRAPHIC:
                 h.photographic = True
     return h
+
+
+def _shown(line: str) -> str:
+    """A header line as a warning shows it (bounded, printable)."""
+    text = "".join(c if c.isprintable() else "?" for c in line)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _primaries_why(v) -> str:
+    """Why PRIMARIES numbers ``v`` are no chromaticities (empty when they are): eight
+    finite numbers, rx ry gx gy bx by wx wy, each y > 0, each within -1..2 (wide gamuts
+    such as ACES AP0 reach beyond the spectrum locus), the three primaries a
+    triangle."""
+    want = "eight numbers rx ry gx gy bx by wx wy, each y > 0, the primaries a triangle"
+    if len(v) != 8 or any(x is None for x in v) or any(not -1.0 <= x <= 2.0 for x in v) \
+            or not all(y > 0 for y in v[1::2]):
+        return want
+    (rx, ry, gx, gy, bx, by) = v[:6]
+    if abs((gx - rx) * (by - ry) - (bx - rx) * (gy - ry)) < 1e-6:
+        return want
+    return ""
 
 
 def _number(text: str) -> float | None:

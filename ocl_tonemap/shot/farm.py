@@ -15,12 +15,17 @@ a job parameter (``OclTonemapCommand``). ``opencue``: an OpenCue job spec (XML,
 ``cjsl-1.14``), the chunks OpenCue's own (``<range>``, ``<chunk>``, the
 ``#FRAME_START#``/``#FRAME_END#`` tokens), layer-on-layer dependencies.
 
-Paths are written as given: give the farm's paths (shared storage) for INPUT,
-OUTPUT and ``--store``.
+Paths are written absolute, resolved where the template is made (:func:`absolute`):
+INPUT, OUTPUT, ``--store`` and every file a run option names (``--state-in``,
+``--state-out``, ``--colorconfig``, ``--metering mask:``, ``--cuts``, ``--plot``,
+``--visibility``, ``--visibility-view``, ``--ocio-export``), so that a task runs the
+same from any working directory a worker gives it; make the template where the
+farm's shared storage has the paths the workers see.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import getpass
 import json
 import os
@@ -35,6 +40,64 @@ from . import passes
 OPENJD_VERSION = "jobtemplate-2023-09"
 OPENCUE_DTD = "http://localhost:8080/spcue/dtd/cjsl-1.14.dtd"
 DEFAULT_CHUNK = 50
+
+
+#: Run options whose value is a file or folder (a value the option takes for something
+#: else is kept: ``--cuts detect``, an ``ocio://`` or bundled config, a --metering
+#: that is no mask): value -> the value with its path made absolute.
+def _abs_colorconfig(v: str) -> str:
+    from ..colour.config import BUNDLED_NAMES  # lazy: OCIO loads with it
+    return v if v in BUNDLED_NAMES or v.startswith("ocio://") else _abs(v)
+
+
+def _abs_metering(v: str) -> str:
+    if not v.lower().startswith("mask:"):
+        return v
+    path, stat = v[5:], ""
+    for suffix in (":mean", ":logmean"):
+        if path.lower().endswith(suffix):
+            path, stat = path[: -len(suffix)], path[-len(suffix):]
+    return v[:5] + (_abs(path) if path else path) + stat
+
+
+def _abs(v: str) -> str:
+    return os.path.abspath(os.path.expanduser(v)) if v else v
+
+
+PATH_OPTIONS = {
+    "--state-in": _abs, "--state-out": _abs, "--plot": _abs, "--visibility": _abs,
+    "--visibility-view": _abs, "--ocio-export": _abs,
+    "--cuts": lambda v: v if v == "detect" else _abs(v),
+    "--colorconfig": _abs_colorconfig, "--metering": _abs_metering,
+}
+
+
+def absolute_tokens(tokens: list[str]) -> list[str]:
+    """Run options with the files they name made absolute (:data:`PATH_OPTIONS`;
+    ``--flag VALUE`` and ``--flag=VALUE`` alike, the parser takes no abbreviation)."""
+    out, fix = [], None
+    for t in tokens:
+        if fix is not None:
+            out.append(fix(t))
+            fix = None
+            continue
+        flag, eq, value = t.partition("=")
+        if flag in PATH_OPTIONS:
+            if eq:
+                out.append(f"{flag}={PATH_OPTIONS[flag](value)}")
+            else:
+                out.append(t)
+                fix = PATH_OPTIONS[flag]
+            continue
+        out.append(t)
+    return out
+
+
+def absolute(opts, run_tokens: list[str], store: str):
+    """(options, run tokens, store) with every path absolute, resolved here (module
+    doc): a farm's task runs in a working directory of the farm's choosing."""
+    opts = dataclasses.replace(opts, input=_abs(opts.input), output=_abs(opts.output))
+    return opts, absolute_tokens(run_tokens), _abs(store)
 
 
 def _frames(opts) -> list[int]:
@@ -166,8 +229,8 @@ def write_template(fmt: str, opts, run_tokens: list[str], job_file: str,
     chunk = int(chunk or DEFAULT_CHUNK)
     if chunk < 1:
         raise ValueError("--chunk-frames must be >= 1")
-    store = store or passes.default_store(opts)
     name = _name(opts, name)
+    opts, run_tokens, store = absolute(opts, run_tokens, store or passes.default_store(opts))
     _check_options(opts)
     if fmt == "openjd":
         doc = openjd_template(opts, run_tokens, store, chunk, name, command)

@@ -185,7 +185,11 @@ class ShotStore:
         if not p.exists():
             raise ValueError(f"no adaptation state for frame {frame} in {self.path}: run "
                              "the integrate pass first")
-        return load_state(p)
+        st = load_state(p)             # (checked field by field: state.AdaptationState)
+        if st.frame is not None and st.frame != frame:
+            raise ValueError(f"{p}: holds the state after frame {st.frame}, not frame "
+                             f"{frame}; run the integrate pass again")
+        return st
 
     @property
     def integrated_path(self) -> Path:

@@ -20,6 +20,7 @@ from ocl_tonemap.job.options import JobOptions
 from ocl_tonemap.job.run import run_job
 from ocl_tonemap.shot import passes
 from ocl_tonemap.shot.store import ShotStore
+from opencue_chunks import opencue_commands
 
 OPERATORS = ("pattanaik00", "durand00", "ledda04", "kirk11")
 
@@ -349,7 +350,6 @@ def _check_order(el):
 
 @pytest.mark.requires_opencl
 def test_opencue_spec_follows_the_dtd_and_runs(shot, tmp_path):
-    import shlex
     d, pattern, _ = shot
     frames, out, job_file = _farm_job("opencue", shot, tmp_path, 6)
     root = ET.parse(job_file).getroot()
@@ -365,14 +365,7 @@ def test_opencue_spec_follows_the_dtd_and_runs(shot, tmp_path):
                     ("apply", "integrate", "LAYER_ON_LAYER")]
     exe = _cli()
     for layer in layers:                       # OpenCue's chunking of the layer's range
-        a, _, b = layer.findtext("range").partition("-")
-        fr = list(range(int(a), int(b or a) + 1))
-        size = int(layer.findtext("chunk"))
-        for i in range(0, len(fr), size):
-            part = fr[i:i + size]
-            cmd = layer.findtext("cmd").replace("#FRAME_START#", str(part[0])) \
-                .replace("#FRAME_END#", str(part[-1]))
-            argv = shlex.split(cmd)
+        for argv in opencue_commands(layer):
             assert argv[0] == "ocl-tonemap"
             _run(exe + argv[1:] + ["-q"])
     ser = _serial(d, pattern, "pattanaik00", "serial12", frames=frames)
