@@ -177,14 +177,15 @@ def test_photoshops_zero_primaries_are_no_primaries():
 
 
 @needs_radiance
-def _readme_block(section: str, cwd):
-    """The first ``sh`` block under a README section, pasted into bash in ``cwd`` with
-    only the installed package on PATH (its radiance-env puts the wheel's programs
+def _docs_block(page: str, section: str, cwd):
+    """The first ``sh`` block under a section of a page of the docs (``radiance.md``,
+    ``visibility.md``: the README's examples moved there), pasted into bash in ``cwd``
+    with only the installed package on PATH (its radiance-env puts the wheel's programs
     there); the finished process."""
     import re
     from pathlib import Path
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    block = re.search(r"```sh\n(.*?)```", readme.split(section, 1)[1], re.S).group(1)
+    text = (Path(__file__).resolve().parents[2] / "docs" / page).read_text()
+    block = re.search(r"```sh\n(.*?)```", text.split(section, 1)[1], re.S).group(1)
     env = {**os.environ, "PATH": os.path.dirname(sys.executable) + os.pathsep +
            "/usr/bin:/bin"}
     env.pop("RAYPATH", None)
@@ -194,29 +195,29 @@ def _readme_block(section: str, cwd):
     return r
 
 
-def test_the_readmes_radiance_block_runs_as_written(tmp_path):
-    """README "From Radiance": the block pasted into bash in an empty folder, with only
-    the installed package on PATH (its radiance-env puts the wheel's programs there):
-    it renders and maps, and pfilt's exposure gives the same picture."""
-    _readme_block("## From Radiance", tmp_path)
+def test_the_docs_radiance_block_runs_as_written(tmp_path):
+    """docs/radiance.md "From Radiance": the block pasted into bash in an empty folder,
+    with only the installed package on PATH (its radiance-env puts the wheel's programs
+    there): it renders and maps, and pfilt's exposure gives the same picture."""
+    _docs_block("radiance.md", "## From Radiance", tmp_path)
     a, b = _png(tmp_path / "room.png"), _png(tmp_path / "room_e2.png")
     assert a.shape[1] == 640 and a.mean() > 20          # (rpict keeps the view's aspect)
     assert np.abs(a - b).max() <= 1
 
 
-def test_the_readmes_lighting_designers_block_runs_as_written(tmp_path):
-    """README "For lighting designers": the portal rendered with rpict, its visibility
-    planes, view and target, and the calculator's seconds after entering, as written
-    there; the numbers the README states are what the run and the calculator print
+def test_the_docs_lighting_designers_block_runs_as_written(tmp_path):
+    """docs/visibility.md "For lighting designers": the portal rendered with rpict, its
+    visibility planes, view and target, and the calculator's seconds after entering, as
+    written there; the numbers the page states are what the run and the calculator print
     (issue 56): the veil over the road inside the portal, within 1.5x of CIE 88's
     L_seq of the same picture, the box's VL."""
-    r = _readme_block("## For lighting designers", tmp_path)
+    r = _docs_block("visibility.md", "## For lighting designers", tmp_path)
     for f in ("portal.png", "portal_vis.exr", "portal_vl.png", "vl_over_time.png"):
         assert (tmp_path / f).stat().st_size > 1000, f
     head = "target at (320, 185), 6 arcmin"
     row = r.stdout.split(head, 1)[1].splitlines()[2].split()
     L_t, L_s, veil, lseq, L_b, La, TAF, dL, VL = (float(x) for x in row[1:])
-    # as the README states them (its rounding)
+    # as docs/visibility.md states them (its rounding)
     assert (round(L_t, 2), round(L_s), round(veil), round(lseq), round(L_b)) == \
         (1.96, 106, 80, 103, 186)
     assert (round(La), round(TAF, 2), round(dL, 1), round(VL, 2)) == (5000, 3.98, 33.4, 3.12)

@@ -100,7 +100,7 @@ LAYERS = (
                         "calibration", "state_files", "sample", "plot")),
     ("job", ("job",)),
     ("shot", ("shot",)),
-    ("cli", ("cli", "cli_options", "cli_commands", "__main__", "")),
+    ("cli", ("cli", "cli_options", "cli_commands", "cli_docs", "__main__", "")),
 )
 
 
