@@ -29,6 +29,10 @@ class MechanismPlan:
         self.gated = [m for m, mode in self.offer.items() if mode == "auto"]
         #: An analysis is made where an effect may run (its illuminant estimate too).
         self.active = settings.any
+        #: Frame number -> its predictions, as a shot's measure pass stored them (the
+        #: apply pass: used where a frame's predictions would be made again; they
+        #: depend on the frame alone, so the frames are the serial run's).
+        self.known: dict = {}
         self._limit = None              # flare_limit's last (levels, limit)
 
     def backend_sources(self, h: int, w: int, lim: float):
@@ -77,7 +81,7 @@ class MechanismPlan:
         return block_stride(h, w) if self.active else 0
 
     def frame(self, levels, get_rows, h: int, w: int, scale: float, extra: dict | None,
-              dt: float, fresh: bool, get_patches=None) -> dict:
+              dt: float, fresh: bool, get_patches=None, frame_number=None) -> dict:
         """{"weights", "estimate", "record"} of one frame: ``levels`` its backend's
         :class:`~ocl_tonemap.backends.base.Levels` with the proxy; ``get_rows(a, b)`` its
         working-space rows (full-resolution patches, for acuity; ``get_patches``: the
@@ -97,6 +101,8 @@ class MechanismPlan:
         sig = signature(an) if self.gated else None
 
         def predict() -> dict:
+            if frame_number in self.known:
+                return dict(self.known[frame_number])
             if 0 < an.flare_limit < math.inf:
                 an.sources_proxy = self.backend_sources(h, w, an.flare_limit)
             p = planner.predictions(an, self.op, self.display, self.settings, self.gated)

@@ -138,7 +138,7 @@ def run_banded(graph, source, sink, dt, time_s, frame_number, luminance_scale, i
                                             graph.plan.proxy_stride(h, w))
         ctx = FrameContext(*levels.goal, eff=eff, lim=graph.source_limit(levels),
                            max_Y=levels.max_Y, frame=frame_number)
-        graph.begin_plan(levels, frame, step_dt, fresh, measure_only, weights)
+        graph.begin_plan(levels, frame, step_dt, fresh, measure_only, weights, frame_number)
         rows = WorkingRows(graph.backend, source, luminance_scale, max(1, band_px // max(w, 1)))
         graph.record["flare_metered"] = fx.metered_weights(levels.max_Y, ctx.lim)
         bands, sweep = fx.optical_banded(ctx, rows, band_px, STREAM_EFFECT_BANDS * band_px)

@@ -106,7 +106,7 @@ class FrameGraph:
         return reused
 
     def begin_plan(self, levels, frame: Frame, dt: float, fresh: bool, measure_only: bool,
-                   weights: dict | None = None) -> None:
+                   weights: dict | None = None, frame_number=None) -> None:
         """The frame's mechanism plan from its scene pass (``levels``), handed to the
         effects; the weights advance in the state's ``extra`` (not in a measure-only
         pass). ``weights``: the gated effects' weights to use instead (a shot's integrate
@@ -117,7 +117,7 @@ class FrameGraph:
         pix = frame.pixels
         plan = self.plan.frame(levels, lambda a, b: pix[a:b], h, w, frame.scale,
                                None if measure_only else self.observer.scalars.extra, dt, fresh,
-                               getattr(pix, "patches", None))
+                               getattr(pix, "patches", None), frame_number)
         self.effects.begin_frame(weights if weights is not None else plan.get("weights"),
                                  plan.get("estimate"))
         self.record = plan.get("record", {})
@@ -181,7 +181,7 @@ class FrameGraph:
                 h, w = frame.shape[:2]       # the device starts the flare while the host plans
                 self.plan.sources_ahead(h, w, *levels.goal, fresh or not reused)
                 fx.start(ctx, levels.rgb)
-            self.begin_plan(levels, frame, step_dt, fresh, measure_only, weights)
+            self.begin_plan(levels, frame, step_dt, fresh, measure_only, weights, frame_number)
             self.record["flare_metered"] = fx.metered_weights(levels.max_Y, ctx.lim)
             rgb, changed = fx.optical(ctx, levels.rgb)
             if changed or not isinstance(levels.rgb, (np.ndarray, type(None))):

@@ -467,4 +467,6 @@ def apply(opts, store_path: str, chunk=None):
     state = start_state(opts, store, jobs, k0, integ)
     o = dataclasses.replace(opts, fps=man["fps"], cuts=integ["cuts"], checkpoint=False,
                             resume=False, state_in=None, state_out=None, plot=None)
-    return run_job(o, jobs=todo, state=state)
+    docs = {f: store.stats_document(f) for f, *_ in todo}
+    known = {f: d["plan"]["predicted"] for f, d in docs.items() if d.get("plan")}
+    return run_job(o, jobs=todo, state=state, predictions=known)

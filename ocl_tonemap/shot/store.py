@@ -158,10 +158,14 @@ class ShotStore:
         write_planes(self.stats_dir / name, planes, PLANES_COMPRESSION)
         return name
 
+    def stats_document(self, frame: int) -> dict:
+        """The frame's statistics document alone (its planes not read)."""
+        return _read_doc(self.stats_path(frame), STATS_FORMAT, "ocl-tonemap frame statistics",
+                         f"no statistics for frame {frame} in {self.path}: measure it first")
+
     def read_stats(self, frame: int) -> tuple[dict, object]:
         """(the frame's statistics document, its planes or None)."""
-        doc = _read_doc(self.stats_path(frame), STATS_FORMAT, "ocl-tonemap frame statistics",
-                        f"no statistics for frame {frame} in {self.path}: measure it first")
+        doc = self.stats_document(frame)
         planes = None
         if doc.get("planes"):
             # a name beside the document, inside the store: never a path elsewhere
