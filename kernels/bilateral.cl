@@ -67,8 +67,9 @@ __kernel void bilateral_exact(__global const float *v, const int width, const in
                 num = mad(w, vp, num);
                 den += w;
             }
-        } else {
-            for (int dx = -radius; dx <= radius; ++dx) {
+        } else {   /* offsets with no pixel of the four in the row add nothing: skipped */
+            const int dlo = max(-radius, -x0 - 3), dhi = min(radius, width - 1 - x0);
+            for (int dx = dlo; dx <= dhi; ++dx) {
                 const float fxy = fy * fw[abs(dx)];
                 float vpa[4], wa[4];
                 for (int j = 0; j < 4; ++j) {

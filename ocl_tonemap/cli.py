@@ -40,6 +40,9 @@ class _Parser(argparse.ArgumentParser):
             message = m.group(2)
         elif m and m.group(2).startswith("must be"):     # a declared value's words
             message = f"{m.group(1)} {m.group(2)}"
+        elif m and m.group(2) == "expected one argument":  # (-inf, -1,2: read as flags)
+            message = (f"{m.group(1)} needs a value (one that starts with '-' is written "
+                       f"{m.group(1)}=VALUE, e.g. {m.group(1)}=-1)")
         self.exit(2, f"ocl-tonemap ERROR: {message} (see {self.prog} --help)\n")
 
 

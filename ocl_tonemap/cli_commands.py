@@ -9,6 +9,7 @@ import logging
 import math
 import os
 import shlex
+import shutil
 import sys
 
 from .cli_options import job_options
@@ -65,16 +66,7 @@ def run(a, argv) -> int:
     try:
         res = run_job(job_options(a, a.input, a.output, defer_backend=True))
     except Interrupted as e:
-        again = [x for x in argv if x != "--resume"]
-        if e.checkpoint:
-            print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of "
-                  f"{e.total} written; state in {e.checkpoint}). Resume with:\n  ocl-tonemap "
-                  + " ".join(shlex.quote(x) for x in again) + " --resume", file=sys.stderr)
-        else:
-            print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of "
-                  f"{e.total} written). No checkpoint was kept (--no-checkpoint): run it "
-                  "again from the start to get the same frames", file=sys.stderr)
-        return e.exit_code
+        return _interrupted(e, argv, "--stills" if a.stills else "--no-checkpoint")
     if not a.quiet:
         rep = f"; repaired values: {res.repairs.summary()}" if res.repairs.total else ""
         print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s{rep}")
@@ -85,6 +77,21 @@ def run(a, argv) -> int:
         if res.export:
             print(res.export)
     return 0
+
+
+def _interrupted(e, argv, why: str | None) -> int:
+    """The line an interrupted run leaves: where its state is and the command that
+    resumes it, or (no checkpoint: ``why``) that it runs again from the start."""
+    if e.checkpoint:
+        again = [x for x in argv if x != "--resume"]
+        print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of "
+              f"{e.total} written; state in {e.checkpoint}). Resume with:\n  ocl-tonemap "
+              + " ".join(shlex.quote(x) for x in again) + " --resume", file=sys.stderr)
+    else:
+        print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of "
+              f"{e.total} written). No checkpoint was kept ({why}): run it again from the "
+              "start to get the same frames", file=sys.stderr)
+    return e.exit_code
 
 
 def _target_report(res) -> None:
@@ -346,22 +353,41 @@ def _visibility_step(a, view, polarity: str) -> dict | None:
 
 
 def demo(a, argv) -> int:
-    from .job.run import run_job  # lazy: a command loads its own layers
-    from .sample import plan_sample, write_tunnel_sequence  # lazy: its own layers
+    """The sample written and the main job run on it; what it made is removed again
+    where it fails (an interrupted demo keeps its frames)."""
+    from .job.options import Interrupted  # lazy: a command loads its own layers
+    from .sample import plan_sample  # lazy: a command loads its own layers
     w, h = a.size
     scene = os.path.join(a.outdir, "scene")
     out = os.path.join(a.outdir, "display", "tunnel.####.png")
     opts = job_options(a, os.path.join(scene, "tunnel.####.exr"), out)  # checked first
     plan_sample(a.outdir, w, h, 30.0, a.seconds, flag_fps="its 30 fps")
-    pattern, _ = write_tunnel_sequence(scene, w, h, 30.0, a.seconds)
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    opts.input = pattern
     opts.plot = opts.plot or os.path.join(a.outdir, "adaptation.png")
     opts.state_out = opts.state_out or os.path.join(a.outdir, "state.json")
-    res = run_job(opts)
+    ours = [p for p in (a.outdir, scene, os.path.dirname(out), opts.plot, opts.state_out)
+            if not os.path.lexists(p)]
+    try:
+        res = _demo_run(a, opts, w, h, scene)
+    except Interrupted as e:
+        return _interrupted(e, argv, None)
+    except Exception:
+        for p in ours:                    # the outermost first: what it holds goes with it
+            if os.path.isdir(p) and not os.path.islink(p):
+                shutil.rmtree(p, ignore_errors=True)
+            elif os.path.lexists(p):
+                os.unlink(p)
+        raise
     print(f"demo: {len(res.outputs)} frames -> {out}; plot {opts.plot}; "
           f"state {opts.state_out}; {res.seconds:.1f} s")
     return 0
+
+
+def _demo_run(a, opts, w: int, h: int, scene: str):
+    from .job.run import run_job  # lazy: a command loads its own layers
+    from .sample import write_tunnel_sequence  # lazy: a command loads its own layers
+    opts.input, _ = write_tunnel_sequence(scene, w, h, 30.0, a.seconds)
+    os.makedirs(os.path.dirname(opts.output), exist_ok=True)
+    return run_job(opts)
 
 
 def sample(a, argv) -> int:

@@ -41,9 +41,41 @@ temp_folders: set = set()
 
 
 def enable_watchdog(on: bool = True) -> None:
-    """Let :func:`arm` end the process (the ``ocl-tonemap`` command only)."""
+    """Let :func:`arm` end the process (the ``ocl-tonemap`` command only), armed the
+    moment a signal lands (:func:`_wake_on_signal`)."""
     global _watchdog
     _watchdog = bool(on)
+    if on:
+        _wake_on_signal()
+
+
+def _wake_on_signal() -> None:
+    """Python's own C handler writes each signal's number to a pipe
+    (``signal.set_wakeup_fd``) even while the main thread is inside a long C call
+    (an OpenCL wait, a NumPy loop), where no Python handler can run until it returns;
+    a thread reading the pipe arms the watchdog at once. Called from the main thread
+    before :func:`install`; where that cannot be (an embedding), nothing."""
+    import os
+    import threading
+    try:
+        r, w = os.pipe()
+        os.set_blocking(w, False)
+        signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+    except (ValueError, OSError):
+        return
+
+    def read() -> None:
+        while True:
+            try:
+                got = os.read(r, 64)
+            except OSError:
+                return
+            if not got:
+                return
+            for signum in got:
+                if signum in (signal.SIGINT, signal.SIGTERM):
+                    arm(signum)
+    threading.Thread(target=read, name="ocltm-signal-wakeup", daemon=True).start()
 
 
 def arm(signum: int) -> None:

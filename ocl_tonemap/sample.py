@@ -123,6 +123,8 @@ def plan_sample(out_dir: str, width: int, height: int, fps: float, seconds: floa
     is made: at least one, their files within the free disk under ``out_dir``, a
     frame's rendering within the memory available. Returns the frame count, or
     ValueError in one line naming the limit and the option that helps."""
+    if os.path.lexists(out_dir) and not os.path.isdir(out_dir):
+        raise ValueError(f"{out_dir}: is a file, not a folder; give a folder for the frames")
     n = int(round(seconds * fps))
     if n < 1:
         raise ValueError(f"--seconds {seconds:g} at {flag_fps} {fps:g} makes no frame: give "
@@ -134,6 +136,8 @@ def plan_sample(out_dir: str, width: int, height: int, fps: float, seconds: floa
                          f"of memory and this machine has {gib(have)} available; give a "
                          f"smaller --size")
     where, free = free_disk(out_dir)
+    if not os.access(where, os.W_OK | os.X_OK) or free == 0:
+        raise ValueError(f"{out_dir}: cannot be written ({where} is read-only or full)")
     disk = float(FILE_BYTES_PER_PX) * width * height * n
     if disk > free:
         raise ValueError(f"{n} frames of {width}x{height} need up to {gib(disk)} and {where} "

@@ -217,6 +217,10 @@ def checkpoint_state(tm, fingerprint: dict) -> AdaptationState:
     return st
 
 
+#: What ``--plot`` writes (matplotlib's raster and vector formats, by extension).
+PLOT_FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "tif", "tiff", "webp", "eps", "ps")
+
+
 def check_state_paths(jobs, paths, plot: str | None = None, inputs=()) -> None:
     """The state files must not be an input or an output (their folder is made
     where missing); ``--plot`` must be none of the run's inputs, outputs, state
@@ -224,6 +228,9 @@ def check_state_paths(jobs, paths, plot: str | None = None, inputs=()) -> None:
     files = {p for _, i, o, _ in jobs for p in (i, o)}
     for p in paths:
         output_folder(p, None, "state's")
+        if os.path.isdir(p):
+            raise FrameError(p, None, "is a folder; the state is a file (give a file name, "
+                             "e.g. state.json)")
         for q in files:
             if same_file(p, q):
                 raise FrameError(p, None, "the state file would overwrite an input or output "
@@ -233,6 +240,13 @@ def check_state_paths(jobs, paths, plot: str | None = None, inputs=()) -> None:
             if same_file(plot, q):
                 raise FrameError(plot, None, f"--plot would overwrite {q}, a file of this "
                                  "run; choose another name")
+        ext = os.path.splitext(plot)[1].lower().lstrip(".")
+        if ext not in PLOT_FORMATS:
+            raise FrameError(plot, None, f"--plot writes {', '.join(PLOT_FORMATS)} (by the "
+                             f"extension; got {'.' + ext if ext else 'none'})")
+        if os.path.isdir(plot):
+            raise FrameError(plot, None, "--plot: is a folder; give a file name (plot.png)")
+        output_folder(plot, None, "plot's")
 
 
 def remove_stale_temps(jobs, state_paths=()) -> None:

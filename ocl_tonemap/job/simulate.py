@@ -8,6 +8,7 @@ import time
 from typing import TYPE_CHECKING
 
 from ..imageio import FrameError, read_frame
+from .checkpoint import check_state_paths
 
 from ..imagewrite import write_frame
 from ..patterns import is_sequence, same_file
@@ -52,6 +53,8 @@ def run_simulate(opts: JobOptions, times: list[float]) -> JobResult:
     if opts.plot and any(same_file(opts.plot, q) for q in (opts.input, opts.state_in,
                                                            opts.state_out) if q):
         raise FrameError(opts.plot, None, "--plot would overwrite a file of this run")
+    check_state_paths([(None, opts.input, o, False) for _, o in outs],
+                      [opts.state_out] if opts.state_out else [], opts.plot, [opts.state_in])
     state = load_state(opts.state_in) if opts.state_in else None
     run, tm = setup_run(opts, state)
     fr = read_frame(opts.input, None, opts.channels)

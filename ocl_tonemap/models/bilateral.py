@@ -130,7 +130,7 @@ def bilateral_reference(v: np.ndarray, sigma_s: float, rk: RangeKernel = LEDDA_R
     """
     v = prepare_signal(v, rk)
     h, w = v.shape
-    fw = spatial_weights(sigma_s)
+    fw = spatial_weights(sigma_s)[:max(h, w)]      # offsets past the image add nothing
     r = len(fw) - 1
     pad = np.pad(v, r, mode="constant", constant_values=np.nan)
     num = np.zeros_like(v)

@@ -172,6 +172,9 @@ def _client(scheduler: str | None, workers: int, pocl_threads: int | None,
         return Client(scheduler, security=sec, timeout="20s"), None
     except (OSError, TimeoutError) as exc:
         raise RuntimeError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+    except MemoryError:           # a peer that is no Dask scheduler (its handshake a size)
+        raise RuntimeError(f"--scheduler {scheduler}: what answers there is not a Dask "
+                           "scheduler (its handshake is not Dask's)") from None
 
 
 def _gather(futures, what: str, progress: bool, t0: float):

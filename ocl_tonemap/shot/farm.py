@@ -34,6 +34,9 @@ import shlex
 from xml.sax.saxutils import escape, quoteattr
 
 from .. import safeio
+from ..colour import load_config
+from ..job.checkpoint import load_state_in
+from ..patterns import same_file
 from ..pipeline import Tonemapper
 from . import passes
 
@@ -214,11 +217,24 @@ def _user() -> str:
     return re.sub(r"[^A-Za-z0-9_]+", "_", u) or "render"
 
 
-def _check_options(opts) -> None:
-    """Refuse, at submission, options the run would refuse (the observer made on the
-    float64 reference backend: no OpenCL needed to submit). Every effect splits."""
+def _check_options(opts, job_file: str, name: str, command: str) -> None:
+    """Refuse, at submission, what the run would refuse (the observer made on the
+    float64 reference backend: no OpenCL needed to submit; the frames on disk, the
+    OCIO config, the --state-in) and a job that could not run or would overwrite the
+    shot. Every effect splits."""
     Tonemapper(opts.operator, "reference", options=opts.operator_options,
-               effects=opts.effects, quality=opts.quality)
+               effects=opts.effects, quality=opts.quality, preadapt=opts.preadapt,
+               state=load_state_in(opts))
+    load_config(opts.colorconfig)
+    if not command.strip():
+        raise ValueError("--command must name the program the farm runs (got '')")
+    if not name.strip() or any(c in name for c in "\r\n\t"):
+        raise ValueError(f"--name must be one line of text (got {name!r})")
+    for _, inp, outp, _ in passes.shot_jobs(opts):
+        for what, p in (("an input frame", inp), ("an output frame", outp)):
+            if same_file(job_file, p):
+                raise ValueError(f"-o {job_file}: is {what} of the shot; write the job "
+                                 "elsewhere")
 
 
 def write_template(fmt: str, opts, run_tokens: list[str], job_file: str,
@@ -231,7 +247,7 @@ def write_template(fmt: str, opts, run_tokens: list[str], job_file: str,
         raise ValueError("--chunk-frames must be >= 1")
     name = _name(opts, name)
     opts, run_tokens, store = absolute(opts, run_tokens, store or passes.default_store(opts))
-    _check_options(opts)
+    _check_options(opts, job_file, name, command)
     if fmt == "openjd":
         doc = openjd_template(opts, run_tokens, store, chunk, name, command)
         try:

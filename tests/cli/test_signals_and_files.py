@@ -333,3 +333,34 @@ def test_check_input_names_each_kind():
     with pytest.raises(safeio.NotAFile, match="is a folder, not a file"):
         safeio.check_input("/")
     safeio.check_input("/no/such/file")          # the caller's to say
+
+
+_IN_A_C_CALL = """
+from ocl_tonemap import interrupts
+interrupts.enable_watchdog()             # as the command's entry point does
+interrupts.install()
+import numpy as np
+a = np.random.default_rng(0).random((7000, 7000))
+print("ready", flush=True)
+b = a @ a                                # one C call of ~1e12 flops: minutes here
+print("done", flush=True)
+"""
+
+
+def test_a_signal_ends_a_long_c_call():
+    """A signal that lands while the main thread is inside one long C call (an OpenCL
+    wait, a NumPy loop) has no Python handler run until the call returns; the wakeup
+    pipe arms the watchdog at once, so the process still ends with 143, not after
+    the call (here: one matrix product of minutes)."""
+    p = subprocess.Popen([sys.executable, "-c", _IN_A_C_CALL], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "ready"
+        p.send_signal(signal.SIGTERM)
+        out, err = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 143, err
+    assert "done" not in out
+    assert "terminated" in err and "Traceback" not in err

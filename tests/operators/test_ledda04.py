@@ -53,6 +53,25 @@ def test_exact_bilateral_matches_float64(filt, sigma):
     assert np.max(np.abs(filt.filter(lv, sigma, rk, "exact") - ref)) < 1e-4
 
 
+def test_exact_bilateral_wider_than_the_image(filt):
+    """A spatial sigma far wider than the frame (1e5 px on 41 x 30: the declared
+    --sigma-spatial allows it) takes the time of the frame, not of 6e5 offsets per
+    pixel (offsets past the image add nothing; it ran for minutes past SIGTERM), and
+    equals the float64 brute force written over every pixel pair."""
+    v = hdr_image(30, 41, seed=7)[..., 1]
+    sigma = 1e5
+    ref = bilateral_reference(v, sigma, LEDDA_RANGE)
+    vv = np.maximum(v.astype(np.float64), 1e-12).ravel()
+    ys, xs = np.divmod(np.arange(v.size), v.shape[1])
+    d2 = (ys[:, None] - ys[None, :]) ** 2 + (xs[:, None] - xs[None, :]) ** 2
+    t = vv[None, :] / vv[:, None] - 1.0
+    wgt = np.exp(-0.5 * d2 / sigma ** 2) * np.exp(-LEDDA_RANGE.k * t * t)
+    direct = (wgt @ vv) / wgt.sum(axis=1)
+    assert np.allclose(ref.ravel(), direct, rtol=1e-12)
+    dev = filt.filter(v, sigma, LEDDA_RANGE, "exact")
+    assert np.max(np.abs(dev / ref - 1)) < TOL_EXACT
+
+
 def test_fast_bilateral_within_recorded_bound(filt):
     v = hdr_image(48, 64, seed=6)[..., 1].astype(np.float64)
     ex = filt.filter(v, 3.0, LEDDA_RANGE, "exact")

@@ -129,6 +129,7 @@ class DeviceBilateral:
         holding image rows [in_y0, in_y0+rows_in) (which must include the
         rows within ceil(3 sigma_s) that exist)."""
         fw = spatial_weights(sigma_s)
+        fw = fw[:max(width, rows_in)]         # offsets past the image add nothing
         r = len(fw) - 1
         gx = -(-width // 4)
         wg = (16, 4)
