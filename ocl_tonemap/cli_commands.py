@@ -63,6 +63,10 @@ def run(a, argv) -> int:
         return 0
     from .job.options import Interrupted  # lazy: a command loads its own layers
     from .job.run import run_job  # lazy: a command loads its own layers
+    for flag, given in (("--workers", a.workers != 2), ("--chunk-frames", a.chunk_frames),
+                        ("--store", a.store), ("--scheduler-security", a.scheduler_security)):
+        if given:
+            log.warning("%s applies to --scheduler (a shot on Dask): ignored", flag)
     try:
         res = run_job(job_options(a, a.input, a.output, defer_backend=True))
     except Interrupted as e:

@@ -86,3 +86,14 @@ def test_a_negative_value_read_as_a_flag_says_how_to_write_it(seq, capsys):
     d, pattern, _ = seq
     _refused(["run", pattern.replace("####", "0001"), str(d / "n.png"), "--exposure",
               "-inf"], capsys, "--exposure=")
+
+
+def test_shot_flags_on_a_plain_run_are_said_to_be_ignored(seq, caplog):
+    import logging
+    d, pattern, _ = seq
+    with caplog.at_level(logging.WARNING, logger="ocl_tonemap"):
+        assert main(["run", pattern.replace("####", "0001"), str(d / "w.png"), "--workers",
+                     "4", "--store", str(d / "st")]) == 0
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "--workers applies to --scheduler" in said and "--store applies to" in said
+    assert not (d / "st").exists()
