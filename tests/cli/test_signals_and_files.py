@@ -14,6 +14,7 @@ import time
 import OpenImageIO as oiio
 import pytest
 
+from conftest import said
 from ocl_tonemap.patterns import frame_path
 
 #: Only keeps a hang from holding the suite; nothing here should come near it.
@@ -38,7 +39,7 @@ def _cli(args, env=None, cwd=None):
 def _only_error(rc, err, *words):
     """Exit 2 and stderr of exactly one line, the ERROR line, holding ``words``."""
     assert rc == 2, err
-    lines = err.strip().splitlines()
+    lines = said(err)
     assert len(lines) == 1, err
     assert lines[0].startswith("ocl-tonemap ERROR: "), err
     for w in words:

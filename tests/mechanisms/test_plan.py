@@ -60,6 +60,7 @@ def test_gate_bound_per_mechanism(mech):
     assert skipped > 0, f"{mech} was never skipped: the test would not see a gate"
 
 
+@pytest.mark.requires_opencl
 def test_auto_within_one_jnd_of_full():
     """The whole frame: everything ``auto`` skips shares one budget."""
     for op in ("pattanaik00", "durand00"):
@@ -70,6 +71,7 @@ def test_auto_within_one_jnd_of_full():
             assert frame_delta_e(a, f, tm.display) <= 1.0, (op, name, L, info.plan)
 
 
+@pytest.mark.requires_opencl
 def test_daylight_skips_two_night_keeps_acuity_and_purkinje():
     _, day, _ = _still("pattanaik00", _scene("noise", 3000.0))
     off = [m for m, w in day.plan["weights"].items() if w == 0.0]
@@ -79,6 +81,7 @@ def test_daylight_skips_two_night_keeps_acuity_and_purkinje():
     assert night.effects["acuity"]["ran"] and night.effects["purkinje"]["ran"]
 
 
+@pytest.mark.requires_opencl
 def test_skipped_mechanism_is_not_run():
     """A skipped effect costs nothing: it does not run (its record says so)."""
     _, info, _ = _still("durand00", _scene("noise", 3000.0))
@@ -139,6 +142,7 @@ def test_fade_day_to_night_switches_each_mechanism_at_most_once():
     assert tm.last.plan["weights"]["acuity"] == 0.0            # at once after a cut
 
 
+@pytest.mark.requires_opencl
 def test_model_none_and_paper_are_the_operator_alone():
     rgb = _scene("lamps", 0.03)
     _, info, _ = _still("pattanaik00", rgb, model="none")
@@ -160,6 +164,7 @@ def test_plan_is_resumed_with_the_state():
     assert json.loads(json.dumps(a.state.to_json()))["extra"][planner.STATE_KEY]
 
 
+@pytest.mark.requires_opencl
 def test_opencl_proxy_equals_reference_across_bands():
     """The device's block sums (metering.cl:block_sums) give the reference's proxy,
     whole and in row bands whose edges cut blocks."""
@@ -172,6 +177,7 @@ def test_opencl_proxy_equals_reference_across_bands():
         np.testing.assert_allclose(lv.proxy, ref, rtol=2e-6, atol=1e-9)
 
 
+@pytest.mark.requires_opencl
 def test_opencl_plan_equals_reference_plan():
     rgb = _scene("lamps", 0.03)
     _, a, _ = _still("durand00", rgb, backend="reference")
@@ -199,6 +205,7 @@ def test_skipped_purkinje_levels_follow_the_run():
                                  tms["auto"].display) <= 1.0, (i, w)
 
 
+@pytest.mark.requires_opencl
 def test_lamps_smaller_than_a_proxy_block_are_seen():
     """Lamps of 2 x 2 pixels (the proxy's blocks are 4 x 4 here) in a dark street:
     the source part is summed per pixel (metering.cl:block_sums with the threshold),

@@ -96,7 +96,8 @@ def test_the_paper_clips_and_the_default_compresses(scene, tmp_path):
     assert pm.toe_response(g, o, g * r0 + o) == pytest.approx(r0)
 
 
-@pytest.mark.parametrize("backend", ["opencl", "reference"])
+@pytest.mark.parametrize("backend", [pytest.param("opencl", marks=pytest.mark.requires_opencl),
+                                     "reference"])
 @pytest.mark.parametrize("level", [5000.0, 1.0, 0.01])
 def test_the_toe_keeps_scene_black_at_exactly_black(backend, level):
     """The toe's floor is the display's black: a black field beside the lit patches (no
