@@ -199,4 +199,5 @@ def read_planes(path: Path):
     if data is None:
         raise ValueError(f"cannot read per-pixel state {path}")
     data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
-    return {name: np.array(data[..., i]) for i, name in enumerate(spec.channelnames)}
+    planes = np.ascontiguousarray(np.moveaxis(data, -1, 0))     # one copy, plane by plane
+    return {name: planes[i] for i, name in enumerate(spec.channelnames)}

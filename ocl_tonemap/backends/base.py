@@ -336,6 +336,12 @@ class ScheduleDefaults:
     """What a schedule answers unless it says otherwise: scalar statistics only
     (nothing per pixel to store apart), the operator's own frame record."""
 
+    #: Whether :meth:`apply` maps a frame from statistics read back from a shot's
+    #: store (``stats_from_planes``; no resident frame: the colour stage runs again
+    #: in apply), the same pixels as from its own ``measure`` (a shot's apply pass
+    #: then meters nothing twice).
+    applies_stored = False
+
     def stats_planes(self, stats) -> dict | None:
         return None
 

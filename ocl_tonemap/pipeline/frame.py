@@ -35,6 +35,10 @@ class FrameGraph:
         self.primaries = None             # display linear -> working RGB (kirk11)
         self.record: dict = {}            # this frame's plan record (FrameInfo.plan)
         self.frozen = None                # the last mapping (stats, params, gains)
+        #: ``stored(frame_number)``: the frame's statistics as a shot's measure pass
+        #: stored them (:class:`FrameStats`, or None), for schedules that map from
+        #: them (``applies_stored``): the apply pass meters nothing twice.
+        self.stored = None
 
     # -- the three phases -----------------------------------------------------------------
     def measure(self, frame: Frame) -> FrameStats:
@@ -187,7 +191,12 @@ class FrameGraph:
             if changed or not isinstance(levels.rgb, (np.ndarray, type(None))):
                 # (unchanged but on the device: measured where it is, not uploaded again)
                 metered = changed_frame(frame, rgb, self.primaries)
-        stats = self.measure(metered)
+        stats = None
+        if self.stored is not None and not measure_only and \
+                getattr(self.schedule, "applies_stored", False):
+            stats = self.stored(frame_number, self.schedule)
+        if stats is None:
+            stats = self.measure(metered)
         self.scene_stats(stats, levels)
         if measure_only:
             return stats

@@ -52,6 +52,7 @@ import re
 
 import numpy as np
 
+from ..backends.planes import band_readable
 from ..imageio import BandReader, FrameError, read_frame
 
 from ..colour.export import OcioExport
@@ -59,6 +60,7 @@ from ..job.banded_io import stream_frame, stream_rows
 from ..job.checkpoint import load_state_in
 from ..job.frame import frame_input, map_frame
 from ..job.options import DEFAULT_FPS, run_fingerprint
+from ..job.overlap import FrameIO
 from ..job.run import run_job, setup_run
 from ..job.sequence import frame_jobs, frame_time
 from ..models.photometry import RepairCounts
@@ -227,26 +229,52 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
     store.open(_settings(opts), [j[0] for j in jobs], fps, auto)
     if auto is not None:
         run.calibrator.auto_scale = auto
-    done = []
-    for f, inp, outp, held in todo:
-        try:
-            st = os.stat(inp)
-            input_stat = [st.st_size, st.st_mtime_ns]
-        except OSError:
-            input_stat = None                     # (read_frame names the problem)
-        if not redo and input_stat is not None and store.stats_current(f, input_stat):
-            continue                              # measured from this very file
-        measure_frame(opts, run, tm, store, f, inp, outp, held, fps, input_stat)
-        done.append(f)
-    return done
+    todo = [(f, inp, outp, held, _input_stat(inp)) for f, inp, outp, held in todo]
+    todo = [j for j in todo if redo or j[4] is None or not store.stats_current(j[0], j[4])]
+    # the serial run's reads (half as stored, a frame or more ahead on threads) and
+    # the store's writes behind (a local operator's planes compress there)
+    io = FrameIO(opts.overlap_io, opts.threads)
+    with io:
+        for k, (f, inp, outp, held, input_stat) in enumerate(todo):
+            for j in range(k + 1, min(len(todo), k + 1 + io.ahead)):
+                if stream_rows(opts, tm, todo[j][1], todo[j][0]):
+                    break                             # (a streamed frame reads itself)
+                io.prefetch(j, lambda inp1=todo[j][1], f1=todo[j][0]:
+                            read_frame(inp1, f1, opts.channels, io.pool, keep_half=True))
+
+            def read(k=k, inp=inp, f=f):
+                return io.read(k, lambda: read_frame(inp, f, opts.channels, io.pool,
+                                                     keep_half=True))
+            try:
+                write = measure_frame(opts, run, tm, store, f, inp, outp, held, fps,
+                                      input_stat, read=read, later=True)
+            except BaseException:
+                io.drain()
+                raise
+            io.write(write, lambda: None)
+        io.drain()
+    return [j[0] for j in todo]
+
+
+def _input_stat(inp: str):
+    """(size, modification time) of an input frame; None where it cannot be stat'ed
+    (its read names the problem)."""
+    try:
+        st = os.stat(inp)
+    except OSError:
+        return None
+    return [st.st_size, st.st_mtime_ns]
 
 
 def measure_frame(opts, run, tm, store: ShotStore, f, inp, outp, held, fps, input_stat,
-                  weights: dict | None = None, plan: dict | None = None) -> None:
+                  weights: dict | None = None, plan: dict | None = None, read=None,
+                  later: bool = False):
     """One frame's statistics into the store: as the serial run measures it (read,
     whole or streamed, its optical effects -- the flare -- with the plan's weights of
     the frame itself, or ``weights``; ``plan``: the stored plan record to keep, where
-    the frame is measured again by the integrate pass)."""
+    the frame is measured again by the integrate pass). ``read()``: the frame (read
+    ahead), else read here; ``later``: the store's write returned as a function (for
+    a writer thread), not done."""
     try:
         rows = stream_rows(opts, tm, inp, f)
         streamed = stream_frame(run, tm, inp, outp, f, held, rows, fps, None,
@@ -254,11 +282,12 @@ def measure_frame(opts, run, tm, store: ShotStore, f, inp, outp, held, fps, inpu
         if streamed is not None:
             t, stats, _, hint = streamed
         else:
-            fr = read_frame(inp, f, opts.channels)
+            fr = read() if read is not None else read_frame(inp, f, opts.channels)
             t, _ = frame_time(fr, f, held, fps, None)
             fin = frame_input(run, tm, fr, inp)
             hint = fin.illuminant
             stats = map_frame(tm, fin, t, f, measure_only=True, weights=weights)
+            fr = fin = None
         want_illum = tm.effects.settings.chromatic_adaptation != "off"
         illum = stats.illuminant() if (want_illum and stats.illuminant) else None
         doc = stats_document(stats, illum, hint, t, held, inp)
@@ -270,11 +299,21 @@ def measure_frame(opts, run, tm, store: ShotStore, f, inp, outp, held, fps, inpu
         elif rec.get("predicted_dE_p99") is not None:
             doc["plan"] = {"predicted": rec["predicted_dE_p99"],
                            "G_cone": rec["analysis"]["G_cone"], "sig": rec.get("sig")}
-        store.write_stats(f, doc, tm.schedule.stats_planes(stats))
+        planes = tm.schedule.stats_planes(stats)     # (host copies: the device moves on)
     except FrameError:
         raise
     except Exception as exc:
         raise FrameError(inp, f, exc) from exc
+
+    def write():
+        try:
+            store.write_stats(f, doc, planes)
+        except Exception as exc:
+            raise FrameError(inp, f, exc) from exc
+    if later and not band_readable(planes):       # (a streamed frame's band store: now)
+        return write
+    write()
+    return None
 
 
 # -- 2. integrate ---------------------------------------------------------------------------
@@ -296,6 +335,37 @@ def _flare_weight(tm) -> float:
     return float(fx.weight("flare")) if fx.s.flare != "off" else 0.0
 
 
+#: Frames whose statistics are read ahead of the state step (their planes
+#: decompress on threads while the device steps: OIIO releases the GIL).
+READ_AHEAD = 2
+
+
+def stats_ahead(store: ShotStore, frames: list[int], depth: int = READ_AHEAD):
+    """``get(k)``: frame ``frames[k]``'s (document, planes), read on a thread
+    ``depth`` frames ahead of the caller (in order; at most ``depth + 1`` frames'
+    planes in memory). Statistics without planes (global operators) are read
+    where they are asked for: a small JSON is not worth a thread."""
+    from concurrent.futures import ThreadPoolExecutor
+    if not frames or not store.stats_document(frames[0]).get("planes"):
+        return lambda k: store.read_stats(frames[k])
+    threads = max(1, min(depth, (os.cpu_count() or 2) - 1))
+    pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="ocltm-stats")
+    pending: dict = {}
+
+    def get(k: int):
+        for j in range(k, min(k + depth + 1, len(frames))):
+            if j not in pending:
+                pending[j] = pool.submit(store.read_stats, frames[j])
+        for j in [j for j in pending if j < k]:
+            pending.pop(j).cancel()
+        try:
+            return pending.pop(k).result()
+        finally:
+            if k + 1 >= len(frames) or not pending:
+                pool.shutdown(wait=False, cancel_futures=True)
+    return get
+
+
 def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None, remeasure=None) -> None:
     """The serial run's state step over stored statistics, frame by frame, in the
     serial run's order (the plan's weights, then the observer and the effects);
@@ -308,8 +378,9 @@ def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None, remeasure=None)
     ``remeasure(k, frame, weights)`` measures it again with the serial weights
     (the integrate pass); without it such a frame is an error."""
     cuts = set(cuts or ())
+    ahead = stats_ahead(store, [j[0] for j in jobs])
     for k, (f, _inp, _outp, _held) in enumerate(jobs):
-        doc, planes = store.read_stats(f)
+        doc, planes = ahead(k)
         if f in cuts and tm.adapted:
             tm.reset_adaptation()
         if auto is not None:
@@ -469,4 +540,21 @@ def apply(opts, store_path: str, chunk=None):
                             resume=False, state_in=None, state_out=None, plot=None)
     docs = {f: store.stats_document(f) for f, *_ in todo}
     known = {f: d["plan"]["predicted"] for f, d in docs.items() if d.get("plan")}
-    return run_job(o, jobs=todo, state=state, predictions=known)
+    return run_job(o, jobs=todo, state=state, predictions=known,
+                   stored_stats=stored_stats(store, [f for f, *_ in todo]))
+
+
+def stored_stats(store: ShotStore, frames: list[int]):
+    """``get(frame)``: the frame's statistics from the store as the apply pass maps
+    from them (read ahead on a thread where they have planes), once each; the
+    schedule is the run's (``Tonemapper.schedule``), given at the first call."""
+    ahead = stats_ahead(store, frames)
+    index = {f: k for k, f in enumerate(frames)}
+
+    def get(frame, schedule):
+        k = index.get(frame)
+        if k is None:
+            return None
+        doc, planes = ahead(k)
+        return stats_from_document(doc, planes, schedule)[0]
+    return get

@@ -7,7 +7,7 @@ A folder on storage every worker sees (``--store``; default beside the output,
     manifest.json               what shot and settings the store belongs to
     stats/<frame>.json          one frame's statistics   (ocl-tonemap.frame-stats/1)
     stats/<frame>.planes.exr    local operators: their per-pixel adaptation inputs
-                                (float32, zip; .npz for the float64 reference backend)
+                                (float32, zstd or zip; .npz for the float64 reference backend)
     states/<frame>.json         the adaptation state after the frame (every frame)
     states/<frame>.pixels.exr   local operators' per-pixel state, at keyframes only
     integrate.json              written last by the integrate pass: frames, keyframes, cuts
@@ -21,6 +21,7 @@ refused, naming the settings that differ.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from pathlib import Path
@@ -36,10 +37,45 @@ from ..version import __version__
 STORE_FORMAT = "ocl-tonemap.shot-store/1"
 STATS_FORMAT = "ocl-tonemap.frame-stats/1"
 INTEGRATED_FORMAT = "ocl-tonemap.shot-states/1"
-#: EXR compression of the store's planes: lossless zip. Measured on ledda04's
-#: adaptation inputs at 1080p (two float32 planes): 15.8 -> 3.0 MiB a frame,
-#: write 22 -> 99 ms (in the parallel measure pass), read 11 -> 22 ms (integrate).
-PLANES_COMPRESSION = "zip"
+#: EXR compression of the store's planes, lossless: zstd where this OpenEXR writes
+#: it (OpenEXR 3.5 and later), else zip. Measured on ledda04's adaptation inputs at 1080p
+#: (two float32 planes, this 2-core machine, OpenEXR 3.5): none 16.6 MB, write 35 /
+#: read 6 ms; zip 6.3 MB, 65 / 31 ms; zstd 2.7 MB, 52 / 8 ms. The read is the serial
+#: integrate pass's (issue 59): zstd takes it from 31 to 8 ms a frame. A worker
+#: whose OpenEXR cannot read zstd is refused in one line naming the file.
+PLANES_COMPRESSIONS = ("zstd", "zip")
+
+
+@functools.lru_cache(maxsize=None)
+def planes_compression() -> str:
+    """The first of :data:`PLANES_COMPRESSIONS` this OpenImageIO/OpenEXR writes and
+    reads back exactly (a 4x2 two-plane file in a temporary folder, once a process)."""
+    import tempfile
+    probe = {"a": np.arange(8, dtype=np.float32).reshape(2, 4) * np.float32(1.5e-3),
+             "b": np.full((2, 4), 3.25e7, np.float32)}
+    for comp in PLANES_COMPRESSIONS:
+        try:
+            with tempfile.TemporaryDirectory(prefix="ocltm-probe-") as d:
+                f = Path(d) / "probe.exr"
+                write_planes(f, probe, comp)
+                back = read_planes(f)
+                if read_compression(f) == comp and all(
+                        np.array_equal(back[k], v) for k, v in probe.items()):
+                    return comp
+        except (OSError, ValueError, safeio.WriteFailed):
+            continue
+    return "zip"
+
+
+def read_compression(path: Path) -> str:
+    import OpenImageIO as oiio
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        return ""
+    try:
+        return inp.spec().get_string_attribute("compression")
+    finally:
+        inp.close()
 
 
 def _atomic_text(path: Path, text: str) -> None:
@@ -155,7 +191,7 @@ class ShotStore:
             safeio.commit(tmp, path)
             return name
         name = f"{frame:08d}.planes.exr"
-        write_planes(self.stats_dir / name, planes, PLANES_COMPRESSION)
+        write_planes(self.stats_dir / name, planes, planes_compression())
         return name
 
     def stats_document(self, frame: int) -> dict:
@@ -182,7 +218,7 @@ class ShotStore:
         return self.states_dir / f"{frame:08d}.json"
 
     def write_state(self, frame: int, state: AdaptationState) -> None:
-        save_state(state, self.state_path(frame), compression=PLANES_COMPRESSION)
+        save_state(state, self.state_path(frame), compression=planes_compression())
 
     def read_state(self, frame: int) -> AdaptationState:
         p = self.state_path(frame)

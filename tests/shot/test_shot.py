@@ -442,3 +442,58 @@ def test_apply_takes_the_plans_predictions_from_the_store(lamp_fade, op, monkeyp
     for c in passes.chunks(frames, 5):
         passes.apply(o, store, c)
     _same_frames(ser, out, frames)
+
+
+@pytest.mark.requires_opencl
+@pytest.mark.parametrize("op,scene", [("pattanaik00", "lamp_fade"), ("durand00", "lamp_fade"),
+                                      ("ledda04", "shot")])
+def test_apply_meters_nothing_the_measure_pass_stored(op, scene, request, monkeypatch):
+    """Issue 59: the apply pass maps each frame from the statistics its measure pass
+    stored (ledda04: the bilateral-filtered adaptation levels, its planes), not from
+    a metering of its own. With the schedules' ``measure`` made impossible during
+    apply, the frames (and their recorded states) are the serial run's bit for bit;
+    the lamp's flare ramps, so the stored statistics of the frames the integrate pass
+    measured again are the ones used."""
+    from ocl_tonemap.backends.opencl import ledda04 as ledda_cl
+    from ocl_tonemap.backends import opencl as cl_backend
+    d, pattern, frames = request.getfixturevalue(scene)
+    ser = _serial(d, pattern, op)
+    out = d / op / "stored" / "o.####.exr"
+    out.parent.mkdir(parents=True)
+    o = JobOptions(pattern, str(out), operator=op, checkpoint=False, out_bits="float")
+    store = passes.default_store(o)
+    passes.measure(o, store)
+    passes.integrate(o, store, 4)
+
+    def metered(*a, **k):
+        raise AssertionError("the apply pass metered a frame again")
+    monkeypatch.setattr(cl_backend.PointwiseSchedule, "measure", metered)
+    monkeypatch.setattr(ledda_cl.LeddaSchedule, "measure", metered)
+    for c in reversed(passes.chunks(frames, 6)):
+        passes.apply(o, store, c)
+    _same_frames(ser, out, frames)
+
+
+@pytest.mark.requires_opencl
+def test_store_planes_are_zstd_where_openexr_writes_it(shot):
+    """The store's planes (ledda04's adaptation inputs, per-pixel keyframes) are
+    lossless zstd where this OpenEXR writes it (3.5+: a quarter of zip's read time
+    in the serial integrate pass), else zip; read back exactly either way (the
+    bit-for-bit tests above)."""
+    import re
+    from ocl_tonemap.shot.store import planes_compression, read_compression
+    d, pattern, frames = shot
+    _serial(d, pattern, "ledda04")
+    store = ShotStore(passes.default_store(JobOptions(
+        pattern, str(d / "ledda04" / "c7" / "o.####.exr"), operator="ledda04")))
+    doc = store.stats_document(frames[0])
+    assert doc.get("planes")
+    comp = read_compression(store.stats_dir / doc["planes"])
+    assert comp == planes_compression()
+    kf = sorted(store.states_dir.glob("*.exr"))
+    assert kf and all(read_compression(p) == comp for p in kf)
+    v = re.search(r"OpenEXR (\d+)\.(\d+)", oiio.get_string_attribute("library_list"))
+    if v and (int(v.group(1)), int(v.group(2))) >= (3, 5):
+        assert comp == "zstd"
+    else:
+        assert comp == "zip"

@@ -329,6 +329,7 @@ class PointwiseSchedule(NoPixelState):
     receptor_gains = True
     streams = True
     encodes_output = True
+    applies_stored = True
 
     def __init__(self, backend: OpenCLBackend, op):
         self.backend, self.op = backend, op
@@ -356,7 +357,8 @@ class PointwiseSchedule(NoPixelState):
         out = be.output_array(h, w, encoding) if sink is None else None
         for y0, nr in bands:
             if len(bands) > 1 or not resident:
-                be.to_working(frame.pixels[y0:y0 + nr], frame.scale, count=False)
+                be.to_working(frame.pixels if len(bands) == 1 else frame.pixels[y0:y0 + nr],
+                              frame.scale, count=False)
             b = be.bufs
             n = nr * w
             if gains is not None:                          # Eq. 6: cone signals only

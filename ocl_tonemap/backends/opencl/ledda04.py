@@ -52,6 +52,7 @@ class LeddaSchedule(LeddaPixelState):
     streams = True
     encodes_output = True
     band_state = True
+    applies_stored = True
 
     def __init__(self, backend, op):
         self.backend, self.op = backend, op
@@ -311,8 +312,8 @@ class LeddaSchedule(LeddaPixelState):
                 ic, _ = self._band_levels(stats, y0, nr, rods=False)
                 st = be.buffer("ledda_state_band", nstate * n * 4)
                 transfer(q, st, read_rows(self._host, self.planes, y0, y0 + nr))
-            else:
-                ic, st = stats.planes["I_c"], self._dev[0]
+            else:                                   # (stored levels: uploaded)
+                ic, st = self._band_levels(stats, y0, nr, rods=False)[0], self._dev[0]
             items = be.rt.pixel_items(n, 4) if self._map_vector else n
             dst = be.output_buffer(n, len(bands) == 1)
             self._k_map(q, (round_up(items, 64),), (64,), be.bufs["rgb"], i32(0), ic, st, i32(n),

@@ -77,6 +77,7 @@ class PointwiseSchedule(NoPixelState):
     receptor_gains = True
     streams = False
     encodes_output = False
+    applies_stored = True
 
     def __init__(self, backend, op):
         self.backend, self.op = backend, op
