@@ -58,8 +58,10 @@ def run(a, argv) -> int:
                               pocl_threads=max(1, (os.cpu_count() or 1) // max(1, a.workers)),
                               security=a.scheduler_security)
         if not a.quiet:
+            from .shot.distributed import overhead_line  # lazy: with --scheduler only
             times = ", ".join(f"{k} {v:.2f} s" for k, v in res.passes.items())
-            print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s ({times})")
+            print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s ({times}; "
+                  f"{overhead_line(res.tasks)})")
         return 0
     from .job.options import Interrupted  # lazy: a command loads its own layers
     from .job.run import run_job  # lazy: a command loads its own layers

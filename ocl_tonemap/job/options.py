@@ -127,6 +127,7 @@ class JobResult:
     repairs: RepairCounts = field(default_factory=RepairCounts)
     seconds: float = 0.0
     export: str = ""                # the OCIO export's summary (--ocio-export)
+    setup_s: float = 0.0            # before the first frame: checks, set-up, kernels
 
     def transfers(self) -> str:
         """Host <-> device transfers per frame, the mean over the frames that made any

@@ -222,6 +222,7 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False,
             rows_of[k] = stream_rows(opts, tm, jobs[k][1], jobs[k][0])
         return rows_of[k]
 
+    result.setup_s = time.perf_counter() - t_start
     with _StopSignals() as stop, io:
         for k, (f, inp, outp, held) in enumerate(jobs):
             for j in range(k + 1, min(n, k + 1 + io.ahead)):    # read-ahead

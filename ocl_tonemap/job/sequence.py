@@ -9,7 +9,7 @@ import os
 from ..imageio import FrameError, check_readable
 from ..imagewrite import check_output
 
-from ..patterns import find_frames, frame_path, is_sequence, same_file
+from ..patterns import find_frames, frame_path, is_sequence
 from .options import DEFAULT_FPS, JobOptions
 
 log = logging.getLogger("ocl_tonemap")
@@ -93,12 +93,36 @@ def frame_jobs(opts: JobOptions) -> list[tuple[int | None, str, str, bool]]:
     check_output(jobs[0][2])             # a folder, no format, a read-only folder: refused
     for f, i, _, _ in jobs:              # a FIFO among the frames: refused before any frame
         check_readable(i, f)             # is made (each is checked again as it is read)
-    inputs = {i for _, i, _, _ in jobs}
+    inputs = input_identities({i for _, i, _, _ in jobs})
     for f, _, o, _ in jobs:
-        for j in inputs:
-            if same_file(o, j):
-                raise FrameError(o, f, "output would overwrite an input file; choose another OUTPUT")
+        if inputs(o):
+            raise FrameError(o, f, "output would overwrite an input file; choose another OUTPUT")
     return jobs
+
+
+def input_identities(paths):
+    """``is_input(path)``: whether ``path`` is one of ``paths`` (the same file, as
+    ``os.path.samefile`` says: a link or another name of it; else the same absolute
+    path). One stat per file: a 10 000-frame shot's check is not 10^8 comparisons
+    (each task of a distributed shot makes it)."""
+    ids, names = set(), set()
+    for p in paths:
+        names.add(os.path.abspath(p))
+        try:
+            st = os.stat(p)
+        except OSError:
+            continue
+        ids.add((st.st_dev, st.st_ino))
+
+    def is_input(path) -> bool:
+        try:
+            st = os.stat(path)
+            if (st.st_dev, st.st_ino) in ids:
+                return True
+        except OSError:
+            pass
+        return os.path.abspath(path) in names
+    return is_input
 
 
 def frame_time(fr, f, held: bool, fps, t_prev) -> tuple[float, float]:

@@ -92,7 +92,13 @@ def _task(what: str, chunk, fn):
 
 
 def _measure_task(opts, store, chunk):
-    return _task("measure", chunk, lambda: passes.measure(opts, store, chunk))
+    """(frames measured, set-up seconds, task seconds) of one chunk."""
+    def go():
+        t = time.perf_counter()
+        timing: dict = {}
+        done = passes.measure(opts, store, chunk, timing=timing)
+        return done, timing.get("setup", 0.0), time.perf_counter() - t
+    return _task("measure", chunk, go)
 
 
 def _integrate_task(opts, store, keyframe_every):
@@ -101,9 +107,32 @@ def _integrate_task(opts, store, keyframe_every):
 
 def _apply_task(opts, store, chunk):
     def go():
+        t = time.perf_counter()
         res = passes.apply(opts, store, chunk)
-        return res.frames, res.outputs, res.repairs.as_dict()
+        return (res.frames, res.outputs, res.repairs.as_dict(), res.setup_s,
+                time.perf_counter() - t)
     return _task("apply", chunk, go)
+
+
+def task_overheads(workers: int, timing: dict, tasks: dict) -> dict:
+    """Per pass: {"tasks", "setup_s" (mean set-up in a task before its first frame:
+    checks, the run's set-up, the store), "dask_s" (mean time a task was not running
+    in a worker: the pass's wall time on ``workers`` less the tasks' own, per task;
+    scheduling, transfers and idle workers at the pass's end)}."""
+    out = {}
+    for name, got in tasks.items():
+        n = max(len(got), 1)
+        busy = sum(w for _, w in got)
+        out[name] = {"tasks": len(got), "setup_s": sum(s for s, _ in got) / n,
+                     "dask_s": max(0.0, timing.get(name, 0.0) * workers - busy) / n}
+    return out
+
+
+def overhead_line(tasks: dict) -> str:
+    """"measure 8 tasks, 0.03 s set-up + 0.01 s Dask a task; apply ..." (the run's
+    summary line)."""
+    return "; ".join(f"{k} tasks {v['tasks']}: {v['setup_s']:.2f} s set-up + "
+                     f"{v['dask_s']:.2f} s Dask a task" for k, v in tasks.items())
 
 
 def load_security(path: str):
@@ -138,6 +167,22 @@ def load_security(path: str):
                     tls_client_key=files.get("key"), require_encryption=True)
 
 
+def worker_environ() -> dict:
+    """Dask's environment for the worker processes it spawns, without its
+    ``MALLOC_TRIM_THRESHOLD_`` (65536): a fixed trim threshold turns off glibc's
+    dynamic mmap threshold, so every frame-sized array is mapped and unmapped again
+    (page faults on each new one). Measured (issue 59): a measure task over 60
+    frames at 320x180 took 1.62 s in a worker with it and 1.06 s without (1.12 s
+    in the calling process). Workers of a cluster started elsewhere: start them
+    without it (``DASK_DISTRIBUTED__NANNY__PRE_SPAWN_ENVIRON__MALLOC_TRIM_THRESHOLD_``
+    left unset is not enough: set it to a large value or start the nanny with a
+    configuration that drops it, docs/scale-out.md)."""
+    import dask
+    env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {})
+    env.pop("MALLOC_TRIM_THRESHOLD_", None)
+    return env
+
+
 def _tls_configured() -> bool:
     import dask
     return bool(dask.config.get("distributed.comm.tls.ca-file", None))
@@ -156,9 +201,12 @@ def _client(scheduler: str | None, workers: int, pocl_threads: int | None,
     import warnings                               # (nor a dashboard's port moved aside)
     warnings.filterwarnings("ignore", category=UserWarning, module=r"distributed(\..*)?$")
     if scheduler in (None, "dask", "local"):
+        import dask
         env = {"POCL_MAX_PTHREAD_COUNT": str(pocl_threads)} if pocl_threads else {}
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.CRITICAL, env=env)
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": worker_environ()}):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.CRITICAL,
+                                   env=env)
         return Client(cluster), cluster
     if not str(scheduler).startswith(("tcp://", "tls://", "inproc://", "ucx://", "ws://")):
         raise ValueError(f"--scheduler must be dask (a local cluster) or a scheduler address "
@@ -233,7 +281,7 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
         timing["start"] = t - t0
         futs = [client.submit(_measure_task, opts, store, c, key=f"measure-{c[0]}-{c[1]}",
                               retries=retries, pure=False) for c in parts]
-        _gather(futs, "measure", progress, t0)
+        measured = _gather(futs, "measure", progress, t0)
         timing["measure"] = time.perf_counter() - t
         t = time.perf_counter()
         fut = client.submit(_integrate_task, opts, store, size, key="integrate",
@@ -250,11 +298,13 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
         if cluster is not None:
             cluster.close()
     res = JobResult([], [])
-    for fr, outs, rep in done:
+    for fr, outs, rep, _, _ in done:
         res.frames += fr
         res.outputs += outs
         res.repairs += RepairCounts(**rep)
     res.seconds = time.perf_counter() - t0
     res.passes = timing
+    res.tasks = task_overheads(workers, timing, {
+        "measure": [(s, w) for _, s, w in measured], "apply": [(d[3], d[4]) for d in done]})
     res.cuts = integ.get("cuts", [])
     return res

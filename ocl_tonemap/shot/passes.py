@@ -214,12 +214,16 @@ def _shot_constants(opts, jobs, run, tm, store: ShotStore):
     return fps, auto
 
 
-def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
+def measure(opts, store_path: str, chunk=None, redo: bool = False,
+            timing: dict | None = None) -> list[int]:
     """The measure pass over the frames of ``chunk`` (all: None): each frame's
     statistics into the store; frames already there are skipped unless ``redo``
     (a retried task does not measure them again) unless ``redo`` or the input file
     changed since (size, modification time); new statistics invalidate an earlier
-    integrate. Returns the frames measured."""
+    integrate. Returns the frames measured; ``timing["setup"]``: the seconds before
+    the first frame (the task's overhead: checks, set-up, the store)."""
+    import time
+    t0 = time.perf_counter()
     jobs = shot_jobs(opts)
     todo = chunk_jobs(jobs, chunk)
     state = load_state_in(opts)
@@ -234,6 +238,8 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False) -> list[int]:
     # the serial run's reads (half as stored, a frame or more ahead on threads) and
     # the store's writes behind (a local operator's planes compress there)
     io = FrameIO(opts.overlap_io, opts.threads)
+    if timing is not None:
+        timing["setup"] = time.perf_counter() - t0
     with io:
         for k, (f, inp, outp, held, input_stat) in enumerate(todo):
             for j in range(k + 1, min(len(todo), k + 1 + io.ahead)):
@@ -531,7 +537,10 @@ def export(opts, store_path: str, chunk=None) -> tuple:
 
 def apply(opts, store_path: str, chunk=None):
     """The apply pass over ``chunk`` (all: None): the serial run over its frames
-    from the integrated state. Returns the run's JobResult."""
+    from the integrated state. Returns the run's JobResult (``setup_s``: the
+    seconds before its first frame, the state before the chunk included)."""
+    import time
+    t0 = time.perf_counter()
     opts, jobs, store, man, integ = _integrated(opts, store_path)
     todo = chunk_jobs(jobs, chunk)
     k0 = jobs.index(todo[0])
@@ -540,8 +549,11 @@ def apply(opts, store_path: str, chunk=None):
                             resume=False, state_in=None, state_out=None, plot=None)
     docs = {f: store.stats_document(f) for f, *_ in todo}
     known = {f: d["plan"]["predicted"] for f, d in docs.items() if d.get("plan")}
-    return run_job(o, jobs=todo, state=state, predictions=known,
-                   stored_stats=stored_stats(store, [f for f, *_ in todo]))
+    before = time.perf_counter() - t0
+    res = run_job(o, jobs=todo, state=state, predictions=known,
+                  stored_stats=stored_stats(store, [f for f, *_ in todo]))
+    res.setup_s += before
+    return res
 
 
 def stored_stats(store: ShotStore, frames: list[int]):

@@ -258,6 +258,13 @@ def test_dask_local_cluster_matches_serial(shot, tmp_path):
     res = run_distributed(o, "dask", workers=2, chunk=8)
     assert res.frames == frames and set(res.passes) >= {"measure", "integrate", "apply"}
     _same_frames(ser, out, frames)
+    # the run's summary: each pass's tasks and their overhead (issue 59)
+    n_tasks = len(passes.chunks(frames, 8))
+    assert {k: v["tasks"] for k, v in res.tasks.items()} == {"measure": n_tasks,
+                                                             "apply": n_tasks}
+    for v in res.tasks.values():
+        assert 0.0 < v["setup_s"] < res.passes["apply"] + res.passes["measure"]
+        assert v["dask_s"] >= 0.0
 
     bad = tmp_path / "bad"
     shutil.copytree(os.path.dirname(pattern), bad)
@@ -497,3 +504,25 @@ def test_store_planes_are_zstd_where_openexr_writes_it(shot):
         assert comp == "zstd"
     else:
         assert comp == "zip"
+
+
+@pytest.mark.requires_opencl
+def test_local_cluster_workers_keep_glibcs_dynamic_mmap_threshold():
+    """Dask's nanny gives its workers MALLOC_TRIM_THRESHOLD_=65536, which turns off
+    glibc's dynamic mmap threshold: every frame-sized array is mapped and unmapped
+    again (a measure task ran 1.5x slower in a worker than in the calling process,
+    issue 59). The local cluster of ``run --scheduler dask`` starts its workers
+    without it, and keeps Dask's other settings for them."""
+    pytest.importorskip("distributed")
+    import dask
+    from ocl_tonemap.shot.distributed import _client
+    client, cluster = _client("dask", 1, None)
+    try:
+        env = next(iter(client.run(lambda: dict(os.environ)).values()))
+    finally:
+        client.close()
+        cluster.close()
+    assert "MALLOC_TRIM_THRESHOLD_" not in env
+    for k, v in (dask.config.get("distributed.nanny.pre-spawn-environ") or {}).items():
+        if k != "MALLOC_TRIM_THRESHOLD_":
+            assert env.get(k) == str(v)
