@@ -121,13 +121,14 @@ def check_stills(opts: JobOptions) -> None:
 
 
 def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None,
-            predictions: dict | None = None, stored_stats=None) -> JobResult:
+            plans: dict | None = None, stored_stats=None) -> JobResult:
     """The main job. Writes the state after every frame (``checkpoint_path``); SIGINT
     and SIGTERM end it after the frame in flight (:class:`Interrupted`).
     ``jobs`` (a slice of ``frame_jobs(opts)``) and ``state`` (to start from, over
     ``--state-in``): one chunk of a shot (``shot/passes.py`` apply), with the
-    ``predictions`` of its frames' mechanism plans its measure pass stored (frame ->
-    predictions: not made again) and ``stored_stats(frame)``: its statistics as that
+    ``plans``: its frames' mechanism plans as its measure pass stored them (frame ->
+    {"predicted", "sig", "analysis"}: not made again) and ``stored_stats(frame)``:
+    its statistics as that
     pass measured them (None: measured here), where the operator's schedule maps
     from them (``applies_stored``)."""
     t_start = time.perf_counter()
@@ -145,7 +146,7 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None,
     interrupts.temp_folders.update(os.path.dirname(os.path.abspath(p)) for p in
                                    {j[2] for j in jobs} | {ckpt, opts.state_out} if p)
     if not whole:                    # a chunk of a shot's apply pass: the chunks run together
-        return _run_job(opts, jobs, state, ckpt, t_start, chunk=True, predictions=predictions,
+        return _run_job(opts, jobs, state, ckpt, t_start, chunk=True, plans=plans,
                         stored_stats=stored_stats)
     single = not is_sequence(opts.input) and len(jobs) == 1
     if single and not ckpt and not opts.state_out:   # a still makes no side file, not even
@@ -155,7 +156,7 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None,
 
 
 def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False,
-             predictions: dict | None = None, stored_stats=None) -> JobResult:
+             plans: dict | None = None, stored_stats=None) -> JobResult:
     # (the default checkpoint's too: a still that writes none cleans a killed run's)
     remove_stale_temps(jobs, [p for p in {ckpt, opts.state_out, checkpoint_path(opts)} if p])
     check_state_paths(jobs, [p for p in {ckpt, opts.state_out} if p], opts.plot,
@@ -184,7 +185,10 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False,
             io.prefetch(0, lambda: read_frame(inp0, f0, opts.channels, io.pool, keep_half=True))
         opts = resolved_backend(opts)              # the device probed behind the read
         run, tm = setup_run(opts, state)
-        tm.plan.known = dict(predictions or {})    # (a shot's apply pass: from its store)
+        plans = plans or {}                        # (a shot's apply pass: from its store)
+        tm.plan.known = {f: p["predicted"] for f, p in plans.items()}
+        tm.plan.replay = {f: (p["analysis"], p.get("sig")) for f, p in plans.items()
+                          if p.get("analysis")}
         tm.graph.stored = stored_stats
         io.pool.use(tm.backend)                    # page-locked frames for a GPU
         check_output_depth(opts, run.disp, jobs)

@@ -33,6 +33,11 @@ class MechanismPlan:
         #: apply pass: used where a frame's predictions would be made again; they
         #: depend on the frame alone, so the frames are the serial run's).
         self.known: dict = {}
+        #: Frame number -> (its analysis as ``SceneAnalysis.as_dict`` gave it, its
+        #: signature), as the measure pass stored them: the apply pass replays them
+        #: (no proxy, no patches, no analysis made again; the analysis depends on the
+        #: frame alone, the weights are advanced here from the state as ever).
+        self.replay: dict = {}
         self._limit = None              # flare_limit's last (levels, limit)
 
     def backend_sources(self, h: int, w: int, lim: float):
@@ -87,6 +92,8 @@ class MechanismPlan:
         working-space rows (full-resolution patches, for acuity; ``get_patches``: the
         frame's own way to give the patches alone, a device image's); ``extra``: the state's,
         where the weights advance (None: a measure-only pass, targets only)."""
+        if self.active and frame_number in self.replay and frame_number in self.known:
+            return self._replayed(frame_number, extra, dt, fresh)
         if not self.active or levels.proxy is None:
             return {}
         G_rod, G_cone = levels.goal
@@ -114,6 +121,28 @@ class MechanismPlan:
                   "reused": reused, "sig": sig, "analysis": an.as_dict()}
         return {"weights": weights, "record": record,
                 "estimate": (an.illuminant, an.illuminant_cct, an.illuminant_confidence)}
+
+    def replays(self, frame_number) -> bool:
+        """Whether :meth:`frame` replays this frame's stored analysis (its proxy is
+        then not needed)."""
+        return self.active and frame_number in self.replay and frame_number in self.known
+
+    def _replayed(self, frame_number, extra: dict | None, dt: float, fresh: bool) -> dict:
+        """:meth:`frame` from the stored analysis and signature: the same weights,
+        record and estimate as the frame's own analysis would give."""
+        an, sig = self.replay[frame_number]
+        an = dict(an)
+        prev = (extra or {}).get(planner.STATE_KEY) or {}
+        if prev.get("G_cone") and dt > 0:
+            an["adapting"] = abs(math.log10(max(an["G_cone"], 1e-12) /
+                                            max(prev["G_cone"], 1e-12))) / dt
+        weights, target, predicted, reused = self.advance(
+            extra, (lambda: dict(self.known[frame_number])) if self.gated else {},
+            an["G_cone"], dt, fresh or extra is None, sig)
+        record = {"weights": weights, "target": target, "predicted_dE_p99": predicted,
+                  "reused": reused, "sig": sig, "analysis": an}
+        est = (tuple(an["illuminant"]), an["illuminant_cct"], an["illuminant_confidence"])
+        return {"weights": weights, "record": record, "estimate": est}
 
     def advance(self, extra: dict | None, predicted, G_cone: float, dt: float,
                 fresh: bool, sig: list | None = None) -> tuple[dict, dict, dict, bool]:

@@ -145,7 +145,7 @@ class FrameGraph:
             return math.inf
         return self.plan.flare_limit(*levels.goal)
 
-    def working(self, frame: Frame):
+    def working(self, frame: Frame, frame_number=None):
         """The frame's colour stage and metering for the plan and the effects (the
         backend's :class:`~ocl_tonemap.backends.base.Levels`), or None where neither
         runs. The working frame stays on the device where an effect runs there (the
@@ -158,7 +158,8 @@ class FrameGraph:
         on_dev = pix.shape[2] == 3 and fx.keeps_on_device(h, w)
         return self.backend.working(pix, frame.scale, self.metering,
                                     self.own_chroma() and self.grey_world(), on_device=on_dev,
-                                    proxy_stride=self.plan.proxy_stride(h, w))
+                                    proxy_stride=0 if self.plan.replays(frame_number) else
+                                    self.plan.proxy_stride(h, w))
 
     # -- a whole frame --------------------------------------------------------------------
     def run(self, frame: Frame, dt, time_s, frame_number, illuminant, encoding=None,
@@ -176,14 +177,15 @@ class FrameGraph:
         moved = self.backend.transfers()
         fx = self.effects
         eff: dict = {}
-        levels = self.working(frame) if rgb_in else None
+        levels = self.working(frame, frame_number) if rgb_in else None
         metered = frame
         if levels is not None:
             ctx = FrameContext(*levels.goal, eff=eff, lim=self.source_limit(levels),
                                max_Y=levels.max_Y, frame=frame_number)
             if levels.rgb is not None and not isinstance(levels.rgb, np.ndarray):
                 h, w = frame.shape[:2]       # the device starts the flare while the host plans
-                self.plan.sources_ahead(h, w, *levels.goal, fresh or not reused)
+                self.plan.sources_ahead(h, w, *levels.goal, (fresh or not reused) and
+                                        frame_number not in self.plan.known)
                 fx.start(ctx, levels.rgb)
             self.begin_plan(levels, frame, step_dt, fresh, measure_only, weights, frame_number)
             self.record["flare_metered"] = fx.metered_weights(levels.max_Y, ctx.lim)

@@ -304,7 +304,8 @@ def measure_frame(opts, run, tm, store: ShotStore, f, inp, outp, held, fps, inpu
             doc["plan"] = plan
         elif rec.get("predicted_dE_p99") is not None:
             doc["plan"] = {"predicted": rec["predicted_dE_p99"],
-                           "G_cone": rec["analysis"]["G_cone"], "sig": rec.get("sig")}
+                           "G_cone": rec["analysis"]["G_cone"], "sig": rec.get("sig"),
+                           "analysis": _enc(rec["analysis"])}
         planes = tm.schedule.stats_planes(stats)     # (host copies: the device moves on)
     except FrameError:
         raise
@@ -548,9 +549,10 @@ def apply(opts, store_path: str, chunk=None):
     o = dataclasses.replace(opts, fps=man["fps"], cuts=integ["cuts"], checkpoint=False,
                             resume=False, state_in=None, state_out=None, plot=None)
     docs = {f: store.stats_document(f) for f, *_ in todo}
-    known = {f: d["plan"]["predicted"] for f, d in docs.items() if d.get("plan")}
+    known = {f: {**d["plan"], "analysis": _dec(d["plan"].get("analysis"))}
+             for f, d in docs.items() if d.get("plan")}
     before = time.perf_counter() - t0
-    res = run_job(o, jobs=todo, state=state, predictions=known,
+    res = run_job(o, jobs=todo, state=state, plans=known,
                   stored_stats=stored_stats(store, [f for f, *_ in todo]))
     res.setup_s += before
     return res

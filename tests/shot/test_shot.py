@@ -427,11 +427,12 @@ def test_flare_ramps_split_as_the_serial_run(lamp_fade, op):
 @pytest.mark.requires_opencl
 @pytest.mark.parametrize("op", ["pattanaik00", "kirk11"])
 def test_apply_takes_the_plans_predictions_from_the_store(lamp_fade, op, monkeypatch):
-    """The mechanism plan's predictions depend on the frame alone; the measure pass
-    stores them and the apply pass takes them from there instead of making them again
-    (~30 ms a frame at 320x180 on this 2-core PoCL machine: half of apply's frame).
-    With the planner's predictions made impossible during apply, the frames are still
-    the serial run's bit for bit."""
+    """The mechanism plan's predictions and analysis depend on the frame alone; the
+    measure pass stores them and the apply pass takes them from there instead of
+    making them again (predictions ~30 ms a frame at 320x180 on this 2-core PoCL
+    machine, the analysis ~6 ms). With the planner's predictions and the analysis
+    made impossible during apply, the frames are still the serial run's bit for bit,
+    and so are the plan's records in their metadata."""
     from ocl_tonemap.mechanisms import planner
     d, pattern, frames = lamp_fade
     ser = _serial(d, pattern, op)
@@ -444,11 +445,18 @@ def test_apply_takes_the_plans_predictions_from_the_store(lamp_fade, op, monkeyp
     assert all(ShotStore(store).stats_document(f).get("plan") for f in frames)
 
     def made(*a, **k):
-        raise AssertionError("the apply pass made a frame's predictions again")
+        raise AssertionError("the apply pass made a frame's predictions or analysis again")
+    import ocl_tonemap.mechanisms as mechanisms
     monkeypatch.setattr(planner, "predictions", made)
+    monkeypatch.setattr(mechanisms, "analyse", made)      # (the analysis replayed too)
+    monkeypatch.setattr(mechanisms, "patches_of", made)
     for c in passes.chunks(frames, 5):
         passes.apply(o, store, c)
     _same_frames(ser, out, frames)
+    for f in frames:                       # the plan's record too: what -v and plots show
+        a, b = (oiio.ImageBuf(frame_path(str(p), f)).spec() for p in (ser, out))
+        for key in ("ocltm:plan", "ocltm:plan_detail", "ocltm:effects"):
+            assert a.getattribute(key) == b.getattribute(key), (f, key)
 
 
 @pytest.mark.requires_opencl
