@@ -9,7 +9,8 @@ starts, reused by every task it runs).
 
 measure   one task per chunk of ``chunk`` frames, in parallel; a retried task
           skips the frames whose statistics are already stored;
-integrate one task, after every measure task;
+integrate one task, after every measure task (a local cluster: in the calling
+          process, on every core, while the workers wait);
 apply     one task per chunk, in parallel, each starting at a per-pixel keyframe
           (keyframes are written every ``chunk`` frames).
 
@@ -284,9 +285,15 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
         measured = _gather(futs, "measure", progress, t0)
         timing["measure"] = time.perf_counter() - t
         t = time.perf_counter()
-        fut = client.submit(_integrate_task, opts, store, size, key="integrate",
-                            retries=retries, pure=False)
-        integ = _gather([fut], "integrate", progress, t0)[0]
+        if cluster is not None:
+            # a local cluster: the serial pass here, on every core (a worker has
+            # cores / workers PoCL threads; ledda04's per-pixel step at 1080p took
+            # 7.5 s in one of two workers against 3.3 s on the machine, issue 59)
+            integ = passes.integrate(opts, store, size)
+        else:
+            fut = client.submit(_integrate_task, opts, store, size, key="integrate",
+                                retries=retries, pure=False)
+            integ = _gather([fut], "integrate", progress, t0)[0]
         timing["integrate"] = time.perf_counter() - t
         t = time.perf_counter()
         futs = [client.submit(_apply_task, opts, store, c, key=f"apply-{c[0]}-{c[1]}",

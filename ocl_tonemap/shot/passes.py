@@ -342,6 +342,9 @@ def _flare_weight(tm) -> float:
     return float(fx.weight("flare")) if fx.s.flare != "off" else 0.0
 
 
+#: States the integrate pass writes behind its step, at most (memory: a 1080p
+#: ledda04 keyframe is ~83 MB).
+WRITES_BEHIND = 2
 #: Frames whose statistics are read ahead of the state step (their planes
 #: decompress on threads while the device steps: OIIO releases the GIL).
 READ_AHEAD = 2
@@ -454,12 +457,27 @@ def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
         again.append(f)
     n = len(jobs)
 
+    # the states are written behind the step (a 1080p keyframe is ten planes, ~0.3 s
+    # to compress and write): at most WRITES_BEHIND in flight, the first failure raised
+    from collections import deque
+    from concurrent.futures import ThreadPoolExecutor
+    writer = ThreadPoolExecutor(1, thread_name_prefix="ocltm-states")
+    pending: deque = deque()
+
     def after(k, f, _eff):
         key = (k + 1) % every == 0 or k + 1 == n
-        store.write_state(f, tm.state if (local and key) else tm.scalar_state())
+        snap = tm.state if (local and key) else tm.scalar_state()     # (copies)
+        while len(pending) >= WRITES_BEHIND:
+            pending.popleft().result()
+        pending.append(writer.submit(store.write_state, f, snap))
         if key:
             keyframes.append(f)
-    _advance(tm, store, jobs, cuts, man.get("luminance_scale_auto"), after, remeasure)
+    try:
+        _advance(tm, store, jobs, cuts, man.get("luminance_scale_auto"), after, remeasure)
+        while pending:
+            pending.popleft().result()
+    finally:
+        writer.shutdown(wait=True)              # (a write in flight completes, renamed whole)
     if again:
         log.info("integrate: %d frame(s) measured again with the plan's flare weight "
                  "(its ramps): %s", len(again), ", ".join(map(str, again[:20])))
