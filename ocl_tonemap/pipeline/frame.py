@@ -35,9 +35,10 @@ class FrameGraph:
         self.primaries = None             # display linear -> working RGB (kirk11)
         self.record: dict = {}            # this frame's plan record (FrameInfo.plan)
         self.frozen = None                # the last mapping (stats, params, gains)
-        #: ``stored(frame_number)``: the frame's statistics as a shot's measure pass
-        #: stored them (:class:`FrameStats`, or None), for schedules that map from
-        #: them (``applies_stored``): the apply pass meters nothing twice.
+        #: ``stored(frame_number, schedule)``: the frame's statistics as a shot's
+        #: measure pass stored them (:class:`FrameStats` for that schedule, or None),
+        #: for schedules that map from them (``applies_stored``): the apply pass
+        #: meters nothing twice.
         self.stored = None
 
     # -- the three phases -----------------------------------------------------------------

@@ -461,7 +461,7 @@ def test_apply_takes_the_plans_predictions_from_the_store(lamp_fade, op, monkeyp
 
 @pytest.mark.requires_opencl
 @pytest.mark.parametrize("op,scene", [("pattanaik00", "lamp_fade"), ("durand00", "lamp_fade"),
-                                      ("ledda04", "shot")])
+                                      ("ledda04", "shot"), ("ledda04", "lamp_fade")])
 def test_apply_meters_nothing_the_measure_pass_stored(op, scene, request, monkeypatch):
     """Issue 59: the apply pass maps each frame from the statistics its measure pass
     stored (ledda04: the bilateral-filtered adaptation levels, its planes), not from
