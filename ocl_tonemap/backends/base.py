@@ -155,6 +155,9 @@ class Schedule(Protocol):
     streams: bool
     #: :meth:`apply` can bring its output back as display code values (``encoding``).
     encodes_output: bool
+    #: :meth:`apply` maps a frame from statistics read back from a shot's store
+    #: (``ScheduleDefaults.applies_stored``).
+    applies_stored: bool
 
     def measure(self, frame: Frame, spec: MeteringSpec,
                 want_illuminant: bool = False) -> FrameStats: ...

@@ -195,8 +195,7 @@ class FrameGraph:
                 # (unchanged but on the device: measured where it is, not uploaded again)
                 metered = changed_frame(frame, rgb, self.primaries)
         stats = None
-        if self.stored is not None and not measure_only and \
-                getattr(self.schedule, "applies_stored", False):
+        if self.stored is not None and not measure_only and self.schedule.applies_stored:
             stats = self.stored(frame_number, self.schedule)
         if stats is None:
             stats = self.measure(metered)

@@ -50,8 +50,6 @@ import math
 import os
 import re
 
-import numpy as np
-
 from ..backends.planes import band_readable
 from ..imageio import BandReader, FrameError, read_frame
 
@@ -63,10 +61,10 @@ from ..job.options import DEFAULT_FPS, run_fingerprint
 from ..job.overlap import FrameIO
 from ..job.run import run_job, setup_run
 from ..job.sequence import frame_jobs, frame_time
-from ..models.photometry import RepairCounts
-from ..operators.base import FrameStats
 from ..patterns import is_sequence, without_frame_token
 from ..state import AUTO_SCALE_KEY
+from .frame_stats import (decode_value, encode_value, stats_ahead,  # noqa: F401
+                          stats_document, stats_from_document, stored_stats)
 from .store import ShotStore
 
 log = logging.getLogger("ocl_tonemap")
@@ -129,65 +127,6 @@ def default_store(opts) -> str:
 def _settings(opts) -> dict:
     """The settings a store belongs to (the serial run's fingerprint)."""
     return run_fingerprint(opts)
-
-
-# -- statistics to and from JSON (exact) ----------------------------------------------------
-def _enc(v):
-    if isinstance(v, np.ndarray):
-        return {"__ndarray__": v.ravel().tolist(), "dtype": str(v.dtype), "shape": list(v.shape)}
-    if isinstance(v, np.generic):
-        return {"__npscalar__": v.item(), "dtype": str(v.dtype)}
-    if isinstance(v, dict):
-        return {str(k): _enc(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_enc(x) for x in v]
-    return v
-
-
-def _dec(v):
-    if isinstance(v, dict):
-        if "__ndarray__" in v:
-            return np.array(v["__ndarray__"], dtype=v["dtype"]).reshape(v["shape"])
-        if "__npscalar__" in v:
-            return np.dtype(v["dtype"]).type(v["__npscalar__"])
-        return {k: _dec(x) for k, x in v.items()}
-    if isinstance(v, list):
-        return [_dec(x) for x in v]
-    return v
-
-
-def stats_document(stats: FrameStats, illuminant, hint, t: float, held: bool, inp: str) -> dict:
-    """What integrate needs of one frame's statistics (JSON; floats exact)."""
-    return {"time_s": float(t), "held": bool(held), "input": os.path.basename(inp),
-            "width": int(stats.width), "height": int(stats.height),
-            "G_rod": float(stats.G_rod), "G_cone": float(stats.G_cone),
-            "scene_goal": None if stats.scene_goal is None else [float(g) for g in
-                                                                   stats.scene_goal],
-            "repairs": stats.repairs.as_dict(), "values": _enc(dict(stats.values)),
-            "illuminant": _enc(illuminant), "illuminant_hint": _enc(hint)}
-
-
-def stats_from_document(doc: dict, planes, schedule) -> tuple[FrameStats, object]:
-    """(FrameStats ready for ``Tonemapper.integrate``, the frame's illuminant hint);
-    a document whose parts do not decode is refused (ValueError)."""
-    try:
-        return _stats_from_document(doc, planes, schedule)
-    except (KeyError, TypeError, AttributeError, IndexError) as exc:
-        raise ValueError(f"frame {doc.get('frame')}'s statistics are damaged ({exc!r}); "
-                         "measure it again") from None
-
-
-def _stats_from_document(doc: dict, planes, schedule) -> tuple[FrameStats, object]:
-    illum = _dec(doc.get("illuminant"))
-    goal = doc.get("scene_goal")
-    stats = FrameStats(int(doc["width"]), int(doc["height"]), float(doc["G_rod"]),
-                       float(doc["G_cone"]), RepairCounts(**doc.get("repairs", {})),
-                       (lambda: illum) if illum is not None else None,
-                       _dec(doc.get("values") or {}),
-                       scene_goal=None if goal is None else (float(goal[0]), float(goal[1])))
-    if planes is not None:
-        stats = schedule.stats_from_planes(stats, planes)
-    return stats, _dec(doc.get("illuminant_hint"))
 
 
 # -- 1. measure -----------------------------------------------------------------------------
@@ -305,7 +244,7 @@ def measure_frame(opts, run, tm, store: ShotStore, f, inp, outp, held, fps, inpu
         elif rec.get("predicted_dE_p99") is not None:
             doc["plan"] = {"predicted": rec["predicted_dE_p99"],
                            "G_cone": rec["analysis"]["G_cone"], "sig": rec.get("sig"),
-                           "analysis": _enc(rec["analysis"])}
+                           "analysis": encode_value(rec["analysis"])}
         planes = tm.schedule.stats_planes(stats)     # (host copies: the device moves on)
     except FrameError:
         raise
@@ -345,37 +284,6 @@ def _flare_weight(tm) -> float:
 #: States the integrate pass writes behind its step, at most (memory: a 1080p
 #: ledda04 keyframe is ~83 MB).
 WRITES_BEHIND = 2
-#: Frames whose statistics are read ahead of the state step (their planes
-#: decompress on threads while the device steps: OIIO releases the GIL).
-READ_AHEAD = 2
-
-
-def stats_ahead(store: ShotStore, frames: list[int], depth: int = READ_AHEAD):
-    """``get(k)``: frame ``frames[k]``'s (document, planes), read on a thread
-    ``depth`` frames ahead of the caller (in order; at most ``depth + 1`` frames'
-    planes in memory). Statistics without planes (global operators) are read
-    where they are asked for: a small JSON is not worth a thread."""
-    from concurrent.futures import ThreadPoolExecutor
-    if not frames or not store.stats_document(frames[0]).get("planes"):
-        return lambda k: store.read_stats(frames[k])
-    threads = max(1, min(depth, (os.cpu_count() or 2) - 1))
-    pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="ocltm-stats")
-    pending: dict = {}
-
-    def get(k: int):
-        for j in range(k, min(k + depth + 1, len(frames))):
-            if j not in pending:
-                pending[j] = pool.submit(store.read_stats, frames[j])
-        for j in [j for j in pending if j < k]:
-            pending.pop(j).cancel()
-        try:
-            return pending.pop(k).result()
-        finally:
-            if k + 1 >= len(frames) or not pending:
-                pool.shutdown(wait=False, cancel_futures=True)
-    return get
-
-
 def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None, remeasure=None) -> None:
     """The serial run's state step over stored statistics, frame by frame, in the
     serial run's order (the plan's weights, then the observer and the effects);
@@ -567,26 +475,10 @@ def apply(opts, store_path: str, chunk=None):
     o = dataclasses.replace(opts, fps=man["fps"], cuts=integ["cuts"], checkpoint=False,
                             resume=False, state_in=None, state_out=None, plot=None)
     docs = {f: store.stats_document(f) for f, *_ in todo}
-    known = {f: {**d["plan"], "analysis": _dec(d["plan"].get("analysis"))}
+    known = {f: {**d["plan"], "analysis": decode_value(d["plan"].get("analysis"))}
              for f, d in docs.items() if d.get("plan")}
     before = time.perf_counter() - t0
     res = run_job(o, jobs=todo, state=state, plans=known,
                   stored_stats=stored_stats(store, [f for f, *_ in todo]))
     res.setup_s += before
     return res
-
-
-def stored_stats(store: ShotStore, frames: list[int]):
-    """``get(frame)``: the frame's statistics from the store as the apply pass maps
-    from them (read ahead on a thread where they have planes), once each; the
-    schedule is the run's (``Tonemapper.schedule``), given at the first call."""
-    ahead = stats_ahead(store, frames)
-    index = {f: k for k, f in enumerate(frames)}
-
-    def get(frame, schedule):
-        k = index.get(frame)
-        if k is None:
-            return None
-        doc, planes = ahead(k)
-        return stats_from_document(doc, planes, schedule)[0]
-    return get
