@@ -342,9 +342,12 @@ interrupts.enable_watchdog()             # as the command's entry point does
 interrupts.install()
 import numpy as np
 a = np.random.default_rng(0).random((7000, 7000))
-print("ready", flush=True)
-b = a @ a                                # one C call of ~1e12 flops: minutes here
-print("done", flush=True)
+try:
+    print("ready", flush=True)
+    b = a @ a                            # one C call of ~1e12 flops: minutes here
+    print("done", flush=True)
+except interrupts.Terminated:            # (a signal just before the call: the entry
+    raise SystemExit(143)                # point's own handling, as the command's)
 """
 
 
