@@ -63,6 +63,18 @@ def _split(d, pattern, op, size, name, keyframe_every=None, **kw):
     return out, store
 
 
+def _measured(d, pattern, op, name, keyframe_every=None):
+    """(output pattern, options, store) of a shot measured and integrated whole, its
+    apply pass left to the test."""
+    out = d / op / name / "o.####.exr"
+    out.parent.mkdir(parents=True)
+    o = JobOptions(pattern, str(out), operator=op, checkpoint=False, out_bits="float")
+    store = passes.default_store(o)
+    passes.measure(o, store)
+    passes.integrate(o, store, keyframe_every)
+    return out, o, store
+
+
 def _same_frames(a, b, frames, tol=0.0):
     worst = 0.0
     for f in frames:
@@ -436,12 +448,7 @@ def test_apply_takes_the_plans_predictions_from_the_store(lamp_fade, op, monkeyp
     from ocl_tonemap.mechanisms import planner
     d, pattern, frames = lamp_fade
     ser = _serial(d, pattern, op)
-    out = d / op / "known" / "o.####.exr"
-    out.parent.mkdir(parents=True)
-    o = JobOptions(pattern, str(out), operator=op, checkpoint=False, out_bits="float")
-    store = passes.default_store(o)
-    passes.measure(o, store)
-    passes.integrate(o, store)
+    out, o, store = _measured(d, pattern, op, "known")
     assert all(ShotStore(store).stats_document(f).get("plan") for f in frames)
 
     def made(*a, **k):
@@ -473,12 +480,7 @@ def test_apply_meters_nothing_the_measure_pass_stored(op, scene, request, monkey
     from ocl_tonemap.backends import opencl as cl_backend
     d, pattern, frames = request.getfixturevalue(scene)
     ser = _serial(d, pattern, op)
-    out = d / op / "stored" / "o.####.exr"
-    out.parent.mkdir(parents=True)
-    o = JobOptions(pattern, str(out), operator=op, checkpoint=False, out_bits="float")
-    store = passes.default_store(o)
-    passes.measure(o, store)
-    passes.integrate(o, store, 4)
+    out, o, store = _measured(d, pattern, op, "stored", keyframe_every=4)
 
     def metered(*a, **k):
         raise AssertionError("the apply pass metered a frame again")
