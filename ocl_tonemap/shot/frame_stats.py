@@ -105,17 +105,18 @@ def stats_ahead(store: ShotStore, frames: list[int], depth: int = READ_AHEAD):
     return get
 
 
-def stored_stats(store: ShotStore, frames: list[int]):
-    """``get(frame)``: the frame's statistics from the store as the apply pass maps
-    from them (read ahead on a thread where they have planes), once each; the
-    schedule is the run's (``Tonemapper.schedule``), given at the first call."""
-    ahead = stats_ahead(store, frames)
+def stored_stats(store: ShotStore, frames: list[int], docs: dict):
+    """``get(frame, schedule)``: the frame's statistics from the store as the apply
+    pass maps from them, for the run's schedule, once each: its document from
+    ``docs`` (the frames' documents, already read), its planes read ahead on a
+    thread where it has them."""
     index = {f: k for k, f in enumerate(frames)}
+    ahead = stats_ahead(store, frames) if frames and docs[frames[0]].get("planes") else None
 
     def get(frame, schedule):
         k = index.get(frame)
         if k is None:
             return None
-        doc, planes = ahead(k)
+        doc, planes = ahead(k) if ahead is not None else (docs[frame], None)
         return stats_from_document(doc, planes, schedule)[0]
     return get

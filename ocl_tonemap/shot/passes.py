@@ -479,6 +479,6 @@ def apply(opts, store_path: str, chunk=None):
              for f, d in docs.items() if d.get("plan")}
     before = time.perf_counter() - t0
     res = run_job(o, jobs=todo, state=state, plans=known,
-                  stored_stats=stored_stats(store, [f for f, *_ in todo]))
+                  stored_stats=stored_stats(store, [f for f, *_ in todo], docs))
     res.setup_s += before
     return res
