@@ -76,6 +76,12 @@ DEFAULT_KEYFRAME_EVERY = 50
 
 
 # -- the shot and its chunks --------------------------------------------------------------
+def keeps_planes(opts) -> bool:
+    """Whether the run's operator keeps per-pixel state (a local operator: keyframes)."""
+    from ..operators import registry
+    return bool(registry()[opts.operator].state.planes)
+
+
 def shot_jobs(opts):
     """Every frame of the shot: ``job.sequence.frame_jobs`` over ``--frames`` (inputs checked)."""
     if not is_sequence(opts.input):

@@ -291,6 +291,21 @@ def test_dask_local_cluster_matches_serial(shot, tmp_path):
     assert not [p for p in os.listdir(out2.parent) if ".tmp" in p]
 
 
+def test_dask_default_chunks_spare_a_local_operators_keyframes():
+    """Four tasks a worker by default; a local operator's tasks (each starts at a
+    per-pixel keyframe, integrate writes one a chunk) hold at least
+    LOCAL_CHUNK_FRAMES frames, at most a worker's share of the shot (issue 59: ledda04,
+    30 frames at 1080p on 2 workers in chunks of 4 was 2.5x the serial run)."""
+    from ocl_tonemap.shot.distributed import LOCAL_CHUNK_FRAMES, default_chunk
+    assert [default_chunk(n, 2, False) for n in (1, 30, 240)] == [1, 4, 30]
+    assert default_chunk(30, 2, True) == 15                       # a task a worker
+    assert default_chunk(100, 2, True) == LOCAL_CHUNK_FRAMES
+    assert default_chunk(1000, 2, True) == 125                    # four a worker again
+    assert default_chunk(3, 8, True) == 1
+    assert passes.keeps_planes(JobOptions("in.exr", "out.exr", operator="ledda04"))
+    assert not passes.keeps_planes(JobOptions("in.exr", "out.exr", operator="pattanaik00"))
+
+
 def _cli():
     exe = shutil.which("ocl-tonemap", path=os.path.dirname(sys.executable))
     return [exe] if exe else [sys.executable, "-m", "ocl_tonemap"]
