@@ -199,11 +199,12 @@ class Backend(Protocol):
 
     def working(self, pixels: np.ndarray, scale: float, spec: MeteringSpec,
                 illuminant: bool = True, on_device: bool = False,
-                proxy_stride: int = 0) -> Levels:
+                proxy_stride: int = 0, metered: Levels | None = None) -> Levels:
         """Colour stage and metering of a whole frame (``on_device``: ``rgb`` may stay
         on the device, for scene effects that run there; ``proxy_stride`` s > 0: the
         means of the frame's s x s blocks, ``models.metering.block_means``, in the
-        same pass)."""
+        same pass). ``metered``: the frame's metering already known (a shot's store):
+        the colour stage only, and these Levels with its rgb."""
 
     def source_proxy(self, shape, stride: int, lim: float) -> np.ndarray | None:
         """Block means (``stride``) of the flare's source part, rgb max(0, 1 - lim / Y),

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from ..backends.base import settle
+from ..backends.base import Levels, settle
 from ..effects import FrameContext
 from ..effects.runner import changed_frame
 from ..operators import registry
@@ -68,6 +68,8 @@ class FrameGraph:
         if levels is None:
             return
         stats.scene_goal = (float(levels.goal[0]), float(levels.goal[1]))
+        stats.scene_max_Y = None if levels.max_Y is None else float(levels.max_Y)
+        stats.scene_repairs = levels.repairs
         est = self.effects.estimate
         if est is not None and not self.effects.s.paper:
             stats.illuminant = lambda e=np.asarray(est[0], np.float64): e
@@ -146,21 +148,29 @@ class FrameGraph:
             return math.inf
         return self.plan.flare_limit(*levels.goal)
 
-    def working(self, frame: Frame, frame_number=None):
+    def working(self, frame: Frame, frame_number=None, stored: FrameStats | None = None):
         """The frame's colour stage and metering for the plan and the effects (the
         backend's :class:`~ocl_tonemap.backends.base.Levels`), or None where neither
         runs. The working frame stays on the device where an effect runs there (the
-        flare whole, else the Purkinje shift): one upload, no round trip."""
+        flare whole, else the Purkinje shift): one upload, no round trip. ``stored``:
+        the frame's statistics from a shot's measure pass; where they hold its scene
+        metering and the plan is replayed, only the colour stage runs."""
         fx = self.effects
         if not self.plan.active and not fx.optical_active():
             return None
         pix = frame.pixels
         h, w = pix.shape[:2]
         on_dev = pix.shape[2] == 3 and fx.keeps_on_device(h, w)
+        replayed = self.plan.replays(frame_number)
+        known = None
+        if stored is not None and replayed and stored.scene_goal is not None and \
+                stored.scene_max_Y is not None and stored.scene_repairs is not None:
+            known = Levels(None, stored.scene_repairs, stored.scene_goal, stored.illuminant,
+                           stored.scene_max_Y)
         return self.backend.working(pix, frame.scale, self.metering,
                                     self.own_chroma() and self.grey_world(), on_device=on_dev,
-                                    proxy_stride=0 if self.plan.replays(frame_number) else
-                                    self.plan.proxy_stride(h, w))
+                                    proxy_stride=0 if replayed else self.plan.proxy_stride(h, w),
+                                    metered=known)
 
     # -- a whole frame --------------------------------------------------------------------
     def run(self, frame: Frame, dt, time_s, frame_number, illuminant, encoding=None,
@@ -178,7 +188,10 @@ class FrameGraph:
         moved = self.backend.transfers()
         fx = self.effects
         eff: dict = {}
-        levels = self.working(frame, frame_number) if rgb_in else None
+        stats = None
+        if self.stored is not None and not measure_only and self.schedule.applies_stored:
+            stats = self.stored(frame_number, self.schedule)
+        levels = self.working(frame, frame_number, stats) if rgb_in else None
         metered = frame
         if levels is not None:
             ctx = FrameContext(*levels.goal, eff=eff, lim=self.source_limit(levels),
@@ -194,9 +207,6 @@ class FrameGraph:
             if changed or not isinstance(levels.rgb, (np.ndarray, type(None))):
                 # (unchanged but on the device: measured where it is, not uploaded again)
                 metered = changed_frame(frame, rgb, self.primaries)
-        stats = None
-        if self.stored is not None and not measure_only and self.schedule.applies_stored:
-            stats = self.stored(frame_number, self.schedule)
         if stats is None:
             stats = self.measure(metered)
         self.scene_stats(stats, levels)

@@ -490,7 +490,8 @@ def test_apply_meters_nothing_the_measure_pass_stored(op, scene, request, monkey
     a metering of its own. With the schedules' ``measure`` made impossible during
     apply, the frames (and their recorded states) are the serial run's bit for bit;
     the lamp's flare ramps, so the stored statistics of the frames the integrate pass
-    measured again are the ones used."""
+    measured again are the ones used. Nor is the scene metered before the flare: its
+    goals, largest luminance and repairs come from the store too."""
     from ocl_tonemap.backends.opencl import ledda04 as ledda_cl
     from ocl_tonemap.backends import opencl as cl_backend
     d, pattern, frames = request.getfixturevalue(scene)
@@ -501,6 +502,9 @@ def test_apply_meters_nothing_the_measure_pass_stored(op, scene, request, monkey
         raise AssertionError("the apply pass metered a frame again")
     monkeypatch.setattr(cl_backend.PointwiseSchedule, "measure", metered)
     monkeypatch.setattr(ledda_cl.LeddaSchedule, "measure", metered)
+    # nor the scene metering before the optical effects (the goals the flare and the
+    # plan take, the largest luminance, the repair counts): the colour stage only
+    monkeypatch.setattr(cl_backend.OpenCLBackend, "meter_pass", metered)
     for c in reversed(passes.chunks(frames, 6)):
         passes.apply(o, store, c)
     _same_frames(ser, out, frames)

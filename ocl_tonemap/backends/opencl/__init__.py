@@ -291,21 +291,31 @@ class OpenCLBackend(MeteringPasses, VisibilityStage):
 
     def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec,
                 illuminant: bool = True, on_device: bool = False,
-                proxy_stride: int = 0) -> Levels:
+                proxy_stride: int = 0, metered: Levels | None = None) -> Levels:
         """Colour stage and metering only: rgb cd/m^2, repairs, (G_rod, G_cone), the
         illuminant estimate (``illuminant`` False: no illuminant sums, None). ``on_device``: rgb is a
         :class:`~.image.DeviceImage` (for scene effects that run on the device) where the
         frame is one band, else a host array; it is the colour stage's buffer, valid until
-        the backend's next colour stage (:meth:`to_working`)."""
+        the backend's next colour stage (:meth:`to_working`). ``metered`` known: the
+        colour stage alone (no sums read down), and those Levels with its rgb."""
         h, w, _ = pixels.shape
         statistics(self.rt).drop()         # a frame's first colour stage
-        one_band = len(self.bands(h, w)) == 1
-        rgb = None if (on_device and one_band) else np.empty((h, w, 3), np.float32)
-        bands, repairs, G, illum, max_Y, proxy = self.meter_pass(pixels, scale, spec,
-                                                                 illuminant, rgb, proxy_stride)
+        bands = self.bands(h, w)
+        rgb = None if (on_device and len(bands) == 1) else np.empty((h, w, 3), np.float32)
+        if metered is None:
+            bands, repairs, G, illum, max_Y, proxy = self.meter_pass(
+                pixels, scale, spec, illuminant, rgb, proxy_stride)
+        else:
+            self._ahead = None
+            for y0, nr in bands:
+                self.to_working(pixels[y0:y0 + nr], scale, count=False)
+                if rgb is not None:
+                    transfer(self.rt.queue, rgb[y0:y0 + nr], self.bufs["rgb"])
         self._resident = (h, w) if len(bands) == 1 else None
         if rgb is None:           # the colour stage's own buffer, until its next frame
             rgb = DeviceImage(self.rt, self.bufs["rgb"], (h, w, 3))
+        if metered is not None:
+            return metered._replace(rgb=rgb, proxy=None)
         return Levels(rgb, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y,
                       proxy)
 

@@ -36,11 +36,15 @@ class ReferenceBackend(HostBackend):
 
     def working(self, pixels: np.ndarray, scale: float, spec: met.MeteringSpec,
                 illuminant: bool = True, on_device: bool = False,
-                proxy_stride: int = 0) -> Levels:
+                proxy_stride: int = 0, metered: Levels | None = None) -> Levels:
         """Colour stage and metering: rgb in cd/m^2 (float64), repairs, (G_rod, G_cone),
         the illuminant estimate (made when called: ``illuminant`` changes nothing here),
-        the largest luminance, the block means of ``proxy_stride`` (0: none)."""
+        the largest luminance, the block means of ``proxy_stride`` (0: none);
+        ``metered`` known: the colour stage only."""
         rgb, repairs = sanitize(pixels[..., :3], scale)
+        self._last_rgb = rgb
+        if metered is not None:
+            return metered._replace(rgb=rgb, proxy=None)
         h, w = rgb.shape[:2]
         Y = photopic_luminance(rgb)
         G = met.reference_goal(Y, scotopic_luminance(rgb), spec, _mask(spec, w, h))
