@@ -406,9 +406,9 @@ def add_shot_options(g, chunk: bool = False, chunk_frames: bool = False,
         g.add_argument("--chunk", metavar="A-B",
                        help="this task's frames (default: the whole shot, --frames)")
     if chunk_frames:
-        declared_flag(g, "--chunk-frames", "frames per task (and per-pixel keyframe interval); "
+        declared_flag(g, "--chunk-frames", "frames per task (and keyframe interval); "
                   "default: four tasks per worker, and for local operators at least 16 frames (dask); 50 "
                   "(farm)", metavar="N")
     if keyframes:
-        declared_flag(g, "--keyframe-every", "local operators: keep the per-pixel state every N "
-                  "frames (the apply chunk size; default 50)", metavar="N")
+        declared_flag(g, "--keyframe-every", "keep the state every N frames (local operators: "
+                  "with its per-pixel planes; the apply chunk size; default 50)", metavar="N")

@@ -10,12 +10,13 @@ pixels, and those do not depend on the state. So:
    serial run would measure them (the same code: ``Tonemapper.process(...,
    measure_only=True)``), into the shot's store (``store.py``);
 2. **integrate** once, in frame order: the state advanced over the stored
-   statistics (the serial run's own ``Tonemapper.integrate``), the state after
-   every frame written (local operators: per-pixel keyframes every
-   ``keyframe_every`` frames, scalars for the rest);
+   statistics (the serial run's own ``Tonemapper.integrate``), the state kept
+   every ``keyframe_every`` frames and after the last (local operators: with
+   their per-pixel planes): one file a keyframe, not a file and two fsyncs a frame;
 3. **apply** any chunk of frames: the serial run itself (``run_job``) over the
-   chunk, started from the state before the chunk's first frame (a local
-   operator's nearest keyframe, advanced over the stored statistics to it).
+   chunk, started from the state before the chunk's first frame (the nearest
+   keyframe, advanced over the stored statistics to it: chunks of the keyframe
+   interval, as Dask's and the farm's are, start at one).
 
 The frames are those of one serial run, bit for bit: the same kernels see the
 same inputs (float64 scalars round-trip exactly through JSON, float32 planes
@@ -71,7 +72,9 @@ log = logging.getLogger("ocl_tonemap")
 
 #: ``--cuts detect``: a cut where log10 G_cone jumps by more than this between frames.
 CUT_LOG10_JUMP = 1.0
-#: Local operators' per-pixel state keyframes, every this many frames (the farm's chunk).
+#: The integrate pass keeps the state every this many frames (the farm's chunk; local
+#: operators: with their per-pixel planes). A global operator's state is a few KiB,
+#: but a file a frame is two fsyncs a frame in the one serial pass (issue 59).
 DEFAULT_KEYFRAME_EVERY = 50
 
 
@@ -359,7 +362,7 @@ def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
     if man.get("luminance_scale_auto") is not None:
         run.calibrator.auto_scale = man["luminance_scale_auto"]
     local = bool(tm.op.state.planes)
-    every = max(1, int(keyframe_every or DEFAULT_KEYFRAME_EVERY)) if local else 1
+    every = max(1, int(keyframe_every or DEFAULT_KEYFRAME_EVERY))
     keyframes = []
     again = []
 
@@ -379,13 +382,13 @@ def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
     pending: deque = deque()
 
     def after(k, f, _eff):
-        key = (k + 1) % every == 0 or k + 1 == n
-        snap = tm.state if (local and key) else tm.scalar_state()     # (copies)
+        if not ((k + 1) % every == 0 or k + 1 == n):
+            return
+        snap = tm.state if local else tm.scalar_state()     # (copies)
         while len(pending) >= WRITES_BEHIND:
             pending.popleft().result()
         pending.append(writer.submit(store.write_state, f, snap))
-        if key:
-            keyframes.append(f)
+        keyframes.append(f)
     try:
         _advance(tm, store, jobs, cuts, man.get("luminance_scale_auto"), after, remeasure)
         while pending:

@@ -97,13 +97,18 @@ def test_passes_give_the_serial_frames_bit_for_bit(shot, op):
 
 
 @pytest.mark.requires_opencl
-def test_local_state_from_an_earlier_keyframe(shot):
+@pytest.mark.parametrize("op", ["ledda04", "pattanaik00"])
+def test_state_from_an_earlier_keyframe(shot, op):
     """Apply chunks that do not start at a keyframe (keyframes every 7, chunks of
-    5): the nearest keyframe is advanced over the stored statistics."""
+    5): the nearest keyframe is advanced over the stored statistics. Only the
+    keyframes are written, global operators' too (a file and two fsyncs a frame
+    in the serial pass before, issue 59)."""
     d, pattern, frames = shot
-    ser = _serial(d, pattern, "ledda04")
-    out, store = _split(d, pattern, "ledda04", 5, "kf7", keyframe_every=7)
+    ser = _serial(d, pattern, op)
+    out, store = _split(d, pattern, op, 5, "kf7", keyframe_every=7)
     assert ShotStore(store).integrated()["keyframes"] == [7, 14, 21, 28, 30]
+    assert sorted(p.name for p in ShotStore(store).states_dir.glob("*.json")) == \
+        [f"{f:08d}.json" for f in (7, 14, 21, 28, 30)]
     _same_frames(ser, out, frames)
 
 
