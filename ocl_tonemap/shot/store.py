@@ -246,12 +246,13 @@ class ShotStore:
                          "the integrate pass (after measure) first")
 
     def bytes_per_frame(self) -> dict:
-        """Storage per frame of the statistics and of the states (mean bytes)."""
+        """Storage per frame of the shot of the statistics and of the states (mean
+        bytes; the states are kept at keyframes only)."""
+        frames = max(len(self.manifest().get("frames") or ()), 1)
         out = {}
         for key, d in (("stats", self.stats_dir), ("states", self.states_dir)):
             files = [p for p in d.iterdir() if not p.name.startswith(".")] if d.exists() else []
-            n = len([p for p in files if p.suffix == ".json"])
-            out[key] = sum(p.stat().st_size for p in files) / max(n, 1)
+            out[key] = sum(p.stat().st_size for p in files) / frames
         return out
 
 
