@@ -62,6 +62,7 @@ from ..job.options import DEFAULT_FPS, run_fingerprint
 from ..job.overlap import FrameIO
 from ..job.run import run_job, setup_run
 from ..job.sequence import frame_jobs, frame_time
+from ..operators import registry
 from ..patterns import is_sequence, without_frame_token
 from ..state import AUTO_SCALE_KEY
 from .frame_stats import (decode_value, encode_value, stats_ahead,  # noqa: F401
@@ -81,7 +82,6 @@ DEFAULT_KEYFRAME_EVERY = 50
 # -- the shot and its chunks --------------------------------------------------------------
 def keeps_planes(opts) -> bool:
     """Whether the run's operator keeps per-pixel state (a local operator: keyframes)."""
-    from ..operators import registry
     return bool(registry()[opts.operator].state.planes)
 
 

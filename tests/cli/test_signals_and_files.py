@@ -347,7 +347,9 @@ try:
     b = a @ a                            # one C call of ~1e12 flops: minutes here
     print("done", flush=True)
 except interrupts.Terminated:            # (a signal just before the call: the entry
-    raise SystemExit(143)                # point's own handling, as the command's)
+    import sys                           # point's own handling and line, as the command's)
+    print("ocl-tonemap: terminated", file=sys.stderr)
+    raise SystemExit(143)
 """
 
 
