@@ -407,8 +407,8 @@ def add_shot_options(g, chunk: bool = False, chunk_frames: bool = False,
                        help="this task's frames (default: the whole shot, --frames)")
     if chunk_frames:
         declared_flag(g, "--chunk-frames", "frames per task (and keyframe interval); "
-                  "default: four tasks per worker, and for local operators at least 16 frames (dask); 50 "
-                  "(farm)", metavar="N")
+                  "default: four tasks per worker, and for local operators at least 16 frames "
+                  "up to a worker's share (dask); 50 (farm)", metavar="N")
     if keyframes:
         declared_flag(g, "--keyframe-every", "keep the state every N frames (local operators: "
                   "with its per-pixel planes; the apply chunk size; default 50)", metavar="N")

@@ -281,8 +281,9 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
         raise ValueError(f"--workers must be >= 1 (got {workers})")
     if opts.resume or opts.state_out or opts.plot:
         raise ValueError("--resume, --state-out and --plot belong to the serial run; a "
-                         "distributed run keeps every frame's state in its --store "
-                         "(states/<frame>.json)")
+                         "distributed run keeps the state at each chunk's start in its "
+                         "--store (states/<frame>.json) and every frame's in the output's "
+                         "ocltm:state")
     import dataclasses
     jobs = passes.shot_jobs(opts)              # inputs checked here, before any worker starts
     opts = dataclasses.replace(opts, progress=False)     # (the workers' own: ours is below)

@@ -335,9 +335,10 @@ def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None, remeasure=None)
 
 
 def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
-    """The integrate pass: the state after every frame of the shot into the store
-    (local operators: per-pixel keyframes every ``keyframe_every`` frames and at
-    the last). Needs every frame measured. Returns the integrate record."""
+    """The integrate pass: the state advanced over every frame of the shot, kept in
+    the store at keyframes every ``keyframe_every`` frames and at the last (local
+    operators: with their per-pixel planes). Needs every frame measured. Returns
+    the integrate record."""
     jobs = shot_jobs(opts)
     frames = [j[0] for j in jobs]
     store = ShotStore(store_path)

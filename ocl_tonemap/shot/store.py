@@ -8,7 +8,8 @@ A folder on storage every worker sees (``--store``; default beside the output,
     stats/<frame>.json          one frame's statistics   (ocl-tonemap.frame-stats/1)
     stats/<frame>.planes.exr    local operators: their per-pixel adaptation inputs
                                 (float32, zstd or zip; .npz for the float64 reference backend)
-    states/<frame>.json         the adaptation state after the frame (every frame)
+    states/<frame>.json         the adaptation state after the frame, at keyframes (every
+                                --keyframe-every frames and the last)
     states/<frame>.pixels.exr   local operators' per-pixel state, at keyframes only
     integrate.json              written last by the integrate pass: frames, keyframes, cuts
 
@@ -269,7 +270,8 @@ _SCHEMAS = {
     STATS_FORMAT: ({"time_s": _NUM, "width": int, "height": int, "G_rod": _NUM, "G_cone": _NUM},
                    {"held": bool, "repairs": dict, "values": dict, "planes": str,
                     "plan": dict, "input_stat": list, "illuminant": (dict, list, str, None),
-                    "illuminant_hint": (dict, list, str, None)}),
+                    "illuminant_hint": (dict, list, str, None), "scene_goal": (list, None),
+                    "scene_max_Y": (int, float, None), "scene_repairs": (dict, None)}),
     INTEGRATED_FORMAT: ({"frames": _INTS, "keyframes": _INTS, "cuts": _INTS}, {}),
 }
 
@@ -303,6 +305,14 @@ def _check_doc(path: Path, doc: dict, fmt: str) -> None:
     if fmt == STATS_FORMAT:
         if not (doc["width"] > 0 and doc["height"] > 0):
             raise ValueError(f"{path}: damaged (size {doc['width']}x{doc['height']})")
+        goal = doc.get("scene_goal")
+        if goal is not None and not (_type_ok(goal, _NUMS) and len(goal) == 2):
+            raise ValueError(f"{path}: damaged ('scene_goal' {str(goal)[:40]!r})")
+        for key in ("repairs", "scene_repairs"):
+            counts = doc.get(key) or {}
+            if not all(_type_ok(v, int) for v in counts.values()):
+                raise ValueError(f"{path}: damaged ({key!r}: counts that are not whole "
+                                 "numbers)")
         plan = doc.get("plan")
         if plan is not None and not plan_state_ok({"G_cone": plan.get("G_cone", -1.0),
                                               "ref": {"predicted": plan.get("predicted"),

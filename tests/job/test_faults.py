@@ -262,6 +262,8 @@ def test_a_store_reads_only_files_inside_itself(seq, tmp_path):
     lambda d: d.pop("G_cone"), lambda d: d.update(width="wide"),
     lambda d: d.update(repairs={"nan": "x", "bogus": 1}), lambda d: d.update(plan={"x": 1}),
     lambda d: d.update(values=[1, 2]), lambda d: d.update(time_s=None),
+    lambda d: d.update(scene_max_Y="x"), lambda d: d.update(scene_max_Y=True),
+    lambda d: d.update(scene_goal=[1.0]), lambda d: d.update(scene_repairs={"nan": 0.5}),
 ])
 def test_damaged_store_documents_give_one_line(seq, tmp_path, edit):
     pattern, frames = seq
