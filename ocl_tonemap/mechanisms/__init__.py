@@ -92,7 +92,7 @@ class MechanismPlan:
         working-space rows (full-resolution patches, for acuity; ``get_patches``: the
         frame's own way to give the patches alone, a device image's); ``extra``: the state's,
         where the weights advance (None: a measure-only pass, targets only)."""
-        if self.active and frame_number in self.replay and frame_number in self.known:
+        if self.replays(frame_number):
             return self._replayed(frame_number, extra, dt, fresh)
         if not self.active or levels.proxy is None:
             return {}

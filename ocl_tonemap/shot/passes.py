@@ -293,6 +293,8 @@ def _flare_weight(tm) -> float:
 #: States the integrate pass writes behind its step, at most (memory: a 1080p
 #: ledda04 keyframe is ~83 MB).
 WRITES_BEHIND = 2
+
+
 def _advance(tm, store: ShotStore, jobs, cuts, auto, after=None, remeasure=None) -> None:
     """The serial run's state step over stored statistics, frame by frame, in the
     serial run's order (the plan's weights, then the observer and the effects);
