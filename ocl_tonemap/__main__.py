@@ -82,7 +82,9 @@ def _one_blas_thread() -> None:
 
 def _entry() -> int:
     try:
-        enable_watchdog()                 # every wait ends within a second of a signal
+        # every wait ends within a second of a signal; a library call holding the
+        # interpreter within 1.5 s, by the watchdog process forked here, first thing
+        enable_watchdog(backstop=True)
         install()
         ready("handlers")
         _malloc_for_frames()

@@ -3,6 +3,7 @@
 ``config``     which config, which colourspace a file is in, displays and views
 ``processor``  the frame's colour pipeline (:class:`ColourPipeline`)
 ``table``      the display transform baked into tables for the device
+``lut_files``  every file a processor reads, checked before OCIO opens it
 
 The names below are this package's public face (``from ocl_tonemap.colour import ...``).
 """
@@ -20,5 +21,6 @@ from .table import (  # noqa: F401
     CODE_10BIT, DISPLAY_ENCODE_MODES, DisplayTable, NODES_PER_OCTAVE_1D, SHAPER_EPS_1D,
     SHAPER_EPS_3D, bake_display_table, cached_display_table, display_probe_set, shaper,
     shaper_inverse)
+from .lut_files import LUT_CAP, LutFileError, check_lut_files  # noqa: F401
 from .processor import (  # noqa: F401
     ColourPipeline)

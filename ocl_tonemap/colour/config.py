@@ -34,6 +34,7 @@ the config's linear colourspace with the display's primaries
 from __future__ import annotations
 
 import os
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -73,6 +74,36 @@ def is_builtin_source(src: str) -> bool:
     return str(src).startswith("ocio://")
 
 
+#: Where each config loaded here came from (a file, an ``ocio://`` URI): errors name it.
+_SOURCES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def remember_source(cfg: ocio.Config, src: str) -> ocio.Config:
+    """Note that ``cfg`` was read from ``src`` (:func:`config_source` names it); returns it."""
+    try:
+        _SOURCES[cfg] = str(src)
+    except TypeError:           # (an OCIO without weak references to its configs)
+        pass
+    return cfg
+
+
+def config_source(cfg: ocio.Config) -> str:
+    """What names ``cfg`` in an error: the file or URI it was loaded from, else its name
+    and folder (a config a host made itself)."""
+    try:
+        src = _SOURCES.get(cfg)
+    except TypeError:
+        src = None
+    if src:
+        return src
+    name = wd = ""
+    try:
+        name, wd = cfg.getName(), cfg.getWorkingDir()
+    except Exception:  # noqa: BLE001 -- OCIO's own Exception: no more to say
+        pass
+    return ("the OCIO config" + (f" {name!r}" if name else "") + (f" in {wd}" if wd else ""))
+
+
 def load_config(colorconfig: str | None = None) -> ocio.Config:
     src = resolve_config_source(colorconfig)
     if not is_builtin_source(src):
@@ -87,7 +118,7 @@ def load_config(colorconfig: str | None = None) -> ocio.Config:
         cfg.validate()
     except Exception as exc:  # OCIO raises its own Exception type
         raise ColourError(f"cannot load OCIO config {src!r}: {exc}") from exc
-    return cfg
+    return remember_source(cfg, src)
 
 
 def _has_cs(cfg: ocio.Config, name: str | None) -> bool:
@@ -202,7 +233,8 @@ _BUILTIN: dict = {}
 def builtin_config() -> ocio.Config:
     """OCIO's built-in default config (knows OIIO's colour interop IDs)."""
     if "cfg" not in _BUILTIN:
-        _BUILTIN["cfg"] = ocio.Config.CreateFromFile("ocio://default")
+        _BUILTIN["cfg"] = remember_source(ocio.Config.CreateFromFile("ocio://default"),
+                                          "ocio://default")
     return _BUILTIN["cfg"]
 
 

@@ -40,6 +40,8 @@ from ..models.display import DISPLAY_LINEAR_MAX, apply_shoulder
 from ..models.photometry import Y_WEIGHTS, photopic_luminance, scotopic_luminance
 from ..operators import get_operator
 from . import clf, lattice
+from .config import remember_source
+from .lut_files import cpu_processor, processor
 
 from ..quantities import EXPORT_SIZES
 
@@ -217,8 +219,8 @@ class OcioExport:
         self.view = f"{tm.operator_name} observer"
         self.input_cs: str | None = None
         self._cfg = None
-        self._display = colour.cfg.getProcessor(colour.working, colour.display, colour.view,
-                                                ocio.TRANSFORM_DIR_FORWARD)
+        self._display = processor(colour.cfg, colour.working, colour.display, colour.view,
+                                  ocio.TRANSFORM_DIR_FORWARD)
         self._display_cpu = self._display.getDefaultCPUProcessor()
         self._display_group = self._display.createGroupTransform()
         self.report = self._load_report()
@@ -252,7 +254,7 @@ class OcioExport:
             g = clf.to_transform(ops)
             g.appendTransform(self._display_group)
             x = np.ascontiguousarray(px.astype(np.float32))
-            self.colour.cfg.getProcessor(g).getDefaultCPUProcessor().applyRGB(x)
+            cpu_processor(self.colour.cfg, g).applyRGB(x)
             e = code_errors(x, ref)
             return (e["max_8bit"], e["p99_8bit"])
         return judge
@@ -269,7 +271,7 @@ class OcioExport:
         safeio.write_text(self.config_path, self._config_text(files))
         ocio.ClearAllCaches()
         try:
-            cfg = ocio.Config.CreateFromFile(self.config_path)
+            cfg = remember_source(ocio.Config.CreateFromFile(self.config_path), self.config_path)
             cfg.validate()
         except Exception as exc:                    # noqa: BLE001 -- OCIO's own Exception
             raise ExportError(f"{self.config_path}: the written config does not load: "
@@ -383,9 +385,9 @@ class OcioExport:
         ctx = cfg.getCurrentContext()      # (the export's own config: set in place)
         ctx.setStringVar("FRAME", str(number))
         try:
-            proc = cfg.getProcessor(ctx, self.colour.working, self.colour.display, self.view,
-                                    ocio.TRANSFORM_DIR_FORWARD)
-        except Exception as exc:                    # noqa: BLE001 -- OCIO's own Exception
+            proc = processor(cfg, ctx, self.colour.working, self.colour.display, self.view,
+                             ocio.TRANSFORM_DIR_FORWARD)
+        except Exception as exc:                    # noqa: BLE001 -- in one line (lut_files)
             raise ExportError(f"frame {number}: the written CLF does not load: {exc}") from None
         x = np.ascontiguousarray(np.asarray(working, np.float32).reshape(-1, 3))
         proc.getDefaultCPUProcessor().applyRGB(x)

@@ -13,6 +13,7 @@ from .config import (PLAIN_VIEWS, USE_DISPLAY_NAME, ColourError, InputColour, ap
                      builtin_config, default_display, default_view, working_space,
                      xyz_to_chromaticities)
 from .config import load_config
+from .lut_files import cpu_processor, processor
 from .table import DISPLAY_ENCODE_MODES, DisplayTable, cached_display_table
 
 def _listed(names) -> str:
@@ -63,8 +64,8 @@ class ColourPipeline:
         self.display, self.view = check_display_view(cfg, display, view)
         self.working = working_space(cfg)
         self._in_procs: dict[str, object] = {}
-        proc = cfg.getProcessor(self.working, self.display, self.view, ocio.TRANSFORM_DIR_FORWARD)
-        self._out = proc.getDefaultCPUProcessor()
+        self._out = cpu_processor(cfg, self.working, self.display, self.view,
+                                  ocio.TRANSFORM_DIR_FORWARD)
 
     @property
     def output_colorspace(self) -> str:
@@ -81,7 +82,7 @@ class ColourPipeline:
             return pixels
         proc = self._in_procs.get(src_cs)
         if proc is None:
-            proc = self.cfg.getProcessor(src_cs, self.working).getDefaultCPUProcessor()
+            proc = cpu_processor(self.cfg, src_cs, self.working)
             self._in_procs[src_cs] = proc
         apply_processor(proc, pixels)
         return pixels
@@ -106,7 +107,7 @@ class ColourPipeline:
         proc = self._in_procs.get(key)
         if proc is None:
             b = builtin_config()
-            proc = b.getProcessor(ic.colorspace, working_space(b)).getDefaultCPUProcessor()
+            proc = cpu_processor(b, ic.colorspace, working_space(b))
             self._in_procs[key] = proc
         apply_processor(proc, pixels)
         return pixels
@@ -125,13 +126,13 @@ class ColourPipeline:
         if not ic.builtin and self.cfg.getColorSpace(ic.colorspace).getName() == self.working:
             return None
         cfg = builtin_config() if ic.builtin else self.cfg
-        return cfg.getProcessor(ic.colorspace, working_space(cfg)).createGroupTransform()
+        return processor(cfg, ic.colorspace, working_space(cfg)).createGroupTransform()
 
     def _matrix_from_working(self, cs: str) -> np.ndarray | None:
         """The 3x3 matrix working -> ``cs`` when OCIO's transform is linear, else None."""
         try:
-            proc = self.cfg.getProcessor(self.working, cs).getDefaultCPUProcessor()
-        except Exception:  # noqa: BLE001 -- OCIO raises its own Exception type
+            proc = cpu_processor(self.cfg, self.working, cs)
+        except Exception:  # noqa: BLE001 -- OCIO's, or a LUT refused: not a candidate
             return None
         probe = np.array([[[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.25, 2.0], [4.0, 8.0, 0.5]]],
                          np.float32)
@@ -185,7 +186,7 @@ class ColourPipeline:
             key = ("out", name)
             proc = self._in_procs.get(key)
             if proc is None:
-                proc = self.cfg.getProcessor(self.working, name).getDefaultCPUProcessor()
+                proc = cpu_processor(self.cfg, self.working, name)
                 self._in_procs[key] = proc
             apply_processor(proc, out)
         return out
@@ -202,8 +203,8 @@ class ColourPipeline:
         """(3, 3): column c is the working-space linear RGB of the display's primary c
         (through the inverse display/view transform), scaled so that the columns
         sum to luminance 1. For a BT.709 display this is the identity."""
-        proc = self.cfg.getProcessor(self.working, self.display, self.view,
-                                     ocio.TRANSFORM_DIR_INVERSE).getDefaultCPUProcessor()
+        proc = cpu_processor(self.cfg, self.working, self.display, self.view,
+                             ocio.TRANSFORM_DIR_INVERSE)
         codes = np.array([[[0.5, 0, 0], [0, 0.5, 0], [0, 0, 0.5], [0, 0, 0]]], np.float32)
         apply_processor(proc, codes)
         D = (codes[0, :3] - codes[0, 3]).T.astype(np.float64)
@@ -228,8 +229,8 @@ class ColourPipeline:
         key = (form, size_3d)
         cache = self.__dict__.setdefault("_display_tables", {})
         if key not in cache:
-            proc = self.cfg.getProcessor(self.working, self.display, self.view,
-                                         ocio.TRANSFORM_DIR_FORWARD)
+            proc = processor(self.cfg, self.working, self.display, self.view,
+                             ocio.TRANSFORM_DIR_FORWARD)
             cache[key] = cached_display_table(proc, form, size_3d,
                                               description=f"{self.display} / {self.view}")
         return cache[key]
