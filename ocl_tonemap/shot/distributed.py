@@ -18,10 +18,17 @@ A task that fails is retried ``retries`` times (a lost worker, a transient read
 error); a frame that still fails ends the run with its file and frame named, as
 in a serial run. Outputs are written as the serial run writes them: to a
 temporary name, then renamed.
+
+What the tasks log (the ``ocl_tonemap`` logger: warnings and errors, the workers'
+level) goes back with each task's result, or its failure, and the client says each
+record once a run, as the serial run does, with the command line's prefix
+(:func:`says_once_a_run`); the workers' own stderr says none of it.
 """
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import logging
 import math
 import os
@@ -77,19 +84,111 @@ def _worker_name() -> str:
         return "?"
 
 
-def _task(what: str, chunk, fn):
-    """Run one task's pass; what fails comes back as one FrameError naming the pass,
-    the frames and the worker (a FrameError of the pass keeps its file and frame)."""
-    _worker_logging()
+#: Distinct log records a task brings back at most (a run's warnings are a few).
+TASK_RECORDS = 200
+
+
+class _TaskRecords(logging.Handler):
+    """The ``ocl_tonemap`` records said while a task runs in this worker, as
+    (level, text) once each: they go back to the client with the task's result. Being
+    the logger's handler, it keeps them from Python's last-resort handler, which
+    printed them on the worker's stderr without our prefix (issue 65)."""
+
+    def __init__(self):
+        super().__init__()
+        self.said: dict = {}
+
+    def emit(self, record):
+        try:
+            text = record.getMessage()
+        except Exception:  # noqa: BLE001 - a record that does not format (as without us)
+            self.handleError(record)
+            return
+        if len(self.said) < TASK_RECORDS:
+            self.said.setdefault((record.levelno, text))
+
+    def records(self) -> list:
+        return list(self.said)
+
+
+@contextlib.contextmanager
+def _kept_records():
+    """:class:`_TaskRecords` on the ``ocl_tonemap`` logger while the block runs (a
+    worker with several threads: each task's handler sees every thread's records;
+    the client says each once)."""
+    lg = logging.getLogger("ocl_tonemap")
+    kept = _TaskRecords()
+    lg.addHandler(kept)
     try:
-        return fn()
-    except FrameError as exc:
-        raise FrameError(exc.path, exc.frame, f"{exc.why} ({what} on worker "
-                         f"{_worker_name()})") from None
-    except Exception as exc:  # noqa: BLE001 - the client shows it in one line
-        span = f"frames {chunk[0]}-{chunk[1]}" if chunk else "the shot"
-        raise FrameError(f"{what} of {span}", None, f"{one_line(exc, True)} (on worker "
-                         f"{_worker_name()})") from None
+        yield kept
+    finally:
+        lg.removeHandler(kept)
+
+
+class TaskFailed(FrameError):
+    """A task's failure (a FrameError: its file and frame) with the records the task
+    said before it (pickled with it to the client)."""
+
+    def __init__(self, path, frame, why, records=()):
+        super().__init__(path, frame, why)
+        self.records = list(records)
+
+    def __reduce__(self):
+        return (type(self), (self.path, self.frame, self.why, self.records))
+
+
+class _OnceARun(logging.Filter):
+    """Each record once (its level and text): the client's own and its tasks'."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen: set = set()
+
+    def filter(self, record) -> bool:
+        key = (record.levelno, record.getMessage())
+        if key in self.seen:
+            return False
+        self.seen.add(key)
+        return True
+
+
+def says_once_a_run(fn):
+    """``fn`` (a run on Dask) with the ``ocl_tonemap`` logger saying each record once
+    while it runs: a warning every task met (the input colour assumed, a frame held)
+    comes once, as in the serial run, where :class:`~ocl_tonemap.job.setup.RunSetup`
+    says it once a run."""
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        once = _OnceARun()
+        log.addFilter(once)
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            log.removeFilter(once)
+    return run
+
+
+def _say(records) -> None:
+    """The records a task brought back, through the ``ocl_tonemap`` logger."""
+    for level, text in records:
+        log.log(level, "%s", text)
+
+
+def _task(what: str, chunk, fn):
+    """Run one task's pass: (its value, the records it said). What fails comes back as
+    one FrameError naming the pass, the frames and the worker (a FrameError of the
+    pass keeps its file and frame), with the records said before."""
+    _worker_logging()
+    with _kept_records() as kept:
+        try:
+            return fn(), kept.records()
+        except FrameError as exc:
+            raise TaskFailed(exc.path, exc.frame, f"{exc.why} ({what} on worker "
+                             f"{_worker_name()})", kept.records()) from None
+        except Exception as exc:  # noqa: BLE001 - the client shows it in one line
+            span = f"frames {chunk[0]}-{chunk[1]}" if chunk else "the shot"
+            raise TaskFailed(f"{what} of {span}", None, f"{one_line(exc, True)} (on worker "
+                             f"{_worker_name()})", kept.records()) from None
 
 
 def _measure_task(opts, store, chunk):
@@ -106,10 +205,10 @@ def _integrate_task(opts, store, keyframe_every):
     return _task("integrate", None, lambda: passes.integrate(opts, store, keyframe_every))
 
 
-def _apply_task(opts, store, chunk):
+def _apply_task(opts, store, chunk, within=None):
     def go():
         t = time.perf_counter()
-        res = passes.apply(opts, store, chunk)
+        res = passes.apply(opts, store, chunk, within)
         return (res.frames, res.outputs, res.repairs.as_dict(), res.setup_s,
                 time.perf_counter() - t)
     return _task("apply", chunk, go)
@@ -228,14 +327,17 @@ def _client(scheduler: str | None, workers: int, pocl_threads: int | None,
 
 def _gather(futures, what: str, progress: bool, t0: float):
     """Wait for the futures in completion order, showing progress; the first
-    failure is raised (its FrameError names the file and frame) and the rest cancelled."""
+    failure is raised (its FrameError names the file and frame) and the rest cancelled.
+    The records the tasks said are said here, after the progress line."""
     from dask.distributed import as_completed
-    out, n = {}, len(futures)
+    out, n, said = {}, len(futures), []
     try:
         for k, fut in enumerate(as_completed(futures), 1):
             try:
-                out[fut.key] = fut.result()
+                out[fut.key], got = fut.result()
+                said += got
             except Exception as exc:  # noqa: BLE001 - our tasks raise FrameError already
+                said += getattr(exc, "records", [])
                 if isinstance(exc, FrameError):
                     raise
                 raise RuntimeError(f"task {fut.key}: {one_line(exc, True)}") from None
@@ -249,6 +351,7 @@ def _gather(futures, what: str, progress: bool, t0: float):
     finally:
         if progress:
             sys.stderr.write("\n")
+        _say(said)
     return [out[f.key] for f in futures]
 
 
@@ -269,6 +372,7 @@ def default_chunk(frames: int, workers: int, local: bool) -> int:
     return max(1, size)
 
 
+@says_once_a_run
 def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
                     chunk: int | None = None, store: str | None = None,
                     retries: int = 2, progress: bool = False, pocl_threads: int | None = None,
@@ -291,7 +395,15 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
     store = store or passes.default_store(opts)
     size = chunk or default_chunk(len(frames), workers, passes.keeps_planes(opts))
     parts = passes.chunks(frames, size)
-    client, cluster = _client(scheduler, workers, pocl_threads, security)
+    # the output frames' lock over the whole shot, shared with its own apply tasks
+    # (``within``), refused to any other writer
+    lock = passes.shot_lock(opts, store, jobs, "run --scheduler dask")
+    lock.__enter__()
+    try:
+        client, cluster = _client(scheduler, workers, pocl_threads, security)
+    except BaseException:
+        lock.__exit__(None, None, None)
+        raise
     timing = {}
     try:
         if opts.backend == "opencl":
@@ -314,14 +426,18 @@ def run_distributed(opts, scheduler: str | None = "dask", workers: int = 2,
             integ = _gather([fut], "integrate", progress, t0)[0]
         timing["integrate"] = time.perf_counter() - t
         t = time.perf_counter()
-        futs = [client.submit(_apply_task, opts, store, c, key=f"apply-{c[0]}-{c[1]}",
-                              retries=retries, pure=False) for c in parts]
+        futs = [client.submit(_apply_task, opts, store, c, getattr(lock, "token", None),
+                              key=f"apply-{c[0]}-{c[1]}", retries=retries, pure=False)
+                for c in parts]
         done = _gather(futs, "apply", progress, t0)
         timing["apply"] = time.perf_counter() - t
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        try:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        finally:
+            lock.__exit__(None, None, None)
     res = JobResult([], [])
     for fr, outs, rep, _, _ in done:
         res.frames += fr

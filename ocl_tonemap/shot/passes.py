@@ -49,14 +49,15 @@ import dataclasses
 import logging
 import math
 import os
-import re
 
 from ..backends.planes import band_readable
 from ..imageio import BandReader, FrameError, read_frame
 
 from ..colour.export import OcioExport
 from ..job.banded_io import stream_frame, stream_rows
-from ..job.checkpoint import load_state_in
+from ..interrupts import ready
+from ..job.checkpoint import load_state_in, remove_stale_temps
+from ..job.locks import export_lock
 from ..job.frame import frame_input, map_frame
 from ..job.options import DEFAULT_FPS, run_fingerprint
 from ..job.overlap import FrameIO
@@ -67,7 +68,8 @@ from ..patterns import is_sequence, without_frame_token
 from ..state import AUTO_SCALE_KEY
 from .frame_stats import (decode_value, encode_value, stats_ahead,  # noqa: F401
                           stats_document, stats_from_document, stored_stats)
-from .store import ShotStore
+from .chunks import chunk_jobs, chunks, frames_after, parse_chunk, shot_lock  # noqa: F401
+from .store import ShotStore, input_identity
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -91,38 +93,6 @@ def shot_jobs(opts):
         raise FrameError(opts.input, None, "measure/integrate/apply split a shot: the input "
                          "must be a frame sequence pattern (shot.####.exr)")
     return frame_jobs(opts)
-
-
-def parse_chunk(text: str | None) -> tuple[int, int] | None:
-    """``A-B`` (or ``A``): the frames of one task, inclusive."""
-    if text is None:
-        return None
-    m = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+))?\s*", str(text))
-    if not m:
-        raise ValueError(f"bad --chunk {text!r}: use A-B (frame numbers)")
-    a = int(m.group(1))
-    b = int(m.group(2)) if m.group(2) is not None else a
-    if b < a:
-        raise ValueError(f"bad --chunk {text!r}: the end is before the start")
-    return a, b
-
-
-def chunk_jobs(jobs, chunk):
-    if chunk is None:
-        return list(jobs)
-    a, b = chunk
-    out = [j for j in jobs if a <= j[0] <= b]
-    if not out:
-        raise ValueError(f"--chunk {a}-{b} holds no frame of the shot "
-                         f"({jobs[0][0]}-{jobs[-1][0]})")
-    return out
-
-
-def chunks(frames, size: int) -> list[tuple[int, int]]:
-    """The shot's frames cut into runs of ``size`` frames: [(first, last)]."""
-    size = max(1, int(size))
-    return [(frames[i], frames[min(i + size, len(frames)) - 1])
-            for i in range(0, len(frames), size)]
 
 
 def default_store(opts) -> str:
@@ -179,10 +149,11 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False,
     store = ShotStore(store_path)
     fps, auto = _shot_constants(opts, jobs, run, tm, store)
     store.open(_settings(opts), [j[0] for j in jobs], fps, auto)
+    remove_stale_temps([], folders=store.folders())    # (a killed pass's, of our naming)
     if auto is not None:
         run.calibrator.auto_scale = auto
-    todo = [(f, inp, outp, held, _input_stat(inp)) for f, inp, outp, held in todo]
-    todo = [j for j in todo if redo or j[4] is None or not store.stats_current(j[0], j[4])]
+    todo = [j for j in todo if redo or not store.stats_current(j[0], _input_stat(j[1], False))]
+    todo = [(*j, _input_stat(j[1])) for j in todo]      # (hashed before it is read)
     # the serial run's reads (half as stored, a frame or more ahead on threads) and
     # the store's writes behind (a local operator's planes compress there)
     io = FrameIO(opts.overlap_io, opts.threads)
@@ -205,19 +176,15 @@ def measure(opts, store_path: str, chunk=None, redo: bool = False,
             except BaseException:
                 io.drain()
                 raise
-            io.write(write, lambda: None)
+            io.write(write, lambda f=f: ready(f"measured {f}"))
         io.drain()
     return [j[0] for j in todo]
 
 
-def _input_stat(inp: str):
-    """(size, modification time) of an input frame; None where it cannot be stat'ed
-    (its read names the problem)."""
-    try:
-        st = os.stat(inp)
-    except OSError:
-        return None
-    return [st.st_size, st.st_mtime_ns]
+def _input_stat(inp: str, digest: bool = True):
+    """The input frame's identity (``store.input_identity``: size, modification time,
+    with ``digest`` the BLAKE2b of the file); None where it cannot be stat'ed."""
+    return input_identity(inp, digest)
 
 
 def measure_frame(opts, run, tm, store: ShotStore, f, inp, outp, held, fps, input_stat,
@@ -346,12 +313,13 @@ def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
     store = ShotStore(store_path)
     man = store.manifest()
     store.check(man, _settings(opts), frames)
+    remove_stale_temps([], folders=store.folders())    # (a killed pass's, of our naming)
     missing = store.missing_stats(frames)
     if missing:
         more = f" and {len(missing) - 1} more" if len(missing) > 1 else ""
         raise ValueError(f"frame {missing[0]}{more} of the shot have no statistics in "
                          f"{store.path}: run the measure pass over them first")
-    docs = None
+    inputs = store.check_inputs(jobs, None, (opts.input, opts.output))   # (as measured)
     cuts = opts.cuts
     if cuts == "detect":
         docs = [store.read_stats(f)[0] for f in frames]
@@ -385,6 +353,7 @@ def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
     pending: deque = deque()
 
     def after(k, f, _eff):
+        ready(f"integrated {f}")
         if not ((k + 1) % every == 0 or k + 1 == n):
             return
         snap = tm.state if local else tm.scalar_state()     # (copies)
@@ -402,6 +371,7 @@ def integrate(opts, store_path: str, keyframe_every: int | None = None) -> dict:
         log.info("integrate: %d frame(s) measured again with the plan's flare weight "
                  "(its ramps): %s", len(again), ", ".join(map(str, again[:20])))
     doc = {"frames": frames, "keyframes": keyframes, "cuts": cuts, "measured_again": again,
+           "inputs": inputs,
            "cut_rule": f"|log10 G_cone jump| > {CUT_LOG10_JUMP}" if opts.cuts == "detect"
            else ("given" if cuts else "none"), "per_pixel": local}
     store.write_integrated(doc)
@@ -442,6 +412,7 @@ def _integrated(opts, store_path: str):
     if integ.get("frames") != frames:
         raise ValueError(f"the shot store {store.path} was integrated over other frames: "
                          "run the integrate pass again")
+    store.check_inputs(jobs, integ.get("inputs"), (opts.input, opts.output))
     return opts, jobs, store, man, integ
 
 
@@ -457,6 +428,7 @@ def export(opts, store_path: str, chunk=None) -> tuple:
     k0 = jobs.index(todo[0])
     o = dataclasses.replace(opts, fps=man["fps"], cuts=integ["cuts"])
     run, tm = setup_run(o, start_state(opts, store, jobs, k0, integ))
+    remove_stale_temps([], folders=[opts.ocio_export])
     ex = OcioExport(opts.ocio_export, run.colour, tm, jobs[0][0], opts.ocio_export_size)
     spent = {"read": 0.0, "export": 0.0}
 
@@ -469,12 +441,14 @@ def export(opts, store_path: str, chunk=None) -> tuple:
         ex.add_frame(f, fin.pixels, fin.scale, eff, run.input_colour(fr, inp))
         spent["read"] += t1 - t0
         spent["export"] += time.perf_counter() - t1
-    _advance(tm, store, todo, integ["cuts"], man.get("luminance_scale_auto"), after)
+    with export_lock(opts.ocio_export, "export", (store_path, _settings(opts)),
+                     (todo[0][0], todo[-1][0])):
+        _advance(tm, store, todo, integ["cuts"], man.get("luminance_scale_auto"), after)
     n = max(len(todo), 1)
     return ex, spent["read"] / n, spent["export"] / n
 
 
-def apply(opts, store_path: str, chunk=None):
+def apply(opts, store_path: str, chunk=None, within: str | None = None):
     """The apply pass over ``chunk`` (all: None): the serial run over its frames
     from the integrated state. Returns the run's JobResult (``setup_s``: the
     seconds before its first frame, the state before the chunk included)."""
@@ -490,7 +464,8 @@ def apply(opts, store_path: str, chunk=None):
     known = {f: {**d["plan"], "analysis": decode_value(d["plan"].get("analysis"))}
              for f, d in docs.items() if d.get("plan")}
     before = time.perf_counter() - t0
-    res = run_job(o, jobs=todo, state=state, plans=known,
-                  stored_stats=stored_stats(store, [f for f, *_ in todo], docs))
+    with shot_lock(opts, store_path, todo, "apply", within):
+        res = run_job(o, jobs=todo, state=state, plans=known,
+                      stored_stats=stored_stats(store, [f for f, *_ in todo], docs))
     res.setup_s += before
     return res
