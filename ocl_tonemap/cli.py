@@ -289,7 +289,9 @@ def main(argv: list[str] | None = None) -> int:
         ck = sys.modules.get("ocl_tonemap.job.checkpoint")
         if ck is not None:                # a lock whose release the signal cut short
             ck.release_held()
-        print("ocl-tonemap: interrupted; the frame in flight was discarded", file=sys.stderr)
+        print("ocl-tonemap: interrupted; the frame in flight was discarded"
+              + (f". To finish, run:\n  {interrupts.again}" if interrupts.again else ""),
+              file=sys.stderr)
         return exit_code(exc)
     except Exception:                     # a signal a library made its own error (NumPy's
         if not interrupts.received:      # (an import under the parser: ImportError)

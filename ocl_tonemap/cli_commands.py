@@ -12,6 +12,7 @@ import shlex
 import shutil
 import sys
 
+from . import interrupts
 from .cli_options import job_options
 
 log = logging.getLogger("ocl_tonemap")
@@ -53,6 +54,8 @@ def run(a, argv) -> int:
         from .shot.distributed import run_distributed  # lazy: a command loads its own layers
         opts = job_options(a, a.input, a.output)
         refuse_visibility(opts, "--scheduler")
+        from .shot.chunks import command_line  # lazy: a command loads its own layers
+        interrupts.again = command_line(argv)      # (each pass keeps what it finished)
         res = run_distributed(opts, a.scheduler, a.workers, a.chunk_frames, a.store,
                               progress=opts.progress,
                               pocl_threads=max(1, (os.cpu_count() or 1) // max(1, a.workers)),
@@ -123,21 +126,28 @@ def _target_report(res) -> None:
 def shot_pass(a, argv) -> int:
     """``measure`` / ``integrate`` / ``apply`` / ``export``: one pass of a split shot."""
     from .job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
-    from .shot import passes  # lazy: a command loads its own layers
+    from .shot import chunks, passes  # lazy: a command loads its own layers
+    from .job.options import Interrupted  # lazy: a command loads its own layers
     opts = job_options(a, a.input, a.output)
     refuse_visibility(opts, f"the {a.cmd} pass")
     store = a.store or passes.default_store(opts)
-    if a.cmd == "measure":
+    # interrupted: each pass keeps what it finished (measure: the frames stored;
+    # apply: the frames written), so the same command finishes it
+    interrupts.again = chunks.command_line(argv)
+    if a.cmd == "apply":
+        try:
+            res = passes.apply(opts, store, passes.parse_chunk(a.chunk))
+        except Interrupted as e:
+            return _apply_interrupted(e, a, argv)
+        said = f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s" + \
+            (f"\n{res.export}" if res.export else "")
+    elif a.cmd == "measure":
         done = passes.measure(opts, store, passes.parse_chunk(a.chunk), redo=a.redo)
         said = f"measured {len(done)} frame(s) into {store}"
     elif a.cmd == "integrate":
         doc = passes.integrate(opts, store, a.keyframe_every)
         said = (f"integrated {len(doc['frames'])} frame(s) in {store}; keyframes "
                 f"{len(doc['keyframes'])}; cuts: {', '.join(map(str, doc['cuts'])) or 'none'}")
-    elif a.cmd == "apply":
-        res = passes.apply(opts, store, passes.parse_chunk(a.chunk))
-        said = f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s" + \
-            (f"\n{res.export}" if res.export else "")
     else:
         if not opts.ocio_export:
             raise ValueError("export: say where, --ocio-export DIR")
@@ -147,6 +157,18 @@ def shot_pass(a, argv) -> int:
     if not a.quiet:
         print(said)
     return 0
+
+
+def _apply_interrupted(e, a, argv) -> int:
+    """The line an interrupted ``apply`` leaves: what it wrote, and the command that
+    writes the frames left (``shot.chunks.finish_apply``)."""
+    from .shot import chunks, passes  # lazy: a command loads its own layers
+    again = chunks.finish_apply(argv, passes.shot_jobs(job_options(a, a.input, a.output)),
+                                e.last_frame, passes.parse_chunk(a.chunk))
+    print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of {e.total} "
+          + (f"written). To write the frames left:\n  {again}" if again else
+             "written: the chunk's last)"), file=sys.stderr)
+    return e.exit_code
 
 
 def farm_template(a, argv) -> int:

@@ -57,6 +57,7 @@ def write_frame(path: str, pixels: np.ndarray, in_spec, colorspace: str,
     d = output_folder(path, frame)
     tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{ext}")
     room_for(path, frame, ext, pix.shape[1], pix.shape[0], nch)
+    _claim(tmp, path, frame)
     try:
         # straight to the format's writer: an ImageBuf's set_pixels costs ~30 ms a 1080p
         # frame before the writer even starts (benchmarks/results/speed_accuracy.md)
@@ -142,6 +143,15 @@ def check_output(path: str, frame: int | None = None) -> None:
     if os.path.isdir(d) and not os.access(d, os.W_OK | os.X_OK):
         raise FrameError(os.path.dirname(path) or ".", frame,
                          f"read-only, cannot write {os.path.basename(path)}")
+
+
+def _claim(tmp: str, path: str, frame) -> None:
+    """The temporary file made ours before OIIO writes it by name (``safeio.claim_temp``:
+    a link, FIFO or folder in its place is refused, nothing written through it)."""
+    try:
+        safeio.claim_temp(tmp, path)
+    except safeio.WriteFailed as exc:
+        raise FrameError(path, frame, f"cannot write: {exc.why}") from None
 
 
 def _write_error(tmp: str, text: str) -> str:
@@ -332,6 +342,7 @@ class BandWriter:
         d = output_folder(path, frame)
         self.tmp = os.path.join(d, f".{Path(path).stem}.tmp{os.getpid()}{self.ext}")
         room_for(path, frame, self.ext, in_spec.width, in_spec.height, nch)
+        _claim(self.tmp, path, frame)
         self.out = oiio.ImageOutput.create(self.tmp)
         if self.out is None or not self.out.open(self.tmp, self.spec):
             err = oiio_error(oiio.geterror() if self.out is None else self.out.geterror())

@@ -201,6 +201,11 @@ def save_figure(fig, path: str) -> None:
     import matplotlib.pyplot as plt
     tmp = safeio.temp_path(path)
     try:
+        safeio.claim_temp(tmp, path)
+    except safeio.WriteFailed:
+        plt.close(fig)
+        raise
+    try:
         fig.savefig(tmp, dpi=110, format=os.path.splitext(path)[1][1:].lower() or "png")
         safeio.commit(tmp, path)
     except OSError as exc:

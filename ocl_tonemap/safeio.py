@@ -79,6 +79,45 @@ def temp_path(path, ext: str | None = None) -> str:
     return str(p.with_name(f".{stem}.tmp{os.getpid()}{ext}"))
 
 
+_TEMP_FLAGS = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) \
+    | getattr(os, "O_CLOEXEC", 0)
+
+
+def open_temp(tmp, target=None) -> int:
+    """The temporary file ``tmp`` made empty and opened for writing (a descriptor),
+    never through what is in its place: no link is followed, and a link, a FIFO, a
+    folder or a file with other names there is refused (:class:`WriteFailed` naming
+    ``target`` and it; nothing is written through it). A regular file of that name
+    (this pid's name, left by an earlier process that had it) is replaced."""
+    for _ in range(3):
+        try:
+            return os.open(tmp, _TEMP_FLAGS, 0o644)
+        except FileExistsError:
+            pass
+        except OSError as exc:
+            raise WriteFailed(target or tmp, reason(exc), exc.errno) from None
+        try:
+            st = os.lstat(tmp)
+        except FileNotFoundError:
+            continue
+        if stat.S_ISREG(st.st_mode) and st.st_nlink == 1:
+            remove(tmp)
+            continue
+        kind = "a symbolic link" if stat.S_ISLNK(st.st_mode) else (
+            file_kind(st.st_mode) or f"a file with {st.st_nlink} names (a hard link)")
+        raise WriteFailed(target or tmp, f"{tmp} is {kind}, in the place of this tool's "
+                          "temporary file; nothing was written through it (remove it)",
+                          errno.EEXIST)
+    raise WriteFailed(target or tmp, f"cannot make the temporary file {tmp}", errno.EEXIST)
+
+
+def claim_temp(tmp, target=None) -> str:
+    """``tmp`` made as an empty file of ours (:func:`open_temp`) before a library
+    (OIIO, matplotlib) writes it by its name; returns it."""
+    os.close(open_temp(tmp, target))
+    return str(tmp)
+
+
 def remove(path) -> None:
     try:
         os.unlink(path)
@@ -131,8 +170,9 @@ def commit(tmp, path, sync: bool = True) -> None:
 def write_bytes(path, data: bytes, sync: bool = True) -> None:
     """``data`` to ``path``, whole or not at all."""
     tmp = temp_path(path, "")
+    fd = open_temp(tmp, path)
     try:
-        with open(tmp, "wb") as f:
+        with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
     except OSError as exc:

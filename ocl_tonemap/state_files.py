@@ -134,6 +134,7 @@ def write_planes(path: Path, planes, compression: str = "none") -> None:
     # took longer than the frame (1080p ledda04: 0.4 s of a 0.9 s frame)
     spec.attribute("compression", compression)
     tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.exr")
+    safeio.claim_temp(tmp, path)
     out = oiio.ImageOutput.create(str(tmp))
     if out is None or not out.open(str(tmp), spec):
         raise OSError(f"cannot write per-pixel state {path}: {oiio.geterror()}")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 import os
 import re
+import stat
 
 from ..imageio import FrameError
 
@@ -13,64 +14,63 @@ from ..imagewrite import output_folder
 from ..patterns import is_sequence, same_file, without_frame_token
 from ..state import AdaptationState
 from ..state_files import load_state
+from .locks import OutputLock, export_lock, output_lock
+from .locks import release_held as release_output_locks
 from .options import RUN_KEY, JobOptions, run_fingerprint
 
 log = logging.getLogger("ocl_tonemap")
 
 
 class RunLock:
-    """Advisory locks (``flock``) held for a whole run: on ``.<state file>.lock`` beside
-    its checkpoint, and for a sequence on its output frames, ``.<output pattern without
-    its frame number>.frames.lock`` beside them (``out/o.####.png`` ->
-    ``out/.o.png.frames.lock``): a second run on the same state, or on the same output
-    frames with another state, is refused in one line naming the file and the other
-    run's pid rather than mixing its frames and state with the first one's. Removed
-    when the run ends (a lock left by a killed run is free: the system released it).
-    A still takes no output lock (its write is atomic, and it makes no side file)."""
+    """The locks of a run (``locks.OutputLock``), held for the whole run: on
+    ``.<state file>.lock`` beside its checkpoint, and for a sequence on its output
+    frames, ``.<output pattern without its frame number>.frames.lock`` beside them
+    (``out/o.####.png`` -> ``out/.o.png.frames.lock``): a second writer of the same
+    state, or of the same output frames (another run, an ``apply`` of a shot, a Dask
+    run), is refused in one line naming the file and the other writer's pid rather
+    than mixing its frames and state with the first one's. Removed when the run ends
+    (a lock left by a killed run is free: the system released it). A still takes no
+    output lock (its write is atomic, and it makes no side file). ``shot``/``chunk``:
+    the output lock of a shot's writer (``locks.OutputLock``), which the other
+    chunks of the same shot share."""
 
-    def __init__(self, state_path: str | None, output: str | None = None):
+    def __init__(self, state_path: str | None, output: str | None = None,
+                 command: str = "run", shot=None, chunk=None, export: str | None = None):
         self.state_path = state_path
         self.output = output if output is not None and is_sequence(output) else None
-        #: (lock file, the file it guards, what the second run is told)
-        self.locks = []
+        self.locks: list = []
         if self.output is not None:
-            d, name = os.path.split(os.path.abspath(self.output))
-            key = without_frame_token(name) or "frames"
-            self.locks.append((os.path.join(d, f".{key}.frames.lock"), self.output,
-                               "is writing these output frames; wait for it, or give "
-                               "another OUTPUT"))
+            self.locks.append(output_lock(self.output, command, shot, chunk))
+        if export:
+            self.locks.append(export_lock(export, command, shot, chunk))
         if state_path:
             d, name = os.path.split(os.path.abspath(state_path))
             path = os.path.join(d, f".{name}.lock")
-            if all(path != q for q, _, _ in self.locks):
-                self.locks.append((path, path, "is writing these outputs and this state; "
-                                   "wait for it, or give another OUTPUT or --state-out"))
+            if all(path != q.path for q in self.locks):
+                self.locks.append(OutputLock(
+                    path, path, command, why="wait for it, or give another OUTPUT or "
+                    "--state-out"))
         #: the state's lock file (the first run's, for the messages and the tests)
-        self.path = self.locks[-1][0] if self.locks else None
-        self.fds: dict = {}
+        self.path = self.locks[-1].path if self.locks else None
         #: the folders the lock made (removed again when the run leaves them empty)
         self.made: list = []
 
     @property
     def fd(self):                               # (held: any lock)
-        return next(iter(self.fds.values()), None)
+        return next((q.fd for q in self.locks if q.fd is not None), None)
 
     def __enter__(self):
-        try:
-            import fcntl
-        except ImportError:                   # pragma: no cover -- not POSIX
-            return self
         try:
             for f, what in ((self.output, "output"), (self.state_path, "state's")):
                 if f:
                     self.made += _missing_folders(f)
                     output_folder(f, None, what)
-            for path, guarded, why in self.locks:
-                self.fds[path] = _take(fcntl, path, guarded, why)
-                _HELD.add(self)
+            for q in self.locks:
+                q.acquire()
         except BaseException:
             self.release()
             raise
+        _HELD.add(self)
         return self
 
     def __exit__(self, *exc):
@@ -80,18 +80,8 @@ class RunLock:
     def release(self) -> None:
         """Remove the lock files and let the locks go; again, after a signal cut it short
         anywhere, it does what is left (a second unlink or close: nothing)."""
-        for path in list(self.fds):
-            if self.fds.get(path) is None:
-                continue
-            try:
-                os.unlink(path)
-            except OSError:
-                pass
-            fd = self.fds.pop(path)
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+        for q in self.locks:
+            q.release()
         made, self.made = self.made, []
         for d in made:                  # (deepest first) a refused run leaves no folder
             try:
@@ -111,33 +101,6 @@ def _missing_folders(path: str) -> list:
     return out
 
 
-def _take(fcntl, path: str, guarded: str, why: str) -> int:
-    """The descriptor of the lock file ``path``, locked by this process, with its pid in
-    it; FrameError naming ``guarded`` and the other run's pid when another holds it."""
-    for _ in range(10):
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            try:
-                who = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
-            finally:
-                os.close(fd)
-            raise FrameError(guarded, None, "another ocl-tonemap run"
-                             + (f" (pid {who})" if who.isdigit() else "")
-                             + f" {why}") from None
-        try:                               # the file we locked is still the lock's name
-            same = os.fstat(fd).st_ino == os.stat(path).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, str(os.getpid()).encode(), 0)
-            return fd
-        os.close(fd)                        # removed by the run that just ended: again
-    raise FrameError(path, None, "cannot take the run's lock")
-
-
 #: The run locks this process holds: a signal landing as a run ends may cut
 #: ``RunLock.__exit__`` short; the command's last step releases what is left
 #: (:func:`release_held`), so no lock file outlives the run.
@@ -145,9 +108,12 @@ _HELD: set = set()
 
 
 def release_held() -> None:
-    """Release every run lock still held (the command's exit, after a signal)."""
+    """Release every run lock still held (the command's exit, after a signal), and
+    every shot writer's lock (``locks.release_held``)."""
     for lock in list(_HELD):
         lock.release()
+    release_output_locks()
+
 
 def checkpoint_path(opts: JobOptions) -> str:
     """Where the state is checkpointed after every frame: ``--state-out``, else the
@@ -249,10 +215,12 @@ def check_state_paths(jobs, paths, plot: str | None = None, inputs=()) -> None:
         output_folder(plot, None, "plot's")
 
 
-def remove_stale_temps(jobs, state_paths=()) -> None:
+def remove_stale_temps(jobs, state_paths=(), folders=()) -> None:
     """Temporary files a killed earlier run may have left beside the outputs and
     the state files (``.<name>.tmp<pid>[<ext>]``, only those of this run's files,
-    and only when that process is gone)."""
+    and only when that process is gone), and in ``folders`` that are the tool's own
+    (a shot store's): any temporary of its naming there. Only regular files: a
+    link, a FIFO or a folder of that name is not one of ours."""
     from pathlib import Path
     mine: dict = {}
     for _, _, o, _ in jobs:
@@ -263,6 +231,9 @@ def remove_stale_temps(jobs, state_paths=()) -> None:
         mine.setdefault(d, set()).add(name)
         prefixes.setdefault(d, []).append(name[:-5] + ".pixels." if name.endswith(".json")
                                           else name + ".pixels.")
+    for d in folders:
+        prefixes.setdefault(os.path.abspath(str(d)), []).append("")
+        mine.setdefault(os.path.abspath(str(d)), set())
     rx = re.compile(r"^\.(.+)\.tmp(\d+)(\.[A-Za-z0-9]+)?$")
     for d, stems in mine.items():
         try:
@@ -283,7 +254,10 @@ def remove_stale_temps(jobs, state_paths=()) -> None:
                 continue                       # alive, another user's
             except (ProcessLookupError, OverflowError):
                 pass
+            path = os.path.join(d, name)
             try:
-                os.unlink(os.path.join(d, name))
+                if not stat.S_ISREG(os.lstat(path).st_mode):
+                    continue                   # (we make regular files only)
+                os.unlink(path)
             except OSError:
                 pass

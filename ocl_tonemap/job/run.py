@@ -151,7 +151,8 @@ def run_job(opts: JobOptions, jobs=None, state: AdaptationState | None = None,
     single = not is_sequence(opts.input) and len(jobs) == 1
     if single and not ckpt and not opts.state_out:   # a still makes no side file, not even
         return _run_job(opts, jobs, state, ckpt, t_start)   # a lock (its write is atomic)
-    with RunLock(ckpt or opts.state_out or checkpoint_path(opts), output=opts.output):
+    with RunLock(ckpt or opts.state_out or checkpoint_path(opts), output=opts.output,
+                 export=opts.ocio_export):
         return _run_job(opts, jobs, state, ckpt, t_start)
 
 

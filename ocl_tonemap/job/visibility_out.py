@@ -198,6 +198,10 @@ def _write_verified(path: str, data: np.ndarray, spec, f) -> None:
         raise FrameError(path, f, f"cannot write: no folder {folder}")
     tmp = safeio.temp_path(path)
     try:
+        safeio.claim_temp(tmp, path)
+    except safeio.WriteFailed as exc:
+        raise FrameError(path, f, f"cannot write: {exc.why}") from None
+    try:
         out = oiio.ImageOutput.create(tmp)
         if out is None or not out.open(tmp, spec):
             raise FrameError(path, f, f"cannot write: {oiio.geterror() or 'no writer'}")
