@@ -44,16 +44,26 @@ def dark_section(res, crit) -> list:
          f"Pre-adaptation {dark.PREADAPT_S:.0f} s through the natural pupil (Moon & Spencer); "
          f"test light {dark.TEST_NM:.0f} nm (L'/L = "
          f"{dark.scotopic_photopic_ratio(dark.TEST_NM):.1f}); thresholds in log "
-         "micro-micro-lamberts; RMS over all three observers' points of each intensity; "
-         "shape: RMS after removing the mean offset. Data: the rod-cone break at 12-14 min "
-         "after 400 000 td, 5-7 min after 19 500 td.", "",
-         "| operator | criterion c | trolands | field cd/m^2 | RMS log | shape RMS | offset "
-         "| break min | cone plateau | drop (model / data) |",
-         "|---|---|---|---|---|---|---|---|---|---|"]
+         "micro-micro-lamberts. RMS median: against the median of the three observers "
+         "(each interpolated on a 15 s grid; the target is 0.5 log units, the observers "
+         "differ by 0.3-0.5); RMS points: over every observer's points; shape: RMS after "
+         "removing the mean offset. The shared pigment model (models/bleaching.py) was fitted "
+         f"on {', '.join(f'{t:g}' for t in dark.FIT_TD)} td; "
+         f"{', '.join(f'{t:g}' for t in dark.HELD_OUT_TD)} td are held out. Criterion: "
+         "(rods', cones') response increments, factors on Ferwerda's thresholds for "
+         "durand00 (docs/validation.md). Data: the rod-cone break at 12-14 min after "
+         "400 000 td, 5-7 min after 19 500 td.", "",
+         "| operator | criterion | trolands | set | field cd/m^2 | RMS median | shape | offset "
+         "| RMS points | break min | cone plateau | drop (model / data) |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for op, d in res.items():
+        c = crit[op]
+        ctext = ", ".join(f"{x:.3g}" for x in c) if isinstance(c, tuple) else _f(c, "{:.3g}")
         for td, (cv, sc) in d.items():
-            L.append(f"| {op} | {_f(crit[op], '{:.3g}')} | {td:g} | {cv.L_pre:.3g} | "
-                     f"{sc.rms:.2f} | {sc.rms_shape:.2f} | {sc.offset:+.2f} | "
+            L.append(f"| {op} | {ctext} | {td:g} | "
+                     f"{'held out' if td in dark.HELD_OUT_TD else 'fit'} | {cv.L_pre:.3g} | "
+                     f"{sc.rms_median:.2f} | {sc.shape_median:.2f} | {sc.offset_median:+.2f} | "
+                     f"{sc.rms:.2f} | "
                      f"{_f(sc.break_min, '{:.1f}') if sc.break_min is not None else 'none'} | "
                      f"{_f(sc.plateau)} | {sc.drop:.2f} / {sc.data_drop:.2f} |")
     return L + [""]

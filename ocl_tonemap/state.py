@@ -121,6 +121,12 @@ def _operator_scalars(operator: str) -> tuple | None:
     return None if cls is None else tuple(cls.state.scalars)
 
 
+def _pigment_ok(v) -> bool:
+    """``extra["pigment"]``: the shared pigment course's state (``models/bleaching``)."""
+    from .models import bleaching  # lazy: the state module loads no model until checked
+    return bleaching.check(v)
+
+
 def _check_levels(v) -> bool:
     """``extra["purkinje_levels"]``: the four receptor levels (:data:`VALUES`)."""
     if not isinstance(v, dict) or set(v) != set(TOGETHER[0]):
@@ -161,6 +167,7 @@ _EXTRA_CHECKS = {
     "luminance_scale_auto": lambda v: _num(v, 1e-30),
     "illuminant_rgb": lambda v: isinstance(v, list) and len(v) == 3 and all(_num(x, 0.0) for x in v),
     "purkinje_levels": _check_levels,
+    "pigment": lambda v: _pigment_ok(v),
     "plan": plan_state_ok,
     "pixel_state": lambda v: isinstance(v, str),
 }

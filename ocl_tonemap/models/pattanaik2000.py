@@ -85,6 +85,18 @@ def receptor_levels_advance(values: dict, G_rod: float, G_cone: float, dt: float
     }
 
 
+def receptor_levels_neural(values: dict, G_rod: float, G_cone: float, dt: float) -> dict:
+    """The default mode's step: A as :func:`receptor_levels_advance`, B Hunt's static
+    factor (Eq. 6) at the new A. The slow course is the shared pigment model's
+    (``models/bleaching.py``), which reaches A through the goals as an equivalent
+    background: Eq. 7's own kinetics would count the pigment twice."""
+    A_rod = exponential_step(values["A_rod"], G_rod, dt, T0_ROD)
+    A_cone = exponential_step(values["A_cone"], G_cone, dt, T0_CONE)
+    return {"A_rod": A_rod, "A_cone": A_cone,
+            "B_rod": float(bleach_static(A_rod, K_ROD, TAU_ROD)),
+            "B_cone": float(bleach_static(A_cone, K_CONE, TAU_CONE))}
+
+
 def receptor_levels_preadapted(L_rod: float, L_cone: float, seconds: float | None) -> dict:
     """After a neutral field (rods see ``L_rod``, cones ``L_cone``): fully adapted
     to it, or from full dark adaptation exposed to it for ``seconds``."""
@@ -92,6 +104,29 @@ def receptor_levels_preadapted(L_rod: float, L_cone: float, seconds: float | Non
         return receptor_levels_steady(L_rod, L_cone)
     dark = {"A_rod": A_FLOOR, "A_cone": A_FLOOR, "B_rod": 1.0, "B_cone": 1.0}
     return receptor_levels_advance(dark, L_rod, L_cone, seconds)
+
+
+#: The response increment of a flash at threshold on a black field (Eq. 2's R): where
+#: the dark-adapted observer's threshold is the absolute threshold of vision
+#: (Hecht, Haig & Chase 1937's 2.8 log micro-micro-lamberts for their violet;
+#: ``benchmarks/lib/human/dark.criterion`` finds the same number). It shapes the
+#: operator's threshold curve, which the shared pigment course's equivalent
+#: background is read on (``Operator.equivalent_goal``).
+DETECT_CRITERION = 0.103
+
+
+def flash_threshold(A: float, receptor: str, c: float = DETECT_CRITERION) -> float:
+    """The flash (cd/m^2; scotopic for rods) whose response B sat(x, sigma(A)) reaches
+    ``c`` on a black field, for a receptor adapted to ``A`` (B static, Eq. 6); inf
+    where B < c (too bleached to see it)."""
+    if receptor == "rod":
+        sigma, B = float(sigma_rod(A)), float(bleach_static(A, K_ROD, TAU_ROD))
+    else:
+        sigma, B = float(sigma_cone(A)), float(bleach_static(A, K_CONE, TAU_CONE))
+    q = c / B if B > 0.0 else math.inf
+    if q >= 1.0:
+        return math.inf
+    return sigma * (q / (1.0 - q)) ** (1.0 / N)
 
 
 def rod_sensitivity(values: dict) -> float:

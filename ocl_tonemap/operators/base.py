@@ -44,6 +44,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..models.photometry import RepairCounts, neutral_scotopic_ratio
+from .pigment import PIGMENT_KEY, PigmentCourse  # noqa: F401 (PIGMENT_KEY re-exported)
 
 #: Kinds of stage.
 STAGE_KINDS = ("colour", "reduction", "state", "pointwise", "neighbourhood")
@@ -168,7 +169,7 @@ class Frame:
         return self.pixels.shape
 
 
-class Operator:
+class Operator(PigmentCourse):
     """Base class of the operators (see the module docstring)."""
 
     name = ""
@@ -235,7 +236,11 @@ class Operator:
     def integrate(self, state, stats: FrameStats, dt: float, fresh: bool) -> None:
         """Advance ``state`` (an AdaptationState) over one frame's statistics: the
         scalar time course of the host scheduler. Operators with per-pixel state
-        do it on their schedule."""
+        do it on their schedule. In the default mode of an operator with the
+        shared pigment course, the goals it adapts to carry the equivalent
+        backgrounds of the pigment still bleached."""
+        if self.uses_pigment():
+            stats = self.pigment_goals(state, stats, dt, fresh)
         if fresh:
             state.values = (self.preadapted(*self.preadapt) if self.preadapt is not None
                             else self.steady_state(stats))
@@ -345,9 +350,13 @@ class ModelOperator(Operator):
         return self.model.map_reference(rgb, Y, Ys, p)
 
     def observer_preadapted(self, L_cd, seconds):
+        if self.uses_pigment():
+            return self.pigment_observer(self.preadapted(L_cd, seconds), L_cd, seconds)
         return self.model.preadapted(L_cd, seconds)
 
     def observer_advance(self, obs, L_cd, dt):
+        if self.uses_pigment():
+            return self.pigment_observer_advance(obs, L_cd, dt)
         return self.model.advance(obs, L_cd * neutral_scotopic_ratio(), L_cd, dt)
 
     def observer_slope(self, obs, L_b):

@@ -9,7 +9,10 @@ module declares the operator and packs the frame's scalars for
 
 from __future__ import annotations
 
+import math
+
 from ..models import durand2000 as model
+from ..models import ferwerda1996
 from ..quantities import Numbers, Quantity
 from .base import COLOUR_STAGE, METER_STAGE, KernelCall, ModelOperator, Option, Stage, StateSpec
 from .pattanaik00 import MODE_OPTION
@@ -49,6 +52,15 @@ class Durand00(ModelOperator):
                decl=Quantity("table entries", "", 2, 1 << 20, zero=True, integer=True)),
     )
     state = StateSpec(scalars=("inv_eps_rod", "inv_eps_cone", "L_waR", "L_wa"))
+    #: Sec. 3.3 is light adaptation only (0.1 / 0.4 s): by default the shared pigment
+    #: course gives it the minutes of dark adaptation (``--mode paper``: none).
+    pigment_course = True
+
+    def receptor_threshold(self, receptor, L):
+        """Ferwerda's thresholds themselves (Eqs. 1-2 of Ferwerda et al. 1996)."""
+        return math.log10(ferwerda1996.threshold_rod(L) if receptor == "rod"
+                          else ferwerda1996.threshold_cone(L))
+
     stages = (
         COLOUR_STAGE, METER_STAGE,
         Stage("adapt", "state", "1/eps filtered with tau 0.4 s (rods), 0.1 s (cones), Sec. 3.3",

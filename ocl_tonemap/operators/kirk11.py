@@ -10,6 +10,7 @@ display anchor the adapted cone level). Its phases run on
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -19,7 +20,8 @@ from ..models.bilateral import BilateralSpec
 from ..models.display import DISPLAY_LINEAR_MAX, SHOULDER_KNEE, SIGNAL_CEILING, apply_shoulder
 from ..models.kirk2011 import (KAPPA1, KAPPA2, KirkSettings, anchor_gain, display_matrix,
                                kappas)
-from ..models.pattanaik2000 import (K_CONE, K_ROD, TAU_CONE, TAU_ROD, bleach_static,
+from ..models.pattanaik2000 import (A_FLOOR, K_CONE, K_ROD, TAU_CONE, TAU_ROD, bleach_static,
+                                    flash_threshold, receptor_levels_neural,
                                     receptor_levels_advance, receptor_levels_preadapted,
                                     receptor_levels_steady, response_slope, rod_sensitivity)
 from ..models.photometry import Y_WEIGHTS
@@ -119,7 +121,8 @@ class Kirk11(Operator):
     def integrate(self, state, stats, dt: float, fresh: bool) -> None:
         """The receptor levels advanced to this frame's goals (default mode), and the
         frame's (k1, k2, rod gain) in ``stats.values``."""
-        L_waR, L_wa = stats.G_rod, stats.G_cone
+        goals = self.pigment_goals(state, stats, dt, fresh) if self.uses_pigment() else stats
+        L_waR, L_wa = goals.G_rod, goals.G_cone
         v = state.values
         levels = {k: float(v[k]) for k in LEVEL_KEYS} \
             if not fresh and all(k in v for k in LEVEL_KEYS) else None
@@ -129,11 +132,12 @@ class Kirk11(Operator):
         else:
             if fresh or levels is None:
                 if fresh and self.preadapt is not None:
-                    levels = self.observer_preadapted(*self.preadapt)
+                    levels = {k: v for k, v in self.observer_preadapted(*self.preadapt).items()
+                              if k in LEVEL_KEYS}
                 else:
                     levels = receptor_levels_steady(L_waR, L_wa)
-            else:
-                levels = receptor_levels_advance(levels, L_waR, L_wa, dt)
+            else:                   # the slow course is the shared pigment's: A's goals
+                levels = receptor_levels_neural(levels, L_waR, L_wa, dt)
             k1, k2, gain = kappas(self.s, levels["A_rod"])
             sens = rod_sensitivity(levels)
             k1, k2, gain = k1 * sens, k2 * sens, gain * sens
@@ -165,11 +169,29 @@ class Kirk11(Operator):
         w = lmsr.rgb_to_lmsr(np.ones(3))         # a neutral: rod goal per cone goal
         return float(w[3] / (w[0] + w[1]))
 
+    pigment_course = True
+
+    def receptor_threshold(self, receptor, L):
+        """Its levels are pattanaik00's receptor signals: their threshold curve."""
+        return math.log10(flash_threshold(max(L, A_FLOOR), receptor))
+
+    def rod_per_cone(self) -> float:
+        return self._rod_per_cone()
+
     def observer_preadapted(self, L_cd, seconds):
+        if self.uses_pigment():              # (the pigment's own course: ``pigment_goals``)
+            return self.pigment_observer(receptor_levels_steady(L_cd * self._rod_per_cone(),
+                                                                L_cd), L_cd, seconds)
         return receptor_levels_preadapted(L_cd * self._rod_per_cone(), L_cd, seconds)
 
     def observer_advance(self, obs, L_cd, dt):
+        if self.uses_pigment():
+            return self.pigment_observer_advance(obs, L_cd, dt)
         return receptor_levels_advance(obs, L_cd * self._rod_per_cone(), L_cd, dt)
+
+    def advance(self, values, stats, dt):
+        """The receptor levels' step of the default mode (:meth:`pigment_observer_advance`)."""
+        return receptor_levels_neural(values, stats.G_rod, stats.G_cone, dt)
 
     def observer_slope(self, obs, L_b):
         return response_slope(L_b, obs)

@@ -45,6 +45,24 @@ class Pattanaik00(ModelOperator):
               "models.pattanaik2000.map_reference", "pattanaik00.cl:pattanaik00_map8"),
     )
 
+    pigment_course = True
+
+    def advance(self, values, stats, dt):
+        """The paper's Sec. 4.1.2 (``--mode paper``); by default A's filters toward the
+        goals with the shared pigment's equivalent background, B static (Eq. 6)."""
+        if self.uses_pigment():
+            return model.receptor_levels_neural(values, stats.G_rod, stats.G_cone, dt)
+        return model.advance(values, stats.G_rod, stats.G_cone, dt)
+
+    def receptor_threshold(self, receptor, L):
+        """Eq. 2's own threshold curve (``flash_threshold``)."""
+        return math.log10(model.flash_threshold(max(L, model.A_FLOOR), receptor))
+
+    def preadapted(self, L_cd, seconds):
+        if self.uses_pigment():               # (the pigment's own course: ``pigment_goals``)
+            return model.steady_state(L_cd * self.rod_per_cone(), L_cd)
+        return model.preadapted(L_cd, seconds)
+
     def colour_axes(self, p):
         """The default colour's v_i = (1 - c) Y + c rgb_i: channel i of the display colour
         is v_i / Y, clamped at 0 where the chroma scale c pushes it below."""

@@ -51,47 +51,86 @@ def test_thresholds_fall_monotonically_in_the_dark(curves):
             assert np.all(np.isfinite(cv.log_uuL)), (op, td)
 
 
+#: The operators whose default time course is the shared pigment model (issue 66).
+PIGMENT_OPS = ("pattanaik00", "durand00", "kirk11")
+
+
 def test_the_criterion_meets_the_data_at_full_dark_adaptation(curves):
-    """c is fixed once per operator: the dark-adapted observer's threshold is the
-    data's; every curve ends near it (pattanaik00) or above it (ledda04's rods are
-    still adapting at 45 min after bright fields)."""
+    """The criterion is fixed once per operator: the dark-adapted observer's threshold
+    is the data's, seen by the rods; every pigment operator's curve ends near it."""
     res, crit = curves
     goal = math.log10(dark.data_dark_threshold() / CD_PER_UUL)
-    for op in ("pattanaik00", "ledda04"):
-        S = dark.scotopic_photopic_ratio(dark.TEST_NM)
+    S = dark.scotopic_photopic_ratio(dark.TEST_NM)
+    for op in ("pattanaik00", "ledda04", "durand00", "kirk11"):
         thr, who = dark.threshold(op, dark.dark_state(op), crit[op], S)
-        assert math.log10(thr / CD_PER_UUL) == pytest.approx(goal, abs=1e-6)
+        assert math.log10(thr / CD_PER_UUL) == pytest.approx(goal, abs=1e-6), op
         assert who == "rod"
-    assert res["pattanaik00"][400000.0][0].log_uuL[-1] == pytest.approx(goal, abs=0.05)
+    for op in PIGMENT_OPS:
+        assert res[op][400000.0][0].log_uuL[-1] == pytest.approx(goal, abs=0.1), op
+
+
+def test_within_half_a_log_unit_of_the_observers_median(curves):
+    """Issue 66's target: at every intensity, fitted or held out, the pigment operators'
+    curves are within 0.5 log RMS of the median of Hecht's three observers (who differ
+    from one another by 0.3-0.5). ledda04 keeps its paper's course (docs/validation.md):
+    its own value is held."""
+    res, _ = curves
+    for op in PIGMENT_OPS:
+        for td in HECHT_TD.values():
+            assert res[op][td][1].rms_median <= 0.5, (op, td, res[op][td][1].rms_median)
+    assert res["ledda04"][3800.0][1].rms_median > 1.5
 
 
 def test_rod_cone_break(curves):
     """Data: the break comes later after brighter fields (12-14 min after 400 000 td,
-    5-7 after 19 500). The models miss it (docs/validation.md); their own values:
-    pattanaik00's rods take over after about a minute whatever the field (Hunt's
-    static rod bleaching leaves ~0 pigment above ~1 cd/m^2 and it regrows alike);
-    ledda04's only within 45 min after the dimmest fields; durand00 has no dark time
-    course (its thresholds follow the field in ~1 s)."""
+    5-7 after 19 500). The pigment operators' break after the brightest field is
+    within 2 minutes of it (rhodopsin's rate-limited regeneration down to the
+    bleached fraction whose equivalent background meets the cone plateau). After
+    19 500 td their rods take over within the first minute (docs/validation.md: their
+    cones stay higher there than a person's). ledda04's own values are held."""
     res, _ = curves
     br = {op: {td: res[op][td][0].break_min() for td in HECHT_TD.values()} for op in res}
-    for td in HECHT_TD.values():
-        assert br["pattanaik00"][td] == pytest.approx(1.0, abs=0.5)
-        assert br["durand00"][td] == 0.0
+    for op in PIGMENT_OPS:
+        assert 10.0 <= br[op][400000.0] <= 16.0, (op, br[op])
+        assert br[op][19500.0] < 1.0, (op, br[op])            # (a miss, held)
     assert br["ledda04"][263.0] == pytest.approx(11.0, abs=1.0)
     assert br["ledda04"][19500.0] is None and br["ledda04"][400000.0] is None
-    # where there is a break, brighter is never earlier
-    for op in res:
-        seq = [br[op][td] for td in sorted(HECHT_TD.values())]
-        seq = [45.0 + 1 if b is None else b for b in seq]
-        assert all(b >= a for a, b in zip(seq, seq[1:])), op
+
+
+def test_no_late_step_after_a_dim_field(curves):
+    """After 263 td people's threshold falls smoothly from the first minute: no fall of
+    more than 0.3 log units within any half minute after the first minute."""
+    res, _ = curves
+    for op in PIGMENT_OPS:
+        cv = res[op][263.0][0]
+        k = cv.minutes >= 1.0
+        t, y = cv.minutes[k], cv.log_uuL[k]
+        for a in range(len(t)):
+            b = np.searchsorted(t, t[a] + 0.5, side="right") - 1
+            assert y[a] - y[b] <= 0.3, (op, t[a], y[a] - y[b])
+
+
+def test_duration_counts():
+    """The same field for 10 s and for 120 s: the rods recover measurably earlier after
+    the shorter (bleaching is intensity x time)."""
+    S = dark.scotopic_photopic_ratio(dark.TEST_NM)
+    goal = math.log10(dark.data_dark_threshold() / CD_PER_UUL)
+    for op in PIGMENT_OPS:
+        c = dark.criterion(op)
+        when = {}
+        for secs in (10.0, 120.0):
+            cv = dark.simulate(op, 19500.0, c, S=S, preadapt_s=secs)
+            near = np.nonzero(cv.log_uuL <= goal + 1.0)[0]
+            when[secs] = float(cv.minutes[near[0]])
+        assert when[10.0] + 2.0 <= when[120.0], (op, when)
 
 
 def test_total_drop_after_the_brightest_field(curves):
-    """Data 4.95 log units (4-5.5); pattanaik00 5.5, ledda04 6.3 (its 45-minute value),
-    durand00 0 (no dark time course)."""
+    """Data 4.95 log units (4-5.5); the pigment operators within 0.5 of it; ledda04 6.3
+    (its 45-minute value)."""
     res, _ = curves
     drop = {op: res[op][400000.0][1].drop for op in res}
     assert res["pattanaik00"][400000.0][1].data_drop == pytest.approx(4.95, abs=0.01)
-    assert drop["pattanaik00"] == pytest.approx(5.54, abs=0.1)
+    for op in PIGMENT_OPS:
+        assert drop[op] == pytest.approx(4.95, abs=0.5), (op, drop[op])
     assert drop["ledda04"] == pytest.approx(6.27, abs=0.1)
-    assert drop["durand00"] == pytest.approx(0.0, abs=0.05)

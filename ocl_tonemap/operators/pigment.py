@@ -1,0 +1,117 @@
+"""The shared pigment course in the operators (issue 66): what every operator with
+``pigment_course`` gets from ``models/bleaching.py`` in its default mode, as a mixin
+of :class:`~ocl_tonemap.operators.base.Operator`.
+
+A frame's step advances the pigment state (``AdaptationState.extra["pigment"]``)
+and raises the frame's goals by the equivalent backgrounds, read on the operator's
+own threshold curve (:meth:`PigmentCourse.receptor_threshold`): the goals its own
+(fast) time course then follows. The visibility observer carries the same pigment
+(:meth:`PigmentCourse.pigment_observer_advance`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+
+from ..models import bleaching
+from ..models.photometry import neutral_scotopic_ratio
+
+#: Where the shared pigment course keeps its state (``AdaptationState.extra``).
+PIGMENT_KEY = "pigment"
+
+
+class PigmentCourse:
+    """The pigment course's part of an operator (``options``, ``preadapt`` and
+    ``advance`` are the operator's own)."""
+
+    #: Whether the default mode's slow time course is the shared pigment model
+    #: (``models/bleaching.py``: bleaching and regeneration, the early neural phase),
+    #: reaching the operator as an equivalent background on its goals
+    #: (:meth:`pigment_goals`); ``--mode paper`` keeps the paper's own.
+    pigment_course = False
+
+    def uses_pigment(self) -> bool:
+        return self.pigment_course and self.options.get("mode", "default") != "paper"
+
+    def rod_per_cone(self) -> float:
+        """A neutral field's scotopic luminance per photopic (the rods' goal of a
+        pre-adapting field)."""
+        return neutral_scotopic_ratio()
+
+    def pigment_goals(self, state, stats, dt: float, fresh: bool):
+        """The shared pigment course over one frame (``state.extra["pigment"]``, the
+        frame's goals held over ``dt``), and the frame's statistics with its goals
+        raised by the equivalent backgrounds (``bleaching.equivalent_background``)."""
+        G_r, G_c = float(stats.G_rod), float(stats.G_cone)
+        pig = state.extra.get(PIGMENT_KEY)
+        if fresh or not bleaching.check(pig):
+            pig = (bleaching.preadapted(self.preadapt[0], self.preadapt[1], self.rod_per_cone())
+                   if fresh and self.preadapt is not None else bleaching.steady(G_r, G_c))
+        else:
+            pig = bleaching.advance(pig, G_r, G_c, dt)
+        state.extra[PIGMENT_KEY] = pig
+        Lr, Lc = bleaching.equivalent_background(pig, G_r, G_c)
+        return replace(stats, G_rod=G_r + self.equivalent_goal("rod", Lr),
+                       G_cone=G_c + self.equivalent_goal("cone", Lc))
+
+    def receptor_threshold(self, receptor: str, L: float) -> float:
+        """log10 of the threshold of a flash on a black field (cd/m^2; scotopic for the
+        rods) for this operator's observer adapted to a background ``L`` of the
+        receptor: its own threshold-versus-intensity, which turns the pigment model's
+        elevation into the background that raises its threshold as much
+        (:meth:`equivalent_goal`). Here a Weber observer with the pigment model's dark
+        lights (``bleaching.I_D_ROD``, ``I_D_CONE``)."""
+        return math.log10(bleaching.dark_light(receptor) + max(L, 0.0))
+
+    def equivalent_goal(self, receptor: str, L_eq: float) -> float:
+        """The background on this operator's own threshold curve that raises its
+        threshold as much as ``L_eq`` (the pigment model's equivalent background,
+        a Weber observer's) does: Crawford's equivalent background, in the
+        operator's terms; beyond its curve's end, the end."""
+        E = math.log10(1.0 + max(L_eq, 0.0) / bleaching.dark_light(receptor))
+        if E <= 0.0:
+            return 0.0
+        tab = self._elevation_tables().get(receptor)
+        logL, elev = tab
+        if E >= elev[-1]:
+            return float(10.0 ** logL[-1])
+        return float(10.0 ** np.interp(E, elev, logL))
+
+    def _elevation_tables(self) -> dict:
+        """(log10 L, elevation) of each receptor's threshold curve, rising, from the
+        dark to where it ends (a receptor that can no longer see): made once."""
+        tabs = getattr(self, "_elev_tabs", None)
+        if tabs is None:
+            tabs = {}
+            logL = np.arange(-12.0, 9.0 + 1e-9, 0.05)
+            for r in ("rod", "cone"):
+                t0 = self.receptor_threshold(r, 0.0)
+                e = np.array([self.receptor_threshold(r, float(10.0 ** x)) for x in logL]) - t0
+                ok = np.isfinite(e)
+                last = int(np.argmin(ok)) if not ok.all() else len(e)
+                e, x = np.maximum.accumulate(e[:last]), logL[:last]
+                keep = np.r_[True, np.diff(e) > 1e-12]           # strictly rising
+                tabs[r] = (x[keep], e[keep])
+            self._elev_tabs = tabs
+        return tabs
+
+    # The observer with the shared pigment course (the calculator's and the maps' own,
+    # as a run's): the values and the pigment under PIGMENT_KEY.
+    def pigment_observer(self, values: dict, L_cd: float, seconds: float | None) -> dict:
+        return {**values, PIGMENT_KEY: bleaching.preadapted(L_cd, seconds, self.rod_per_cone())}
+
+    def pigment_observer_advance(self, obs: dict, L_cd: float, dt: float) -> dict:
+        """``dt`` s more of a neutral field of ``L_cd``: the pigment, then the operator's
+        own step toward the goals raised by its equivalent backgrounds."""
+        L_r = L_cd * self.rod_per_cone()
+        pig = obs.get(PIGMENT_KEY)
+        pig = bleaching.advance(pig if bleaching.check(pig) else bleaching.steady(L_r, L_cd),
+                                L_r, L_cd, dt)
+        Lr, Lc = bleaching.equivalent_background(pig, L_r, L_cd)
+        goals = SimpleNamespace(G_rod=L_r + self.equivalent_goal("rod", Lr),
+                                G_cone=L_cd + self.equivalent_goal("cone", Lc))
+        values = self.advance({k: v for k, v in obs.items() if k != PIGMENT_KEY}, goals, dt)
+        return {**values, PIGMENT_KEY: pig}

@@ -1,0 +1,89 @@
+"""The shared pigment model (issue 66, ``models/bleaching.py``): its steady states and
+time constants against the literature it cites, its stability from 1 ms to hours and
+at extreme fields, and that intensity and duration both count."""
+
+import math
+
+import numpy as np
+import pytest
+
+from ocl_tonemap.models import bleaching as B
+
+
+def test_cone_steady_state_is_rushton_and_henry():
+    """Eq. 2's fixed point: Bb = I / (I + I0), half bleached at 10^4.3 td."""
+    for L in (1.0, 100.0, 1e4, 1e6):
+        s = B.steady(L * 2.5, L)
+        I = B.trolands(L * 2.5, L)[1]
+        assert s["Bb_cone"] == pytest.approx(I / (I + B.I0_CONE), rel=1e-6)
+
+
+def test_cone_recovery_time_constant():
+    s = B.steady(2.5e4, 1e4)
+    b0 = s["Bb_cone"]
+    s = B.advance(s, 0.0, 0.0, B.TAU_CONE)
+    assert s["Bb_cone"] == pytest.approx(b0 / math.e, rel=1e-6)
+
+
+def test_rod_regeneration_is_rate_limited():
+    """From a full bleach to 20 % in the dark takes Eq. 4's integral, 13.2 min (within
+    1 % by the integrator); at small bleaches the log falls at v / (K_m ln 10)."""
+    s = {"Bb_rod": 1.0, "Bb_cone": 0.0, "N_rod": 0.0, "N_cone": 0.0}
+    t, dt = 0.0, 1.0
+    while s["Bb_rod"] > 0.2:
+        s = B.advance(s, 0.0, 0.0, dt)
+        t += dt
+    assert t / 60.0 == pytest.approx(B.regeneration_minutes(1.0, 0.2), rel=0.01)
+    assert B.regeneration_minutes(1.0, 0.2) == pytest.approx(13.2, abs=0.1)
+    s = {**s, "Bb_rod": 1e-3}
+    s1 = B.advance(s, 0.0, 0.0, 60.0)
+    slope = math.log10(s["Bb_rod"] / s1["Bb_rod"])
+    assert slope == pytest.approx(B.V_ROD_PER_MIN / (B.KM_ROD * math.log(10.0)), rel=0.02)
+
+
+def test_a_step_of_any_length_is_stable_and_close_to_many_short_ones():
+    s0 = B.preadapted(1e4, 60.0)
+    one = B.advance(s0, 0.0, 0.0, 600.0)
+    many = dict(s0)
+    for _ in range(600):
+        many = B.advance(many, 0.0, 0.0, 1.0)
+    for k in ("Bb_rod", "Bb_cone"):
+        assert one[k] == pytest.approx(many[k], abs=2e-3), k
+    for dt in (1e-3, 1.0 / 24, 1.0, 3600.0, 10 * 3600.0, 1e9):
+        for L in (0.0, 1e-6, 1.0, 1e8, math.inf, math.nan, -5.0):
+            s = B.advance(s0, L * 2.5, L, dt)
+            assert B.check(s), (dt, L, s)
+            assert all(math.isfinite(v) for v in s.values())
+
+
+def test_intensity_and_duration_both_count():
+    """Bleaching is driven by retinal illuminance x time: a brighter field or a longer one
+    bleaches more, the same energy about as much (Rushton: first-order kinetics)."""
+    short, long_ = B.preadapted(5e3, 10.0), B.preadapted(5e3, 120.0)
+    assert short["Bb_rod"] < 0.5 * long_["Bb_rod"]
+    assert B.preadapted(500.0, 120.0)["Bb_rod"] < long_["Bb_rod"]
+    dim_long = B.preadapted(500.0, 100.0)["Bb_rod"]
+    bright_short = B.preadapted(5000.0, 10.0)["Bb_rod"]
+    assert dim_long == pytest.approx(bright_short, rel=0.35)
+
+
+def test_the_dark_and_the_equivalent_background():
+    assert B.equivalent_background(B.dark()) == (0.0, 0.0)
+    assert B.elevation(B.dark()) == (0.0, 0.0)
+    s = B.preadapted(1.3e5, 120.0)
+    er, ec = B.elevation(B.advance(s, 0.0, 0.0, 60.0))
+    assert er > ec > 0.0                      # the rods stay desensitised longer
+    # the neural phase decays with tau_N once the field is gone
+    s = B.steady(78.0, 31.0)
+    a = B.advance(s, 0.0, 0.0, 1.0)["N_rod"]
+    b = B.advance(s, 0.0, 0.0, 1.0 + B.TAU_N)["N_rod"]
+    assert b == pytest.approx(a / math.e, rel=1e-6)
+
+
+def test_steady_state_adds_little_to_a_steady_field():
+    """On a field held for good, the equivalent background is small beside the field (the
+    pictures of stills stay as they were): under 2 % of it from 1e-3 to 1e5 cd/m^2."""
+    for L in np.logspace(-3, 5, 9):
+        s = B.steady(L * 2.5, L)
+        Lr, Lc = B.equivalent_background(s, L * 2.5, L)
+        assert Lr <= 0.02 * L * 2.5 + 1e-3 and Lc <= 0.02 * L + 1e-3, (L, Lr, Lc)
