@@ -93,7 +93,7 @@ def main(argv=None) -> int:
                 _run(["simulate", p, out, "--operator", op, "--luminance-scale", "auto:1",
                       "--preadapt", "100", "--at", "0.5,600"])
                 got = [measures(Y, _read(os.path.join(d, f"s_t{t}s.png")))
-                       for t in ("0p5", "600")]    # simulate's names: 0.5 s -> _t0p5s
+                       for t in ("0000p5", "0600p0")]   # simulate's names: 0.5 s, 600 s
                 course.append(f"| {p.stem} | {op} | {got[0]['crushed']:.2%} | "
                               f"{got[1]['crushed']:.2%} | {got[1]['codes']} |")
     head = "| photograph | level | " + " | ".join(ops) + " |"

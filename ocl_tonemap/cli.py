@@ -7,6 +7,7 @@ import argparse
 import logging
 import re
 import sys
+import textwrap
 from typing import Callable, NamedTuple
 
 from . import cli_commands as commands
@@ -46,10 +47,22 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"ocl-tonemap ERROR: {message} (see {self.prog} --help)\n")
 
 
+class _Formatter(argparse.HelpFormatter):
+    """argparse's help, a description's paragraphs (blank lines apart) kept apart: a
+    sub-command's help opens with one line saying what it does."""
+
+    def _fill_text(self, text, width, indent):
+        return "\n\n".join(textwrap.fill(" ".join(par.split()), width, initial_indent=indent,
+                                         subsequent_indent=indent, break_on_hyphens=False)
+                           for par in text.split("\n\n"))
+
+
 class Command(NamedTuple):
-    """One sub-command: its help, usage, whether it takes the run options (``runs``:
+    """One sub-command: its help (one line on what it does: the top-level list's and
+    the first line of its own), usage, whether it takes the run options (``runs``:
     listed in its help for ``run``, accepted and pointed to for the others), its own
-    arguments (``args(parser)``) and what it does (``run(args, argv) -> exit code``)."""
+    arguments (``args(parser)``; ``last(parser)``: after the run options), what it does
+    (``run(args, argv) -> exit code``) and ``more``, a paragraph under the help line."""
 
     name: str
     help: str
@@ -57,6 +70,13 @@ class Command(NamedTuple):
     args: Callable | None = None
     usage: str | None = None
     runs: bool = False
+    more: str = ""
+    last: Callable | None = None
+
+    def description(self) -> str:
+        """Its help line, then what it adds, each a paragraph."""
+        pars = [self.help, self.more, ALSO[2:] if self.runs and self.name != "run" else ""]
+        return "\n\n".join(p for p in pars if p)
 
 
 def _io_args(what_in: str, what_out: str):
@@ -110,8 +130,9 @@ def _farm_args(p) -> None:
 
 
 def _simulate_args(p) -> None:
-    _io_args("one image", "output name (a _t<T>s suffix is added) or a frame pattern "
-             "(frames 1..n in --at order)")(p)
+    _io_args("one image", "output name (a _t<T>s suffix is added: seconds, zero-padded "
+             "to sort in time order, out_t0060s.png) or a frame pattern (frames 1..n in --at "
+             "order)")(p)
     declared_flag(p, "--at", "elapsed times since the switch (e.g. 30,1m,2m,16m)",
               required=True, metavar="T1,T2,...")
 
@@ -125,9 +146,10 @@ def _visibility_args(p) -> None:
         d = INPUTS[name]
         p.add_argument(flag, type=d.arg(flag), help=f"{help_}, {d.range_text()}"
                        .replace("%", "%%"), **kw)
-    q("--background", "background", "background luminance L_b, cd/m^2 (of the target's "
-      "surround, the veil apart)", required=True, metavar="L")
-    q("--veil", "veil", "veiling luminance over the background, cd/m^2 (CIE 88's L_seq, "
+    q("--background", "background", "the target's surround luminance L_s, cd/m^2 (the "
+      "veil apart: L_b = L_s + Lveil, as in run --target's table)", required=True,
+      metavar="L")
+    q("--veil", "veil", "veiling luminance Lveil over it, cd/m^2 (CIE 88's L_seq, "
       "a --visibility map's Lveil; default 0)", default=0.0, metavar="L")
     q("--size", "size", f"target size, arcmin (a disc of the same area; default "
       f"{TARGET_ARCMIN:g})", default=TARGET_ARCMIN, metavar="ARCMIN")
@@ -140,8 +162,8 @@ def _visibility_args(p) -> None:
                    "--target, its luminance says)")
     q("--target", "target", "target luminance, cd/m^2: its visibility level VL",
       metavar="L")
-    q("--k", "k", f"field factor (default {FIELD_FACTOR:g}: 99.93%% detection, RP-8; "
-      "1: the laboratory's 50%%)", default=FIELD_FACTOR)
+    q("--k", "k", f"field factor (default {FIELD_FACTOR:g}: 99.93% detection, RP-8; "
+      "1: the laboratory's 50%)", default=FIELD_FACTOR)
     p.add_argument("--adrian", choices=sorted(VARIANTS), default=ADRIAN_1989.name,
                    help="Adrian's model as this project reads it (1989, default) or as "
                    "ANSI/IES RP-8-00 prints it (rp8): docs/models.md, D1-D7")
@@ -153,8 +175,8 @@ def _visibility_args(p) -> None:
         "--state of a local operator (ledda04): the pixel whose observer"))
     p.add_argument("--operator", default=None, metavar="NAME",
                    help="whose adaptation time course drives the step (default pattanaik00)")
-    q("--adapted-to", "adapted_to", "the eye adapted to L0 cd/m^2 before the background "
-      "steps to L_b", metavar="L0", dest="adapted_to")
+    q("--adapted-to", "adapted_to", "the eye adapted to L0 cd/m^2 before the surround "
+      "steps to L_s", metavar="L0", dest="adapted_to")
     q("--for", "for", "... for S0 seconds (default: fully adapted)", metavar="S0",
       dest="adapted_for")
     after = VISIBILITY["times_after"]
@@ -195,48 +217,59 @@ def _devices_args(p) -> None:
                    help="exit 1 when no device works (scripts, CI)")
 
 
-PASSES = {"measure": "pass 1: each frame's statistics into the shot store (parallel over "
-          "chunks)",
-          "integrate": "pass 2: the adaptation state through the whole shot from the "
-          "statistics (serial)",
-          "apply": "pass 3: tone map a chunk of frames from the integrated state (parallel "
-          "over chunks)",
-          "export": "pass 3 without pixels: the observer as an OCIO view (--ocio-export DIR) "
-          "from the integrated state; frames are read, none mapped or written (parallel "
-          "over chunks)"}
+#: The shot passes: (help line, what it adds).
+PASSES = {"measure": ("pass 1 of a split shot: measure each frame's statistics",
+                      "into the shot store, parallel over chunks"),
+          "integrate": ("pass 2: integrate the adaptation state through the whole shot",
+                        "from the stored statistics, serially"),
+          "apply": ("pass 3: tone map a chunk of frames from the integrated state",
+                    "parallel over chunks"),
+          "export": ("pass 3 without pixels: the observer as an OCIO view (--ocio-export)",
+                     "from the integrated state: frames are read, none mapped or written; "
+                     "parallel over chunks")}
 
 #: The sub-commands, in the order the help lists them.
 COMMANDS = (
-    Command("run", "tone map an image or a sequence", commands.run,
-            lambda p: (_run_args(p), _run_shot_args(p)),
-            "ocl-tonemap run [options] INPUT OUTPUT", runs=True),
+    Command("run", "tone map an image or a sequence as a human observer sees it",
+            commands.run, _run_args, "ocl-tonemap run [options] INPUT OUTPUT", runs=True,
+            last=_run_shot_args),
     *(Command(n, what, commands.shot_pass, _pass_args(n),
-              f"ocl-tonemap {n} [options] INPUT OUTPUT", runs=True) for n, what in PASSES.items()),
-    Command("farm-template", "write a render-farm job (OpenJD or OpenCue) that runs the shot "
-            "as measure -> integrate -> apply", commands.farm_template, _farm_args,
-            "ocl-tonemap farm-template --format F -o JOB [options] INPUT OUTPUT", runs=True),
-    Command("simulate", "a still image seen over time after pre-adaptation (one output per "
-            "--at time)", commands.simulate, _simulate_args,
-            "ocl-tonemap simulate --at T1,T2,... [options] INPUT OUTPUT", runs=True),
-    Command("visibility", "the threshold luminance difference of a target (Adrian 1989) and "
-            "its visibility level, with each term", commands.visibility, _visibility_args,
-            "ocl-tonemap visibility --background L [--veil L] [--size ARCMIN] [--age A] "
-            "[--time S] [--k K] [--adrian 1989|rp8] [--target L | --negative] "
-            "[--state FILE [--pixel X,Y] | --adapted-to L0 [--for S0] [--after T,..] "
-            "[--operator NAME] [--plot FILE]] [--json]"),
-    Command("radiance-env", "the shell lines that put Radiance's programs from pip install "
-            "'ocl-tonemap[radiance]' on PATH (eval \"$(ocl-tonemap radiance-env)\")",
-            commands.radiance_env),
-    Command("devices", "list OpenCL devices, each probed: ok or broken", commands.devices,
-            _devices_args),
-    Command("displays", "list the OCIO config's displays and views", commands.displays,
-            lambda p: p.add_argument("--colorconfig", help="OCIO config: file, ocio:// URI "
+              f"ocl-tonemap {n} [options] INPUT OUTPUT", runs=True, more=more)
+      for n, (what, more) in PASSES.items()),
+    Command("farm-template", "write a render-farm job (OpenJD or OpenCue) for a split shot",
+            commands.farm_template, _farm_args,
+            "ocl-tonemap farm-template --format F -o JOB [options] INPUT OUTPUT", runs=True,
+            more="the job runs the shot as measure -> integrate -> apply"),
+    Command("simulate", "tone map one still as seen at times after a pre-adaptation",
+            commands.simulate, _simulate_args,
+            "ocl-tonemap simulate --at T1,T2,... [options] INPUT OUTPUT", runs=True,
+            more="one output per --at time; --preadapt says what the eye saw before"),
+    Command("visibility", "compute a target's threshold and visibility level, term by term",
+            commands.visibility, _visibility_args,
+            "ocl-tonemap visibility --background L [--veil L] [--size ARCMIN] [--age A]\n"
+            "       [--time S] [--k K] [--adrian 1989|rp8] [--target L | --negative]\n"
+            "       [--state FILE [--pixel X,Y] | --adapted-to L0 [--for S0] [--after T,..]\n"
+            "       [--operator NAME] [--plot FILE]] [--json]",
+            more="the threshold luminance difference dL_th of Adrian 1989 on the background "
+            "L_b = L_s + Lveil (the symbols of run --target's table) and, with --target, "
+            "its visibility level VL"),
+    Command("radiance-env", "print the shell lines that put Radiance's programs on PATH",
+            commands.radiance_env,
+            more="Radiance's programs from pip install 'ocl-tonemap[radiance]': "
+            "eval \"$(ocl-tonemap radiance-env)\""),
+    Command("devices", "list the OpenCL devices, each probed: ok or broken",
+            commands.devices, _devices_args),
+    Command("displays", "list an OCIO config's displays and views, the defaults marked",
+            commands.displays,
+            lambda p: p.add_argument("--colorconfig", metavar="CONFIG", help="OCIO config: "
+                                     "file, ocio:// URI "
                                      "or 'ocl-tonemap' (default: $OCIO, else "
                                      "ocio://default)")),
-    Command("sample", "write the built-in tunnel-drive sample (EXR, cd/m^2)", commands.sample,
-            _sample_args),
+    Command("sample", "write the built-in tunnel-drive sample (EXR frames in cd/m^2)",
+            commands.sample, _sample_args),
     Command("demo", "write the sample and run the main job on it", commands.demo, _demo_args,
-            "ocl-tonemap demo [options] OUTDIR", runs=True),
+            "ocl-tonemap demo [options] OUTDIR", runs=True,
+            more="the mapped frames, the adaptation plot and the state beside the sample"),
 )
 BY_NAME = {c.name: c for c in COMMANDS}
 
@@ -258,18 +291,21 @@ def build_parser(command: str | None = ALL_COMMANDS) -> argparse.ArgumentParser:
                         help=VERBOSE)
     common.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                         help=QUIET)
-    sub = ap.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
+    sub = ap.add_subparsers(dest="cmd", required=True, parser_class=_Parser, metavar="COMMAND")
     for c in COMMANDS:
-        kw = {"help": c.help, "parents": [common]}
+        kw = {"help": c.help, "parents": [common], "description": c.description(),
+              "formatter_class": _Formatter}
         if c.usage:
             kw["usage"] = c.usage
-        if c.runs and c.name != "run":
-            kw["description"] = c.help + ALSO
         p = sub.add_parser(c.name, **kw)
-        if c.args is not None and command in (ALL_COMMANDS, c.name):
+        if command not in (ALL_COMMANDS, c.name):
+            continue
+        if c.args is not None:
             c.args(p)
-        if c.runs and command in (ALL_COMMANDS, c.name):
+        if c.runs:
             add_run_options(p, shown=c.name == "run")
+        if c.last is not None:
+            c.last(p)
     return ap
 
 

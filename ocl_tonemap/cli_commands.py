@@ -205,11 +205,14 @@ def visibility(a, argv) -> int:
     age = a.age if a.age is not None else DEFAULT_AGE
     view = vis.Viewing(a.size, age, a.time, a.k, a.adrian).check()
     polarity = _polarity(a)
-    L_b = a.background + a.veil                       # CIE 88: the veil adds to L_b
+    # the run's symbols (run --target's table): the surround L_s given, the veil Lveil
+    # over it, L_b = L_s + Lveil (CIE 88: the veil adds to the background)
+    L_b = a.background + a.veil
     th = ad.threshold(L_b, a.size, age, a.time, polarity, a.k, a.adrian)
     out = th.as_dict()
-    out.update(background=a.background, veil=a.veil, observer=view.describe(),
+    out.update(L_s=a.background, Lveil=a.veil, observer=view.describe(),
                dL_th_adapted=th.dL_th)
+    out.update(background=a.background, veil=a.veil)     # (the keys before L_s, Lveil)
     media = cie203.media_factors(age)
     out["media"] = {"photopic": media[0], "scotopic": media[1], "ref_age": cie203.AGE_REF}
     state = _visibility_state(a, st, view, polarity)
@@ -226,9 +229,9 @@ def visibility(a, argv) -> int:
     if a.json:                       # (a long look's inf as a string: JSON has no Infinity)
         print(json.dumps(_finite_json(out), indent=1))
         return 0
-    rows = [("background L_b", f"{a.background:.6g} cd/m^2"),
-            ("veil L_veil", f"{a.veil:.6g} cd/m^2"),
-            ("adaptation L_b + L_veil", f"{L_b:.6g} cd/m^2"),
+    rows = [("surround L_s (the background given)", f"{a.background:.6g} cd/m^2"),
+            ("veil Lveil", f"{a.veil:.6g} cd/m^2"),
+            ("L_b = L_s + Lveil", f"{L_b:.6g} cd/m^2"),
             ("target size", f"{th.alpha_arcmin:g} arcmin"),
             ("observer age", f"{th.age:g} years"),
             ("observation time", f"{th.time_s:g} s"), ("contrast polarity", th.polarity),
@@ -433,12 +436,26 @@ def sample(a, argv) -> int:
 
 
 def displays(a, argv) -> int:
+    """Each display of the config and its views, the ones a run takes without
+    ``--display`` and ``--view`` marked (default), and the config's own default view
+    where it is another (a run's default is the un-tone-mapped view: the operator
+    does the tone mapping)."""
     # lazy: a command loads its own layers
-    from .colour import list_displays, load_config, resolve_config_source
+    from .colour import (ColourError, default_display, default_view, list_displays,
+                         load_config, resolve_config_source)
     cfg = load_config(a.colorconfig)
     print(f"config: {resolve_config_source(a.colorconfig)} ({cfg.getName() or 'unnamed'})")
+    print("(default): what run uses without --display and --view")
+    first = default_display(cfg)
     for d, views in list_displays(cfg):
-        print(f"{d}: {', '.join(views)}")
+        try:
+            ours = default_view(cfg, d)
+        except ColourError:               # no un-tone-mapped view: --view is needed
+            ours = None
+        theirs = cfg.getDefaultView(d)
+        names = [v + (" (default)" if v == ours else " (the config's default)"
+                      if v == theirs else "") for v in views]
+        print(f"{d}{' (default)' if d == first else ''}: {', '.join(names)}")
     return 0
 
 

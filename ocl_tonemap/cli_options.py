@@ -64,7 +64,7 @@ def _ignored(flag: str, where: str, operator: str) -> None:
 def _input_flags(g) -> None:
     declared_flag(g, "--frames", "frame range for sequence patterns", metavar="A-B[xSTEP],...")
     declared_flag(g, "--fps", "frames per second (default: FramesPerSecond metadata, else 24)")
-    g.add_argument("--iscolorspace", help="input colourspace (default: file metadata, file "
+    g.add_argument("--iscolorspace", metavar="NAME", help="input colourspace (default: file metadata, file "
                    "rules, scene_linear)")
     x = g.add_mutually_exclusive_group()
     x.add_argument("--unpremult", dest="unpremult", action="store_true", default=None,
@@ -208,10 +208,10 @@ def _effect_build(a, tier) -> dict:
 
 # -- display, output, run --------------------------------------------------------------------
 def _display_flags(g) -> None:
-    g.add_argument("--colorconfig", help="OCIO config: file, ocio:// URI or 'ocl-tonemap' "
+    g.add_argument("--colorconfig", metavar="CONFIG", help="OCIO config: file, ocio:// URI or 'ocl-tonemap' "
                    "(default: $OCIO, else ocio://default)")
-    g.add_argument("--display", help="OCIO display (default: the config's default)")
-    g.add_argument("--view", help="OCIO view (default: the un-tone-mapped view)")
+    g.add_argument("--display", metavar="NAME", help="OCIO display (default: the config's default)")
+    g.add_argument("--view", metavar="NAME", help="OCIO view (default: the un-tone-mapped view)")
     g.add_argument("--display-model", default="display", choices=["display", "paper-crt"],
                    help="display observer: from the chosen display (default), or Pattanaik "
                    "2000's CRT")
@@ -243,9 +243,27 @@ def _output_flags(g) -> None:
               metavar="0-9")
     g.add_argument("--png-filter", choices=("sub", "none", "adaptive"), default="sub",
                    help="PNG row filter (default sub)")
-    g.add_argument("--plot", help="write a PNG of adaptation over time and mapping curves")
+    g.add_argument("--plot", metavar="FILE", help="write a PNG of adaptation over time and mapping curves")
     declared_flag(g, "--plot-frames", "frame indices (0-based) for the mapping curves",
               metavar="I1,I2,...")
+    g.add_argument("--ocio-export", metavar="DIR",
+                   help="also write the observer as an OCIO view: DIR/<name>.ocio and a CLF per "
+                   "frame (docs/ocio_export.md)")
+    declared_flag(g, "--ocio-export-size", "nodes per axis of the exported LUTs (default auto)",
+              default="auto", metavar="N|auto")
+
+
+def _output_build(a, tier) -> dict:
+    if a.plot_frames and not a.plot:
+        log.warning("--plot-frames applies to --plot: ignored")
+    return {"encode": a.encode, "out_bits": a.out_bits, "png_level": a.png_level,
+            "png_filter": a.png_filter, "plot": a.plot,
+            "plot_frames": list(a.plot_frames) if a.plot_frames else None,
+            "ocio_export": a.ocio_export, "ocio_export_size": a.ocio_export_size}
+
+
+# -- visibility ------------------------------------------------------------------------------
+def _visibility_flags(g) -> None:
     g.add_argument("--visibility", metavar="OUT.####.exr",
                    help="also write what the observer can see: La, Lveil, Lb, dLth, VL")
     g.add_argument("--visibility-view", metavar="OUT.####.png",
@@ -265,18 +283,11 @@ def _output_flags(g) -> None:
                    help="... the planes' samples (default half)")
     g.add_argument("--veil-halo", action="store_true",
                    help="... add the flare's lenticular halo to Lveil")
-    g.add_argument("--ocio-export", metavar="DIR",
-                   help="also write the observer as an OCIO view: DIR/<name>.ocio and a CLF per "
-                   "frame (docs/ocio_export.md)")
-    declared_flag(g, "--ocio-export-size", "nodes per axis of the exported LUTs (default auto)",
-              default="auto", metavar="N|auto")
 
 
-def _output_build(a, tier) -> dict:
+def _visibility_build(a, tier) -> dict:
     from .models.adrian1989 import ADRIAN_1989  # lazy: the parser's NumPy, as above
     from .quantities import OBSERVATION_S, TARGET_ARCMIN
-    if a.plot_frames and not a.plot:
-        log.warning("--plot-frames applies to --plot: ignored")
     seen = a.visibility or a.visibility_view or a.target
     maps = a.visibility or a.visibility_view
     every = "--visibility, --visibility-view and --target"
@@ -290,22 +301,17 @@ def _output_build(a, tier) -> dict:
             log.warning("%s applies to %s: ignored", flag, where)
     if a.visibility_type != "half" and not a.visibility:
         log.warning("--visibility-type applies to --visibility: ignored")
-    return {"encode": a.encode, "out_bits": a.out_bits, "png_level": a.png_level,
-            "png_filter": a.png_filter, "plot": a.plot,
-            "plot_frames": list(a.plot_frames) if a.plot_frames else None,
-            "ocio_export": a.ocio_export, "ocio_export_size": a.ocio_export_size,
-            "visibility": a.visibility, "target_size": a.target_size,
+    return {"visibility": a.visibility, "target_size": a.target_size,
             "observation_time": a.observation_time, "adrian": a.adrian,
             "visibility_type": a.visibility_type, "veil_halo": a.veil_halo,
             "visibility_view": a.visibility_view,
             "target": a.target}
 
 
-def _run_flags(g) -> None:
-    from .backends.quality import QUALITY_NAMES  # lazy: --help loads no dataclasses
-    g.add_argument("--state-in", help="start from this adaptation state: a state JSON, or an "
+def _state_flags(g) -> None:
+    g.add_argument("--state-in", metavar="FILE", help="start from this adaptation state: a state JSON, or an "
                    "output frame of ocl-tonemap (its ocltm:state; global operators)")
-    g.add_argument("--state-out", help="write the adaptation state here (default: OUTPUT "
+    g.add_argument("--state-out", metavar="FILE", help="write the adaptation state here (default: OUTPUT "
                    "without frame number + .state.json)")
     g.add_argument("--resume", action="store_true",
                    help="continue an interrupted run from its checkpoint, to the frames of one run")
@@ -316,6 +322,17 @@ def _run_flags(g) -> None:
     g.add_argument("--cuts", metavar="FILE|detect",
                    help="scene cuts, where the observer starts afresh: a file of frame numbers, "
                    "or detect (a jump of more than 1 log10 in the cone goal; shot passes)")
+
+
+def _state_build(a, tier) -> dict:
+    from .job.options import parse_cuts  # lazy: the parser loads no OIIO
+    return {"state_in": a.state_in, "state_out": a.state_out, "resume": a.resume,
+            "checkpoint": a.checkpoint, "checkpoint_every": a.checkpoint_every,
+            "cuts": parse_cuts(a.cuts)}
+
+
+def _device_flags(g) -> None:
+    from .backends.quality import QUALITY_NAMES  # lazy: --help loads no dataclasses
     g.add_argument("--backend", default=None, choices=["opencl", "reference"],
                    help="opencl (default) or reference (float64 NumPy)")
     g.add_argument("--quality", choices=list(QUALITY_NAMES), default=None,
@@ -335,17 +352,17 @@ def _run_flags(g) -> None:
                    help=argparse.SUPPRESS)
 
 
-def _run_build(a, tier) -> dict:
-    from .job.options import parse_cuts  # lazy: the parser loads no OIIO
-    return {"state_in": a.state_in, "state_out": a.state_out, "resume": a.resume,
-            "checkpoint": a.checkpoint, "checkpoint_every": a.checkpoint_every,
-            "cuts": parse_cuts(a.cuts), "device": a.device, "quality": tier.name,
+def _device_build(a, tier) -> dict:
+    return {"device": a.device, "quality": tier.name,
             "max_memory": a.max_memory, "overlap_io": not a.serial_io,
             "threads": a.threads, "max_band_pixels": a.max_band_pixels,
             "progress": (not a.quiet) and (a.verbose > 0 or sys.stderr.isatty())}
 
 
-#: The run options' groups, in the order ``--help`` lists them.
+#: The run options' groups, in the order ``--help`` lists them (a user's reading order:
+#: what goes in, the model, what comes out, time and state, what can be seen, how it
+#: runs; each operator's own options follow "operator", a shot on many machines
+#: ``run``'s last group, cli.py).
 GROUPS = (
     Group("input", "input (which frames, from which files)", _input_flags, _input_build),
     Group("calibration", "calibration (what 1.0 of the input is, in cd/m^2)",
@@ -354,7 +371,11 @@ GROUPS = (
     Group("effects", "mechanisms and effects (every operator)", _effect_flags, _effect_build),
     Group("display", "display (OCIO)", _display_flags, _display_build),
     Group("output", "output", _output_flags, _output_build),
-    Group("run", "run (state, checkpoints, device, memory)", _run_flags, _run_build),
+    Group("state", "time and state (state files, checkpoints, scene cuts)", _state_flags,
+          _state_build),
+    Group("visibility", "visibility (what the observer can see: Adrian 1989, "
+          "docs/visibility.md)", _visibility_flags, _visibility_build),
+    Group("device", "device and memory", _device_flags, _device_build),
 )
 
 
@@ -365,10 +386,10 @@ def add_run_options(p: argparse.ArgumentParser, shown: bool = True) -> None:
     made = {}
     for grp in GROUPS:
         made[grp.key] = _Shown(p.add_argument_group(grp.title) if shown else p, shown)
+        if grp.key == "operator":                     # its own options next to it
+            add_operator_options(p, shown)
     for grp in GROUPS:
         grp.flags(made[grp.key])
-        if grp.key == "run":
-            add_operator_options(p, shown)
 
 
 def job_options(a, input_, output, defer_backend: bool = False):
@@ -400,7 +421,7 @@ def _backend(a, tier, defer: bool = False) -> str:
 def add_shot_options(g, chunk: bool = False, chunk_frames: bool = False,
                      keyframes: bool = False) -> None:
     """The shot store and chunk options of the split passes."""
-    g.add_argument("--store", help="the shot's statistics and states, a folder every worker "
+    g.add_argument("--store", metavar="FOLDER", help="the shot's statistics and states, a folder every worker "
                    "sees (default: beside the output, OUTPUT without frame number + .shot)")
     if chunk:
         g.add_argument("--chunk", metavar="A-B",

@@ -101,19 +101,34 @@ def room_for(path: str, frame, ext: str, width: int, height: int, nch: int) -> N
 def output_folder(path: str, frame: int | None = None, what: str = "output") -> str:
     """The folder of a file to write, made where missing (as oiiotool and Nuke's
     Write do); ``what`` names the file in the error (output, state). A folder this
-    process cannot write in (a read-only file system, or its permissions) is refused
-    in our words: ``<folder>: read-only, cannot write o.png``."""
+    process cannot make a file in (a read-only file system, its permissions, /proc) is
+    refused in our words, before any free space is looked at: ``<folder>: the folder
+    is not writable (a read-only file system); cannot write o.png``."""
     d = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(d):
         try:
             os.makedirs(d, exist_ok=True)
         except OSError as exc:
+            up = os.path.dirname(d)
+            while up != os.path.dirname(up) and not os.path.isdir(up):
+                up = os.path.dirname(up)
+            why = safeio.folder_refuses(up) if os.path.isdir(up) else None
+            if why:                        # where it stopped: a folder that takes nothing
+                raise FrameError(up, frame, f"the folder is not writable ({why}); cannot "
+                                 f"make the {what} folder {d} in it") from None
             raise FrameError(path, frame, f"cannot make the {what} folder {d}: "
                              f"{safeio.reason(exc)}") from None
-    if not os.access(d, os.W_OK | os.X_OK):
-        raise FrameError(os.path.dirname(path) or ".", frame,
-                         f"read-only, cannot write {os.path.basename(path)}")
+    _writable(d, path, frame)
     return d
+
+
+def _writable(d: str, path: str, frame) -> None:
+    """The existing folder ``d`` of ``path`` takes a new file (``safeio.folder_refuses``),
+    else a :class:`FrameError` naming the folder as given."""
+    why = safeio.folder_refuses(d)
+    if why:
+        raise FrameError(os.path.dirname(path) or ".", frame, f"the folder is not writable "
+                         f"({why}); cannot write {os.path.basename(path)}")
 
 
 #: The formats named in the error for an output name no writer takes.
@@ -140,9 +155,8 @@ def check_output(path: str, frame: int | None = None) -> None:
                                        if ext else "no extension, so no image format to "
                                        "write it") + f" (use {KNOWN_OUTPUTS})")
     d = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(d) and not os.access(d, os.W_OK | os.X_OK):
-        raise FrameError(os.path.dirname(path) or ".", frame,
-                         f"read-only, cannot write {os.path.basename(path)}")
+    if os.path.isdir(d):
+        _writable(d, path, frame)
 
 
 def _claim(tmp: str, path: str, frame) -> None:
@@ -277,6 +291,9 @@ def output_spec(in_spec, width, height, nch, ext, bits, colorspace, metadata,
             r = Fraction(float(v)).limit_denominator(1001)
             spec.attribute(k, oiio.TypeDesc("rational"), (r.numerator, r.denominator))
             continue
+        if ext == ".png" and k.startswith("ocltm:") and isinstance(v, (int, float)):
+            # PNG keeps text only: a number would be dropped (ocltm:time_s, for --plot)
+            v = repr(float(v)) if isinstance(v, float) else str(int(v))
         spec.attribute(k, v if isinstance(v, (str, int, float)) else json.dumps(v, sort_keys=True))
     if ext not in KEEPS_ATTRIBUTES:
         # TIFF, JPEG, DPX, .hdr drop attributes they have no tag for: ours go in the one

@@ -1,20 +1,27 @@
 """Plots like the graphs under Pattanaik 2000, Figure 7.
 
-Top: adaptation goal and state over time (log10 cd/m^2) and the bleaching
-factors. Bottom: the scene-to-display mapping of neutral luminances at chosen
-frames (log10 scene cd/m^2 -> log10 display cd/m^2), from the float64
+Top: adaptation goal and state over time (log10 cd/m^2; the dashed verticals mark
+the frames of the mapping curves, in their colours) and the bleaching factors.
+Bottom: the scene-to-display mapping of neutral luminances at chosen frames (log10
+scene cd/m^2 -> log10 display cd/m^2), from the float64
 reference of the operator with each frame's state.
 """
 
 from __future__ import annotations
 
+import json
 import os
 
 import numpy as np
 
 from . import safeio
 from .mechanisms.planner import mechanisms
+from .models.ferwerda1996 import log_threshold_rod
 from .visibility import trace
+
+#: The PNG text key that holds each panel's legend (``{panel: [label, ...]}``): what
+#: the plot shows, readable without looking at it.
+LEGENDS_KEY = "ocltm:legends"
 
 
 
@@ -39,7 +46,25 @@ def default_plot_frames(infos, count: int = 6) -> list[int]:
     return sorted(picks)[:count]
 
 
-def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> None:
+def adapted_levels(tm, infos) -> tuple | None:
+    """The adapted cone and rod levels over the shot, cd/m^2, where the state holds
+    them in other terms (durand00: the filtered inverse thresholds 1/eps_C, 1/eps_R;
+    its ``L_wa``, ``L_waR`` are the frame's goals): the luminances whose Eq. 2 and
+    Eq. 1 thresholds they are (``observer_level``; the rods' Eq. 1 inverted on its
+    rising branch); None for states that hold their levels (``A_cone``) or none."""
+    values = infos[0].state.values
+    if "A_cone" in values or "inv_eps_cone" not in values or tm.op.observer_per_pixel:
+        return None
+    cone = np.array([tm.op.observer_level(tm.op.observer_of(i.state)) for i in infos])
+    x = np.linspace(-3.94, 8.0, 4000)          # log10 L_aR: Eq. 1 beyond its flat foot
+    y = np.maximum.accumulate(log_threshold_rod(10.0 ** x))
+    le = -np.log10(np.maximum([i.state.values["inv_eps_rod"] for i in infos], 1e-300))
+    return cone, 10.0 ** np.interp(le, y, x)
+
+
+def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> dict:
+    """The adaptation plot (the module's), written to ``path``; returns each panel's
+    legend, ``{panel: [label, ...]}``, also kept in a PNG's text (:data:`LEGENDS_KEY`)."""
     plt = _pyplot()
     if not infos:
         raise RuntimeError("nothing to plot")
@@ -61,9 +86,12 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
     if "A_cone" in infos[0].state.values:
         ax.plot(t, lg(val("A_cone")), "k-", label="A_cone")
         ax.plot(t, lg(val("A_rod")), "b-", label="A_rod")
+    levels = adapted_levels(tm, infos)
+    if levels is not None:
+        ax.plot(t, lg(levels[0]), "k-", label="L_a cone (adapted: Eq. 2 at the filtered eps_C)")
+        ax.plot(t, lg(levels[1]), "b-", label="L_a rod (adapted: Eq. 1 at the filtered eps_R)")
     ax.set_ylabel("log10 cd/m^2")
     ax.set_title(f"{tm.operator_name}: adaptation over time")
-    ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     ax = axes[1]
     if "B_cone" in infos[0].state.values:
@@ -89,14 +117,16 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
         picks = []
         ax.text(0.5, 0.5, "local operator: the mapping differs per pixel", ha="center",
                 transform=ax.transAxes)
-    for idx in picks:
+    for k, idx in enumerate(picks):
         idx = min(max(int(idx), 0), len(infos) - 1)
         inf = infos[idx]
         Ld = mapping_curve(tm.op, inf.state, tm.display, L)
         lab = f"t={inf.time_s:.2f}s" + (f" (frame {inf.frame})" if inf.frame is not None else "")
-        ax.plot(np.log10(L), lg(Ld), label=lab)
-        for ti in (idx,):
-            axes[0].axvline(infos[ti].time_s, color="0.8", lw=0.8)
+        line, = ax.plot(np.log10(L), lg(Ld), label=lab)
+        # the curve's time above, in its colour
+        axes[0].axvline(inf.time_s, color=line.get_color(), lw=0.9, ls="--", alpha=0.6,
+                        label="frames of the mapping curves below, in their colours"
+                        if k == 0 else None)
     ax.axhline(np.log10(tm.display.white_cd), color="0.6", ls="--", lw=0.8)
     ax.axhline(np.log10(tm.display.black_cd), color="0.6", ls="--", lw=0.8)
     ax.set_xlabel("scene luminance, log10 cd/m^2")
@@ -105,8 +135,21 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> No
     if picks:
         ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
+    axes[0].legend(loc="best", fontsize=8)
     fig.tight_layout()
-    save_figure(fig, path)
+    legends = {_panel(a, k): [x.get_text() for x in a.get_legend().get_texts()]
+               for k, a in enumerate(axes) if a.get_legend() is not None}
+    save_figure(fig, path, {LEGENDS_KEY: json.dumps(legends)})
+    return legends
+
+
+def _panel(ax, k: int) -> str:
+    """A panel's name: its title without the operator's name or what follows "(" or
+    ":" ("adaptation over time", "scene-to-display mapping"), else its y label."""
+    title = ax.get_title()
+    if title.endswith("adaptation over time"):
+        return "adaptation over time"
+    return title.split(" (")[0].split(":")[0] or ax.get_ylabel() or f"panel {k + 1}"
 
 
 def _plot_target(ax, infos) -> None:
@@ -196,8 +239,9 @@ def _pyplot():
     return plt
 
 
-def save_figure(fig, path: str) -> None:
-    """Write a figure through a temporary file, verified (safeio)."""
+def save_figure(fig, path: str, text: dict | None = None) -> None:
+    """Write a figure through a temporary file, verified (safeio); ``text``: a PNG's
+    text entries (other formats keep only their standard keys)."""
     import matplotlib.pyplot as plt
     tmp = safeio.temp_path(path)
     try:
@@ -206,7 +250,8 @@ def save_figure(fig, path: str) -> None:
         plt.close(fig)
         raise
     try:
-        fig.savefig(tmp, dpi=110, format=os.path.splitext(path)[1][1:].lower() or "png")
+        fmt = os.path.splitext(path)[1][1:].lower() or "png"
+        fig.savefig(tmp, dpi=110, format=fmt, metadata=text if text and fmt == "png" else None)
         safeio.commit(tmp, path)
     except OSError as exc:
         raise safeio.WriteFailed(path, safeio.reason(exc), exc.errno) from None
@@ -215,28 +260,29 @@ def save_figure(fig, path: str) -> None:
         plt.close(fig)
 
 
-def plot_visibility_step(path: str, ops, L_from: float, seconds, L_b: float, view,
+def plot_visibility_step(path: str, ops, L_from: float, seconds, L_s: float, view,
                          polarity: str = "positive", t_max: float = 30.0,
                          L_veil: float = 0.0) -> None:
     """dL_th (Adrian 1989 x each operator's transient factor) over the seconds after a
-    step from ``L_from`` to ``L_b`` (with the veil ``L_veil`` over it); ``ops``: an
-    operator or a list of them."""
+    step of the surround from ``L_from`` to ``L_s`` (with the veil ``L_veil`` over it:
+    L_b = L_s + Lveil, the run's symbols); ``ops``: an operator or a list of them."""
     plt = _pyplot()
     ops = ops if isinstance(ops, (list, tuple)) else [ops]
     t = np.concatenate([[0.0], np.logspace(-2, np.log10(max(t_max, 0.02)), 160)])
     fig, ax = plt.subplots(figsize=(8, 5))
     for op in ops:
-        pts = trace(op, L_from, seconds, L_b, t, view, polarity, L_veil=L_veil)
+        pts = trace(op, L_from, seconds, L_s, t, view, polarity, L_veil=L_veil)
         ax.plot(t[1:], [p.dL_th for p in pts[1:]], label=op.name)
-    steady = float(view.steady(L_b + L_veil, polarity))
+    steady = float(view.steady(L_s + L_veil, polarity))
     ax.axhline(steady, color="0.4", ls="--", lw=1,
-               label=f"steady at {L_b + L_veil:g} cd/m^2")
+               label=f"steady at L_b {L_s + L_veil:g} cd/m^2" +
+               (f" (L_s {L_s:g} + Lveil {L_veil:g})" if L_veil else ""))
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("seconds after the step")
     ax.set_ylabel("threshold dL_th, cd/m^2")
     pre = "fully" if seconds is None else f"{seconds:g} s"
-    ax.set_title(f"{L_from:g} -> {L_b:g} cd/m^2 (adapted {pre}); {view.size_arcmin:g}', "
+    ax.set_title(f"L_s {L_from:g} -> {L_s:g} cd/m^2 (adapted {pre}); {view.size_arcmin:g}', "
                  f"{view.age:g} y, t_obs {view.time_s:g} s, {polarity}")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)

@@ -372,12 +372,17 @@ def parse_frames(text: str) -> list[int]:
         part = part.strip()
         m = re.fullmatch(r"(-?\d{1,10})(?:-(-?\d{1,10})(?:x(\d{1,10}))?)?", part)
         if not m:
-            raise ValueError(f"bad --frames {text[:80]!r} (use A-B, A-BxSTEP or a comma list)")
+            raise ValueError("--frames must be A-B, A-BxSTEP or a comma list of them (got "
+                             f"{part[:80]!r})")
         a = int(m.group(1))
         b = int(m.group(2)) if m.group(2) is not None else a
         step = int(m.group(3) or 1)
-        if b < a or step < 1:
-            raise ValueError(f"bad --frames range {part!r}")
+        if b < a:
+            every = f"x{m.group(3)}" if m.group(3) else ""
+            raise ValueError(f"--frames {part}: the range is reversed (the end is before the "
+                             f"start); give {b}-{a}{every}")
+        if step < 1:
+            raise ValueError(f"--frames {part}: the step must be 1 or more (A-BxSTEP)")
         if max(abs(a), abs(b)) > MAX_FRAME:
             raise ValueError(f"--frames {part}: frame numbers are within +-{MAX_FRAME}")
         if len(out) + (b - a) // step + 1 > MAX_FRAMES:
@@ -387,15 +392,11 @@ def parse_frames(text: str) -> list[int]:
     return out
 
 
-
 def _frames(v):
-    """``--frames``: ``A-B``, ``A-BxSTEP`` or a list, or the API's list of numbers."""
+    """``--frames``: ``A-B``, ``A-BxSTEP`` or a list (``parse_frames``: its errors name
+    the flag and the range at fault), or the API's list of numbers."""
     if isinstance(v, str):
-        try:
-            return parse_frames(v)
-        except ValueError as e:
-            why = re.sub(r"^(bad )?--frames( range)? ?", "", str(e))
-            raise ValueError(f"must be A-B, A-BxSTEP or a list of them ({why})") from None
+        return parse_frames(v)
     out = list(v)
     if not (out and len(out) <= MAX_FRAMES and all(
             isinstance(f, int) and not isinstance(f, bool) and abs(f) <= MAX_FRAME

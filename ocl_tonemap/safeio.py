@@ -22,6 +22,7 @@ from __future__ import annotations
 import errno
 import os
 import stat
+import tempfile
 from pathlib import Path
 
 #: Largest text file read from a user's path (cuts lists, state JSON, a store's
@@ -57,12 +58,55 @@ FULL_BELOW = 1 << 16
 
 
 def free_bytes(path) -> int | None:
-    """Free bytes of the file system holding ``path``'s folder (None: unknown)."""
+    """Free bytes of the file system holding ``path``'s folder (None: unknown, as on a
+    file system of no size: /proc, /sys report 0 blocks, not a full disk)."""
     try:
         st = os.statvfs(os.path.dirname(os.path.abspath(path)) or ".")
     except OSError:
         return None
+    if st.f_blocks == 0:
+        return None
     return st.f_bavail * st.f_frsize
+
+
+#: Folders a file was made in (:func:`folder_refuses`' probe, once a process each).
+_TOOK_A_FILE: set = set()
+
+
+def folder_refuses(folder) -> str | None:
+    """Why no file can be made in the existing ``folder`` ("a read-only file system",
+    "permission denied" ...), or None where one can: its permissions (``os.access``),
+    then, once a process for each folder, a real probe, an empty file made there
+    (O_EXCL) and removed (root passes every permission check, and /proc takes no file
+    while it reports no free space). A full disk is not refused here: its write says
+    so."""
+    d = os.path.abspath(folder)
+    if not os.access(d, os.W_OK | os.X_OK):
+        try:
+            ro = bool(os.statvfs(d).f_flag & getattr(os, "ST_RDONLY", 1))
+        except OSError:
+            ro = False
+        return "a read-only file system" if ro else "no write permission"
+    if d in _TOOK_A_FILE:
+        return None
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".ocltm-probe-", dir=d)
+    except OSError as exc:
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            return None
+        if exc.errno == errno.EROFS:
+            return "a read-only file system"
+        if exc.errno in (errno.EACCES, errno.EPERM):
+            return "permission denied"
+        if exc.errno == errno.ENOENT:     # (the folder is there: /proc's word for no)
+            return "no file can be made in it"
+        return f"no file can be made in it: {reason(exc)}"
+    try:
+        os.close(fd)
+    finally:
+        remove(probe)
+    _TOOK_A_FILE.add(d)
+    return None
 
 
 def disk_full(path) -> bool:

@@ -146,15 +146,38 @@ def frame_time(fr, f, held: bool, fps, t_prev) -> tuple[float, float]:
     return t, fps
 
 
-def _time_label(seconds: float) -> str:
-    return f"{seconds:g}s".replace(".", "p")
+#: Digits of a simulate output's whole seconds, at least (``out_t0060s.png``).
+TIME_DIGITS = 4
+#: Most decimals of a simulate output's time (microseconds).
+TIME_DECIMALS = 6
+
+
+def _decimals(t: float) -> int:
+    """The decimals ``t`` needs to be written exactly (at most :data:`TIME_DECIMALS`)."""
+    for d in range(TIME_DECIMALS):
+        if abs(round(t, d) - t) <= 1e-9 * max(1.0, abs(t)):
+            return d
+    return TIME_DECIMALS
+
+
+def time_labels(times: list[float]) -> list[str]:
+    """Each time's ``<T>s`` of a simulate output's name, written alike so that the names
+    sort in time order: the whole seconds zero-padded to the largest's width (at least
+    :data:`TIME_DIGITS`), and where any time has a fraction, the same decimals in each,
+    the point written ``p`` (0.5, 1, 600: ``0000p5s``, ``0001p0s``, ``0600p0s``)."""
+    d = max((_decimals(t) for t in times), default=0)
+    text = [f"{t:.{d}f}" for t in times]
+    width = max([TIME_DIGITS] + [len(x.split(".")[0]) for x in text])
+    return [x.zfill(width + (d + 1 if d else 0)).replace(".", "p") + "s" for x in text]
 
 
 def simulate_outputs(output: str, times: list[float]) -> list[tuple[int | None, str]]:
-    """(frame, path) per time: a pattern gets frames 1..n, a plain name ``_t<T>s``."""
+    """(frame, path) per time: a pattern gets frames 1..n, a plain name ``_t<T>s``
+    (:func:`time_labels`: the names sort in time order)."""
     if is_sequence(output):
         return [(k + 1, frame_path(output, k + 1)) for k in range(len(times))]
     root, dot, ext = output.rpartition(".")
     if not dot:
         root, ext = output, ""
-    return [(None, f"{root}_t{_time_label(t)}{'.' + ext if dot else ''}") for t in times]
+    return [(None, f"{root}_t{label}{'.' + ext if dot else ''}")
+            for label in time_labels(times)]

@@ -181,7 +181,7 @@ def test_demo_and_simulate_make_frames_with_one_warning(tmp_path, one_frame):
              "--preadapt", "1000"], env, tmp_path)
     assert r.returncode == 0, r.stderr
     assert len(lines(r.stderr)) == 1 and "WARNING" in r.stderr
-    assert (tmp_path / "s_t1s.png").is_file() and (tmp_path / "s_t60s.png").is_file()
+    assert (tmp_path / "s_t0001s.png").is_file() and (tmp_path / "s_t0060s.png").is_file()
 
 
 @needs_pocl

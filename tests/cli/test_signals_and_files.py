@@ -249,7 +249,7 @@ def test_a_read_only_output_folder_is_named_and_a_still_makes_no_lock(seq, tmp_p
             rc, err = p.returncode, p.stderr
     finally:
         os.chmod(ro, 0o755)
-    line = _only_error(rc, err, f"{ro}: read-only, cannot write o.png")
+    line = _only_error(rc, err, f"{ro}: the folder is not writable (", "cannot write o.png")
     assert ".lock" not in line and "Errno" not in line
     assert os.listdir(ro) == []
 

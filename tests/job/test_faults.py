@@ -567,7 +567,7 @@ def test_simulate_plots_and_labels_its_times_in_order(seq, tmp_path):
     lines = [ln for ln in rc.stdout.splitlines() if ln.startswith("t = ")]
     assert [ln.split()[2] for ln in lines] == ["1", "5", "30"]
     for ln in lines:                                   # each time names its own file
-        assert f"_t{ln.split()[2]}s" in ln, lines
+        assert f"_t{int(ln.split()[2]):04d}s" in ln, lines
     assert (tmp_path / "plot.png").stat().st_size > 1000
 
 

@@ -71,8 +71,8 @@ def test_once_adapted_after_a_step_into_the_dark_nothing_seen_is_black(scene, op
     src, Y = scene
     _cli("simulate", src, tmp_path / "s.png", "--operator", op, "--luminance-scale", "auto:1",
          "--preadapt", "100", "--at", "0.5,600")
-    late = measures(Y, _codes(tmp_path / "s_t600s.png"))
-    early = measures(Y, _codes(tmp_path / "s_t0p5s.png"))
+    late = measures(Y, _codes(tmp_path / "s_t0600p0s.png"))
+    early = measures(Y, _codes(tmp_path / "s_t0000p5s.png"))
     assert late["crushed"] == 0.0 and late["codes"] >= MIN_CODES["dusk"], late
     assert early["black"] >= late["black"]
 
