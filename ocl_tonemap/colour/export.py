@@ -37,9 +37,10 @@ import PyOpenColorIO as ocio
 from .. import safeio
 from ..effects.purkinje import apply_purkinje
 from ..models.display import DISPLAY_LINEAR_MAX, apply_shoulder
-from ..models.photometry import Y_WEIGHTS, photopic_luminance, scotopic_luminance
+from ..models.photometry import L_MAX, Y_WEIGHTS, photopic_luminance, scotopic_luminance
 from ..operators import get_operator
 from . import clf, lattice
+from . import replay_check as check
 from .config import remember_source
 from .lut_files import cpu_processor, processor
 
@@ -122,26 +123,39 @@ def frozen_shoulder(params):
                              DISPLAY_LINEAR_MAX)
 
 
+def apply_ops(ops, rgb: np.ndarray) -> np.ndarray:
+    """``ops`` (``clf.py``) applied by OCIO's CPU processor to (N, 3) ``rgb`` (float32)."""
+    return check.apply_cpu(cpu_processor(ocio.Config.CreateRaw(), clf.to_transform(ops)), rgb)
+
+
 def frame_ops(tm, effects: dict, pixels: np.ndarray, scale: float,
-              size: int = lattice.LATTICE, judge=None) -> tuple[list, dict]:
+              size: int = lattice.LATTICE, judge=None, full=None) -> tuple[list, dict]:
     """The last frame ``tm`` mapped as colour operations (``clf.py``) from working-space
     file values (x ``scale`` = cd/m^2) to display-linear, and what they are made of.
     ``effects``: the frame's ``FrameInfo.effects``; ``pixels``: its working-space
     pixels (file values). ``judge(ops) -> (max, p99)``: the two stage-B lattices are
-    both made and the better kept (else the log-opponent one)."""
+    both made and the better kept (else the log-opponent one). ``full``: every pixel
+    of the frame where ``pixels`` are a sample of them: the lattices' extents cover
+    them all (a colour beyond a lattice is clamped to its edge)."""
     op, params, gains = tm.last_mapping()
     raw = frozen_raw(op, params, gains, effects.get("purkinje"))
     scale = scale * tm.media_gain                  # the observer's media (CIE 203, --age)
     px = np.asarray(pixels, np.float64).reshape(-1, 3)
     px = lattice.sample_rows(px[np.isfinite(px).all(axis=1)])
     cd = np.maximum(px, 0.0) * scale
-    a = lattice.stage_a(raw, cd, size)
+    cd_full = None if full is None else np.maximum(full, 0.0) * np.float32(scale)
+    a = lattice.stage_a(raw, cd, size, cd_full)
     shoulder = frozen_shoulder(params)
     a_out = np.maximum(raw(cd), 0.0)
-    head = [lattice.range_op(0.0, None), lattice.matrix_op(np.eye(3) * scale), *a.ops]
-    b = lattice.stage_b(params.white_signal, params.shoulder_knee, a_out, shoulder, size)
+    # the run's bad-value policy (photometry.sanitize): below 0 and NaN -> 0, +Inf and
+    # above L_MAX cd/m^2 -> L_MAX
+    head = [lattice.range_op(0.0, L_MAX / scale), lattice.matrix_op(np.eye(3) * scale),
+            *a.ops]
+    a_full = None if full is None else apply_ops(head, full)   # stage A as OCIO applies it
+    w, k = params.white_signal, params.shoulder_knee
+    b = lattice.stage_b(w, k, a_out, shoulder, size, a_full)
     if judge is not None and b.kind != "clip":
-        b2 = lattice.stage_b_rgb(params.white_signal, params.shoulder_knee, a_out, shoulder, size)
+        b2 = lattice.stage_b_rgb(w, k, a_out, shoulder, size, a_full)
         if judge(head + b2.ops) < judge(head + b.ops):
             b = b2
     return head + b.ops, {"stage_a": a.kind, "stage_b": b.kind}
@@ -324,13 +338,18 @@ class OcioExport:
 
     # -- frames --------------------------------------------------------------------------
     def add_frame(self, number: int | None, pixels: np.ndarray, scale: float = 1.0,
-                  effects: dict | None = None, input_colour=None) -> dict:
+                  effects: dict | None = None, input_colour=None, output=None,
+                  file_pixels=None) -> dict:
         """Export the frame ``tm`` has just mapped: ``pixels`` its working-space RGB (file
         values; x ``scale`` = cd/m^2), ``effects`` its ``FrameInfo.effects`` (default:
         ``tm.last``'s), ``input_colour`` its :class:`~ocl_tonemap.colour.InputColour`
-        (None: the working space). Writes frames/<number>.clf, reads it back through the
-        config and returns its record (errors against the frame's own mapping, sizes,
-        times)."""
+        (None: the working space). Writes frames/<number>.clf and checks it as a replay
+        does (``replay_check.py``): the written config's view applied by OCIO to the
+        frame's pixels -- ``file_pixels``, its RGB as its file holds them, from
+        ``input_colour``'s space (None: ``pixels`` from the working space) -- against
+        ``output``, the run's own display-encoded RGB of the frame (code values, float
+        or integer, the pixels' order; None: the frame's own float64 mapping through
+        the display). Returns its record (those errors, sizes, times)."""
         if effects is None:
             effects = self.tm.last.effects if self.tm.last is not None else {}
         n = self.first if number is None else int(number)
@@ -341,13 +360,16 @@ class OcioExport:
                               f"from the export's {self.input_cs!r} (one export per colour "
                               "space)")
         t0 = time.perf_counter()
-        px = lattice.sample_rows(np.asarray(pixels, np.float64)[..., :3].reshape(-1, 3))
+        work = check.rgb_rows(pixels)
+        px = lattice.sample_rows(work).astype(np.float64)
         px = np.where(np.isfinite(px), px, 0.0)
+        # a frame larger than the nodes' sample: its extents from every pixel
+        full = work if work.shape[0] > px.shape[0] else None
         ref = reference_codes(self.tm, effects, px, scale, self.encode)
         judge = self._judge(px, ref)
         best = None
         for size in self.sizes:                  # smallest first, until within the bound
-            ops, info = frame_ops(self.tm, effects, px, scale, size, judge)
+            ops, info = frame_ops(self.tm, effects, px, scale, size, judge, full)
             err = judge(ops)
             if best is None or err < best[0]:
                 best = (err, ops, {**info, "lattice": size})
@@ -360,38 +382,61 @@ class OcioExport:
                            "working-space file values -> display-linear")
         safeio.write_text(path, text)
         t2 = time.perf_counter()
-        got = self.replay(n, px)
-        rec = {**info, **code_errors(got, ref), "bytes": len(text),
-               "ms_build": round(1e3 * (t1 - t0), 1), "ms_write": round(1e3 * (t2 - t1), 1),
+        rec = {**info, **self._check(n, work, scale, effects, output, file_pixels),
+               "bytes": len(text), "ms_build": round(1e3 * (t1 - t0), 1),
+               "ms_write": round(1e3 * (t2 - t1), 1),
                "ms_verify": round(1e3 * (time.perf_counter() - t2), 1)}
         rec["within_bound"] = rec["p99_8bit"] <= BOUND_P99 and rec["max_8bit"] <= BOUND_MAX
-        if not rec["within_bound"]:
-            larger = [str(v) for v in SIZES if v > max(self.sizes)]
-            log.warning("frame %s: the exported view is %.2f 8-bit codes off at the 99th "
-                        "percentile, %.2f at most (bound %g, %g) at %d^3; %s", n,
-                        rec["p99_8bit"], rec["max_8bit"], BOUND_P99, BOUND_MAX,
-                        info["lattice"], f"--ocio-export-size {' or '.join(larger)} comes "
-                        "closer" if larger else "the largest lattice (docs/ocio_export.md "
-                        "says where a LUT falls short)")
+        if not rec["within_bound"]:          # (the lattices: once, in the summary)
+            log.warning("frame %s: the exported view, replayed through OCIO over %d pixels, "
+                        "is %.2f 8-bit codes off the %s at the 99th percentile, %.2f at "
+                        "most (%g in 8-bit files; bound %g, %g)", n, rec["checked"]["pixels"],
+                        rec["p99_8bit"], rec["checked"]["against"], rec["max_8bit"],
+                        rec["files_max_8bit"], BOUND_P99, BOUND_MAX)
         self.report["frames"][str(n)] = rec
         safeio.write_text(os.path.join(self.folder, REPORT),
                           json.dumps(self.report, indent=1, sort_keys=True))
         return rec
 
-    def replay(self, number: int, working: np.ndarray) -> np.ndarray:
-        """Working-space RGB (N x 3 file values) through the written config's view with
-        FRAME = ``number``: the export read back as OCIO reads it (code values)."""
+    def _check(self, n: int, work: np.ndarray, scale: float, effects: dict, output,
+               file_pixels) -> dict:
+        """Frame ``n``'s view replayed over its pixels (every pixel up to
+        ``replay_check.CHECK_PIXELS``) against the run's output (or the frame's own
+        mapping): ``code_errors`` and ``replay_check.file_errors``, and what was checked."""
+        step = check.check_step(work.shape[0])
+        if file_pixels is not None:
+            got = self.replay(n, check.rgb_rows(file_pixels, step), self.input_cs)
+        else:
+            got = self.replay(n, work[::step])
+        if output is not None:
+            ref, against = check.as_codes(check.rgb_rows(output, step)), "run's output"
+        else:
+            # the run's bad-value policy (photometry.sanitize), on file values
+            lim = L_MAX / (scale * self.tm.media_gain)
+            x = np.clip(np.nan_to_num(work[::step].astype(np.float64), nan=0.0, posinf=lim,
+                                      neginf=0.0), 0.0, lim)
+            ref = np.concatenate([reference_codes(self.tm, effects, x[i:i + check.CHUNK],
+                                                  scale, self.encode)
+                                  for i in range(0, max(x.shape[0], 1), check.CHUNK)])
+            against = "frame's own mapping"
+        return {**code_errors(got, ref), **check.file_errors(got, ref),
+                "checked": {"pixels": int(got.shape[0]), "of": int(work.shape[0]),
+                            "from": self.input_cs if file_pixels is not None
+                            else self.colour.working, "against": against}}
+
+    def replay(self, number: int, rgb: np.ndarray, colorspace: str | None = None) -> np.ndarray:
+        """RGB (N x 3 file values in ``colorspace``, default the working space) through
+        the written config's view with FRAME = ``number``: the export read back as OCIO
+        reads it (code values; what oiiotool's --ociodisplay and ocioconvert apply)."""
         cfg = self._cfg
         ctx = cfg.getCurrentContext()      # (the export's own config: set in place)
         ctx.setStringVar("FRAME", str(number))
         try:
-            proc = processor(cfg, ctx, self.colour.working, self.colour.display, self.view,
-                             ocio.TRANSFORM_DIR_FORWARD)
+            proc = processor(cfg, ctx, colorspace or self.colour.working, self.colour.display,
+                             self.view, ocio.TRANSFORM_DIR_FORWARD)
         except Exception as exc:                    # noqa: BLE001 -- in one line (lut_files)
             raise ExportError(f"frame {number}: the written CLF does not load: {exc}") from None
-        x = np.ascontiguousarray(np.asarray(working, np.float32).reshape(-1, 3))
-        proc.getDefaultCPUProcessor().applyRGB(x)
-        return x
+        return check.apply_cpu(proc.getDefaultCPUProcessor(), np.asarray(rgb).reshape(-1, 3))
 
     def summary(self) -> str:
         fr = self.report.get("frames", {})
@@ -399,9 +444,22 @@ class OcioExport:
             return f"OCIO export: nothing exported to {self.folder}"
         p99 = max(v["p99_8bit"] for v in fr.values())
         mx = max(v["max_8bit"] for v in fr.values())
-        over = sum(1 for v in fr.values() if not v["within_bound"])
+        files = max(v.get("files_max_8bit", 0.0) for v in fr.values())
+        over = [f for f, v in fr.items() if not v["within_bound"]]
         mib = sum(v["bytes"] for v in fr.values()) / 2 ** 20
-        return (f"OCIO export: {len(fr)} frame(s) -> {self.config_path} ({mib:.1f} MiB of CLF); "
-                f"replayed through OCIO: worst p99 {p99:.2f}, max {mx:.2f} 8-bit codes"
-                + (f"; {over} frame(s) beyond the bound (p99 {BOUND_P99:g}, max {BOUND_MAX:g})"
-                   if over else ""))
+        said = (f"OCIO export: {len(fr)} frame(s) -> {self.config_path} ({mib:.1f} MiB of CLF); "
+                f"replayed through OCIO: worst p99 {p99:.2f}, max {mx:.2f} 8-bit codes "
+                f"({files:g} in 8-bit files); lattices {check.lattices_text(fr)}")
+        if not over:
+            return said
+        said += (f"; {len(over)} frame(s) beyond the bound (p99 {BOUND_P99:g}, max "
+                 f"{BOUND_MAX:g}): frame{'s' if len(over) > 1 else ''} "
+                 f"{check.frames_text(over)}")
+        if len(self.sizes) > 1:
+            return said + (" (auto: " + ", then ".join(f"{v}^3" for v in self.sizes)
+                           + " while the frame's sample is beyond it, the closest kept; "
+                           "docs/ocio_export.md says where a LUT falls short)")
+        larger = [str(v) for v in SIZES if v > self.sizes[0]]
+        return said + (f" (--ocio-export-size auto or {' or '.join(larger)} may come closer)"
+                       if larger else " (the largest lattice; docs/ocio_export.md says where "
+                       "a LUT falls short)")

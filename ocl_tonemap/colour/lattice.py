@@ -74,6 +74,29 @@ def sample_rows(pixels: np.ndarray, limit: int = SAMPLE) -> np.ndarray:
     return pixels[::step]
 
 
+def extreme_rows(full, forward, chunk: int = 1 << 20) -> np.ndarray:
+    """The rows of ``full`` (N, 3) that hold the smallest and the largest value of each
+    coordinate of ``forward(rows)`` (non-finite rows aside; ``chunk`` rows at a time):
+    added to a strided sample, they make the lattice's extents cover every row of
+    ``full`` (a frame's most saturated pixel may lie between the sample's rows, and a
+    colour beyond the lattice is clamped to its edge)."""
+    best = {}
+    full = np.asarray(full).reshape(-1, 3)
+    for i in range(0, full.shape[0], chunk):
+        rows = np.asarray(full[i:i + chunk], np.float64)
+        rows = rows[np.isfinite(rows).all(axis=1)]
+        if not rows.size:
+            continue
+        with np.errstate(all="ignore"):
+            z = forward(rows)
+        for j in range(z.shape[1]):
+            for key, k in (((j, 0), int(np.argmin(z[:, j]))), ((j, 1), int(np.argmax(z[:, j])))):
+                v = z[k, j] * (1 - 2 * key[1])          # (smaller is better, both ends)
+                if key not in best or v < best[key][0]:
+                    best[key] = (v, rows[k])
+    return np.array([r for _, r in best.values()], np.float64).reshape(-1, 3)
+
+
 def _fill(idx: np.ndarray, n: int, coord) -> np.ndarray:
     """Grid indices ``idx`` (sorted, unique) grown to ``n`` by halving the widest
     gap (in ``coord`` of the index); fewer when the grid is too fine to split."""
@@ -109,6 +132,11 @@ def _thin(idx: np.ndarray, n: int, keep: np.ndarray, coord) -> np.ndarray:
 
 #: The opponent matrix: (mean, r - g, b - g) of the per-channel logs.
 OPPONENT = np.array([[1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0], [1.0, -1.0, 0.0], [0.0, -1.0, 1.0]])
+
+
+def _mul3(x: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """x @ M.T for (N, 3) x, elementwise."""
+    return x[:, 0:1] * M[:, 0] + x[:, 1:2] * M[:, 1] + x[:, 2:3] * M[:, 2]
 
 
 def camera_log(beta: float, top: float) -> tuple[float, float, float]:
@@ -154,6 +182,12 @@ class Coordinates:
 
     def forward(self, x) -> np.ndarray:
         return camera_log_forward(np.asarray(x, np.float64) @ self.D.T, self.P) @ OPPONENT.T
+
+    def forward_rows(self, x) -> np.ndarray:
+        """:meth:`forward` with its 3x3 products written out (the same to rounding; for
+        every pixel of a frame, where a BLAS call on N x 3 rows is slow)."""
+        return _mul3(camera_log_forward(_mul3(np.asarray(x, np.float64), self.D), self.P),
+                     OPPONENT)
 
     def inverse(self, z) -> np.ndarray:
         u = camera_log_inverse(np.asarray(z, np.float64) @ np.linalg.inv(OPPONENT).T, self.P)
@@ -318,18 +352,27 @@ def positive_top(x: np.ndarray, floor: float) -> float:
     return max(float(np.max(x)) if x.size else 0.0, floor) * 1.0001
 
 
-def stage_a(raw, pixels: np.ndarray, n: int = LATTICE) -> Stage:
+def _finite(x) -> np.ndarray:
+    x = np.asarray(x).reshape(-1, 3)
+    return x[np.isfinite(x).all(axis=1)]
+
+
+def stage_a(raw, pixels: np.ndarray, n: int = LATTICE, full=None) -> Stage:
     """Stage A for ``raw`` (working cd/m^2 (K, 3) -> raw display-linear (K, 3)) on the
-    frame's ``pixels`` (working cd/m^2 (N, 3), >= 0). Out: display-linear >= 0."""
+    frame's ``pixels`` (working cd/m^2 (N, 3), >= 0). Out: display-linear >= 0.
+    ``full``: every pixel of the frame, when ``pixels`` is a sample of it: the
+    lattice's extents cover them all (:func:`extreme_rows`)."""
     px = sample_rows(pixels)
     T = fit_linear(raw, px)
     if T is not None:
         return Stage([matrix_op(T), range_op(0.0, None)], "matrix")
     Y = px @ Y_WEIGHTS
-    top = positive_top(px, 1e-30)
+    top = positive_top(px if full is None else _finite(full), 1e-30)
     pos = Y[Y > 0]
     beta = max(float(np.quantile(pos, 0.001)) if pos.size else top * 1e-6, top * 1e-12)
     cin = Coordinates(DELTA, camera_log(min(beta, top * 0.5), top))
+    if full is not None:
+        px = np.concatenate([px, extreme_rows(full, cin.forward_rows)])
     out = raw(px)
     Yo = out @ Y_WEIGHTS
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -344,16 +387,21 @@ def stage_a(raw, pixels: np.ndarray, n: int = LATTICE) -> Stage:
                  f"lut3d {n}", axes)
 
 
-def stage_b(white: float, knee: float, values: np.ndarray, shoulder, n: int = LATTICE) -> Stage:
+def stage_b(white: float, knee: float, values: np.ndarray, shoulder, n: int = LATTICE,
+            full=None) -> Stage:
     """Stage B: display-linear (>= 0) -> ``shoulder`` (the model's shoulder and clip)
     for a frame whose stage-A values are ``values`` (N, 3). Input and output share
-    the coordinates, so the identity below the knee is reproduced exactly."""
+    the coordinates, so the identity below the knee is reproduced exactly.
+    ``full``: stage A's values of every pixel, when ``values`` are a sample's."""
     if not (0.0 < knee < 1.0):                 # no shoulder: the clip alone, exact
         return Stage([range_op(0.0, DISPLAY_LINEAR_MAX)], "clip")
     vals = sample_rows(values)
     vals = vals[np.isfinite(vals).all(axis=1)]
-    top = min(positive_top(vals, white), DISPLAY_LINEAR_MAX * 1e4)
+    top = min(positive_top(vals if full is None else _finite(full), white),
+              DISPLAY_LINEAR_MAX * 1e4)
     c = Coordinates(DELTA, camera_log(2.0 ** -12 * white, top))
+    if full is not None:
+        vals = np.concatenate([vals, extreme_rows(full, lambda v: c.forward_rows(np.minimum(v, top)))])
     z = c.forward(np.minimum(vals, top))
     hot = z[(vals > knee * white).any(axis=1)]
     fn = lambda zz: c.forward(shoulder(np.maximum(c.inverse(zz), 0.0)))   # noqa: E731
@@ -363,15 +411,18 @@ def stage_b(white: float, knee: float, values: np.ndarray, shoulder, n: int = LA
                  + [range_op(0.0, DISPLAY_LINEAR_MAX)], f"lut3d {n} log-opponent", axes)
 
 
-def stage_b_rgb(white: float, knee: float, values: np.ndarray, shoulder, n: int = LATTICE) -> Stage:
+def stage_b_rgb(white: float, knee: float, values: np.ndarray, shoulder, n: int = LATTICE,
+                full=None) -> Stage:
     """Stage B on an RGB lattice (the same nodes on the three axes): a camera log with
     its linear toe up to the knee (the identity there exact), nodes at 0, the knee,
-    evenly above it, and at the channel values of the most common highlight colours."""
+    evenly above it, and at the channel values of the most common highlight colours.
+    ``full``: as for :func:`stage_b` (the lattice's top is their largest value)."""
     if not (0.0 < knee < 1.0):
         return Stage([range_op(0.0, DISPLAY_LINEAR_MAX)], "clip")
     vals = sample_rows(values)
     vals = vals[np.isfinite(vals).all(axis=1)]
-    top = min(positive_top(vals, white), DISPLAY_LINEAR_MAX * 1e4)
+    top = min(positive_top(vals if full is None else _finite(full), white),
+              DISPLAY_LINEAR_MAX * 1e4)
     P = camera_log(knee * white, top)
     ax = Axis(0.0, 1.0, np.array([0]))
     k_j = int(ax.index(camera_log_forward(knee * white, P)))

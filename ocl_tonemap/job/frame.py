@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..alpha import restore_alpha
+from ..alpha import restore_alpha, straight_colour
 from ..colour.config import interop_id
 from ..imageio import illuminant_from_metadata
 from ..models.lmsr import spectral_to_rgb
@@ -187,6 +187,29 @@ def encode_pixels(colour, disp_lin: np.ndarray, alpha_info, linear: bool,
     pixels = colour.linear(rgb) if linear else encode(rgb)
     if alpha:
         pixels = np.concatenate([pixels, disp_lin[..., 3:4]], axis=2)
+    return pixels
+
+
+def export_frame(exporter, run: RunSetup, fr, fin: FrameInput, res, path, frame,
+                 linear: bool, bits: int):
+    """The frame to the OCIO export (``colour/export.py``), checked against what the run
+    writes: its pixels as its file holds them (what a replay reads) and the run's own
+    display-encoded output (straight colour where there is alpha: a replay
+    unpremultiplies first). Returns the output's pixels as :func:`encode_pixels` makes
+    them (written as they are, not encoded twice)."""
+    pixels = res.output if res.encoded else \
+        encode_pixels(run.colour, res.output, res.alpha, linear, bits)
+    work, src, codes = fin.pixels, None if fr.rgb_from_spectrum else fr.pixels, pixels
+    if linear or res.output.shape[-1] == 4:        # the display encoding of the colour
+        disp = res.output                          # (its alpha divided out again)
+        if disp.shape[-1] == 4:
+            prem = res.alpha is not None and res.alpha[2]
+            disp = straight_colour(disp, prem)[0]
+            work = straight_colour(np.asarray(work, np.float32), prem)[0]
+            src = None if src is None else straight_colour(np.asarray(src, np.float32), prem)[0]
+        codes = run.colour.encode_fast(np.ascontiguousarray(disp[..., :3]))
+    exporter.add_frame(frame, np.asarray(work, np.float32), fin.scale, res.info.effects,
+                       run.input_colour(fr, path) if src is not None else None, codes, src)
     return pixels
 
 

@@ -12,8 +12,6 @@ import os
 import sys
 import time
 
-import numpy as np
-
 from .. import interrupts, safeio
 from ..backends.select import resolve_backend
 from ..colour import ColourPipeline
@@ -33,7 +31,7 @@ from ..state_files import save_state
 from .banded_io import read_whole, stream_frame, stream_rows
 from .checkpoint import (RunLock, check_state_paths, checkpoint_path, checkpoint_state,
                          load_state_in, remove_stale_temps, resume_point)
-from .frame import encode_pixels, frame_input, map_frame, output_metadata
+from .frame import encode_pixels, export_frame, frame_input, map_frame, output_metadata
 from .options import (RUN_KEY, Interrupted, JobOptions, JobResult, output_is_linear,
                       run_fingerprint, transfers_line)
 from .overlap import FrameIO
@@ -316,17 +314,17 @@ def _run_job(opts: JobOptions, jobs, state, ckpt, t_start, chunk: bool = False,
 
 def infos_from_outputs(jobs) -> list:
     """FrameInfo of frames already written, from their ``ocltm:*`` records (headers
-    only); frames whose record cannot be read are left out (with a warning)."""
+    only); frames whose record cannot be read are left out (one warning for them all)."""
     import json
 
     import OpenImageIO as oiio
 
-    out = []
+    out, missed = [], []
     for f, _, outp, _ in jobs:
         inp = oiio.ImageInput.open(outp) if os.path.isfile(outp) else None   # (no FIFO)
         if inp is None:
             oiio.geterror()
-            log.warning("%s: cannot read its record for --plot; left out", outp)
+            missed.append((outp, "cannot read its record"))
             continue
         try:
             m = ocltm_metadata(inp.spec())
@@ -344,7 +342,11 @@ def infos_from_outputs(jobs) -> list:
                                  json.loads(m.get("ocltm:params", "{}")),
                                  json.loads(m.get("ocltm:effects", "{}")), plan))
         except (KeyError, TypeError, ValueError) as exc:
-            log.warning("%s: its record is incomplete for --plot (%s); left out", outp, exc)
+            missed.append((outp, f"its record is incomplete ({exc})"))
+    if missed:
+        log.warning("--plot: %d of the %d frame(s) written before left out: %s: %s%s",
+                    len(missed), len(jobs), *missed[0],
+                    f" (and {len(missed) - 1} more)" if len(missed) > 1 else "")
     return out
 
 
@@ -369,10 +371,9 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
         # the planes read the scene's luminance where the frame's colour stage made it
         tm.backend.keep_scene_luminance(fin.pixels if seen else None)
         res = map_frame(tm, fin, t, f, encoding=enc)
+        written = None                 # (the export checks what is written: encoded once)
         if exporter is not None and fin.wavelengths is None:
-            exporter.add_frame(f, np.asarray(fin.pixels, np.float32), fin.scale,
-                               res.info.effects,
-                               run.input_colour(fr, inp) if not fr.rgb_from_spectrum else None)
+            written = export_frame(exporter, run, fr, fin, res, inp, f, linear, bits)
         vis = req = view = None
         if seen:
             req = frame_request(tm, fin, res.info, run.opts, run.once)
@@ -392,7 +393,7 @@ def _whole_frame(run: RunSetup, tm: Tonemapper, fr, inp, outp, f, held, fps, t_p
 
     def write():
         try:
-            pixels = res.output if res.encoded else \
+            pixels = written if written is not None else res.output if res.encoded else \
                 encode_pixels(run.colour, res.output, res.alpha, linear, bits)
             _, out_cs, chroma, white, straight = meta
             write_frame(outp, pixels, spec, out_cs, meta[0], run.opts.out_bits, f,

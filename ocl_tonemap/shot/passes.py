@@ -438,7 +438,9 @@ def export(opts, store_path: str, chunk=None) -> tuple:
         fr = read_frame(inp, f, opts.channels)
         fin = frame_input(run, tm, fr, inp)
         t1 = time.perf_counter()
-        ex.add_frame(f, fin.pixels, fin.scale, eff, run.input_colour(fr, inp))
+        ic = None if fr.rgb_from_spectrum else run.input_colour(fr, inp)
+        ex.add_frame(f, fin.pixels, fin.scale, eff, ic,
+                     file_pixels=None if ic is None else fr.pixels)   # (as a replay reads it)
         spent["read"] += t1 - t0
         spent["export"] += time.perf_counter() - t1
     with export_lock(opts.ocio_export, "export", (store_path, _settings(opts)),
