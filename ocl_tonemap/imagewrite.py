@@ -270,7 +270,11 @@ def output_spec(in_spec, width, height, nch, ext, bits, colorspace, metadata,
     # the input's tags of what its pixels were: none of them holds for the output's
     for k in ("whiteLuminance", "ocltm:timestamp", "chromaticities", "oiio:UnassociatedAlpha",
               "adoptedNeutral", "oiio:ColorSpace", "colorInteropID", "CICP", "ICCProfile",
-              "oiio:Gamma", "oiio:BitsPerSample"):
+              "oiio:Gamma", "oiio:BitsPerSample",
+              # a texture's (maketx, an EXR envmap): OIIO's EXR writer then expects MIP
+              # levels and leaves the file empty at close; the output is one level
+              # (its angle: ocltm:fov)
+              "textureformat", "oiio:updirection", "oiio:sampleborder"):
         spec.erase_attribute(k)
     if nch == 4 and straight_alpha:
         spec.attribute("oiio:UnassociatedAlpha", 1)

@@ -34,8 +34,9 @@ def _check_method(v):
 
 
 #: The field of view, an option of the flare and of acuity (one option of both).
-FOV_OPTION = EffectOption("fov_deg", "--fov", "angular width of the image (default: a "
-                          "Radiance picture's VIEW, else 50; beyond 180: panoramas)",
+FOV_OPTION = EffectOption("fov_deg", "--fov", "angular width of the image (default: the "
+                          "file's projection, a Radiance VIEW or an equirectangular "
+                          "panorama's metadata, else 50; 360: a 2:1 panorama)",
                           metavar="DEGREES", value=DEFAULT_FOV,
                           decl=Quantity("angular width of the image", "degrees", 0.0, 360.0,
                                         above=True))
