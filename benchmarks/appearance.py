@@ -4,11 +4,15 @@ One command:  python -m benchmarks.appearance [--quick] [--operators a,b]
                   [--images a,b] [--levels L,L|all] [--effects-off] [--size W]
                   [--out-dir DIR] [--out SHEETS] [--results DIR] [--photos DIR]
 
-Real photographs: eight Poly Haven HDRIs (CC0): six from the PyPI wheel
-viser==0.2.23 and a sunrise and a tungsten-lit interior from Debian's
+Real photographs: twelve Poly Haven HDRIs (CC0): ten from the PyPI wheel
+viser==0.2.23 (six of photos.PHOTOS, and EXTRA_PHOTOS here: a city, a forest, a
+studio, a warehouse) and a sunrise and a tungsten-lit interior from Debian's
 blender-data (benchmarks/lib/photos.py; fetched once, cached in
 ~/.cache/ocl-tonemap/photos or $OCLTM_PHOTOS), resized to W pixels wide; plus
-three small generated scenes (benchmarks/lib/scenes.py). Each image is
+three small generated scenes (benchmarks/lib/scenes.py). The photographs are
+360-degree equirectangular panoramas and are rendered at that true angle,
+``Tonemapper(op, fov_deg=360)`` (the flare's and acuity's field of view); the
+generated scenes keep their own (the default). Each image is
 calibrated so that its log-average photopic luminance is L cd/m^2, L in 1e-3,
 0.1, 10, 1000 (``--levels all``: 1e-3 ... 1e4), and shown to a fresh observer,
 steady-state adapted to the still, of every operator with its defaults,
@@ -27,7 +31,10 @@ Writes (OUT: --out-dir, default ./benchmark-results; the committed tables:
                             operators, columns: levels)
   SHEETS/readme_sheet.png   4 photos at their natural levels x operators
 (RESULTS: --results, default OUT; SHEETS: --out, default OUT/appearance/.)
-Metrics: benchmarks/lib/appearance_metrics.py.
+Metrics: benchmarks/lib/appearance_metrics.py. Issue 67's table (section 7): per
+operator and level the worst photograph's clipping (any channel at 255, <= 3%) and
+saturation ratio (coloured mid-tones, s_out / s_scene, 0.5-1.6 at 30 and 5000 cd/m^2);
+its report levels: --levels 0.01,1,30,5000 (night, dusk, interior, daylight).
 """
 
 from __future__ import annotations
@@ -55,7 +62,20 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 #: The levels of the report (scene log-average, cd/m^2); ``--levels all``: ALL_LEVELS.
 LEVELS = [1e-3, 0.1, 10.0, 1e3]
 ALL_LEVELS = [1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4]
-DEFAULT_IMAGES = [n[:-3] if n.endswith("_1k") else n for n in ph.PHOTOS] + list(scenes.SCENES)
+#: Photographs of the viser wheel beyond ``photos.PHOTOS`` (issue 67: a city, a forest, a
+#: studio, a warehouse): stem -> (what it shows, natural level cd/m^2). With them the set
+#: covers city, park, forest, interior, night, studio, sunrise and sunset.
+EXTRA_PHOTOS = {
+    "potsdamer_platz_1k": ("city, daylight", 5000.0),
+    "forest_slope_1k": ("forest by day", 5000.0),
+    "studio_small_03_1k": ("studio", 30.0),
+    "empty_warehouse_01_1k": ("warehouse interior", 30.0),
+}
+ALL_PHOTOS = {**ph.PHOTOS, **EXTRA_PHOTOS}
+#: The photographs are 360-degree equirectangular panoramas: rendered at their true
+#: angle (the flare's and acuity's field of view); generated scenes keep their own.
+PHOTO_FOV_DEG = 360.0
+DEFAULT_IMAGES = [n[:-3] if n.endswith("_1k") else n for n in ALL_PHOTOS] + list(scenes.SCENES)
 QUICK_IMAGES = ["rooitou_park", "st_fagans_interior", "dikhololo_night", "venice_sunset",
                 "blender_interior", "patches"]
 #: README sheet: (photo, level cd/m^2, label)
@@ -72,6 +92,9 @@ HUE_MIN_LEVEL, SCOTOPIC_MAX_LEVEL = 100.0, 0.01
 MAGENTA_TARGET, WARMCOOL_TARGET, SHIFT_TARGET = 0.01, 0.05, 15.0
 WARMCOOL_MIN_LEVEL, SHIFT_MIN_LEVEL = 10.0, 100.0
 SOURCE_FACTOR = 30.0                 # light sources: scene Y > 30 x log-average, left out
+#: Issue 67: any channel at 255 <= 3%; saturation ratio on coloured mid-tones 0.5-1.6 at
+#: these levels (daylight 5000, interior 30; dusk 1 and night 0.01 reported, lower there).
+CLIPANY_TARGET, SAT_RANGE, SAT_LEVELS = 0.03, (0.5, 1.6), (30.0, 5000.0)
 #: The issue's photographs (sunset, sunrise, tungsten light): a table each.
 ISSUE_PHOTOS = ("venice_sunset", "blender_sunrise", "blender_interior")
 VISIBLE_TOL = math.log10(1.01)      # a reversal of > 1% contrast (about a JND) is "visible"
@@ -115,7 +138,7 @@ def resolve_images(names, photo_paths, size):
             out[n] = dict(rgb=fn(w, w // 2), kind=what, natural=nat, source="generated")
         elif n in by_stem:
             stem = by_stem[n].stem
-            what, nat = ph.PHOTOS.get(stem, ("photograph", None))
+            what, nat = ALL_PHOTOS.get(stem, ("photograph", None))
             out[n] = dict(rgb=load_photo(by_stem[n], size), kind="photo: " + what, natural=nat,
                           source=ph.source_of(stem))
         else:
@@ -144,20 +167,22 @@ class Runner:
         self.effects_off = effects_off
         self.effects_seen: dict[str, dict] = {}
 
-    def make(self, op: str):
+    def make(self, op: str, fov_deg: float | None = None):
+        kw = {} if fov_deg is None else {"fov_deg": fov_deg}
         if self.effects_off:
             return self.Tonemapper(op, backend="opencl", display=self.display_for(DISPLAY),
-                                   effects=self.EffectSettings())
-        return self.Tonemapper(op)
+                                   effects=self.EffectSettings(), **kw)
+        return self.Tonemapper(op, **kw)
 
     def call(self, op: str) -> str:
         return (f"Tonemapper({op}, backend='opencl', display=sRGB, effects=EffectSettings())"
                 if self.effects_off else f"Tonemapper({op})")
 
-    def tonemap(self, op: str, rgb_cd: np.ndarray):
-        """(display-linear output or None, error text or None)."""
+    def tonemap(self, op: str, rgb_cd: np.ndarray, fov_deg: float | None = None):
+        """(display-linear output or None, error text or None); ``fov_deg``: the image's
+        angular width (photographs: 360), else the default."""
         try:
-            tm = self.make(op)
+            tm = self.make(op, fov_deg)
             if op not in self.effects_seen:
                 s = tm.effects.s
                 self.effects_seen[op] = {
@@ -222,6 +247,7 @@ def run_image(R: Runner, name: str, info: dict, ops, levels):
     la0 = log_average(base)
     ref = base * np.float32(0.18 / la0)                 # exposure-matched, display-linear
     keep = ~am.light_source_mask(am.luminance(base), la0, SOURCE_FACTOR)   # same at every level
+    fov = None if info["source"] == "generated" else PHOTO_FOV_DEG       # panoramas: 360°
     res = {"ref": {"clip": am.clip_fraction(ref, am.luminance(base) / la0, 1.0),
                    "magenta_hue_preserving": am.magenta_share(am.hue_preserving_render(base),
                                                               keep),
@@ -233,7 +259,7 @@ def run_image(R: Runner, name: str, info: dict, ops, levels):
         for L in levels:
             rgb_cd = np.ascontiguousarray(base * np.float32(L / la0))
             sY = am.luminance(rgb_cd)
-            out, err = R.tonemap(op, rgb_cd)
+            out, err = R.tonemap(op, rgb_cd, fov)
             outs.append(out)
             m = {"level": L}
             if err:
@@ -245,6 +271,8 @@ def run_image(R: Runner, name: str, info: dict, ops, levels):
                 m["clip"] = am.clip_fraction(out, sY, L, source_factor=SOURCE_FACTOR)
                 m["clip_any"] = am.clip_fraction(out, sY, L, source_factor=SOURCE_FACTOR,
                                                  channels="any")
+                m["sat_ratio"] = am.saturation_ratio(out, rgb_cd, L,
+                                                     source_factor=SOURCE_FACTOR)["ratio"]
                 mg = am.magenta_excess(out, base, keep)
                 m["magenta"], m["magenta_share"] = mg["excess"], mg["share"]
                 wc = am.warm_to_cool(out, base, keep)
@@ -371,7 +399,7 @@ def readme_sheet(path, R: Runner, photos_rgb: dict, ops):
         base = photos_rgb[n]
         rgb_cd = np.ascontiguousarray(base * np.float32(L / log_average(base)))
         for op in ops:
-            out, _ = R.tonemap(op, rgb_cd)
+            out, _ = R.tonemap(op, rgb_cd, PHOTO_FOV_DEG)
             tiles[(op, n)] = None if out is None else R.tile(out)
     t0 = next((t for t in tiles.values() if t is not None), np.zeros((128, TILE_W, 3)))
     th = int(round(TILE_W * t0.shape[0] / t0.shape[1]))
@@ -653,6 +681,7 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
                                       if L >= SHIFT_MIN_LEVEL else
                                       worst(results, op, L, "hue_shift_deg", fmt="{:.1f}°")[0]
                                       for L in levels] for op in ops]), ""]
+    parts += _issue67_section(results, images, ops, levels)
     issue = [n for n in ISSUE_PHOTOS if n in results]
     if issue:
         parts += ["## The sunset, the sunrise and the tungsten interior", "",
@@ -718,6 +747,59 @@ def report(results, images, ops, levels, meta) -> tuple[str, dict]:
                                                  else " (**not increasing**)")])
         parts += [md_table(head + ["mean output cd/m²"], rows), "", "</details>", ""]
     return "\n".join(parts), verdict
+
+
+def _issue67_section(results, images, ops, levels) -> list[str]:
+    """Issue 67's table: per operator and level, the worst photograph's clipping (any
+    channel at 255) and the lowest and highest saturation ratio, against the targets."""
+    photos = {n: r for n, r in results.items() if images[n]["source"] != "generated"}
+    if not photos:
+        return []
+
+    def vals(op, L, key):
+        v = [(r["ops"][op]["levels"][lvl(L)].get(key), n) for n, r in photos.items()]
+        return [(x, n) for x, n in v if x is not None and np.isfinite(x)]
+
+    def b(text, bad):
+        return f"**{text}**" if bad else text
+    rows = []
+    for op in ops:
+        for L in levels:
+            cl, sr = vals(op, L, "clip_any"), vals(op, L, "sat_ratio")
+            if any("error" in r["ops"][op]["levels"][lvl(L)] for r in photos.values()):
+                rows.append([op, lvl(L), "error", "-", "-", "-"])
+                continue
+            c = max(cl) if cl else None
+            ccell = ("-" if c is None else "0.0%" if c[0] == 0 else
+                     b(f"{c[0]:.2%} ({c[1]})", c[0] > CLIPANY_TARGET))
+            on = L in SAT_LEVELS
+            if sr:
+                lo, hi = min(sr), max(sr)
+                scell = (b(f"{lo[0]:.2f} ({lo[1]})", on and lo[0] < SAT_RANGE[0]) + " .. "
+                         + b(f"{hi[0]:.2f} ({hi[1]})", on and hi[0] > SAT_RANGE[1]))
+                med = f"{statistics.median(v for v, _ in sr):.2f}"
+                ok = (c is None or c[0] <= CLIPANY_TARGET) and (
+                    not on or (lo[0] >= SAT_RANGE[0] and hi[0] <= SAT_RANGE[1]))
+            else:
+                scell, med, ok = "-", "-", c is None or c[0] <= CLIPANY_TARGET
+            rows.append([op, lvl(L), ccell, scell, med,
+                         "PASS" if ok else "FAIL"])
+    return ["## 7. Clipping (any channel) and saturation kept, photographs (issue 67)", "",
+            f"Over the {len(photos)} photographs only (rendered at their true angle, "
+            f"`fov_deg={PHOTO_FOV_DEG:g}`: 360-degree panoramas), light sources (scene Y > "
+            f"{SOURCE_FACTOR:g}x the log-average) left out. **Clipping**: share of pixels "
+            "with any channel at 8-bit code 255, worst photograph; target <= "
+            f"{CLIPANY_TARGET:.0%}. **Saturation ratio**: median over coloured mid-tones "
+            "(scene luminance 0.25-4x the log-average, scene s = 1 - min/max of linear RGB > "
+            "0.15, output not clipped) of s_out / s_scene, s on linear light of the output and "
+            "of the scene (a hue-preserving rendering at the same exposure: 1; "
+            "`appearance_metrics.saturation_ratio`); lowest and highest photograph and the "
+            f"median over them; target {SAT_RANGE[0]:g}-{SAT_RANGE[1]:g} at "
+            + " and ".join(f"{lvl(L)}" for L in SAT_LEVELS) + " cd/m² (interior, daylight); "
+            "other levels (dusk 1, night 0.01) reported only: lower there, as the rods take "
+            "over (the verdict there is the clipping's). **Bold** misses its target.", "",
+            md_table(("operator", "level cd/m²", f"clip any channel (<= {CLIPANY_TARGET:.0%})",
+                      "saturation ratio lowest .. highest", "median", "verdict"), rows), ""]
 
 
 def _colour_cell(m, L):
@@ -826,7 +908,7 @@ def main(argv=None) -> int:
     size = a.size or (256 if a.quick else 512)
     names = [short(n.strip()) for n in (a.images.split(",") if a.images else
                                         (QUICK_IMAGES if a.quick else DEFAULT_IMAGES))]
-    photo_stems = {short(k): k for k in ph.PHOTOS}
+    photo_stems = {short(k): k for k in ALL_PHOTOS}
     want = {photo_stems[n] for n in names if n in photo_stems}
     if not a.no_readme_sheet:
         want |= {photo_stems[n] for n, _, _ in README_SHEET}
@@ -904,7 +986,9 @@ def main(argv=None) -> int:
           "targets": {"clip": CLIP_TARGET, "hue_deg": HUE_TARGET, "reversal": REV_TARGET,
                       "spearman_local": RHO_TARGET, "magenta": MAGENTA_TARGET,
                       "warm_cool": WARMCOOL_TARGET, "warm_cool_min_level": WARMCOOL_MIN_LEVEL,
-                      "hue_shift_deg": SHIFT_TARGET, "hue_shift_min_level": SHIFT_MIN_LEVEL},
+                      "hue_shift_deg": SHIFT_TARGET, "hue_shift_min_level": SHIFT_MIN_LEVEL,
+                      "clip_any_photos": CLIPANY_TARGET, "sat_ratio": list(SAT_RANGE),
+                      "sat_ratio_levels": list(SAT_LEVELS)},
           "verdict": verdict, "results": results}
     js_path = os.path.join(a.results, "appearance.json")
     with open(js_path, "w") as fh:

@@ -262,7 +262,8 @@ inline float powp(float x, float e) { return exp2(e * log2(x)); }
 inline float4 powp4(float4 x, float4 e) { return exp2(e * log2(x)); }
 
 /* Highlight shoulder (ocl_tonemap/models/display.py, apply_shoulder): luminance through
- * S (identity up to the knee, then knee + (1-knee) t/(1+t), t = (x-knee)/(1-knee)),
+ * S (identity up to the knee, then knee + (1-knee)(1 - (1+t)^-p), t = (x-knee) /
+ * ((1-knee) p), p = SHOULDER_POWER),
  * then desaturation toward it where the largest channel would exceed S'(max),
  * S' with the later knee CHANNEL_KNEE.
  * Values relative to white (inv_white); knee <= 0: none. */
@@ -270,8 +271,8 @@ inline float4 powp4(float4 x, float4 e) { return exp2(e * log2(x)); }
 inline float shoulder_curve(const float x, const float knee)
 {
     if (!(x > knee)) return x;
-    const float t = (x - knee) / (1.0f - knee);
-    return knee + (1.0f - knee) * t / (1.0f + t);
+    const float t = (x - knee) / ((1.0f - knee) * SHOULDER_POWER);
+    return knee + (1.0f - knee) * (1.0f - powp(1.0f + t, -SHOULDER_POWER));
 }
 
 inline float3 shoulder3(float3 c, const float inv_white, const float knee)
@@ -331,8 +332,9 @@ inline void store_rgb4(const int q, __global float *rgb, const float4 r, const f
 
 inline float4 shoulder_curve4(const float4 x, const float knee)
 {
-    const float4 t = (x - knee) / (1.0f - knee);
-    return select(x, knee + (1.0f - knee) * t / (1.0f + t), isgreater(x, (float4)(knee)));
+    const float4 t = fmax(x - knee, 0.0f) / ((1.0f - knee) * SHOULDER_POWER);
+    return select(x, knee + (1.0f - knee) * (1.0f - powp4(1.0f + t, (float4)(-SHOULDER_POWER))),
+                  isgreater(x, (float4)(knee)));
 }
 
 /* shoulder3 of four pixels: the same steps, each pixel's branches as selects. */

@@ -440,3 +440,41 @@ def step_artefacts(codes, scene_rgb) -> float:
     art[:, 1:] |= sx & ~near[:, 1:]
     art[1:] |= sy & ~near[1:]
     return float(art.mean())
+
+
+# --- 7. saturation kept (issue 67) ----------------------------------------------------------
+
+def rgb_saturation(rgb) -> np.ndarray:
+    """Saturation s = 1 - min/max of linear RGB (negatives as 0; 0 where max is 0):
+    0 for a grey, 1 for a primary; unchanged by scaling, so a hue- and
+    ratio-preserving rendering keeps it."""
+    a = np.maximum(np.asarray(rgb, np.float64)[..., :3], 0.0)
+    mx, mn = a.max(axis=-1), a.min(axis=-1)
+    return np.where(mx > 0, 1.0 - mn / np.where(mx > 0, mx, 1.0), 0.0)
+
+
+def saturation_ratio(out, scene_rgb, logavg: float, lo: float = 0.25, hi: float = 4.0,
+                     min_sat: float = 0.15, source_factor: float = 30.0) -> dict:
+    """How much of the scene's colour saturation the output keeps, on coloured mid-tones.
+
+    Over the pixels whose scene luminance is ``lo``..``hi`` (0.25-4) x the frame's
+    log-average ``logavg`` (so no light source: those are > 30 x), whose scene
+    saturation :func:`rgb_saturation` is > ``min_sat`` (0.15) and whose output has no
+    channel at 8-bit code 255 (not clipped), the median of s_out / s_scene, s taken on
+    linear light of the output (display-linear, negatives as 0) and of the scene.
+    A rendering that keeps the RGB ratios (any exposure, hue-preserving curve on
+    luminance) gives 1; a map that pulls colours to grey < 1, one that boosts them > 1.
+    Target: 0.5-1.6 at daylight (5000) and interior (30) levels; lower at dusk and
+    night, where the rods take over. Returns ``{"ratio"`` (NaN when no pixel
+    qualifies), ``"n"`` (share of all pixels measured)}."""
+    s_in = np.asarray(scene_rgb, np.float64)[..., :3]
+    o = np.asarray(out, np.float64)[..., :3]
+    Y = luminance(s_in)
+    src = light_source_mask(Y, logavg, source_factor)
+    ss = rgb_saturation(s_in)
+    not_clipped = ~np.any(code_values_8bit(o) >= 255.0, axis=-1)
+    m = ((Y >= lo * logavg) & (Y <= hi * logavg) & (ss > min_sat) & not_clipped & ~src
+         & (np.maximum(o, 0.0).max(axis=-1) > 0))
+    if not m.any():
+        return {"ratio": float("nan"), "n": 0.0}
+    return {"ratio": float(np.median(rgb_saturation(o[m]) / ss[m])), "n": float(m.mean())}

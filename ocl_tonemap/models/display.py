@@ -164,18 +164,25 @@ SHOULDER_KNEE = 0.7
 #: Knee of the per-channel cap after the luminance shoulder: colours are desaturated
 #: only where a channel would pass 0.9 of white (kernels/common.h: CHANNEL_KNEE).
 CHANNEL_KNEE = 0.9
+#: The shoulder's power p (issue 67): above the knee, 1 - (1 + t)^-p of the way to
+#: white. Reinhard's t/(1+t) (p = 1) put a pixel at code 255 from ~21x white (a
+#: channel from ~3x): a daylight photograph's sky and sunlit walls clipped over up to
+#: 9 % of the frame with light sources left out. p = 1/2 reaches code 255 at ~690x
+#: white (a channel at ~27x), keeping the slope 1 at the knee.
+SHOULDER_POWER = 0.5
 
 
 def shoulder_curve(m, knee: float = SHOULDER_KNEE):
     """The highlight shoulder on a value relative to display white: identity up to
-    ``knee``, then ``knee + (1 - knee) t / (1 + t)`` with ``t = (m - knee)/(1 - knee)``
-    (Reinhard's x/(1+x) on the part above the knee): continuous with slope 1 at the
-    knee, monotone, and approaching display white without reaching it (0.999 of
-    white at ~90x white for the default knee)."""
+    ``knee``, then ``knee + (1 - knee) (1 - (1 + t)^-p)`` with ``t = (m - knee) /
+    ((1 - knee) p)``, p = :data:`SHOULDER_POWER`: continuous with slope 1 at the knee,
+    monotone, and approaching display white without reaching it (code 255, 0.9956 of
+    white, at ~690x white for the default knee)."""
     import numpy as np
     m = np.asarray(m, np.float64)
-    t = np.maximum(m - knee, 0.0) / (1.0 - knee)
-    return np.where(m > knee, knee + (1.0 - knee) * t / (1.0 + t), m)
+    p = SHOULDER_POWER
+    t = np.maximum(m - knee, 0.0) / ((1.0 - knee) * p)
+    return np.where(m > knee, knee + (1.0 - knee) * (1.0 - (1.0 + t) ** -p), m)
 
 
 def apply_shoulder(rgb, white_signal: float, knee: float = SHOULDER_KNEE):

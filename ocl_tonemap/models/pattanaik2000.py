@@ -107,11 +107,9 @@ def receptor_levels_preadapted(L_rod: float, L_cone: float, seconds: float | Non
 
 
 #: The response increment of a flash at threshold on a black field (Eq. 2's R): where
-#: the dark-adapted observer's threshold is the absolute threshold of vision
-#: (Hecht, Haig & Chase 1937's 2.8 log micro-micro-lamberts for their violet;
-#: ``benchmarks/lib/human/dark.criterion`` finds the same number). It shapes the
-#: operator's threshold curve, which the shared pigment course's equivalent
-#: background is read on (``Operator.equivalent_goal``).
+#: the dark-adapted observer's threshold is Hecht et al. 1937's absolute threshold
+#: (``benchmarks/lib/human/dark.criterion``); the shape of the threshold curve that the
+#: pigment course's equivalent background is read on (``Operator.equivalent_goal``).
 DETECT_CRITERION = 0.103
 
 
@@ -364,13 +362,24 @@ def luminance_level_adaptation_factor(L_A):
     return 0.2 * k4 * 5.0 * L + 0.1 * (1.0 - k4) ** 2 * np.cbrt(5.0 * L)
 
 
+#: The adaptation level above which the default colour's Hunt effect no longer grows,
+#: cd/m^2 (issue 67): 1.4x the chroma of a 20 cd/m^2 display observer, the effect's
+#: size between interior and bright daylight. Past it the factor kept growing (1.6x at
+#: 5000 cd/m^2) and daylight photographs' coloured mid-tones came out at up to 1.7x
+#: the scene's saturation: a display cannot show that colourfulness without driving
+#: foliage and sky to its gamut's edge (docs/models.md).
+HUNT_CAP_CD = 1000.0
+
+
 def chroma_scale(A_cone, A_display):
     """Default mode's colour: chroma of the scene relative to the display observer's,
     (F_L(A_cone) / F_L(A_display))^(1/4), CIECAM02's colourfulness M = C F_L^(1/4)
     (the Hunt effect: colours look more colourful in brighter light, and fade as
     cones lose their response at night), applied as a hue-preserving scale of
-    the colour ratios about neutral. 1 when scene and display adaptation match."""
-    return (luminance_level_adaptation_factor(A_cone)
+    the colour ratios about neutral; A_cone taken at most :data:`HUNT_CAP_CD`. 1 when
+    scene and display adaptation match."""
+    A = np.minimum(np.asarray(A_cone, np.float64), HUNT_CAP_CD)
+    return (luminance_level_adaptation_factor(A)
             / luminance_level_adaptation_factor(A_display)) ** 0.25
 
 

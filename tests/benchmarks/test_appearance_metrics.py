@@ -173,3 +173,41 @@ def test_hue_shift_scales_the_input_by_its_99th_percentile():
     out = field((0.8, 0.4, 0.1))
     # any exposure of the input gives the same (its 99th percentile becomes 1)
     assert am.hue_shift_deg(out, scene * 1e-3) == pytest.approx(am.hue_shift_deg(out, scene))
+
+
+# --- saturation ratio (issue 67) ---------------------------------------------------------
+
+def _coloured_scene():
+    """Mid-tone coloured patches (log-average ~ 100 cd/m^2), a grey and a lamp."""
+    img = field((120.0, 90.0, 40.0), 4, 8)             # warm
+    img[:, 2:4] = (40.0, 110.0, 160.0)                 # blue-green
+    img[:, 4:6] = (100.0, 100.0, 100.0)                # grey: not measured (s = 0)
+    img[0, 7] = (1e5, 8e4, 5e4)                        # a lamp: not measured
+    return img
+
+
+def test_saturation_ratio_is_one_for_a_hue_preserving_scaling():
+    scene = _coloured_scene()
+    la = float(np.exp(np.mean(np.log(am.luminance(scene)))))
+    out = scene / (1.0 + am.luminance(scene)[..., None] / la) / (4 * la)   # curve on Y, ratios kept
+    r = am.saturation_ratio(out, scene, la)
+    assert r["ratio"] == pytest.approx(1.0, abs=1e-9)
+    assert 0 < r["n"] < 1                                 # the grey and the lamp left out
+
+
+def test_saturation_ratio_is_below_one_for_a_desaturating_map():
+    scene = _coloured_scene()
+    la = float(np.exp(np.mean(np.log(am.luminance(scene)))))
+    lin = scene / (4 * la)
+    grey = am.luminance(lin)[..., None]
+    out = 0.5 * lin + 0.5 * grey                          # halfway to grey
+    assert am.saturation_ratio(out, scene, la)["ratio"] < 0.9
+    boosted = np.maximum(grey + 1.5 * (lin - grey), 0.0)
+    assert am.saturation_ratio(boosted, scene, la)["ratio"] > 1.0
+
+
+def test_saturation_ratio_leaves_clipped_output_out():
+    scene = _coloured_scene()
+    la = float(np.exp(np.mean(np.log(am.luminance(scene)))))
+    out = np.full_like(scene, 1.0)                        # all clipped to white
+    assert np.isnan(am.saturation_ratio(out, scene, la)["ratio"])

@@ -30,6 +30,7 @@ COMMON = (
     ("WARD97_GAIN", photometry.WARD97_GAIN), ("WARD97_OFFSET", photometry.WARD97_OFFSET),
     ("L_MAX", photometry.L_MAX), ("NREPAIR", len(photometry.RepairCounts.KEYS)),
     ("SIGNAL_CEILING", display.SIGNAL_CEILING), ("CHANNEL_KNEE", display.CHANNEL_KNEE),
+    ("SHOULDER_POWER", display.SHOULDER_POWER),
     ("DISPLAY_LINEAR_MAX", display.DISPLAY_LINEAR_MAX),
 )
 
