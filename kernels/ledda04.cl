@@ -80,7 +80,7 @@ inline float ledda_response_slope(const float L, const float sc, const float sr,
 inline float2 adaptation_levels(__global const float *Ic, __global const float *Ir, const int i,
                                 const int rod_from_cone, const float rod_scale,
                                 const float strength, const float ln_global_c,
-                                const float ln_global_r)
+                                const float ln_global_r, const float gain_c, const float gain_r)
 {
     float ic = Ic[i];
     float ir = rod_from_cone ? rod_scale * ic : Ir[i];
@@ -89,7 +89,9 @@ inline float2 adaptation_levels(__global const float *Ic, __global const float *
         ir = rod_from_cone ? rod_scale * ic
                            : exp(strength * log(fmax(ir, V_FLOOR)) + (1.0f - strength) * ln_global_r);
     }
-    return (float2)(ic, ir);
+    /* the shared pigment course's equivalent background, as the frame's factor on every
+     * pixel's level (ledda04.py LeddaSchedule: 1 with --mode paper) */
+    return (float2)(ic * gain_c, ir * gain_r);
 }
 
 /* goal_ahead of ledda2004.py: the course s_in -> s_fin has a direction and the new
@@ -139,11 +141,12 @@ inline int ledda04_step_one(__global const float *Ic, __global const float *Ir,
                             __global float *state, const int stride, const int i,
                             const float dt, const int init, const float E_init,
                             const float change_log2, const float strength,
-                            const float ln_global_c, const float ln_global_r)
+                            const float ln_global_c, const float ln_global_r,
+                            const float gain_c, const float gain_r)
 {
     __global float *s = state + i;
     const float2 lv = adaptation_levels(Ic, Ir, i, rod_from_cone, rod_scale, strength,
-                                        ln_global_c, ln_global_r);
+                                        ln_global_c, ln_global_r, gain_c, gain_r);
     const float gc = sigma_of(lv.x, BETA_CONE), gr = sigma_of(lv.y, BETA_ROD);
     float sic, sfc, sac, sir, sfr, sar, tc, tr, E, K;
     int restarted = 0;
@@ -188,7 +191,7 @@ __kernel void ledda04_step(__global const float *Ic, __global const float *Ir,
                            const float dt, const int init, const float E_init,
                            const float change_log2, __global int *counts,
                            const float strength, const float ln_global_c,
-                           const float ln_global_r)
+                           const float ln_global_r, const float gain_c, const float gain_r)
 {
     __local int lrestart;
     if (get_local_id(0) == 0) lrestart = 0;
@@ -196,7 +199,7 @@ __kernel void ledda04_step(__global const float *Ic, __global const float *Ir,
     const int i = get_global_id(0);
     if (i < n && ledda04_step_one(Ic, Ir, rod_from_cone, rod_scale, state, stride, i, dt,
                                   init, E_init, change_log2, strength, ln_global_c,
-                                  ln_global_r))
+                                  ln_global_r, gain_c, gain_r))
         atomic_inc(&lrestart);
     barrier(CLK_LOCAL_MEM_FENCE);
     if (get_local_id(0) == 0 && lrestart) atomic_add(&counts[0], lrestart);
@@ -411,7 +414,7 @@ __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
                             const float dt, const int init, const float E_init,
                             const float change_log2, __global int *counts,
                             const float strength, const float ln_global_c,
-                            const float ln_global_r)
+                            const float ln_global_r, const float gain_c, const float gain_r)
 {
     __local int lrestart;
     if (get_local_id(0) == 0) lrestart = 0;
@@ -420,7 +423,8 @@ __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
     if (!VECTOR_PIXELS || i0 + 4 > n) {            /* common.h */
         for (int i = i0; i < min(i0 + ITEM_PIXELS(4), n); ++i)
             if (ledda04_step_one(Ic, Ir, rod_from_cone, rod_scale, state, stride, i, dt, init,
-                                 E_init, change_log2, strength, ln_global_c, ln_global_r))
+                                 E_init, change_log2, strength, ln_global_c, ln_global_r,
+                                 gain_c, gain_r))
                 atomic_inc(&lrestart);
     } else {
         __global float *s = state + i0;
@@ -430,6 +434,8 @@ __kernel void ledda04_step4(__global const float *Ic, __global const float *Ir,
             ic = blend_global4(ic, strength, ln_global_c);
             ir = rod_from_cone ? rod_scale * ic : blend_global4(ir, strength, ln_global_r);
         }
+        ic *= gain_c;
+        ir *= gain_r;
         const float4 gc = sigma_of4(ic, BETA_CONE), gr = sigma_of4(ir, BETA_ROD);
         float4 sic, sfc, sac, sir, sfr, sar, tc, tr, E, K;
         if (init) {

@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..models import ledda2004 as L
-from ..models.bilateral import BilateralSpec
+from ..models.bilateral import V_FLOOR, BilateralSpec
 from ..models.display import SHOULDER_KNEE
 from ..models.ledda2004 import (CHANGE_LOG10, LOCAL_STRENGTH, MODES, STATE_CHANNELS,
                                 anchored_sigma, display_sigma, neutral_rod_ratio)
@@ -158,6 +158,26 @@ class Ledda04(Operator):
         self.ward = self.settings.mode != "paper"
         self.rod_ratio = neutral_rod_ratio(self.ward)
 
+    #: The default mode's slow course is the shared pigment model's (issue 66): each
+    #: pixel adapts at once to its level times the frame's factor (goal + equivalent
+    #: background) / goal; ``--mode paper`` keeps Eqs. 14-17's per-pixel courses.
+    pigment_course = True
+
+    def uses_pigment(self) -> bool:
+        return self.settings.mode != "paper"
+
+    def rod_per_cone(self) -> float:
+        return self.rod_ratio
+
+    def pigment_gains(self, state, stats, dt: float, fresh: bool) -> tuple[float, float]:
+        """The frame's factors on every pixel's cone and rod level (1, 1 in paper mode):
+        the shared pigment course's raised goals over the frame's own."""
+        if not self.uses_pigment():
+            return 1.0, 1.0
+        eff = self.pigment_goals(state, stats, dt, fresh)
+        return (float(eff.G_cone) / max(float(stats.G_cone), V_FLOOR),
+                float(eff.G_rod) / max(float(stats.G_rod), V_FLOOR))
+
     def summary(self, params, stats=None) -> dict:
         """The frame's record (metadata, plots), the same from every schedule."""
         v = stats.values
@@ -175,9 +195,19 @@ class Ledda04(Operator):
 
     # -- the observer (a uniform field: every pixel's course alike) ------------------------
     def observer_preadapted(self, L_cd, seconds):
+        if self.uses_pigment():              # the run's own: adapted at once, the pigment
+            return self.pigment_observer(L.initial_state(L_cd, L_cd * self.rod_ratio, L.E_MAX),
+                                         L_cd, seconds)
         return L.preadapted_state(L_cd, seconds, (), self.ward)
 
+    def advance(self, values, stats, dt):
+        """The default mode's step of one observer (``pigment_observer_advance``): each
+        pixel at once at its raised level, as the schedules do."""
+        return L.initial_state(stats.G_cone, stats.G_rod, L.E_MAX)
+
     def observer_advance(self, obs, L_cd, dt):
+        if self.uses_pigment():
+            return self.pigment_observer_advance(obs, L_cd, dt)
         Lr = L_cd * self.rod_ratio
         now = L.step_reference(obs, L_cd, Lr, 0.0)      # the field changes now ...
         return L.step_reference(now, L_cd, Lr, dt)      # ... and is seen for dt

@@ -54,8 +54,8 @@ class PigmentCourse:
             pig = bleaching.advance(pig, G_r, G_c, dt)
         state.extra[PIGMENT_KEY] = pig
         Lr, Lc = bleaching.equivalent_background(pig, G_r, G_c)
-        return replace(stats, G_rod=G_r + self.equivalent_goal("rod", Lr),
-                       G_cone=G_c + self.equivalent_goal("cone", Lc))
+        return replace(stats, G_rod=G_r + self.equivalent_goal("rod", Lr, G_r),
+                       G_cone=G_c + self.equivalent_goal("cone", Lc, G_c))
 
     def receptor_threshold(self, receptor: str, L: float) -> float:
         """log10 of the threshold of a flash on a black field (cd/m^2; scotopic for the
@@ -66,19 +66,25 @@ class PigmentCourse:
         lights (``bleaching.I_D_ROD``, ``I_D_CONE``)."""
         return math.log10(bleaching.dark_light(receptor) + max(L, 0.0))
 
-    def equivalent_goal(self, receptor: str, L_eq: float) -> float:
-        """The background on this operator's own threshold curve that raises its
-        threshold as much as ``L_eq`` (the pigment model's equivalent background,
-        a Weber observer's) does: Crawford's equivalent background, in the
-        operator's terms; beyond its curve's end, the end."""
-        E = math.log10(1.0 + max(L_eq, 0.0) / bleaching.dark_light(receptor))
-        if E <= 0.0:
+    def equivalent_goal(self, receptor: str, L_eq: float, G: float = 0.0) -> float:
+        """What to add to the goal ``G`` so that this operator's own threshold rises as
+        much as the pigment model's equivalent background ``L_eq`` raises a Weber
+        observer's (dark light I_D) on the background that observer meets at the
+        same threshold as the operator at ``G``: Crawford's equivalent background in
+        the operator's terms (on a dark field: the background of the same elevation;
+        on a bright one, where L_eq is small beside it, little). Beyond its curve's
+        end, the end."""
+        I_D = bleaching.dark_light(receptor)
+        if not L_eq > 0.0:
             return 0.0
-        tab = self._elevation_tables().get(receptor)
-        logL, elev = tab
-        if E >= elev[-1]:
-            return float(10.0 ** logL[-1])
-        return float(10.0 ** np.interp(E, elev, logL))
+        logL, elev = self._elevation_tables()[receptor]
+        G = max(float(G), 0.0)
+        E_G = float(np.interp(math.log10(G), logL, elev)) if G > 10.0 ** logL[0] else 0.0
+        G_w = I_D * (10.0 ** E_G - 1.0)              # the Weber observer's background there
+        E = math.log10(1.0 + (G_w + L_eq) / I_D)
+        total = float(10.0 ** logL[-1]) if E >= elev[-1] else \
+            float(10.0 ** np.interp(E, elev, logL)) if E > elev[0] else 0.0
+        return max(total - G, 0.0)
 
     def _elevation_tables(self) -> dict:
         """(log10 L, elevation) of each receptor's threshold curve, rising, from the
@@ -111,7 +117,7 @@ class PigmentCourse:
         pig = bleaching.advance(pig if bleaching.check(pig) else bleaching.steady(L_r, L_cd),
                                 L_r, L_cd, dt)
         Lr, Lc = bleaching.equivalent_background(pig, L_r, L_cd)
-        goals = SimpleNamespace(G_rod=L_r + self.equivalent_goal("rod", Lr),
-                                G_cone=L_cd + self.equivalent_goal("cone", Lc))
+        goals = SimpleNamespace(G_rod=L_r + self.equivalent_goal("rod", Lr, L_r),
+                                G_cone=L_cd + self.equivalent_goal("cone", Lc, L_cd))
         values = self.advance({k: v for k, v in obs.items() if k != PIGMENT_KEY}, goals, dt)
         return {**values, PIGMENT_KEY: pig}

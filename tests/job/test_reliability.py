@@ -336,10 +336,12 @@ def test_streamed_frames_equal_whole_ones(tmp_path, op, extra, ext, alpha):
     pa, pb = a.get_pixels(oiio.FLOAT), b.get_pixels(oiio.FLOAT)
     if ext == ".exr":
         # half floats: the sums' order moves a value by ~1e-7, which can carry one in a
-        # few ten thousand across a half rounding boundary (one half ulp, 2^-10; the
-        # default effects -- flare, Purkinje -- add sums of their own)
+        # few thousand across a half rounding boundary (one half ulp, 2^-10; the
+        # default effects -- flare, Purkinje -- add sums of their own, and the shared
+        # pigment course's equivalent background reads the goals the sums give: 5.5e-4
+        # of the values moved by one ulp where 2.3e-4 did before it)
         np.testing.assert_allclose(pb, pa, rtol=2.0 ** -10, atol=1e-5)
-        assert np.mean(pb != pa) < 5e-4
+        assert np.mean(pb != pa) < 1e-3
     else:
         np.testing.assert_allclose(pb, pa, atol=1.0 / 255)
     assert "row bands" in b.spec().getattribute("ocltm:streamed")

@@ -261,7 +261,9 @@ OPS = ("pattanaik00", "durand00", "ledda04", "kirk11")
 @pytest.mark.parametrize("op", OPS)
 def test_a_step_down_raises_the_threshold_then_it_falls_to_steady(op):
     """5000 -> 5 cd/m^2: dL_th at 0.5, 2 and 10 s is at or above the steady value at
-    5 cd/m^2, above it at 0.5 s, never rising, and steady after an hour."""
+    5 cd/m^2, above it at 0.5 s, never rising, and steady after an hour (within 0.5 %:
+    the shared pigment course's rods, bleached by the approach, regenerate at a
+    limited rate and still count in a mesopic 5 cd/m^2)."""
     o = get_operator(op)({})
     view = Viewing(10.0, 23.0, 2.0)
     steady = float(view.steady(5.0))
@@ -272,7 +274,7 @@ def test_a_step_down_raises_the_threshold_then_it_falls_to_steady(op):
     at = {p.t: p for p in pts}
     assert at[0.5].dL_th > 1.2 * steady
     assert all(at[t].dL_th >= steady for t in (0.5, 2.0, 10.0))
-    assert at[3600.0].dL_th == pytest.approx(steady, rel=1e-6)
+    assert at[3600.0].dL_th == pytest.approx(steady, rel=5e-3)
 
 
 @pytest.mark.parametrize("op", OPS)
@@ -295,18 +297,25 @@ def test_an_older_observer_adapted_to_the_background_has_no_transient(op):
     assert view.media_gain == pytest.approx(0.838, abs=2e-3)
     for L in (0.01, 1.0, 300.0):
         (p,) = trace(o, L, None, L, (0.0,), view)
-        assert p.TAF == pytest.approx(1.0, abs=1e-6) and p.L_a == pytest.approx(L, rel=1e-6)
-        assert p.dL_th == pytest.approx(float(view.steady(L)), rel=1e-6)
+        assert p.TAF == pytest.approx(1.0, abs=1e-5) and p.L_a == pytest.approx(L, rel=1e-5)
+        assert p.dL_th == pytest.approx(float(view.steady(L)), rel=1e-5)
 
 
 def test_ledda04_keeps_the_longest_memory_of_the_approach():
-    """Ledda's cones wait a second, then recover over seconds to minutes; the
-    light-adaptation models (Pattanaik's neural 80 ms, Durand's 0.1 s) within ~2 s."""
+    """With ``--mode paper`` Ledda's cones wait a second, then recover over seconds to
+    minutes; the light-adaptation models (Pattanaik's neural 80 ms, Durand's 0.1 s)
+    within ~2 s. By default every operator has the shared pigment course's: its
+    early neural phase (8 s) and its cones' and rods' pigment still raise the threshold
+    at 10 s, less than at 0.5 s, and little after an hour."""
     view = Viewing(10.0, 25.0, 2.0)
-    taf = {n: {p.t: p.TAF for p in trace(get_operator(n)({}), 5000.0, None, 5.0,
-                                          (0.5, 10.0), view)} for n in OPS}
+    taf = {n: {p.t: p.TAF for p in trace(get_operator(n)({"mode": "paper"}), 5000.0, None,
+                                          5.0, (0.5, 10.0), view)} for n in OPS}
     assert taf["ledda04"][10.0] > 1.05 > taf["pattanaik00"][10.0]
     assert taf["durand00"][10.0] < 1.0001
+    for n in OPS:
+        t = {p.t: p.TAF for p in trace(get_operator(n)({}), 5000.0, None, 5.0,
+                                       (0.5, 10.0, 3600.0), view)}
+        assert t[0.5] > t[10.0] > 1.0 and t[3600.0] < 1.005, (n, t)
 
 
 def test_transient_factor_never_below_one_and_bounded():

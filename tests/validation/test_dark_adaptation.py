@@ -72,13 +72,15 @@ def test_the_criterion_meets_the_data_at_full_dark_adaptation(curves):
 def test_within_half_a_log_unit_of_the_observers_median(curves):
     """Issue 66's target: at every intensity, fitted or held out, the pigment operators'
     curves are within 0.5 log RMS of the median of Hecht's three observers (who differ
-    from one another by 0.3-0.5). ledda04 keeps its paper's course (docs/validation.md):
-    its own value is held."""
+    from one another by 0.3-0.5). ledda04 takes the pigment course through its frame's
+    factor on every pixel's level and a Weber observer's threshold curve (its own,
+    Eq. 5's power law, has no dark light): 0.42-0.87, held (docs/validation.md)."""
     res, _ = curves
     for op in PIGMENT_OPS:
         for td in HECHT_TD.values():
             assert res[op][td][1].rms_median <= 0.5, (op, td, res[op][td][1].rms_median)
-    assert res["ledda04"][3800.0][1].rms_median > 1.5
+    assert res["ledda04"][3800.0][1].rms_median == pytest.approx(0.87, abs=0.1)
+    assert all(res["ledda04"][td][1].rms_median < 0.95 for td in HECHT_TD.values())
 
 
 def test_rod_cone_break(curves):
@@ -87,14 +89,15 @@ def test_rod_cone_break(curves):
     within 2 minutes of it (rhodopsin's rate-limited regeneration down to the
     bleached fraction whose equivalent background meets the cone plateau). After
     19 500 td their rods take over within the first minute (docs/validation.md: their
-    cones stay higher there than a person's). ledda04's own values are held."""
+    cones stay higher there than a person's). ledda04's, late (27 and 36.5 min), are
+    held."""
     res, _ = curves
     br = {op: {td: res[op][td][0].break_min() for td in HECHT_TD.values()} for op in res}
     for op in PIGMENT_OPS:
         assert 10.0 <= br[op][400000.0] <= 16.0, (op, br[op])
         assert br[op][19500.0] < 1.0, (op, br[op])            # (a miss, held)
-    assert br["ledda04"][263.0] == pytest.approx(11.0, abs=1.0)
-    assert br["ledda04"][19500.0] is None and br["ledda04"][400000.0] is None
+    assert br["ledda04"][19500.0] == pytest.approx(27.0, abs=2.0)
+    assert br["ledda04"][400000.0] == pytest.approx(36.5, abs=2.0)
 
 
 def test_no_late_step_after_a_dim_field(curves):
@@ -126,11 +129,10 @@ def test_duration_counts():
 
 
 def test_total_drop_after_the_brightest_field(curves):
-    """Data 4.95 log units (4-5.5); the pigment operators within 0.5 of it; ledda04 6.3
-    (its 45-minute value)."""
+    """Data 4.95 log units (4-5.5); every operator within 0.5 of it (ledda04 4.82)."""
     res, _ = curves
     drop = {op: res[op][400000.0][1].drop for op in res}
     assert res["pattanaik00"][400000.0][1].data_drop == pytest.approx(4.95, abs=0.01)
     for op in PIGMENT_OPS:
         assert drop[op] == pytest.approx(4.95, abs=0.5), (op, drop[op])
-    assert drop["ledda04"] == pytest.approx(6.27, abs=0.1)
+    assert drop["ledda04"] == pytest.approx(4.95, abs=0.5)

@@ -23,8 +23,7 @@ cones' where its cones, :data:`PLATEAU_MIN` after the brightest field, have the
 data's cone plateau there (the operators' responses say how a receptor's signal
 grows, not how large a signal a person detects, and the two receptors' absolute
 sensitivities are the papers' weakest part). durand00's are factors on Ferwerda's
-thresholds (his are Blackwell's small brief targets, Hecht's a 3-degree field).
-ledda04 keeps one for both (its own course, the paper's). The flash is detected by
+thresholds (his are Blackwell's small brief targets, Hecht's a 3-degree field). The flash is detected by
 whichever receptor needs less of it: the threshold in photopic cd/m^2 is
 min(cone, rod / S), S = L'/L of the test light (:data:`TEST_NM`, Hecht's violet).
 The curves are scored against the median of the three observers (:func:`median_curve`),
@@ -163,8 +162,6 @@ def criterion(op: str, backend=None, S: float | None = None):
     response increment for both (ledda04)."""
     S = scotopic_photopic_ratio(TEST_NM) if S is None else S
     st, goal = dark_state(op, backend), data_dark_threshold()
-    if op == "ledda04":
-        return _bisect(lambda c: threshold(op, st, c, S)[0], goal, 1e-9, 1.0 - 1e-9)
     log = op == "durand00"
     lo, hi = (1e-6, 1e6) if log else (1e-9, 1.0 - 1e-9)
     c_rod = _bisect(lambda c: _branches(op, st, (c, 1.0 if log else 0.5))[1] / S, goal, lo,

@@ -232,8 +232,11 @@ class LeddaSchedule(LeddaPixelState):
         h, w = stats.height, stats.width
         self.check_shape(fresh, (h, w))
         _, bands, banded, _ = stats.handle
-        init = fresh and op.preadapt is None
-        if fresh and op.preadapt is not None:
+        gain_c, gain_r = op.pigment_gains(state, stats, dt, fresh)
+        # default mode: each pixel adapts at once to its level raised by the pigment's
+        # equivalent background (the slow course is the shared pigment's)
+        init = (fresh and op.preadapt is None) or op.uses_pigment()
+        if fresh and op.preadapt is not None and not init:
             one = L.preadapted_state(op.preadapt[0], op.preadapt[1], (1, 1), op.ward)
             self.set_pixel_state(UniformPlanes(one, (h, w)) if banded else
                                  {k: np.broadcast_to(v, (h, w)) for k, v in one.items()})
@@ -269,7 +272,7 @@ class LeddaSchedule(LeddaPixelState):
             self._k_step(q, (round_up(items, 64),), (64,), ic, ir, i32(0 if rods else 1),
                          f32(op.rod_ratio), st, i32(n), i32(n), f32(dt), i32(1 if init else 0),
                          f32(L.E_MAX), f32(op.settings.change_log10 * math.log2(10.0)), counts,
-                         strength, lgc, lgr)
+                         strength, lgc, lgr, f32(gain_c), f32(gain_r))
             if banded:
                 planes = np.empty((nstate, nr, w), np.float32)
                 transfer(q, planes, st)

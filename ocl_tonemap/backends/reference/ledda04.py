@@ -65,7 +65,10 @@ class LeddaSchedule(PixelStateMixin):
         shape = (stats.height, stats.width)
         self.check_shape(fresh, shape)
         I_c, I_r = stats.planes["I_c"], stats.planes["I_r"]
-        if fresh and op.preadapt is None:
+        if op.uses_pigment():          # (opencl/ledda04.py: the same)
+            gain_c, gain_r = op.pigment_gains(state, stats, dt, fresh)
+            st, restarted = L.initial_state(I_c * gain_c, I_r * gain_r, L.E_MAX), 0.0
+        elif fresh and op.preadapt is None:
             st, restarted = L.initial_state(I_c, I_r, L.E_MAX), 0.0
         else:
             prev = L.preadapted_state(op.preadapt[0], op.preadapt[1], shape, op.ward) \
