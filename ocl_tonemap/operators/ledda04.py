@@ -10,7 +10,7 @@ mapping on the device, in row bands with halos when a frame does not fit).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -174,9 +174,13 @@ class Ledda04(Operator):
         the shared pigment course's raised goals over the frame's own."""
         if not self.uses_pigment():
             return 1.0, 1.0
-        eff = self.pigment_goals(state, stats, dt, fresh)
-        return (float(eff.G_cone) / max(float(stats.G_cone), V_FLOOR),
-                float(eff.G_rod) / max(float(stats.G_rod), V_FLOOR))
+        # driven by the scene's own log-averages (the same on every backend: the local
+        # levels' log-averages differ by where each blends them with the global one)
+        g = replace(stats, G_cone=float(stats.values["global_cone"]),
+                    G_rod=float(stats.values["global_rod"]))
+        eff = self.pigment_goals(state, g, dt, fresh)
+        return (float(eff.G_cone) / max(g.G_cone, V_FLOOR),
+                float(eff.G_rod) / max(g.G_rod, V_FLOOR))
 
     def summary(self, params, stats=None) -> dict:
         """The frame's record (metadata, plots), the same from every schedule."""

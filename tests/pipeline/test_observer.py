@@ -34,7 +34,9 @@ def test_a_spectral_frame_without_dt_is_refused_after_the_first():
 def test_a_spectral_step_is_the_sum_of_its_parts():
     """After a 100x step down, the rods' adaptation A_rod has moved part of the way
     in 0.5 s, further in 1 s, and two steps of 0.5 s equal one of 1 s (the clock's
-    steps reach the state as they are, spectral frames included)."""
+    steps reach the state as they are, spectral frames included; to 1e-7: the shared
+    pigment course's rods, bleached and regenerated at once, have no closed form, and
+    its integrator's one step and two halves agree to ~2e-9)."""
     lam, img = _spectral()
 
     def after(*steps):
@@ -47,4 +49,4 @@ def test_a_spectral_step_is_the_sum_of_its_parts():
     start, half, whole, split = after(), after(0.5), after(1.0), after(0.5, 0.5)
     goal = start * 0.01
     assert start > half > whole > goal
-    assert split == pytest.approx(whole, rel=1e-9)
+    assert split == pytest.approx(whole, rel=1e-7)
