@@ -15,6 +15,7 @@ from ..patterns import is_sequence, same_file, without_frame_token
 from ..state import AdaptationState
 from ..state_files import load_state
 from .locks import OutputLock, export_lock, output_lock
+from .locks import folders_to_make as _missing_folders
 from .locks import release_held as release_output_locks
 from .options import RUN_KEY, JobOptions, run_fingerprint
 
@@ -89,16 +90,6 @@ class RunLock:
             except OSError:
                 pass
         _HELD.discard(self)
-
-
-def _missing_folders(path: str) -> list:
-    """The folders above ``path`` that do not exist yet, deepest first."""
-    out = []
-    d = os.path.dirname(os.path.abspath(path))
-    while d and not os.path.isdir(d) and d != os.path.dirname(d):
-        out.append(d)
-        d = os.path.dirname(d)
-    return out
 
 
 #: The run locks this process holds: a signal landing as a run ends may cut

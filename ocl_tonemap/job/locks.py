@@ -108,7 +108,7 @@ def _alive(pid) -> bool:
     return True
 
 
-def _folders_to_make(path: str) -> list:
+def folders_to_make(path: str) -> list:
     """The folders above ``path`` that do not exist yet, deepest first."""
     out = []
     d = os.path.dirname(os.path.abspath(path))
@@ -227,7 +227,7 @@ class OutputLock:
                 "chunk": None if self.chunk is None else list(self.chunk)}
 
     def acquire(self) -> "OutputLock":
-        made = _folders_to_make(self.path)
+        made = folders_to_make(self.path)
         try:
             os.makedirs(os.path.dirname(self.path), exist_ok=True)
         except OSError as exc:
