@@ -94,7 +94,15 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> di
     ax.set_title(f"{tm.operator_name}: adaptation over time")
     ax.grid(alpha=0.3)
     ax = axes[1]
-    if "B_cone" in infos[0].state.values:
+    pig = [(getattr(i.state, "extra", None) or {}).get("pigment") for i in infos]
+    linear = all(isinstance(p, dict) for p in pig)
+    if linear:          # the default mode's slow course: the shared pigment model's
+        for k, c, lab in (("Bb_cone", "k", "cones' pigment bleached"),
+                          ("Bb_rod", "b", "rods' pigment bleached")):
+            ax.plot(t, [p[k] for p in pig], c, label=lab)
+        ax.set_ylabel("fraction bleached\n(shared pigment course)")
+        ax.set_ylim(0.0, 1.02)
+    elif "B_cone" in infos[0].state.values:
         for k, c in (("B_cone", "k"), ("B_rod", "b")):
             ax.plot(t, val(k), c, label=k)
         ax.set_ylabel("bleaching B")
@@ -106,7 +114,8 @@ def plot_adaptation(path: str, infos, tm, frames: list[int] | None = None) -> di
         ax.text(0.5, 0.5, "per-pixel state (see the state's .pixels.exr)", ha="center",
                 transform=ax.transAxes)
     if ax.lines:
-        ax.set_yscale("log")
+        if not linear:
+            ax.set_yscale("log")
         ax.legend(loc="best", fontsize=8)
     ax.set_xlabel("time (s)")
     ax.grid(alpha=0.3)

@@ -197,6 +197,23 @@ def test_the_plot_shows_each_operators_adapted_state_and_says_what_its_lines_mar
     assert len(legends["scene-to-display mapping"]) >= 2, legends
 
 
+@pytest.mark.parametrize("mode", ["default", "paper"])
+def test_the_plot_shows_the_slow_course_that_runs(short_tunnel, tmp_path, mode):
+    """The second panel: the shared pigment course's bleached fractions by default
+    (issue 66), the paper's own B with --mode paper."""
+    pattern, _ = short_tunnel
+    plot = tmp_path / "p.png"
+    assert main(["run", pattern, str(tmp_path / "o.####.png"), "--backend", "reference",
+                 "--mode", mode, "--plot", str(plot), "-q"]) == 0
+    legends = json.loads(oiio.ImageBuf(str(plot)).spec().getattribute("ocltm:legends"))
+    second = [v for k, v in legends.items() if "bleach" in " ".join(v) or "B_" in " ".join(v)]
+    assert second, legends
+    if mode == "default":
+        assert second[0] == ["cones' pigment bleached", "rods' pigment bleached"], legends
+    else:
+        assert second[0] == ["B_cone", "B_rod"], legends
+
+
 # -- 13: the calculator's symbols are the run's ----------------------------------------------
 def test_the_calculator_says_l_s_for_the_background_given_and_l_b_with_the_veil(capsys):
     argv = ["visibility", "--background", "105.9", "--veil", "80.1", "--target", "1.96",
