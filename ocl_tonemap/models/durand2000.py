@@ -333,6 +333,12 @@ def illuminant_estimate(rgb: np.ndarray, source_limit: float | None = None):
 #: NO_ADAPT_CCT and below, linear in mired (1e6 / CCT) between (docs/models.md).
 FULL_ADAPT_CCT = 5000.0
 NO_ADAPT_CCT = 2000.0
+#: ... and to cool light (issue 67): full at and below COOL_FULL_CCT, none at
+#: COOL_NO_ADAPT_CCT and above, linear in mired (Zhai & Luo 2018 find D falling for
+#: CCTs above ~6500 K as below ~5000 K; a blue sky or a cool studio took out the
+#: scene's own colour: its coloured mid-tones at 0.36x their saturation).
+COOL_FULL_CCT = 6500.0
+COOL_NO_ADAPT_CCT = 25000.0
 
 
 def degree_of_adaptation(L_A: float, cct: float, confidence: float = 1.0,
@@ -341,11 +347,14 @@ def degree_of_adaptation(L_A: float, cct: float, confidence: float = 1.0,
     Eq. 5: F (1 - (1/3.6) exp((-L_A - 42) / 92)), L_A the adapting luminance in
     cd/m^2, F = 1 for an average surround) times the share kept for a warm
     illuminant (:data:`FULL_ADAPT_CCT`, :data:`NO_ADAPT_CCT`; Chen & Wei 2019 find
-    D lower at 2700 and 3500 K) times the estimate's confidence."""
+    D lower at 2700 and 3500 K) and for a cool one (:data:`COOL_FULL_CCT`,
+    :data:`COOL_NO_ADAPT_CCT`) times the estimate's confidence."""
     D = surround_F * (1.0 - math.exp((-max(float(L_A), 0.0) - 42.0) / 92.0) / 3.6)
     m, m_full, m_none = 1e6 / max(cct, 1.0), 1e6 / FULL_ADAPT_CCT, 1e6 / NO_ADAPT_CCT
     warm = min(1.0, max(0.0, (m_none - m) / (m_none - m_full)))
-    return float(min(1.0, max(0.0, D * warm * confidence)))
+    c_full, c_none = 1e6 / COOL_FULL_CCT, 1e6 / COOL_NO_ADAPT_CCT
+    cool = min(1.0, max(0.0, (m - c_none) / (c_full - c_none)))
+    return float(min(1.0, max(0.0, D * warm * cool * confidence)))
 
 
 def partial_illuminant(illum, D: float) -> np.ndarray:
