@@ -113,17 +113,24 @@ def delta_e(display, out, masks, black: bool = True) -> np.ndarray:
     return np.asarray(de)
 
 
+def visible_from(vis) -> int | None:
+    """The index from which ``vis`` holds to its end (None: its last is False)."""
+    if not vis[-1]:
+        return None
+    k = len(vis) - 1
+    while k > 0 and vis[k - 1]:
+        k -= 1
+    return k
+
+
 def just_visible(de_row, targets=TARGETS_CD, jnd=JND) -> float:
     """log10 cd/m^2 of the dimmest luminance visible at one time: where Delta E crosses
     ``jnd`` going up the chart (log-log interpolation between the two targets around the
     first crossing from the bright end down); -inf: every target visible; +inf: none."""
     logL = np.log10(targets)
-    vis = de_row >= jnd
-    if not vis[-1]:
+    k = visible_from(de_row >= jnd)
+    if k is None:
         return np.inf
-    k = len(vis) - 1
-    while k > 0 and vis[k - 1]:
-        k -= 1
     if k == 0:
         return -np.inf
     a, b = max(de_row[k - 1], 1e-12), de_row[k]
@@ -134,12 +141,9 @@ def just_visible(de_row, targets=TARGETS_CD, jnd=JND) -> float:
 def first_visible(minutes, de_col, jnd=JND) -> float:
     """Minutes at which one target first reaches ``jnd`` for good (interpolated in log
     Delta E between the frames around it); 0: from the first frame; inf: never."""
-    vis = de_col >= jnd
-    if not vis[-1]:
+    k = visible_from(de_col >= jnd)
+    if k is None:
         return np.inf
-    k = len(vis) - 1
-    while k > 0 and vis[k - 1]:
-        k -= 1
     if k == 0:
         return 0.0
     a, b = max(de_col[k - 1], 1e-12), de_col[k]
