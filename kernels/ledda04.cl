@@ -228,7 +228,7 @@ __kernel void ledda04_map(__global const float *rgb, const int rgb_off,
                           const int stride, const int n, const float sigma_disp,
                           const float inv_unit, __global float *out, const float strength,
                           const float ln_global_c, const float inv_white, const float knee,
-                          const int ward)
+                          const int ward, const float mes_gain)
 {
     const int i = get_global_id(0);
     if (i >= n) return;
@@ -240,8 +240,10 @@ __kernel void ledda04_map(__global const float *rgb, const int rgb_off,
     const float K = s[9 * stride];
     const float sc = sigma_cone_at(sic, sfc, s[6 * stride], K);
     const float sr = sigma_rod_at(sir, sfr, s[7 * stride], K);
-    const float u = clamp((log10(fmax(ic, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
-    const float mes = u * u * (3.0f - 2.0f * u);                         /* Eq. 11 */
+    /* Eq. 11 at the cone level times the frame's pigment factor (Ledda04.mesopic_gain) */
+    const float u = clamp((log10(fmax(ic * mes_gain, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN,
+                          0.0f, 1.0f);
+    const float mes = u * u * (3.0f - 2.0f * u);
     const float3 c = vload3(rgb_off + i, rgb);
     const float cone_gain = mes * sigma_disp / sc * inv_unit;            /* Eq. 12 */
     const float rod_out = (1.0f - mes) * sigma_disp * ledda_Ys(c, ward) / sr * inv_unit; /* Eq. 13 */
@@ -321,7 +323,7 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
                            const int stride, const int n, const float sigma_disp,
                            const float inv_unit, __global float *out, const float strength,
                            const float ln_global_c, const float inv_white, const float knee,
-                           const int ward)
+                           const int ward, const float mes_gain)
 {
     const int q = get_global_id(0), i0 = ITEM_PIXELS(4) * q;
     if (i0 >= n) return;
@@ -334,7 +336,8 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
             const float sc = sigma_cone_at(s[0], s[stride], s[6 * stride], s[9 * stride]);
             const float sr = sigma_rod_at(s[3 * stride], s[4 * stride], s[7 * stride],
                                           s[9 * stride]);
-            const float u = clamp((log10(fmax(ic, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
+            const float u = clamp((log10(fmax(ic * mes_gain, V_FLOOR)) + MES_LOG_OFFSET)
+                                  / MES_LOG_SPAN, 0.0f, 1.0f);
             const float mes = u * u * (3.0f - 2.0f * u);
             const float3 c = vload3(rgb_off + i, rgb);
             const float3 o = fmin(c * (mes * sigma_disp / sc * inv_unit)
@@ -353,7 +356,8 @@ __kernel void ledda04_map4(__global const float *rgb, const int rgb_off,
                                      vload4(0, s + 6 * stride), K);
     const float4 sr = sigma_rod_at4(vload4(0, s + 3 * stride), vload4(0, s + 4 * stride),
                                     vload4(0, s + 7 * stride), K);
-    const float4 u = clamp((log10(fmax(ic, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN, 0.0f, 1.0f);
+    const float4 u = clamp((log10(fmax(ic * mes_gain, V_FLOOR)) + MES_LOG_OFFSET) / MES_LOG_SPAN,
+                           0.0f, 1.0f);
     const float4 mes = u * u * (3.0f - 2.0f * u);                        /* Eq. 11 */
     float4 r, g, b;
     load_rgb4(0, rgb + 3 * (size_t)(rgb_off + i0), &r, &g, &b);

@@ -34,12 +34,15 @@ rods; time in seconds; Bb bleached fraction):
 6. The threshold elevation reaches the operator as an equivalent background
    (Crawford 1947; Lamb & Pugh 2004: the equivalent background is proportional to
    what is bleached and not yet regenerated), added to the adaptation level it uses:
-   L_eq = I_D kappa Bb + w_N (N - L), I_D the receptor's dark light (its threshold
-   doubles on a background of I_D). On a Weber observer the log threshold
-   elevation is log10(1 + L_eq / I_D): the Dowling-Rushton relation's slope in the
-   log for large bleaches, Crawford's linear one for small; with Bb falling at
-   v / K_m per minute once small, the rods' S2 slope is v / (K_m ln 10) = 0.18
-   log units a minute (Lamb 1981: ~0.24).
+   cones L_eq = I_D kappa Bb + w_N (N - L), rods
+   L_eq = I_D ((1 + kappa Bb) 10^(a Bb) - 1) + w_N (N - L), I_D the receptor's dark
+   light (its threshold doubles on a background of I_D). On a Weber observer the log
+   threshold elevation is log10(1 + L_eq / I_D): for the rods
+   log10(1 + kappa Bb) + a Bb, Crawford's linear term for small bleaches and the
+   Dowling-Rushton relation's (log elevation proportional to the bleach; Alpern,
+   Rushton & Torii 1970) for large; with the regeneration's rate near v / K_m per
+   minute once Bb is small, the rods' S2 slope near the end is about 0.23 log
+   units a minute (Lamb 1981: ~0.24).
 
 Constants: published values (each with its source); the equivalent-background
 gains kappa_r, kappa_c and the neural phase's w_N (rods, cones) and tau_N are fitted,
@@ -80,10 +83,16 @@ TAU_N = 8.0
 I_D_ROD = 1.0e-4
 I_D_CONE = 1.0e-2
 #: Equivalent-background gains (dark lights per unit fraction bleached), fitted: the
-#: rods' makes the rod-cone break after 400 000 td come where Hecht's does (Bb ~ 0.2
-#: at 13 min: 10^2.7 / 0.2); the cones' the fall of the cone branch (2.3 min: 0.5 log).
-KAPPA_ROD = 2500.0
+#: rods' (with A_ROD) make the rod-cone breaks after 400 000 and 19 500 td come where
+#: Hecht's do (12-14 and 5-7 min); the cones' the fall of the cone branch (2.3 min:
+#: 0.5 log).
+KAPPA_ROD = 800.0
 KAPPA_CONE = 8.0
+#: The rods' Dowling-Rushton slope, log units of threshold per unit fraction bleached
+#: (fitted with KAPPA_ROD; the local slope of the whole elevation near Bb = 0.2 is
+#: 7 log units per unit, below the 12-20 that reviews give for large bleaches: a
+#: steeper one makes the rods' S2 fall faster than Hecht's 0.24 log units a minute).
+A_ROD = 5.0
 #: The early neural phase's weights (fitted): the share of a field left as an
 #: equivalent background as it goes (rods after 263 td, cones after 400 000 td).
 W_N_ROD = 3.3e-4
@@ -184,7 +193,9 @@ def equivalent_background(s: dict, L_rod: float = 0.0, L_cone: float = 0.0
                           ) -> tuple[float, float]:
     """Eq. 6: (rods' scotopic, cones' photopic) equivalent background, cd/m^2, on a
     field of ``L_rod``, ``L_cone``."""
-    return (I_D_ROD * KAPPA_ROD * s["Bb_rod"] + W_N_ROD * max(s["N_rod"] - L_rod, 0.0),
+    b = s["Bb_rod"]
+    return (I_D_ROD * ((1.0 + KAPPA_ROD * b) * 10.0 ** (A_ROD * b) - 1.0)
+            + W_N_ROD * max(s["N_rod"] - L_rod, 0.0),
             I_D_CONE * KAPPA_CONE * s["Bb_cone"] + W_N_CONE * max(s["N_cone"] - L_cone, 0.0))
 
 

@@ -14,13 +14,16 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from ..models import bleaching
 from ..models import ledda2004 as L
 from ..models.bilateral import V_FLOOR, BilateralSpec
 from ..models.display import SHOULDER_KNEE
+from ..models.metering import LOG_FLOOR
 from ..models.ledda2004 import (CHANGE_LOG10, LOCAL_STRENGTH, MODES, STATE_CHANNELS,
                                 anchored_sigma, display_sigma, neutral_rod_ratio)
 from ..quantities import Numbers, Quantity
 from .base import Operator, Option, Stage, StateSpec, white_luminance
+from .pigment import PIGMENT_KEY
 from .pattanaik00 import MODE_OPTION
 
 
@@ -162,6 +165,7 @@ class Ledda04(Operator):
     #: pixel adapts at once to its level times the frame's factor (goal + equivalent
     #: background) / goal; ``--mode paper`` keeps Eqs. 14-17's per-pixel courses.
     pigment_course = True
+    pigment_matching = "local"
 
     def uses_pigment(self) -> bool:
         return self.settings.mode != "paper"
@@ -169,18 +173,46 @@ class Ledda04(Operator):
     def rod_per_cone(self) -> float:
         return self.rod_ratio
 
+    def receptor_threshold(self, receptor: str, L_cd: float) -> float:
+        """The threshold curve the frame factor moves every pixel along: a flash on a
+        dark field is seen at sigma times a constant (Eqs. 2-3), sigma = beta I^alpha
+        (Eq. 5) of the frame's log-average, which a black frame meters at LOG_FLOOR
+        (the dark-adapted observer's own level: no dark light below it)."""
+        beta = L.BETA_ROD if receptor == "rod" else L.BETA_CONE
+        return math.log10(float(L.sigma_of(max(L_cd, LOG_FLOOR), beta)))
+
     def pigment_gains(self, state, stats, dt: float, fresh: bool) -> tuple[float, float]:
         """The frame's factors on every pixel's cone and rod level (1, 1 in paper mode):
         the shared pigment course's raised goals over the frame's own."""
         if not self.uses_pigment():
             return 1.0, 1.0
-        # driven by the scene's own log-averages (the same on every backend: the local
-        # levels' log-averages differ by where each blends them with the global one)
-        g = replace(stats, G_cone=float(stats.values["global_cone"]),
-                    G_rod=float(stats.values["global_rod"]))
+        g = self._global_goals(stats)
         eff = self.pigment_goals(state, g, dt, fresh)
         return (float(eff.G_cone) / max(g.G_cone, V_FLOOR),
                 float(eff.G_rod) / max(g.G_rod, V_FLOOR))
+
+    def mesopic_gain(self, state, stats) -> float:
+        """The factor on every pixel's cone level where Eq. 11's mes is read: the
+        larger of the frame's two pigment factors (1 in paper mode, and near 1 on a
+        steady field). The eye's state is as light adapted as its most bleached
+        receptor says: with the rods bleached, the cones carry what is seen (read at
+        the pixel's own level alone, a dark frame after daylight weighted the blinded
+        rods, and even a 1 cd/m^2 target showed only after 5 minutes)."""
+        pig = state.extra.get(PIGMENT_KEY)
+        if not self.uses_pigment() or not bleaching.check(pig):
+            return 1.0
+        g = self._global_goals(stats)
+        eff = self.raised_goals(pig, g)
+        return max(float(eff.G_cone) / max(g.G_cone, V_FLOOR),
+                   float(eff.G_rod) / max(g.G_rod, V_FLOOR), 1.0)
+
+    @staticmethod
+    def _global_goals(stats):
+        """The frame's statistics with the scene's own log-averages as its goals (the
+        same on every backend: the local levels' log-averages differ by where each
+        blends them with the global one)."""
+        return replace(stats, G_cone=float(stats.values["global_cone"]),
+                       G_rod=float(stats.values["global_rod"]))
 
     def summary(self, params, stats=None) -> dict:
         """The frame's record (metadata, plots), the same from every schedule."""

@@ -32,6 +32,12 @@ class PigmentCourse:
     #: reaching the operator as an equivalent background on its goals
     #: (:meth:`pigment_goals`); ``--mode paper`` keeps the paper's own.
     pigment_course = False
+    #: How the Weber observer's elevation is read on the operator's curve
+    #: (:meth:`equivalent_goal`): ``"absolute"``, the background at the same threshold
+    #: counted from the dark (curves with a dark light of their own), or ``"local"``,
+    #: the same factor on the threshold from the operator's goal (a curve with no dark
+    #: light, whose level in the dark is only its metering's floor: ledda04's).
+    pigment_matching = "absolute"
 
     def uses_pigment(self) -> bool:
         return self.pigment_course and self.options.get("mode", "default") != "paper"
@@ -53,6 +59,12 @@ class PigmentCourse:
         else:
             pig = bleaching.advance(pig, G_r, G_c, dt)
         state.extra[PIGMENT_KEY] = pig
+        return self.raised_goals(pig, stats)
+
+    def raised_goals(self, pig: dict, stats):
+        """The frame's statistics with its goals raised by the equivalent backgrounds of
+        the pigment state ``pig`` (already advanced over the frame)."""
+        G_r, G_c = float(stats.G_rod), float(stats.G_cone)
         Lr, Lc = bleaching.equivalent_background(pig, G_r, G_c)
         return replace(stats, G_rod=G_r + self.equivalent_goal("rod", Lr, G_r),
                        G_cone=G_c + self.equivalent_goal("cone", Lc, G_c))
@@ -80,8 +92,11 @@ class PigmentCourse:
         logL, elev = self._elevation_tables()[receptor]
         G = max(float(G), 0.0)
         E_G = float(np.interp(math.log10(G), logL, elev)) if G > 10.0 ** logL[0] else 0.0
-        G_w = I_D * (10.0 ** E_G - 1.0)              # the Weber observer's background there
-        E = math.log10(1.0 + (G_w + L_eq) / I_D)
+        if self.pigment_matching == "local":         # the same factor at the goal itself
+            E = E_G + math.log10(1.0 + L_eq / (I_D + G))
+        else:
+            G_w = I_D * (10.0 ** E_G - 1.0)          # the Weber observer's background there
+            E = math.log10(1.0 + (G_w + L_eq) / I_D)
         total = float(10.0 ** logL[-1]) if E >= elev[-1] else \
             float(10.0 ** np.interp(E, elev, logL)) if E > elev[0] else 0.0
         return max(total - G, 0.0)

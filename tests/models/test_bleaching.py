@@ -82,8 +82,12 @@ def test_the_dark_and_the_equivalent_background():
 
 def test_steady_state_adds_little_to_a_steady_field():
     """On a field held for good, the equivalent background is small beside the field (the
-    pictures of stills stay as they were): under 2 % of it from 1e-3 to 1e5 cd/m^2."""
+    pictures of stills stay as they were): the cones' under 2 % of it from 1e-3 to 1e5
+    cd/m^2, the rods' too up to 1e3; above, where more than half the rhodopsin is
+    bleached and the rods' response is saturated, Dowling-Rushton's term makes it up
+    to 10 % (6.3 % at 1e4 cd/m^2)."""
     for L in np.logspace(-3, 5, 9):
         s = B.steady(L * 2.5, L)
         Lr, Lc = B.equivalent_background(s, L * 2.5, L)
-        assert Lr <= 0.02 * L * 2.5 + 1e-3 and Lc <= 0.02 * L + 1e-3, (L, Lr, Lc)
+        assert Lc <= 0.02 * L + 1e-3, (L, Lc)
+        assert Lr <= (0.02 if L <= 1e3 else 0.10) * L * 2.5 + 1e-3, (L, Lr)

@@ -72,32 +72,30 @@ def test_the_criterion_meets_the_data_at_full_dark_adaptation(curves):
 def test_within_half_a_log_unit_of_the_observers_median(curves):
     """Issue 66's target: at every intensity, fitted or held out, the pigment operators'
     curves are within 0.5 log RMS of the median of Hecht's three observers (who differ
-    from one another by 0.3-0.5). ledda04 takes the pigment course through its frame's
-    factor on every pixel's level and a Weber observer's threshold curve (its own,
-    Eq. 5's power law, has no dark light): 0.42-0.87, held (docs/validation.md)."""
+    from one another by 0.3-0.5); ledda04 included, its frame factor read on its own
+    curve (Eq. 5's power law from the metering's floor: ``pigment_matching = "local"``).
+    Measured 0.08-0.35 (docs/validation.md)."""
     res, _ = curves
     for op in PIGMENT_OPS:
         for td in HECHT_TD.values():
             assert res[op][td][1].rms_median <= 0.5, (op, td, res[op][td][1].rms_median)
-    assert res["ledda04"][3800.0][1].rms_median == pytest.approx(0.87, abs=0.1)
-    assert all(res["ledda04"][td][1].rms_median < 0.95 for td in HECHT_TD.values())
+    # the held-out intensities as well as the fitted ones: none is the worst by far
+    worst = max(res[op][td][1].rms_median for op in PIGMENT_OPS for td in HECHT_TD.values())
+    assert worst <= 0.4, worst
 
 
 def test_rod_cone_break(curves):
     """Data: the break comes later after brighter fields (12-14 min after 400 000 td,
-    5-7 after 19 500). The pigment operators' break after the brightest field is
-    within 2 minutes of it (rhodopsin's rate-limited regeneration down to the
-    bleached fraction whose equivalent background meets the cone plateau). After
-    19 500 td their rods take over within the first minute (docs/validation.md: their
-    cones stay higher there than a person's). ledda04's, late (27 and 36.5 min), are
-    held."""
+    5-7 after 19 500). Every pigment operator's break is within 2 minutes of the data's
+    (rhodopsin's rate-limited regeneration down to the bleached fraction whose
+    equivalent background, Dowling-Rushton's term for large bleaches, meets the cone
+    plateau), and it comes later after the brighter field."""
     res, _ = curves
     br = {op: {td: res[op][td][0].break_min() for td in HECHT_TD.values()} for op in res}
     for op in PIGMENT_OPS:
         assert 10.0 <= br[op][400000.0] <= 16.0, (op, br[op])
-        assert br[op][19500.0] < 1.0, (op, br[op])            # (a miss, held)
-    assert br["ledda04"][19500.0] == pytest.approx(27.0, abs=2.0)
-    assert br["ledda04"][400000.0] == pytest.approx(36.5, abs=2.0)
+        assert 3.0 <= br[op][19500.0] <= 9.0, (op, br[op])
+        assert br[op][19500.0] < br[op][38900.0] < br[op][400000.0], (op, br[op])
 
 
 def test_no_late_step_after_a_dim_field(curves):

@@ -306,6 +306,7 @@ class LeddaSchedule(LeddaPixelState):
         stats.values["sigma_disp"] = sd
         strength, lgc, _ = self._frame_scalars(stats)
         f32, i32 = np.float32, np.int32
+        mes_gain = f32(op.mesopic_gain(state, stats))
         out = be.output_array(h, w, encoding) if sink is None else None
         nstate = len(self.planes)
         for y0, nr in bands:
@@ -321,7 +322,7 @@ class LeddaSchedule(LeddaPixelState):
             dst = be.output_buffer(n, len(bands) == 1)
             self._k_map(q, (round_up(items, 64),), (64,), be.bufs["rgb"], i32(0), ic, st, i32(n),
                         i32(n), f32(sd), f32(1.0 / op.display.unit_cd), dst, strength,
-                        lgc, f32(1.0 / white), f32(knee), i32(op.ward))
+                        lgc, f32(1.0 / white), f32(knee), i32(op.ward), mes_gain)
             if sink is None:
                 be.fetch_output(out[y0:y0 + nr], dst, n, encoding)
             else:

@@ -90,6 +90,6 @@ class LeddaSchedule(PixelStateMixin):
         s_c, s_r = L.current_sigmas(self._host)
         sd, white, knee = op.frame_mapping(stats.values["global_cone"], stats.values["global_rod"])
         stats.values["sigma_disp"] = sd
-        out = L.map_reference(rgb, Ys, stats.planes["I_c"], s_c, s_r, sd, op.display.unit_cd,
-                              white, knee)
+        mes_level = stats.planes["I_c"] * op.mesopic_gain(state, stats)   # (Eq. 11's level)
+        out = L.map_reference(rgb, Ys, mes_level, s_c, s_r, sd, op.display.unit_cd, white, knee)
         return out.astype(np.float32)
