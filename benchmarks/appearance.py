@@ -113,7 +113,7 @@ def lvl(L: float) -> str:
 
 def log_average(rgb) -> float:
     try:
-        from ocl_tonemap.calibration import log_average as la
+        from ocl_tonemap.colour.calibration import log_average as la
         v = la(rgb)
     except ImportError:
         Y = am.luminance(rgb)

@@ -81,8 +81,8 @@ def bench_tables(rt, sizes, reps, n_probe):
 
 
 def bench_runs(reps):
-    from ocl_tonemap.cli import main
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.cli.table import main
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     rows = []
     with tempfile.TemporaryDirectory() as d:
         pattern, frames = write_tunnel_sequence(d, 1920, 1080, 30.0, 0.4)

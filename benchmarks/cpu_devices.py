@@ -132,7 +132,7 @@ def peak_of(cmd, env, cwd=None) -> float | None:
 
 
 def section_first_frame(devs, before: str | None) -> list[str]:
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     tmp = Path(tempfile.mkdtemp(prefix="ocltm-ttff-"))
     pattern, fr = write_tunnel_sequence(str(tmp / "in"), 320, 180, 30.0, 0.1)
     src = pattern.replace("####", f"{fr[0]:04d}")

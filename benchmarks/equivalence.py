@@ -67,7 +67,7 @@ def render(backends=("opencl", "reference")) -> dict:
                 for j, (lv, t) in enumerate(zip(LEVELS, TIMES)):
                     out = tm.process(img, time_s=t, luminance_scale=lv)
                     res[f"{sname}|{backend}|{i}:{op}{opts}{fx}|{j}"] = np.asarray(out, np.float32)
-    from ocl_tonemap.sample import spectral_patches
+    from ocl_tonemap.io.sample import spectral_patches
     lam, spec, _ = spectral_patches("A", 0.05)
     spec = np.repeat(np.repeat(spec.reshape(4, 6, -1), 4, axis=0), 4, axis=1).astype(np.float32)
     for backend in backends:

@@ -44,7 +44,7 @@ OPERATORS = ("pattanaik00", "durand00", "ledda04", "kirk11")
 def write_scene(folder: str, w: int, h: int, n: int) -> str:
     """The tunnel drive at ``w`` x ``h`` (5000 -> 5 cd/m^2 ...), ``n`` frames, as
     half-float zip EXR (the form a renderer hands over); returns its pattern."""
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     os.makedirs(folder, exist_ok=True)
     for k in range(n):
         pix = render_frame(2.0 + k / 30.0, w, h, 8.0).astype(np.float32)
@@ -61,7 +61,7 @@ def write_scene(folder: str, w: int, h: int, n: int) -> str:
 def floor(pattern: str, n: int, out_dir: str, threads: int) -> float:
     """Seconds to decode ``n`` frames and encode them to 8-bit PNG on ``threads``
     threads (no tone mapping): the disks' and codecs' rate."""
-    from ocl_tonemap.patterns import frame_path
+    from ocl_tonemap.io.patterns import frame_path
     os.makedirs(out_dir, exist_ok=True)
 
     def one(k):
@@ -99,7 +99,7 @@ def api(op: str, model: str, w: int, h: int, reps: int) -> dict:
     import pyopencl.array as cla
 
     from ocl_tonemap import Tonemapper
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     frames = [render_frame(2.0 + k / 30.0, w, h, 8.0).astype(np.float32) for k in range(3)]
     out = {}
     for kind in ("host", "device"):

@@ -43,7 +43,7 @@ PHOTOS = ("venice_sunset_1k.hdr", "blender_interior.exr", "potsdamer_platz_1k.hd
 
 def scenes(photo_names):
     from ocl_tonemap.models.photometry import Y_WEIGHTS
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     yield "tunnel (9 frames)", 1.0, [np.ascontiguousarray(render_frame(float(t), 320, 180, 8.0)
                                                           [..., :3], np.float32)
                                      for t in range(9)]

@@ -20,7 +20,7 @@ The set:
 * two sequences at 30 fps (dt = 1/30 s), both models run over the whole sequence
   and compared frame by frame: a day-to-night fade (one scene, its log-average
   going from 1e4 to 1e-3 cd/m^2 geometrically) and the tunnel drive across the
-  entrance (``ocl_tonemap.sample.render_frame``; 2x2 supersampled up to 640x360,
+  entrance (``ocl_tonemap.io.sample.render_frame``; 2x2 supersampled up to 640x360,
   1x1 above: the 1080p frames cost 3 s each otherwise).
 
 Per operator x scene x size (stills): a fresh ``Tonemapper`` per model (backend
@@ -92,7 +92,7 @@ def tunnel_frame(w: int, h: int, t: float, seconds: float = 8.0) -> np.ndarray:
     640x360, where the 2x2 supersampled ray cast takes seconds a frame)."""
     if w * h <= 640 * 360:
         return scenes.tunnel(w, h, t, seconds)
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     return render_frame(t, w, h, seconds, ss=1).astype(np.float32)
 
 
@@ -130,7 +130,7 @@ def class_of(what: str, L: float) -> str:
 
 
 def log_average(rgb) -> float:
-    from ocl_tonemap.calibration import log_average as la
+    from ocl_tonemap.colour.calibration import log_average as la
     v = la(rgb)
     if not v:
         raise ValueError("image has no light")

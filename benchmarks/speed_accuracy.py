@@ -122,7 +122,7 @@ class Scenes:
         """The scene in cd/m^2 (working RGB, luminance scale 1)."""
         key = (name, w, h)
         if key not in self._cache:
-            from ocl_tonemap.calibration import log_average
+            from ocl_tonemap.colour.calibration import log_average
             stem, level = next((s, L) for n, s, L in SCENES if n == name)
             if stem is None:
                 img = tunnel(w, h, t=TUNNEL_T, seconds=TUNNEL_SECONDS)
@@ -135,7 +135,7 @@ class Scenes:
 
     def describe(self) -> list[str]:
         from benchmarks.lib.photos import WHEEL
-        from ocl_tonemap.calibration import log_average
+        from ocl_tonemap.colour.calibration import log_average
         out = []
         for n, stem, level in SCENES:
             if n not in self.names:
@@ -779,8 +779,8 @@ CMD_RUNS = (("pattanaik00", "draft", "auto"), ("pattanaik00", "balanced", "auto"
 
 def sample_sequence(w: int, h: int) -> tuple[str, list[int]]:
     """The 60-frame tunnel sample (30 fps, 2 s), rendered once into a cache folder."""
-    from ocl_tonemap.patterns import frame_path
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.patterns import frame_path
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     d = os.path.join(base, "ocl-tonemap", "speed_accuracy", f"tunnel_{w}x{h}_60")
     pattern = os.path.join(d, "tunnel.####.exr")
@@ -839,7 +839,7 @@ def timed(cmd, repeat: int, cwd: str, shell: bool = False):
 
 
 def whole_command(sizes, repeat: int) -> list[str]:
-    from ocl_tonemap.imageio import PNG_FILTER, PNG_FILTERS, PNG_LEVEL
+    from ocl_tonemap.io.imageio import PNG_FILTER, PNG_FILTERS, PNG_LEVEL
     cli = os.path.join(os.path.dirname(sys.executable), "ocl-tonemap")
     cli = [cli] if os.path.exists(cli) else [sys.executable, "-m", "ocl_tonemap"]
     pfs_missing = ensure_pfstools()

@@ -48,8 +48,8 @@ def _stages(size: str, frames: int = 8) -> list:
     from ocl_tonemap.job.visibility_out import view_pixels, write_view, write_visibility
     from ocl_tonemap.models.visibility_map import Geometry, recipe
     from ocl_tonemap.operators import get_operator
-    from ocl_tonemap.sample import render_frame
-    from ocl_tonemap.visibility import Viewing
+    from ocl_tonemap.io.sample import render_frame
+    from ocl_tonemap.effects.visibility import Viewing
     w, h = (int(v) for v in size.split("x"))
     pix = render_frame(1.0, w, h, 8.0, ss=1).astype(np.float16)
     be = OpenCLBackend()

@@ -5,7 +5,7 @@
 An observer fully adapted to 5000 cd/m^2 (a sunlit tunnel approach) looks at a
 background that steps to L_b at t = 0. Adrian 1989's dL_th (10 arcmin, positive
 contrast, age 25, 2 s look, k = 2.6) times each operator's transient factor
-(``ocl_tonemap/visibility.py``): the table at 0.5, 2, 10 and 60 s after the step,
+(``ocl_tonemap/effects/visibility.py``): the table at 0.5, 2, 10 and 60 s after the step,
 for L_b = 5 cd/m^2 and for CIE 88's threshold zone (L_th = k L20, k = 0.05), and
 the operators' adaptation luminance against CIE 88's transition-zone design curve
 L_tr(t) = L_th (1.9 + t)^-1.4. Pure float64, seconds. Writes
@@ -21,7 +21,7 @@ import sys
 from benchmarks.lib.outdir import add_out_args, out_path
 from benchmarks.lib.report import write_markdown
 from ocl_tonemap.operators import get_operator
-from ocl_tonemap.visibility import Viewing, trace
+from ocl_tonemap.effects.visibility import Viewing, trace
 
 OPERATORS = ("pattanaik00", "durand00", "ledda04", "kirk11")
 L_APPROACH = 5000.0
@@ -83,7 +83,7 @@ def main(argv=None) -> int:
                      " | ".join(f"{las[n][i].L_a:.4g}" for n in OPERATORS) + " |")
     out = out_path(a, "visibility_step.md")
     png = os.path.splitext(out)[0] + ".png"
-    from ocl_tonemap.plot import plot_visibility_step
+    from ocl_tonemap.io.plot import plot_visibility_step
     plot_visibility_step(png, [get_operator(n)({}) for n in OPERATORS], L_APPROACH, None,
                          5.0, view, t_max=600.0)
     lines += ["", f"![dL_th after the step to 5 cd/m^2]({os.path.basename(png)})"]

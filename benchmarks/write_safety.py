@@ -67,9 +67,10 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     out_file = out_path(a, "write_safety.md")
     w, h = (int(v) for v in a.size.lower().split("x"))
-    from ocl_tonemap import imageio, imagewrite, safeio
+    from ocl_tonemap.base import safeio
+    from ocl_tonemap.io import imageio, imagewrite
     from ocl_tonemap.pipeline import Tonemapper
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     scene = np.ascontiguousarray(render_frame(1.2, w, h, 8.0)[..., :3], np.float32)
     tm = Tonemapper("pattanaik00")
     tm.process_frame(scene)

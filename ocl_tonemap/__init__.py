@@ -6,11 +6,14 @@ OpenCL, with a float64 NumPy reference, for OpenImageIO/OpenColorIO
 pipelines. See README.md; the Python API is :class:`Tonemapper`.
 """
 
+from . import moved
 from .version import __version__
+
+moved.install()              # the old import paths, one release (docs/architecture.md)
 
 #: The public names, imported on first use (``import ocl_tonemap`` stays cheap for the
 #: command line's quick paths: ``--version``, ``devices``).
-_LAZY = {"Tonemapper": ".pipeline", "AdaptationState": ".state", "DisplaySpec": ".models.display",
+_LAZY = {"Tonemapper": ".pipeline", "AdaptationState": ".pipeline.state", "DisplaySpec": ".models.display",
          "EffectSettings": ".effects", "MeteringSpec": ".models.metering",
          "OcioExport": ".colour.export", "process_imagebuf": ".job.imagebuf"}
 

@@ -1,11 +1,11 @@
 """``python -m ocl_tonemap`` and the ``ocl-tonemap`` command (``entry``): the command
-line with its signals handled from the first moment (``interrupts.py``): SIGINT
+line with its signals handled from the first moment (``base/interrupts.py``): SIGINT
 exits 130, SIGTERM 143, in one line, never a traceback."""
 
 import os
 import sys
 
-from .interrupts import Terminated, enable_watchdog, exit_code, ignore_for_exit, install, ready
+from .base.interrupts import Terminated, enable_watchdog, exit_code, ignore_for_exit, install, ready
 
 
 def _leave(code: int) -> None:
@@ -89,7 +89,7 @@ def _entry() -> int:
         ready("handlers")
         _malloc_for_frames()
         _one_blas_thread()
-        from .cli import main             # lazy: after the handlers and the BLAS setting
+        from .cli.table import main             # lazy: after the handlers and the BLAS setting
         code = main()
     except BaseException as exc:          # noqa: BLE001 - only the two signals end here
         if not isinstance(exc, (KeyboardInterrupt, Terminated)):

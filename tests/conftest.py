@@ -79,14 +79,14 @@ def rt():
 @pytest.fixture(scope="session")
 def tunnel_frames():
     """A short, small tunnel drive as arrays (cd/m^2): 3 s at 10 fps, 64x36."""
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     return [render_frame(i / 10.0, 64, 36, 3.0) for i in range(30)]
 
 
 @pytest.fixture(scope="session")
 def sample_dir(tmp_path_factory):
     """The built-in sample on disk: 1.5 s at 30 fps, 48x27 (EXR, cd/m^2)."""
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("sample")
     pattern, frames = write_tunnel_sequence(str(d), 48, 27, 30.0, 1.5)
     return pattern, frames

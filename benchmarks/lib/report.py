@@ -81,9 +81,9 @@ def write_image(path: str, pixels: np.ndarray, **attributes) -> str:
 
 
 def radiance_env() -> tuple[str, dict]:
-    """(bin folder, environment) of Radiance's programs (``ocl_tonemap.radiance.tools``),
+    """(bin folder, environment) of Radiance's programs (``ocl_tonemap.io.radiance.tools``),
     or the benchmark ends saying how to install them."""
-    from ocl_tonemap import radiance
+    from ocl_tonemap.io import radiance
     tools = radiance.tools()
     if tools is None:
         raise SystemExit("Radiance's programs are missing: pip install 'ocl-tonemap[radiance]'")

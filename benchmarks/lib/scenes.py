@@ -64,9 +64,9 @@ def lognormal_texture(h: int, w: int, sigma: float = 0.35, seed: int = 0) -> np.
 
 
 def tunnel(w: int = 256, h: int = 128, t: float = 1.2, seconds: float = 8.0) -> np.ndarray:
-    """The built-in tunnel drive (``ocl_tonemap.sample.render_frame``) at ``t`` s of a
+    """The built-in tunnel drive (``ocl_tonemap.io.sample.render_frame``) at ``t`` s of a
     ``seconds`` s drive, cd/m^2."""
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     return render_frame(t, w, h, seconds).astype(np.float32)
 
 
@@ -101,7 +101,7 @@ def lamp(w: int = 256, h: int = 128) -> np.ndarray:
 
 #: The appearance scenes: name -> (function, what it shows, natural level cd/m^2)
 SCENES = {
-    "tunnel": (tunnel, "generated: tunnel entrance in sun (ocl_tonemap.sample)", 3000.0),
+    "tunnel": (tunnel, "generated: tunnel entrance in sun (ocl_tonemap.io.sample)", 3000.0),
     "patches": (patches, "generated: ColorChecker patches x log-normal texture", 100.0),
     "lamp": (lamp, "generated: bright lamp on a dark textured wall", 1.0),
 }
@@ -189,7 +189,7 @@ def sine_texture(w, h, seed=0):
 def spectral_chart(w, h):
     """(wavelengths, (h, w, N) spectral radiance): the 24 ColorChecker patches under
     illuminant A in a 4x6 grid, times three decades of smooth luminance (bench_kirk)."""
-    from ocl_tonemap.sample import spectral_patches
+    from ocl_tonemap.io.sample import spectral_patches
     lam, spectra, _ = spectral_patches("A", 1.0)
     idx = (np.arange(h)[:, None] * 6 // h) * 4 + (np.arange(w)[None, :] * 4 // w)
     y, x = np.mgrid[0:h, 0:w] / max(h, w)

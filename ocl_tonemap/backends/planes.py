@@ -10,7 +10,7 @@ name once opened: a killed run leaves nothing behind.
 
 Anything with ``names``, ``shape`` (h, w) and ``read(y0, y1) -> (planes, rows, w)``
 is *band-readable*: a store, a dict of (h, w) arrays (through :func:`read_rows`), or
-a state side file opened by ``state.py``.
+a state side file opened by ``pipeline/state.py``.
 """
 
 from __future__ import annotations

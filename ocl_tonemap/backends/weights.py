@@ -9,7 +9,7 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
-from ..safeio import check_input
+from ..base.safeio import check_input
 
 
 @functools.lru_cache(maxsize=8)

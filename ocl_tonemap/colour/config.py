@@ -42,8 +42,8 @@ import numpy as np
 import PyOpenColorIO as ocio
 
 from ..models.photometry import RGB709_TO_XYZ
-from ..resources import package_data_dir
-from ..safeio import check_input
+from ..base.resources import package_data_dir
+from ..base.safeio import check_input
 
 BUNDLED_NAMES = ("ocl-tonemap", "bundled")
 WORKING_CANDIDATES = ("lin_rec709", "Linear Rec.709 (sRGB)", "Utility - Linear - sRGB",

@@ -34,7 +34,7 @@ from dataclasses import replace
 import numpy as np
 import PyOpenColorIO as ocio
 
-from .. import safeio
+from ..base import safeio
 from ..effects.purkinje import apply_purkinje
 from ..models.display import DISPLAY_LINEAR_MAX, apply_shoulder
 from ..models.photometry import L_MAX, Y_WEIGHTS, photopic_luminance, scotopic_luminance
@@ -44,7 +44,7 @@ from . import replay_check as check
 from .config import remember_source
 from .lut_files import cpu_processor, processor
 
-from ..quantities import EXPORT_SIZES
+from ..base.quantities import EXPORT_SIZES
 
 log = logging.getLogger("ocl_tonemap")
 

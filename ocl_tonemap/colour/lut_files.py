@@ -35,7 +35,7 @@ import re
 
 import PyOpenColorIO as ocio
 
-from ..safeio import file_kind
+from ..base.safeio import file_kind
 from .config import USE_DISPLAY_NAME, ColourError, config_source
 
 #: Largest LUT file OCIO is let read: 256 MiB. The largest tables in use are 3D LUTs of

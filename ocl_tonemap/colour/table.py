@@ -10,7 +10,7 @@ import numpy as np
 import PyOpenColorIO as ocio
 
 from ..models.display import DISPLAY_LINEAR_MAX
-from ..resources import cache_write, user_cache_dir
+from ..base.resources import cache_write, user_cache_dir
 from ..version import __version__
 from .config import apply_processor
 

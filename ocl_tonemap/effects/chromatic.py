@@ -17,7 +17,7 @@ import numpy as np
 from ..models.durand2000 import (ILLUMINANTS_XY, cct_duv, chromatic_step,
                                  degree_of_adaptation, normalise_illuminant, parse_illuminant,
                                  partial_illuminant, plausible_illuminant, von_kries_gains)
-from ..quantities import Numbers, Quantity, Text
+from ..base.quantities import Numbers, Quantity, Text
 from .base import Effect, EffectOption
 
 STATE_KEY = "illuminant_rgb"

@@ -19,8 +19,8 @@ from ..backends.base import Later
 from ..models import spencer1995 as fl
 from ..models.convolution import EDGE_ZERO
 from ..models.photometry import Y_WEIGHTS
-from ..quantities import AGE, Quantity, Text, word_or
-from ..resources import cached_json
+from ..base.quantities import AGE, Quantity, Text, word_or
+from ..base.resources import cached_json
 from .base import Effect, EffectOption
 
 log = logging.getLogger("ocl_tonemap")

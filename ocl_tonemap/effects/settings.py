@@ -3,7 +3,7 @@ packages add through the ``ocl_tonemap.effects`` entry point group) and their
 settings (:class:`EffectSettings`): one field per declared option of every
 registered effect, so that an effect's option is at once a field here, an API
 keyword (``Tonemapper(..., flare="off")``) and a command-line flag
-(``cli_options.py`` builds them from the same declarations)."""
+(``cli/options.py`` builds them from the same declarations)."""
 
 from __future__ import annotations
 

@@ -8,11 +8,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..alpha import restore_alpha, straight_colour
-from ..calibration import LogAverage
-from ..channels import spectral_channels
-from ..imageio import BandReader, FrameError, illuminant_from_metadata, max_frame_bytes
-from ..imagewrite import BandWriter
+from ..pipeline.alpha import restore_alpha, straight_colour
+from ..colour.calibration import LogAverage
+from ..io.channels import spectral_channels
+from ..io.imageio import BandReader, FrameError, illuminant_from_metadata, max_frame_bytes
+from ..io.imagewrite import BandWriter
 from .frame import FrameInput, output_metadata, remember_auto
 from .options import JobOptions, output_is_linear
 from .sequence import frame_time

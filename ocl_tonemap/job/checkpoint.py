@@ -8,12 +8,12 @@ import os
 import re
 import stat
 
-from ..imageio import FrameError
+from ..io.imageio import FrameError
 
-from ..imagewrite import output_folder
-from ..patterns import is_sequence, same_file, without_frame_token
-from ..state import AdaptationState
-from ..state_files import load_state
+from ..io.imagewrite import output_folder
+from ..io.patterns import is_sequence, same_file, without_frame_token
+from ..pipeline.state import AdaptationState
+from ..io.state_files import load_state
 from .locks import OutputLock, export_lock, output_lock
 from .locks import folders_to_make as _missing_folders
 from .locks import release_held as release_output_locks

@@ -12,11 +12,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..alpha import restore_alpha, straight_colour
+from ..pipeline.alpha import restore_alpha, straight_colour
 from ..colour.config import interop_id
-from ..imageio import illuminant_from_metadata
+from ..io.imageio import illuminant_from_metadata
 from ..models.lmsr import spectral_to_rgb
-from ..state import AUTO_SCALE_KEY
+from ..pipeline.state import AUTO_SCALE_KEY
 from ..version import __version__
 from .setup import RunSetup
 
@@ -62,7 +62,7 @@ class FrameInput:
 
 
 def frame_input(run: RunSetup, tm: Tonemapper, fr, path) -> FrameInput:
-    """The front door for one frame (a :class:`~ocl_tonemap.imageio.Frame` read
+    """The front door for one frame (a :class:`~ocl_tonemap.io.imageio.Frame` read
     from ``path``): its pixels in the working space (or spectrum), the description
     of its colour, and its calibration."""
     if fr.channel_note:

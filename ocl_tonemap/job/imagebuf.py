@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..imageio import frame_from_imagebuf
+from ..io.imageio import frame_from_imagebuf
 from .frame import frame_input, map_frame, render_output
 from .options import JobOptions
 from .setup import RunSetup
@@ -33,7 +33,7 @@ def process_imagebuf(tm: Tonemapper, buf, dt: float | None = None, time_s: float
     The input's colourspace (``oiio:ColorSpace``, EXR ``chromaticities``, else
     scene-linear Rec.709; ``iscolorspace`` overrides), its calibration
     (``luminance_scale`` S or ``"auto:LEVEL"`` > ``whiteLuminance`` > EXIF
-    exposure > ...; see ``calibration.py``) and its alpha
+    exposure > ...; see ``colour/calibration.py``) and its alpha
     (``oiio:UnassociatedAlpha``; ``unpremult`` overrides) are read as the CLI
     reads them, with the OCIO config ``colorconfig`` (> $OCIO > ocio://default).
     The result is float display-linear light in the display's linear

@@ -35,9 +35,9 @@ import stat
 import struct
 import uuid
 
-from ..imageio import FrameError
-from ..patterns import is_sequence, without_frame_token
-from ..safeio import file_kind
+from ..io.imageio import FrameError
+from ..io.patterns import is_sequence, without_frame_token
+from ..base.safeio import file_kind
 
 #: The record lock commands: per open file description where the system has them
 #: (Linux), so two Dask tasks in one worker process are two holders.

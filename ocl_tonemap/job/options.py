@@ -9,12 +9,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..backends.quality import quality_tier
-from ..imageio import LINEAR_FORMATS, PNG_FILTERS
+from ..io.imageio import LINEAR_FORMATS, PNG_FILTERS
 from ..models.adrian1989 import ADRIAN_1989
 from ..models.photometry import RepairCounts
-from ..patterns import MAX_FRAME
-from ..quantities import OBSERVATION_S, RUN, TARGET_ARCMIN
-from ..safeio import read_text
+from ..io.patterns import MAX_FRAME
+from ..base.quantities import OBSERVATION_S, RUN, TARGET_ARCMIN
+from ..base.safeio import read_text
 
 DEFAULT_FPS = 24.0
 #: What a gap in a sequence does (``--missing``).

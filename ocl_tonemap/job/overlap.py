@@ -17,7 +17,7 @@ import threading
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 
-from ..imageio import FramePool
+from ..io.imageio import FramePool
 
 
 def default_threads() -> int:

@@ -12,22 +12,22 @@ import os
 import sys
 import time
 
-from .. import interrupts, safeio
+from ..base import interrupts, safeio
 from ..backends.select import resolve_backend
 from ..colour import ColourPipeline
-from ..imageio import FrameError, read_frame
-from ..imagewrite import ocltm_metadata, output_bits, write_frame
-from ..interrupts import Terminated, ready
+from ..io.imageio import FrameError, read_frame
+from ..io.imagewrite import ocltm_metadata, output_bits, write_frame
+from ..base.interrupts import Terminated, ready
 from ..models.metering import MeteringSpec
 from ..models.photometry import RepairCounts
-from ..patterns import is_sequence
+from ..io.patterns import is_sequence
 from ..pipeline import FrameInfo, Tonemapper
-from ..plot import plot_adaptation
+from ..io.plot import plot_adaptation
 from .visibility_out import (check_visibility, frame_request, frame_visibility,
                              target_visibility, view_pixels, visibility_path, write_view,
                              write_visibility)
-from ..state import AdaptationState
-from ..state_files import save_state
+from ..pipeline.state import AdaptationState
+from ..io.state_files import save_state
 from .banded_io import read_whole, stream_frame, stream_rows
 from .checkpoint import (RunLock, check_state_paths, checkpoint_path, checkpoint_state,
                          load_state_in, remove_stale_temps, resume_point)
@@ -81,7 +81,7 @@ def prepare_kernels(tm: Tonemapper, key: str, stop) -> None:
 
 
 def resolved_backend(opts: JobOptions) -> JobOptions:
-    """``opts`` with a backend of "auto" (``cli_options.job_options(defer_backend=True)``) resolved:
+    """``opts`` with a backend of "auto" (``cli.options.job_options(defer_backend=True)``) resolved:
     OpenCL on the first working device, else the reference with one warning."""
     if opts.backend != "auto":
         return opts

@@ -6,10 +6,10 @@ import logging
 import math
 import os
 
-from ..imageio import FrameError, check_readable
-from ..imagewrite import check_output
+from ..io.imageio import FrameError, check_readable
+from ..io.imagewrite import check_output
 
-from ..patterns import find_frames, frame_path, is_sequence
+from ..io.patterns import find_frames, frame_path, is_sequence
 from .options import DEFAULT_FPS, JobOptions
 
 log = logging.getLogger("ocl_tonemap")

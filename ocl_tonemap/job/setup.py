@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import logging
 
-from ..calibration import ASSUMED_HELP, CalibrationRequest, Calibrator
+from ..colour.calibration import ASSUMED_HELP, CalibrationRequest, Calibrator
 from ..colour import (ColourPipeline, InputColour, is_builtin_source, load_config,
                       resolve_config_source, resolve_input)
 from ..colour.config import interop_id
-from ..imageio import DEFAULT_BITS, FrameError
+from ..io.imageio import DEFAULT_BITS, FrameError
 from ..models.display import display_for
-from ..state import AUTO_SCALE_KEY
+from ..pipeline.state import AUTO_SCALE_KEY
 from .options import JobOptions, output_is_linear
 
 log = logging.getLogger("ocl_tonemap")

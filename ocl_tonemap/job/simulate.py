@@ -7,14 +7,14 @@ import logging
 import time
 from typing import TYPE_CHECKING
 
-from ..imageio import FrameError, read_frame
+from ..io.imageio import FrameError, read_frame
 from .checkpoint import check_state_paths
 
-from ..imagewrite import write_frame
-from ..patterns import is_sequence, same_file
-from ..quantities import RUN
-from ..plot import plot_adaptation
-from ..state_files import load_state, save_state
+from ..io.imagewrite import write_frame
+from ..io.patterns import is_sequence, same_file
+from ..base.quantities import RUN
+from ..io.plot import plot_adaptation
+from ..io.state_files import load_state, save_state
 from .frame import frame_input, map_frame, render_output
 from .options import JobOptions, JobResult, output_is_linear
 from .run import setup_run

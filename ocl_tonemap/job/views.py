@@ -14,17 +14,17 @@ from typing import TYPE_CHECKING
 
 import OpenImageIO as oiio
 
-from .. import radiance
+from ..io import radiance
 from ..effects import DEFAULT_FOV
-from ..imageio import FrameError, check_readable
-from ..patterns import find_frames, frame_path, is_sequence
+from ..io.imageio import FrameError, check_readable
+from ..io.patterns import find_frames, frame_path, is_sequence
 from .options import JobOptions
 
 if TYPE_CHECKING:
     from ..pipeline import Tonemapper
 
 log = logging.getLogger("ocl_tonemap")
-#: The level of a note (``cli.py`` names it NOTE): what the user should know.
+#: The level of a note (``cli/table.py`` names it NOTE): what the user should know.
 NOTE = 25
 #: OIIO's ``textureformat`` of a latitude-longitude environment map (OpenEXR's ``envmap``
 #: attribute ENVMAP_LATLONG reads as this; maketx writes it to TIFF), and of a cube map.

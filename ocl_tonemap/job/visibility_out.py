@@ -18,11 +18,11 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
-from .. import safeio
+from ..base import safeio
 from ..backends import flare_exec as fx
 from ..backends.base import ViewPaint, VisibilityPlanes, VisibilityRequest, paint_view
-from ..imageio import PNG_FILTER, PNG_FILTERS, PNG_LEVEL, FrameError
-from ..imagewrite import verify_written
+from ..io.imageio import PNG_FILTER, PNG_FILTERS, PNG_LEVEL, FrameError
+from ..io.imagewrite import verify_written
 from ..models import adrian1989 as ad
 from ..models import cie88
 from ..models import spencer1995 as fl
@@ -30,9 +30,9 @@ from ..models.cie146 import EXCLUDE_DEG
 from ..models.photometry import Y_WEIGHTS
 from ..models.visibility_map import (PLANES, Geometry, below_a_pixel, recipe, scene_luminance,
                                      value_at)
-from ..patterns import frame_path, is_sequence, same_file
-from ..quantities import RUN
-from ..visibility import Viewing, seen
+from ..io.patterns import frame_path, is_sequence, same_file
+from ..base.quantities import RUN
+from ..effects.visibility import Viewing, seen
 
 log = logging.getLogger("ocl_tonemap")
 

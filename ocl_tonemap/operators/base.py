@@ -283,7 +283,7 @@ class Operator(PigmentCourse):
         return self.map_reference(rgb, L, L * neutral_scotopic_ratio(), p)
 
 
-    # -- the observer, for visibility (ocl_tonemap/visibility.py) ----------------------------
+    # -- the observer, for visibility (ocl_tonemap/effects/visibility.py) ----------------------------
     # A uniform neutral field seen over time, in the operator's own state, and the gain
     # of its response for a small increment: the transient threshold follows the
     # operator's time course (models/adrian1989.transient_factor).

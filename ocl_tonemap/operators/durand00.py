@@ -13,7 +13,7 @@ import math
 
 from ..models import durand2000 as model
 from ..models import ferwerda1996
-from ..quantities import Numbers, Quantity
+from ..base.quantities import Numbers, Quantity
 from .base import COLOUR_STAGE, METER_STAGE, KernelCall, ModelOperator, Option, Stage, StateSpec
 from .pattanaik00 import MODE_OPTION
 

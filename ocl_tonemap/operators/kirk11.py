@@ -25,7 +25,7 @@ from ..models.pattanaik2000 import (A_FLOOR, K_CONE, K_ROD, TAU_CONE, TAU_ROD, b
                                     receptor_levels_advance, receptor_levels_preadapted,
                                     receptor_levels_steady, response_slope, rod_sensitivity)
 from ..models.photometry import Y_WEIGHTS
-from ..quantities import Numbers, Quantity
+from ..base.quantities import Numbers, Quantity
 from .base import Operator, Option, Stage, StateSpec
 from .ledda04 import BILATERAL_OPTIONS
 from .pattanaik00 import MODE_OPTION

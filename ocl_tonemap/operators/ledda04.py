@@ -21,7 +21,7 @@ from ..models.display import SHOULDER_KNEE
 from ..models.metering import LOG_FLOOR
 from ..models.ledda2004 import (CHANGE_LOG10, LOCAL_STRENGTH, MODES, STATE_CHANNELS,
                                 anchored_sigma, display_sigma, neutral_rod_ratio)
-from ..quantities import Numbers, Quantity
+from ..base.quantities import Numbers, Quantity
 from .base import Operator, Option, Stage, StateSpec, white_luminance
 from .pigment import PIGMENT_KEY
 from .pattanaik00 import MODE_OPTION

@@ -1,6 +1,6 @@
 """The observer apart from the frame: its adaptation state and its clock.
 
-The scalar state (:class:`~ocl_tonemap.state.AdaptationState`) is kept here, the
+The scalar state (:class:`~ocl_tonemap.pipeline.state.AdaptationState`) is kept here, the
 per-pixel planes of local operators in the backend's schedule (where they stay on
 the device between frames). One rule gives every way in (whole RGB, spectral,
 streamed frames, a shot's integrate pass) its frame's time and step
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from ..state import AUTO_SCALE_KEY, AdaptationState
+from .state import AUTO_SCALE_KEY, AdaptationState
 
 
 def check_preadapt(preadapt) -> None:

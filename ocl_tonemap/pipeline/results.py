@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..models.photometry import RepairCounts
-from ..state import AdaptationState
+from .state import AdaptationState
 
 
 @dataclass

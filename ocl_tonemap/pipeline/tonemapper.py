@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..alpha import restore_alpha, straight_colour
+from .alpha import restore_alpha, straight_colour
 from ..backends.quality import quality_tier
 from ..backends.select import make_backend
 from ..effects import EffectSettings, Effects
@@ -14,10 +14,10 @@ from ..models import cie203
 from ..models.display import DisplaySpec, display_for
 from ..models.metering import MeteringSpec
 from ..models.photometry import Y_WEIGHTS
-from ..quantities import RUN
+from ..base.quantities import RUN
 from ..operators import get_operator
 from ..operators.base import Frame
-from ..state import AdaptationState
+from .state import AdaptationState
 
 from .banded import run_banded
 from .frame import FrameGraph, spectral_frame

@@ -35,9 +35,9 @@ import os
 import sys
 import time
 
-from .. import safeio
+from ..base import safeio
 from ..backends.opencl.runtime import get_runtime
-from ..imageio import FrameError, one_line
+from ..io.imageio import FrameError, one_line
 from ..job.options import JobResult
 from ..models.photometry import RepairCounts
 from . import passes

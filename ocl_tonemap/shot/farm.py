@@ -33,10 +33,10 @@ import re
 import shlex
 from xml.sax.saxutils import escape, quoteattr
 
-from .. import safeio
+from ..base import safeio
 from ..colour import load_config
 from ..job.checkpoint import load_state_in
-from ..patterns import same_file
+from ..io.patterns import same_file
 from ..pipeline import Tonemapper
 from . import passes
 

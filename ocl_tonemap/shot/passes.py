@@ -51,11 +51,11 @@ import math
 import os
 
 from ..backends.planes import band_readable
-from ..imageio import BandReader, FrameError, read_frame
+from ..io.imageio import BandReader, FrameError, read_frame
 
 from ..colour.export import OcioExport
 from ..job.banded_io import stream_frame, stream_rows
-from ..interrupts import ready
+from ..base.interrupts import ready
 from ..job.checkpoint import load_state_in, remove_stale_temps
 from ..job.locks import export_lock
 from ..job.frame import frame_input, map_frame
@@ -64,8 +64,8 @@ from ..job.overlap import FrameIO
 from ..job.run import run_job, setup_run
 from ..job.sequence import frame_jobs, frame_time
 from ..operators import registry
-from ..patterns import is_sequence, without_frame_token
-from ..state import AUTO_SCALE_KEY
+from ..io.patterns import is_sequence, without_frame_token
+from ..pipeline.state import AUTO_SCALE_KEY
 from .frame_stats import (decode_value, encode_value, stats_ahead,  # noqa: F401
                           stats_document, stats_from_document, stored_stats)
 from .chunks import chunk_jobs, chunks, frames_after, parse_chunk, shot_lock  # noqa: F401

@@ -40,10 +40,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import safeio
+from ..base import safeio
 from ..backends.planes import band_readable
-from ..state import AdaptationState, plan_state_ok
-from ..state_files import load_state, read_planes, save_state, side_file, write_planes
+from ..pipeline.state import AdaptationState, plan_state_ok
+from ..io.state_files import load_state, read_planes, save_state, side_file, write_planes
 from ..version import __version__
 
 STORE_FORMAT = "ocl-tonemap.shot-store/1"

@@ -69,7 +69,7 @@ def test_banded_frames_are_encoded_band_by_band(colour_table, op):
 
 def test_spectral_frames_are_encoded(colour_table):
     """kirk11 on spectral radiance: the same bytes either way."""
-    from ocl_tonemap.sample import spectral_patches
+    from ocl_tonemap.io.sample import spectral_patches
     lam, spectra, _ = spectral_patches("A", 1.0)
     cube = (spectra[np.arange(24 * 9) % 24].reshape(12, 18, -1) * 50.0).astype(np.float32)
     pix = [cube, cube * 1e-2, cube * 1e-4]

@@ -64,7 +64,7 @@ def lines(text: str) -> list[str]:
 
 @pytest.fixture(scope="module")
 def one_frame(tmp_path_factory):
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("drv")
     pattern, frames = write_tunnel_sequence(str(d), 32, 18, 30.0, 0.1)
     return pattern.replace("####", f"{frames[0]:04d}")

@@ -14,7 +14,7 @@ import pytest
 from ocl_tonemap import Tonemapper
 from ocl_tonemap.backends.opencl import pinned
 from ocl_tonemap.backends.opencl.pinned import HostArrays
-from ocl_tonemap.imageio import FramePool
+from ocl_tonemap.io.imageio import FramePool
 
 pytestmark = pytest.mark.requires_opencl
 
@@ -44,7 +44,7 @@ def test_a_cpu_device_gets_plain_arrays(rt):
 def test_frames_and_outputs_in_page_locked_memory_are_the_same_frames(rt, monkeypatch):
     """A run's frame pool and the backend's outputs page-locked: the same pixels, the
     frame's last statistics still riding the output's read."""
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     frames = [render_frame(t, 160, 90, 8.0).astype(np.float32) for t in (3.0, 3.04)]
     ref = Tonemapper("pattanaik00", "opencl")
     want = [ref.process(f, dt=None if k == 0 else 0.04) for k, f in enumerate(frames)]

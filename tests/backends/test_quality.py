@@ -8,8 +8,8 @@ import OpenImageIO as oiio
 import pytest
 
 from ocl_tonemap.backends.quality import QUALITY_NAMES, QUALITY_TIERS, quality_tier
-from ocl_tonemap.cli import main
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.cli.table import main
+from ocl_tonemap.io.patterns import frame_path
 from ocl_tonemap.pipeline import Tonemapper
 from ocl_tonemap.job.options import JobOptions
 

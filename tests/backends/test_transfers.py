@@ -13,7 +13,7 @@ from ocl_tonemap import Tonemapper
 from ocl_tonemap.backends.opencl.stats import TAIL
 from ocl_tonemap.backends.opencl.transfers import (ConstantBuffers, Transfers, counted,
                                                    host_buffer, transfer)
-from ocl_tonemap.sample import render_frame
+from ocl_tonemap.io.sample import render_frame
 
 pytestmark = pytest.mark.requires_opencl
 

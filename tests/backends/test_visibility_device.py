@@ -13,7 +13,7 @@ from ocl_tonemap.backends.base import VisibilityRequest, paint_view
 from ocl_tonemap.job.visibility_out import view_paint
 from ocl_tonemap.models.visibility_map import Geometry, recipe
 from ocl_tonemap.operators import get_operator
-from ocl_tonemap.visibility import Viewing
+from ocl_tonemap.effects.visibility import Viewing
 
 pytestmark = pytest.mark.requires_opencl
 

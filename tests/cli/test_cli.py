@@ -10,8 +10,8 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import main
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.cli.table import main
+from ocl_tonemap.io.patterns import frame_path
 
 
 def pixels(path):
@@ -253,7 +253,7 @@ def test_adopted_neutral_and_mask_metering(tmp_path):
 
 def test_kirk11_spectral_and_rgb_files(tmp_path):
     """kirk11 reads a spectral EXR as spectra; other operators see its RGB."""
-    from ocl_tonemap.sample import write_spectral_image
+    from ocl_tonemap.io.sample import write_spectral_image
     spec = str(tmp_path / "night.exr")
     write_spectral_image(spec, "A", 0.05, patch_px=4)
     out_k, out_p = str(tmp_path / "k.exr"), str(tmp_path / "p.exr")
@@ -340,8 +340,8 @@ def test_no_abbreviated_flags_and_a_grouped_help(capsys):
     """``--fram 1-10`` is an error, not ``--frames`` (argparse's abbreviations are off);
     ``run --help`` lists its options in groups, and the shot passes name their own
     options and point to run's instead of repeating them."""
-    from ocl_tonemap.cli import main
-    from ocl_tonemap.cli_options import GROUPS
+    from ocl_tonemap.cli.table import main
+    from ocl_tonemap.cli.options import GROUPS
     with pytest.raises(SystemExit) as e:
         main(["run", "a.exr", "b.png", "--fram", "1-10"])
     assert e.value.code == 2 and "--fram" in capsys.readouterr().err

@@ -17,8 +17,8 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import COMMANDS, build_parser, main
-from ocl_tonemap.quantities import Numbers, Quantity, Text
+from ocl_tonemap.cli.table import COMMANDS, build_parser, main
+from ocl_tonemap.base.quantities import Numbers, Quantity, Text
 
 
 def _declared_actions():
@@ -117,7 +117,7 @@ def tiny(tmp_path_factory):
 
 def _context(cmd: str, flag: str) -> list[str]:
     """What the flag needs beside it to take effect: its operator, its effect on."""
-    from ocl_tonemap.cli_options import operator_flags
+    from ocl_tonemap.cli.options import operator_flags
     from ocl_tonemap.effects.settings import options
     for o, ops in operator_flags():
         if o.flag == flag:
@@ -189,7 +189,7 @@ def test_declared_value_is_refused_in_one_line_or_runs_finite(cmd, flag, value, 
         return
     capsys.readouterr()
     if cmd in ("sample", "demo"):
-        from ocl_tonemap.sample import plan_sample
+        from ocl_tonemap.io.sample import plan_sample
         fps = a.fps if cmd == "sample" else 30.0
         try:
             frames = plan_sample(a.outdir, *a.size, fps, a.seconds)

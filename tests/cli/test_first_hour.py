@@ -11,8 +11,8 @@ import sys
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import COMMANDS, main
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.cli.table import COMMANDS, main
+from ocl_tonemap.io.patterns import frame_path
 
 
 def _help(capsys, *argv) -> str:
@@ -94,7 +94,7 @@ def test_a_reversed_frame_range_is_called_reversed(given, said, capsys):
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith(f"ocl-tonemap ERROR: {said} "), err
-    from ocl_tonemap.quantities import RUN
+    from ocl_tonemap.base.quantities import RUN
     with pytest.raises(ValueError, match=re.escape(said)):
         RUN["frames"].check(given, "--frames")
 
@@ -168,7 +168,7 @@ def test_simulate_names_sort_in_time_order(sample_dir, tmp_path, capsys):
 # -- 12: the adaptation plot -----------------------------------------------------------------
 @pytest.fixture(scope="module")
 def short_tunnel(tmp_path_factory):
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     return write_tunnel_sequence(str(tmp_path_factory.mktemp("tunnel")), 48, 27, 8.0, 1.0)
 
 

@@ -8,12 +8,12 @@ import os
 
 import pytest
 
-from ocl_tonemap.cli import main
+from ocl_tonemap.cli.table import main
 
 
 @pytest.fixture(scope="module")
 def seq(tmp_path_factory):
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("left")
     pattern, frames = write_tunnel_sequence(str(d / "s"), 16, 9, 10.0, 0.3)
     return d, pattern, frames

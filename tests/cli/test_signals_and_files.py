@@ -15,7 +15,7 @@ import OpenImageIO as oiio
 import pytest
 
 from conftest import said
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.io.patterns import frame_path
 
 #: Only keeps a hang from holding the suite; nothing here should come near it.
 HANG = 60
@@ -51,7 +51,7 @@ def _only_error(rc, err, *words):
 @pytest.fixture(scope="module")
 def seq(tmp_path_factory):
     """A short sequence of 6 frames (EXR, cd/m^2), 32x18."""
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("seq")
     pattern, frames = write_tunnel_sequence(str(d), 32, 18, 10.0, 0.6)
     return pattern, frames
@@ -316,7 +316,7 @@ def test_a_deep_exr_is_refused_on_read(tmp_path, out):
 
 
 def test_read_frame_and_band_reader_refuse_deep_and_fifos(tmp_path):
-    from ocl_tonemap.imageio import BandReader, FrameError, read_frame
+    from ocl_tonemap.io.imageio import BandReader, FrameError, read_frame
     deep = _deep_exr(tmp_path / "deep.exr")
     fifo = _fifo(tmp_path / "f.exr")
     for reader in (read_frame, BandReader):
@@ -328,7 +328,7 @@ def test_read_frame_and_band_reader_refuse_deep_and_fifos(tmp_path):
 
 
 def test_check_input_names_each_kind():
-    from ocl_tonemap import safeio
+    from ocl_tonemap.base import safeio
     with pytest.raises(safeio.NotAFile, match="^/dev/null: is a character device, not a file$"):
         safeio.check_input("/dev/null")
     with pytest.raises(safeio.NotAFile, match="is a folder, not a file"):

@@ -30,7 +30,8 @@ BACKSTOP_LINE = "blocked in a library call for"
 #: sub-command replaced by a block, noted ``blocked`` in ``$OCLTM_TEST_READY`` first.
 _ENTRY = r"""
 import ctypes, os, sys
-from ocl_tonemap import cli, interrupts
+from ocl_tonemap.base import interrupts
+from ocl_tonemap.cli import table as cli
 from ocl_tonemap.__main__ import entry
 how = os.environ["BLOCK"]
 
@@ -186,7 +187,8 @@ def test_the_watchdog_process_holds_only_its_pipes_and_leaves_with_the_command(t
 
 def test_the_library_and_cli_main_in_a_host_fork_nothing():
     code = ("import os\n"
-            "from ocl_tonemap import cli, interrupts\n"
+            "from ocl_tonemap.base import interrupts\n"
+            "from ocl_tonemap.cli import table as cli\n"
             "interrupts.enable_watchdog()\n"
             "interrupts.install()\n"
             "try:\n    cli.main(['--version'])\nexcept SystemExit:\n    pass\n"

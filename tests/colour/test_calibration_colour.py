@@ -12,10 +12,10 @@ import OpenImageIO as oiio
 import PyOpenColorIO as ocio
 import pytest
 
-from ocl_tonemap import calibration as cal
+from ocl_tonemap.colour import calibration as cal
 from ocl_tonemap import colour
-from ocl_tonemap.cli import main
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.cli.table import main
+from ocl_tonemap.io.patterns import frame_path
 
 
 @pytest.fixture(autouse=True)
@@ -375,7 +375,7 @@ def test_bundled_config_knows_oiio_interop_names():
 
 def test_demo_sample_is_tagged_and_calibrated(tmp_path, caplog):
     """The built-in sample says what it is: no assumption is reported for it."""
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     pattern, frames = write_tunnel_sequence(str(tmp_path), 16, 9, 30.0, 0.1)
     with caplog.at_level(logging.INFO, logger="ocl_tonemap"):
         assert main(["run", pattern, str(tmp_path / "o.#.png")]) == 0

@@ -12,7 +12,7 @@ import pytest
 
 from ocl_tonemap import colour
 from ocl_tonemap.backends.opencl.display import DeviceDisplayTable
-from ocl_tonemap.cli import main
+from ocl_tonemap.cli.table import main
 from ocl_tonemap.colour import CODE_10BIT, ColourPipeline, display_probe_set, load_config
 from ocl_tonemap.models.display import DISPLAY_LINEAR_MAX
 
@@ -142,7 +142,7 @@ def test_8bit_code_values_are_the_bytes_oiio_writes(rt, tmp_path, src, display, 
     H100 machine's Xeon): there the device's byte is the even one, as documented,
     and OIIO's either neighbour."""
     import OpenImageIO as oiio
-    from ocl_tonemap.imagewrite import write_frame
+    from ocl_tonemap.io.imagewrite import write_frame
     t = pipeline(src, display, view).display_table()
     dev = DeviceDisplayTable(t, runtime=rt)
     edges = ((np.arange(-2, 258) + 0.5) / 255.0).astype(np.float32)
@@ -179,7 +179,7 @@ def test_16bit_code_values_are_the_values_oiio_writes(rt, tmp_path, ext, probe):
     even (measured on every code and its half-code boundaries), NaN 0; RGB and RGBA,
     every half-code boundary (k + 0.5) / 65535 and its float neighbours fed as alpha."""
     import OpenImageIO as oiio
-    from ocl_tonemap.imagewrite import write_frame
+    from ocl_tonemap.io.imagewrite import write_frame
     t = pipeline("ocl-tonemap", "sRGB - Display").display_table()
     dev = DeviceDisplayTable(t, runtime=rt)
     edges = ((np.arange(-2, 65538, 7) + 0.5) / 65535.0).astype(np.float32)

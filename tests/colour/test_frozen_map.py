@@ -9,7 +9,7 @@ import pytest
 from ocl_tonemap.colour.export import frozen_raw, frozen_shoulder
 from ocl_tonemap.effects import EffectSettings
 from ocl_tonemap.pipeline import Tonemapper
-from ocl_tonemap.sample import render_frame
+from ocl_tonemap.io.sample import render_frame
 
 
 @pytest.mark.parametrize("op", ["pattanaik00", "durand00"])

@@ -8,10 +8,10 @@ import PyOpenColorIO as ocio
 import pytest
 
 from ocl_tonemap import colour
-from ocl_tonemap import imageio
-from ocl_tonemap.imageio import FrameError, FramePool, read_frame
-from ocl_tonemap.patterns import find_frames, frame_path
-from ocl_tonemap.imagewrite import write_frame
+from ocl_tonemap.io import imageio
+from ocl_tonemap.io.imageio import FrameError, FramePool, read_frame
+from ocl_tonemap.io.patterns import find_frames, frame_path
+from ocl_tonemap.io.imagewrite import write_frame
 
 
 def _write(path, pix, **attrs):
@@ -214,7 +214,7 @@ def test_to_working_converts_acescg():
 
 
 def _tags(path):
-    from ocl_tonemap.imagewrite import ocltm_metadata
+    from ocl_tonemap.io.imagewrite import ocltm_metadata
     inp = oiio.ImageInput.open(str(path))
     sp = inp.spec()
     out = {k: sp.getattribute(k) for k in ("oiio:ColorSpace", "colorInteropID", "CICP",
@@ -245,8 +245,8 @@ def test_output_tags_are_true_to_the_data(tmp_path, display, name, args, want):
     sRGB chunk back as srgb_rec709_scene: the same encoding); TIFF keeps only an sRGB
     tag in OIIO, so a PQ TIFF's is the ImageDescription record's
     (ocltm:output_interop_id), and it carries no other."""
-    from ocl_tonemap.cli import main
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.cli.table import main
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     pattern, frames = write_tunnel_sequence(str(tmp_path / "s"), 32, 18, 30.0, 0.1)
     src = frame_path(pattern, frames[0])
     out = tmp_path / name
@@ -272,8 +272,8 @@ def test_output_tags_are_true_to_the_data(tmp_path, display, name, args, want):
 @pytest.mark.requires_opencl
 def test_frames_per_second_is_the_runs(tmp_path):
     """--fps 24 on a 30 fps sample: the outputs say 24 (they said the input's 30)."""
-    from ocl_tonemap.cli import main
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.cli.table import main
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     pattern, frames = write_tunnel_sequence(str(tmp_path / "s"), 32, 18, 30.0, 0.1)
     out = tmp_path / "o.####.exr"
     assert main(["run", pattern, str(out), "-q", "--fps", "24", "--no-checkpoint"]) == 0

@@ -257,7 +257,7 @@ def test_the_api_export_replays_the_run_on_either_backend(tmp_path, backend, age
     does."""
     from ocl_tonemap import EffectSettings, OcioExport, Tonemapper
     from ocl_tonemap.colour import ColourPipeline
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     colour = ColourPipeline("ocl-tonemap")
     tm = Tonemapper("durand00", backend=backend,
                     effects=EffectSettings(chromatic_adaptation="auto", purkinje="auto",

@@ -1,4 +1,4 @@
-"""docs/cli.md, the command reference, is what ``python -m ocl_tonemap.cli_docs`` writes
+"""docs/cli.md, the command reference, is what ``python -m ocl_tonemap.cli.docs`` writes
 from the parser now (issue 58, part 5); the text depends on the parser alone, not on
 the terminal's width or the plugins installed."""
 
@@ -9,8 +9,8 @@ import os
 import subprocess
 import sys
 
-from ocl_tonemap import cli_docs
-from ocl_tonemap.cli import build_parser
+from ocl_tonemap.cli import docs as cli_docs
+from ocl_tonemap.cli.table import build_parser
 
 import mdscan  # tests/docs/mdscan.py (pytest puts this folder on sys.path)
 
@@ -19,9 +19,9 @@ CLI_MD = mdscan.ROOT / "docs" / "cli.md"
 
 def test_docs_cli_md_is_current():
     """``--check``, as CI would run it: exit 0, the committed file is the generator's."""
-    r = subprocess.run([sys.executable, "-m", "ocl_tonemap.cli_docs", "--check"],
+    r = subprocess.run([sys.executable, "-m", "ocl_tonemap.cli.docs", "--check"],
                        cwd=mdscan.ROOT, capture_output=True, text=True)
-    assert r.returncode == 0, (r.stderr + "\nregenerate: python -m ocl_tonemap.cli_docs")
+    assert r.returncode == 0, (r.stderr + "\nregenerate: python -m ocl_tonemap.cli.docs")
     assert CLI_MD.read_text(encoding="utf-8") == cli_docs.render()
 
 
@@ -41,7 +41,7 @@ def test_the_reference_does_not_depend_on_the_terminal(tmp_path):
     for cols in ("40", "300", "40"):
         out = tmp_path / f"cli{cols}-{len(outs)}.md"
         env = {**os.environ, "COLUMNS": cols, "LINES": "20", "FORCE_COLOR": "1"}
-        subprocess.run([sys.executable, "-m", "ocl_tonemap.cli_docs", "--out", str(out)],
+        subprocess.run([sys.executable, "-m", "ocl_tonemap.cli.docs", "--out", str(out)],
                        cwd=mdscan.ROOT, env=env, check=True)
         outs.append(out.read_bytes())
     assert outs[0] == outs[1] == outs[2] == cli_docs.render().encode()

@@ -22,7 +22,7 @@ from functools import lru_cache
 
 import pytest
 
-from ocl_tonemap.cli import build_parser
+from ocl_tonemap.cli.table import build_parser
 
 import mdscan  # tests/docs/mdscan.py (pytest puts this folder on sys.path)
 

@@ -9,7 +9,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import main
+from ocl_tonemap.cli.table import main
 from ocl_tonemap.models import spencer1995 as fl
 from ocl_tonemap.models.display import display_for
 from ocl_tonemap.operators import get_operator

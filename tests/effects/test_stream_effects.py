@@ -10,7 +10,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import main
+from ocl_tonemap.cli.table import main
 from ocl_tonemap.backends.opencl import OpenCLBackend
 from ocl_tonemap.effects import EffectSettings
 from ocl_tonemap.models import spencer1995 as fl

@@ -16,8 +16,8 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.patterns import frame_path
-from ocl_tonemap.sample import write_tunnel_sequence
+from ocl_tonemap.io.patterns import frame_path
+from ocl_tonemap.io.sample import write_tunnel_sequence
 
 
 def _cli(args, env=None, timeout=600):
@@ -143,8 +143,8 @@ def test_a_failed_write_is_named_cleaned_up_and_resumed(seq, tmp_path, ext, n):
 def test_a_truncated_write_is_caught_by_reading_it_back(tmp_path):
     """verify_written: a file cut short (what libpng leaves on a full disk without an
     error) is refused and removed."""
-    from ocl_tonemap.imageio import FrameError
-    from ocl_tonemap.imagewrite import verify_written
+    from ocl_tonemap.io.imageio import FrameError
+    from ocl_tonemap.io.imagewrite import verify_written
     p = tmp_path / ".x.tmp1.png"
     buf = oiio.ImageBuf(oiio.ImageSpec(64, 48, 3, oiio.UINT8))
     buf.set_pixels(oiio.ROI(0, 64, 0, 48, 0, 1, 0, 3),
@@ -344,7 +344,8 @@ def test_a_signal_a_library_turned_into_an_import_error_while_the_parser_is_made
     ("PyCapsule_Import could not import module 'datetime'", seen on a loaded machine):
     still one line and exit 143, never a traceback. Without a signal the error is
     the library's, raised as it was."""
-    from ocl_tonemap import cli, interrupts
+    from ocl_tonemap.base import interrupts
+    from ocl_tonemap.cli import table as cli
 
     def broken(*a, **k):
         raise ImportError("PyCapsule_Import could not import module \"datetime\"")
@@ -413,7 +414,7 @@ def test_a_signal_that_cuts_the_lock_release_short_leaves_no_lock_file(tmp_path,
     load: 1 run in 10 left ``.o.png.state.json.lock``); the command's exit releases the
     locks still held (``release_held``, from ``cli.main`` and the entry point), and
     ``ignore_for_exit`` then drops signals for good."""
-    from ocl_tonemap.interrupts import Terminated, ignore_for_exit
+    from ocl_tonemap.base.interrupts import Terminated, ignore_for_exit
     from ocl_tonemap.job import checkpoint
     lock = checkpoint.RunLock(str(tmp_path / "o.png.state.json"))
     real_unlink, cut = os.unlink, []
@@ -528,7 +529,7 @@ def test_output_folder_is_made_and_a_still_leaves_no_side_files(seq, tmp_path):
 
 
 def test_tiff_outputs_carry_the_record_and_serve_as_state_in(seq, tmp_path):
-    from ocl_tonemap.imagewrite import ocltm_metadata
+    from ocl_tonemap.io.imagewrite import ocltm_metadata
     pattern, frames = seq
     out = tmp_path / "o.tif"
     assert _cli(["run", frame_path(pattern, frames[0]), str(out), "-q"])[0] == 0
@@ -572,7 +573,7 @@ def test_simulate_plots_and_labels_its_times_in_order(seq, tmp_path):
 
 
 def test_a_resumed_runs_plot_covers_the_whole_shot(seq, tmp_path):
-    from ocl_tonemap.patterns import find_frames
+    from ocl_tonemap.io.patterns import find_frames
     from ocl_tonemap.job.run import infos_from_outputs
     pattern, frames = seq
     out = str(tmp_path / "o.####.exr")

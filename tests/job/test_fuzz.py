@@ -13,7 +13,7 @@ hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from ocl_tonemap.cli import main  # noqa: E402
+from ocl_tonemap.cli.table import main  # noqa: E402
 
 FUZZ = settings(max_examples=int(os.environ.get("OCLTM_FUZZ_EXAMPLES", "40")), deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,
@@ -151,7 +151,7 @@ def seq_state(tmp_path_factory):
     """A 6-frame sequence, the state after it, and a measured shot store."""
     import json
 
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("fuzzstate")
     pattern, frames = write_tunnel_sequence(str(d / "scene"), 16, 9, 30.0, 0.2)
     assert main(["run", pattern, str(d / "o.####.png"), "-q", "--operator", "ledda04",
@@ -167,7 +167,7 @@ def seq_state(tmp_path_factory):
 def test_fuzzed_state_files(seq_state, tmp_path_factory, capsys, edits):
     import json
     import shutil
-    from ocl_tonemap.patterns import frame_path
+    from ocl_tonemap.io.patterns import frame_path
     d, pattern, state, _, frames = seq_state
     work = tmp_path_factory.mktemp("s")
     side = state["extra"].get("pixel_state")

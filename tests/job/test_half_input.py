@@ -13,8 +13,8 @@ import pytest
 
 from ocl_tonemap.job.options import JobOptions
 from ocl_tonemap.job.run import run_job
-from ocl_tonemap.patterns import frame_path
-from ocl_tonemap.sample import write_tunnel_sequence
+from ocl_tonemap.io.patterns import frame_path
+from ocl_tonemap.io.sample import write_tunnel_sequence
 
 pytestmark = pytest.mark.requires_opencl
 

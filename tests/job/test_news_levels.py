@@ -9,8 +9,8 @@ import sys
 
 import pytest
 
-from ocl_tonemap.plot import plan_summary, plan_title
-from ocl_tonemap.sample import write_tunnel_sequence
+from ocl_tonemap.io.plot import plan_summary, plan_title
+from ocl_tonemap.io.sample import write_tunnel_sequence
 
 HANG = 300
 
@@ -28,7 +28,7 @@ def _cli(args):
 
 
 def test_a_resume_is_info_not_a_warning(seq, tmp_path, caplog):
-    from ocl_tonemap.cli import main
+    from ocl_tonemap.cli.table import main
     pattern, frames = seq
     out = str(tmp_path / "o.####.png")
     common = ["--backend", "reference"]
@@ -93,7 +93,7 @@ def test_the_plot_title_is_the_runs_plan(seq, tmp_path, monkeypatch):
     """--plot: the plan's axes get the title of the run's own weights."""
     pytest.importorskip("matplotlib")
     import matplotlib.axes
-    from ocl_tonemap.cli import main
+    from ocl_tonemap.cli.table import main
     pattern, frames = seq
     titles = []
     real = matplotlib.axes.Axes.set_title
@@ -110,7 +110,7 @@ def test_the_plot_title_is_the_runs_plan(seq, tmp_path, monkeypatch):
     assert len(plan) == 1, titles
     import json
     import OpenImageIO as oiio
-    from ocl_tonemap.patterns import frame_path
+    from ocl_tonemap.io.patterns import frame_path
     weights = [json.loads(oiio.ImageBuf(frame_path(str(tmp_path / "o.####.exr"), f))
                           .spec().getattribute("ocltm:plan")) for f in frames]
     assert plan[0] == plan_title(weights)

@@ -23,14 +23,14 @@ def held(*a, **k):
     sys.stdin.readline()                   # until the test lets it go
     return real(*a, **k)
 R._run_job = held
-from ocl_tonemap.cli import main
+from ocl_tonemap.cli.table import main
 sys.exit(main(sys.argv[2:]))
 """
 
 
 @pytest.fixture(scope="module")
 def seq(tmp_path_factory):
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("seq")
     pattern, frames = write_tunnel_sequence(str(d), 48, 27, 8.0, 0.5)
     return pattern, frames
@@ -108,7 +108,7 @@ def test_the_output_lock_in_process(tmp_path):
 @pytest.mark.requires_opencl
 def test_a_still_makes_no_side_file(seq, tmp_path):
     pattern, frames = seq
-    from ocl_tonemap.patterns import frame_path
+    from ocl_tonemap.io.patterns import frame_path
     d = tmp_path / "still"
     d.mkdir()
     rc, err = _cli(["run", frame_path(pattern, frames[0]), str(d / "o.png"), "-q"])

@@ -13,9 +13,9 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import main
-from ocl_tonemap.patterns import frame_path
-from ocl_tonemap.sample import write_tunnel_sequence
+from ocl_tonemap.cli.table import main
+from ocl_tonemap.io.patterns import frame_path
+from ocl_tonemap.io.sample import write_tunnel_sequence
 
 
 @pytest.fixture(scope="module")

@@ -11,8 +11,8 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap import radiance
-from ocl_tonemap.imagewrite import ocltm_metadata
+from ocl_tonemap.io import radiance
+from ocl_tonemap.io.imagewrite import ocltm_metadata
 from conftest import said
 
 TOOLS = radiance.tools()
@@ -140,8 +140,8 @@ def test_the_wall_is_100_cd_m2_and_the_fov_is_the_views(pictures):
 def test_the_wall_meters_at_its_luminance(pictures):
     """The glowing wall (100 cd/m^2 by construction) is metered at 100 cd/m^2 from
     every form of the picture."""
-    from ocl_tonemap.imageio import read_frame
-    from ocl_tonemap.calibration import CalibrationRequest, Calibrator
+    from ocl_tonemap.io.imageio import read_frame
+    from ocl_tonemap.colour.calibration import CalibrationRequest, Calibrator
     for n in ("room", "room_e6", "room_xyze"):
         fr = read_frame(str(pictures / f"{n}.hdr"))
         cal = Calibrator(CalibrationRequest()).frame(fr.spec, fr.format_name, None, fr.radiance)

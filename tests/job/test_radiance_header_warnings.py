@@ -11,7 +11,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap import radiance
+from ocl_tonemap.io import radiance
 
 
 @pytest.mark.parametrize("line, used", [

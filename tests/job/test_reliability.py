@@ -16,9 +16,9 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import main
-from ocl_tonemap.patterns import frame_path
-from ocl_tonemap.sample import write_tunnel_sequence
+from ocl_tonemap.cli.table import main
+from ocl_tonemap.io.patterns import frame_path
+from ocl_tonemap.io.sample import write_tunnel_sequence
 
 OPERATORS = ("pattanaik00", "ledda04", "durand00", "kirk11")
 
@@ -286,7 +286,7 @@ def test_api_dtypes_and_shapes(rt):
 def test_process_imagebuf_is_the_clis_front_door(tmp_path, rt):
     """The same calibration, colour and metadata as the command line."""
     from ocl_tonemap import Tonemapper, process_imagebuf
-    from ocl_tonemap.imageio import FrameError
+    from ocl_tonemap.io.imageio import FrameError
     pix = np.random.default_rng(1).uniform(0.1, 2.0, (6, 8, 3)).astype(np.float32)
     p = _exr(tmp_path / "in.exr", pix, None, whiteLuminance=300.0)
     cli_out = tmp_path / "o.exr"
@@ -540,7 +540,7 @@ def test_streaming_and_formats(tmp_path, kind):
 
 
 def test_spectral_files_are_not_streamed_and_auto_calibrate_right(tmp_path):
-    from ocl_tonemap.sample import write_spectral_image
+    from ocl_tonemap.io.sample import write_spectral_image
     sp = str(tmp_path / "sp.exr")
     write_spectral_image(sp, "A", 50.0, patch_px=12)
     a, b = str(tmp_path / "a.exr"), str(tmp_path / "b.exr")

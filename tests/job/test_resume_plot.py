@@ -16,10 +16,10 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import main
+from ocl_tonemap.cli.table import main
 from ocl_tonemap.job import run as job_run
-from ocl_tonemap.patterns import frame_path
-from ocl_tonemap.sample import write_tunnel_sequence
+from ocl_tonemap.io.patterns import frame_path
+from ocl_tonemap.io.sample import write_tunnel_sequence
 
 #: The README's driving-sim example (--operator durand00 --fps 30 --flare auto).
 COMMON = ["--operator", "durand00", "--fps", "30", "--flare", "auto", "--backend", "reference"]

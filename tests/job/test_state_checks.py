@@ -17,9 +17,9 @@ import pytest
 from ocl_tonemap.job.options import JobOptions
 from ocl_tonemap.job.run import run_job
 from ocl_tonemap.operators import registry
-from ocl_tonemap.quantities import Quantity
-from ocl_tonemap.state import FIELDS, VALUES, AdaptationState
-from ocl_tonemap.state_files import load_state, save_state
+from ocl_tonemap.base.quantities import Quantity
+from ocl_tonemap.pipeline.state import FIELDS, VALUES, AdaptationState
+from ocl_tonemap.io.state_files import load_state, save_state
 
 OPERATORS = sorted(registry())
 
@@ -43,7 +43,7 @@ def _one_error(rc, err, *words):
 @pytest.fixture(scope="module")
 def seq(tmp_path_factory):
     """8 frames of the tunnel sample at 48x27 (EXR, cd/m^2)."""
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("seq")
     pattern, frames = write_tunnel_sequence(str(d), 48, 27, 8.0, 1.0)
     assert frames == list(range(1, 9))

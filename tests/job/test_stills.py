@@ -92,7 +92,7 @@ def test_each_still_has_its_own_views_field_of_view(tmp_path):
     for k in (1, 2, 3):
         spec = oiio.ImageBuf(str(tmp_path / "o" / f"o.{k:04d}.exr")).spec()
         fovs.append(spec.getattribute("ocltm:fov"))
-    from ocl_tonemap import radiance
+    from ocl_tonemap.io import radiance
     for got, vh in zip(fovs[:2], (20, 90)):
         want = radiance.fov_for(radiance.View("v", vh, 0.75 * vh))[0]
         assert got.startswith(f"{want:.6g} degrees (Radiance VIEW: perspective -vh {vh}"), fovs

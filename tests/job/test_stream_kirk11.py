@@ -9,7 +9,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import main
+from ocl_tonemap.cli.table import main
 from ocl_tonemap.pipeline import Tonemapper
 
 from job.test_reliability import STREAM_SLACK_MB, _big, _exr, _peak_rss_mb

@@ -10,8 +10,8 @@ import OpenImageIO as oiio
 import pytest
 
 from ocl_tonemap.backends.planes import PlaneStore, UniformPlanes, read_rows
-from ocl_tonemap.cli import main
-from ocl_tonemap.state_files import load_state
+from ocl_tonemap.cli.table import main
+from ocl_tonemap.io.state_files import load_state
 
 from job.test_reliability import STREAM_SLACK_MB, _big, _exr, _peak_rss_mb
 

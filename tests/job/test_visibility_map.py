@@ -20,8 +20,8 @@ from ocl_tonemap.job.options import JobOptions
 from ocl_tonemap.job.run import run_job
 from ocl_tonemap.models import cie146
 from ocl_tonemap.operators import get_operator
-from ocl_tonemap.state_files import load_state
-from ocl_tonemap.visibility import OBSERVATION_S, Viewing
+from ocl_tonemap.io.state_files import load_state
+from ocl_tonemap.effects.visibility import OBSERVATION_S, Viewing
 
 
 def _cli(*args, env=None):

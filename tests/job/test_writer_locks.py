@@ -24,7 +24,7 @@ import OpenImageIO as oiio
 import pytest
 
 from ocl_tonemap.job.locks import lock_path
-from ocl_tonemap.sample import write_tunnel_sequence
+from ocl_tonemap.io.sample import write_tunnel_sequence
 
 REF = ["--backend", "reference", "-q"]
 
@@ -40,7 +40,7 @@ def held(*a, **k):
     sys.stdin.readline()
     return real(*a, **k)
 setattr(m, name, held)
-from ocl_tonemap.cli import main
+from ocl_tonemap.cli.table import main
 sys.exit(main(sys.argv[3:]))
 """
 
@@ -224,8 +224,8 @@ def test_a_pass_removes_its_own_stale_temporaries_only(seq, tmp_path):
 
 
 def test_a_link_in_the_place_of_a_temporary_is_refused(tmp_path):
-    from ocl_tonemap.imageio import FrameError
-    from ocl_tonemap.imagewrite import write_frame
+    from ocl_tonemap.io.imageio import FrameError
+    from ocl_tonemap.io.imagewrite import write_frame
     target = tmp_path / "precious.png"
     target.write_bytes(b"precious")
     path = tmp_path / "o.png"
@@ -311,8 +311,8 @@ def test_a_dask_runs_lock_covers_the_shot_and_lets_its_own_tasks_in(seq, tmp_pat
     """A Dask run's client holds the lock over the whole shot (``shot_lock`` with every
     frame): another ``apply --chunk`` of the same store is refused as overlapping, the
     run's own tasks (``within`` its token) go ahead."""
-    from ocl_tonemap.cli import build_parser
-    from ocl_tonemap.cli_options import job_options
+    from ocl_tonemap.cli.table import build_parser
+    from ocl_tonemap.cli.options import job_options
     from ocl_tonemap.shot import passes
     pattern, frames = seq
     out, st = _measured(seq, tmp_path)

@@ -78,7 +78,7 @@ def test_the_run_gives_the_operator_the_light_behind_the_media():
     reference backend; the default observer (25) and Spencer's ageless one get the
     scene's light as it is."""
     from ocl_tonemap.pipeline import Tonemapper
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     rgb = render_frame(3.0, 64, 36, 8.0, ss=1).astype(np.float32)
     for op in ("pattanaik00", "durand00"):
         old = Tonemapper(op, backend="reference", age=70, flare="off")

@@ -141,7 +141,7 @@ def test_appearance_rules_and_continuity():
 
 def test_mapping_is_monotonic_in_luminance():
     v = P.steady_state(300.0, 100.0)
-    from ocl_tonemap.state import AdaptationState
+    from ocl_tonemap.pipeline.state import AdaptationState
     st = AdaptationState("pattanaik00", v)
     p = P.frame_params(st, DisplaySpec.from_white("sdr", 100.0))
     L = np.logspace(-6, 8, 400)

@@ -210,7 +210,7 @@ def test_the_default_observer_is_25_and_spencer_keeps_eq_8(tmp_path):
     API on both backends, and through the command line."""
     from ocl_tonemap.models import spencer1995 as fl
     from ocl_tonemap.pipeline import Tonemapper
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     rgb = render_frame(3.0, 96, 54, 8.0, ss=1).astype(np.float32)
     for b in ("opencl", "reference"):
         young = Tonemapper("durand00", backend=b)
@@ -253,7 +253,7 @@ def test_an_older_eye_has_a_smaller_pupil_and_more_glare():
 # --- transient adaptation: each operator's own time course (issue 48) ---------------------
 
 from ocl_tonemap.operators import get_operator  # noqa: E402
-from ocl_tonemap.visibility import Viewing, trace  # noqa: E402
+from ocl_tonemap.effects.visibility import Viewing, trace  # noqa: E402
 
 OPS = ("pattanaik00", "durand00", "ledda04", "kirk11")
 

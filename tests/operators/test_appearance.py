@@ -12,7 +12,7 @@ import pytest
 from benchmarks.lib import appearance_metrics as am
 from benchmarks.lib import scenes
 from ocl_tonemap import Tonemapper
-from ocl_tonemap.calibration import log_average
+from ocl_tonemap.colour.calibration import log_average
 from ocl_tonemap.models.display import display_for
 from ocl_tonemap.effects import EffectSettings
 

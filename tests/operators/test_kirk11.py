@@ -8,11 +8,11 @@ import pytest
 
 from ocl_tonemap.models import kirk2011 as ko
 from ocl_tonemap.models import lmsr
-from ocl_tonemap.imageio import read_frame
-from ocl_tonemap.channels import spectral_channels
+from ocl_tonemap.io.imageio import read_frame
+from ocl_tonemap.io.channels import spectral_channels
 from ocl_tonemap.models.numerics import nnls
 from ocl_tonemap.pipeline import Tonemapper
-from ocl_tonemap.sample import spectral_patches, write_spectral_image
+from ocl_tonemap.io.sample import spectral_patches, write_spectral_image
 
 RED, ORANGE, BLUE, GREEN, WHITE = 14, 6, 12, 13, 18     # ColorChecker patch indices
 

@@ -9,7 +9,7 @@ from ocl_tonemap.models import kirk2011 as ko
 from ocl_tonemap.models import lmsr
 from ocl_tonemap.models.photometry import RGB709_TO_XYZ, Y_WEIGHTS
 from ocl_tonemap.pipeline import Tonemapper
-from ocl_tonemap.sample import spectral_patches
+from ocl_tonemap.io.sample import spectral_patches
 
 LEAF = np.array([0.05, 0.12, 0.03])
 

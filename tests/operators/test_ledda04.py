@@ -7,7 +7,7 @@ import pytest
 
 from conftest import hdr_image
 from ocl_tonemap.models import ledda2004 as L
-from ocl_tonemap.state_files import load_state, save_state
+from ocl_tonemap.io.state_files import load_state, save_state
 from ocl_tonemap.backends.opencl.bilateral import DeviceBilateral
 from ocl_tonemap.models.bilateral import LEDDA_RANGE, RangeKernel, bilateral_reference
 from ocl_tonemap.pipeline import Tonemapper
@@ -417,7 +417,7 @@ def test_no_stepped_rings_on_the_tunnel_drive_with_the_defaults():
     device did not."""
     from benchmarks.lib.appearance_metrics import step_artefacts
     from ocl_tonemap.colour import ColourPipeline, load_config
-    from ocl_tonemap.sample import render_frame
+    from ocl_tonemap.io.sample import render_frame
     cp = ColourPipeline(load_config("ocl-tonemap"), "sRGB - Display")
     tms = {b: Tonemapper("ledda04", backend=b) for b in ("opencl", "reference")}
     found = {b: [] for b in tms}

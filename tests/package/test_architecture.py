@@ -86,22 +86,43 @@ def test_models_are_pure_numpy():
     assert not bad, bad
 
 
-#: The layers, lowest first (docs/architecture.md). A module imports only from its own
-#: layer or those below, imports inside functions included; each name is a module or a
-#: package of ``ocl_tonemap`` ("" is the package's own ``__init__``, the API).
+#: The layers, lowest first (docs/architecture.md), each a list of the package's
+#: folders (every module in a folder is in its layer, a new one too) and of the root
+#: modules of :data:`ROOT_MODULES` ("" is the package's own ``__init__``, the API). A
+#: module imports only from its own layer or those below, imports inside functions
+#: included.
 LAYERS = (
-    ("base", ("version", "resources", "interrupts", "safeio", "reuse", "quantities")),
+    ("base", ("base", "version", "moved")),
     ("models", ("models",)),
     ("operators", ("operators",)),
     ("backends", ("backends",)),
-    ("effects", ("effects", "mechanisms", "visibility")),
-    ("pipeline", ("pipeline", "alpha", "state")),
-    ("colour and I/O", ("colour", "imageio", "imagewrite", "channels", "patterns", "radiance",
-                        "calibration", "state_files", "sample", "plot")),
+    ("effects", ("effects", "mechanisms")),
+    ("pipeline", ("pipeline",)),
+    ("colour and I/O", ("colour", "io")),
     ("job", ("job",)),
     ("shot", ("shot",)),
-    ("cli", ("cli", "cli_options", "cli_commands", "cli_docs", "__main__", "")),
+    ("cli", ("cli", "__main__", "")),
 )
+#: The only modules the package root holds besides its folders (docs/architecture.md,
+#: "The package root"): the API's names, ``python -m ocl_tonemap``, the version, the
+#: old import paths (one release).
+ROOT_MODULES = ("__init__", "__main__", "version", "moved")
+
+
+def test_the_root_holds_the_api_and_every_folder_is_a_layer():
+    """At most four modules in the package root, each on the short list; every folder
+    of the package is named in LAYERS (or is its data), and every LAYERS name is a
+    folder or a root module of the list."""
+    root = sorted(p.stem for p in PKG.glob("*.py"))
+    assert set(root) <= set(ROOT_MODULES) and len(root) <= 4, root
+    folders = sorted(p.parent.name for p in PKG.glob("*/__init__.py"))
+    named = {n for _, names in LAYERS for n in names}
+    assert set(folders) <= named, sorted(set(folders) - named)
+    for n in named - {""}:
+        assert (PKG / n / "__init__.py").is_file() or n in ROOT_MODULES, n
+    # a module added to a folder is in that folder's layer without editing LAYERS
+    assert LAYERS[_layer("ocl_tonemap.io.a_new_format")][0] == "colour and I/O"
+    assert _layer("ocl_tonemap.a_loose_module") is None
 
 
 def _layer(module: str) -> int | None:
@@ -276,10 +297,10 @@ def test_no_class_over_the_size_limit():
 
 
 def test_the_command_line_names_no_effect():
-    """cli.py is a table of sub-commands: the effects' flags come from their
-    declarations (cli_options.py reads them), so it names none."""
+    """cli/table.py is a table of sub-commands: the effects' flags come from their
+    declarations (cli/options.py reads them), so it names none."""
     import re
-    text = (PKG / "cli.py").read_text()
+    text = (PKG / "cli" / "table.py").read_text()
     assert len(text.splitlines()) <= MAX_CLI_LINES
     named = sorted(set(re.findall(r"(?i)flare|acuity|purkinje|chromatic", text)))
     assert not named, named

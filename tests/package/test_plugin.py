@@ -55,7 +55,7 @@ def test_plugin_operator_on_the_command_line(plugin_env, tmp_path):
     h = subprocess.run(cmd + ["run", "--help"], capture_output=True, text=True, env=plugin_env)
     assert h.returncode == 0 and "exposure" in h.stdout and "--exposure-key" in h.stdout
     _py(plugin_env, f"""
-from ocl_tonemap.sample import write_tunnel_sequence
+from ocl_tonemap.io.sample import write_tunnel_sequence
 write_tunnel_sequence({str(tmp_path / 'in')!r}, 64, 36, 30.0, 0.2)
 """)
     (tmp_path / "out").mkdir()

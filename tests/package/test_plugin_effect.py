@@ -116,7 +116,7 @@ def test_a_split_shot_equals_one_run_with_the_plugin(plugin_env, tmp_path):
 import OpenImageIO as oiio
 from ocl_tonemap.job.options import JobOptions
 from ocl_tonemap.job.run import run_job
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.io.patterns import frame_path
 from ocl_tonemap.shot import passes
 d = {str(tmp_path)!r}
 for f in range(1, 7):

@@ -11,7 +11,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap import cli
+from ocl_tonemap.cli import table as cli
 from ocl_tonemap.effects import flare as flare_effect
 from ocl_tonemap.models import spencer1995 as fl
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ocl_tonemap import Tonemapper
-from ocl_tonemap.sample import render_frame
+from ocl_tonemap.io.sample import render_frame
 
 pytestmark = pytest.mark.requires_opencl
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ocl_tonemap.pipeline import Tonemapper
-from ocl_tonemap.sample import spectral_patches
+from ocl_tonemap.io.sample import spectral_patches
 
 
 def _spectral():

@@ -15,7 +15,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.io.patterns import frame_path
 
 pytest.importorskip("distributed")
 x509 = pytest.importorskip("cryptography.x509")
@@ -65,7 +65,7 @@ def _make_certs(d):
 
 @pytest.fixture(scope="module")
 def shot(tmp_path_factory):
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("tls")
     pattern, frames = write_tunnel_sequence(str(d / "scene"), 32, 18, 30.0, 0.3)
     return d, pattern, frames

@@ -13,7 +13,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.io.patterns import frame_path
 from ocl_tonemap.shot.farm import absolute_tokens
 from opencue_chunks import opencue_commands
 
@@ -30,7 +30,7 @@ def _run(argv, cwd):
 def made(tmp_path_factory):
     """A folder with 6 frames of the tunnel (48x27), a metering mask and a cut list,
     all named relative to it; the serial run's frames of the same options."""
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("made")
     pattern, frames = write_tunnel_sequence(str(d / "scene"), 48, 27, 12.0, 0.5)
     mask = np.zeros((27, 48, 1), np.float32)

@@ -2,7 +2,7 @@
 modification time, BLAKE2b of the file): integrate, apply and export refuse an input
 that changed since the measure pass, in one line naming the frames and the command
 that mends it; measure run again measures just those frames (issue 65). The real
-command line, in-process (``ocl_tonemap.cli.main``), on the reference backend."""
+command line, in-process (``ocl_tonemap.cli.table.main``), on the reference backend."""
 
 import json
 import logging
@@ -14,8 +14,8 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.cli import main
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.cli.table import main
+from ocl_tonemap.io.patterns import frame_path
 from ocl_tonemap.shot.store import ShotStore
 
 REF = ["--backend", "reference", "--out-bits", "float"]
@@ -23,7 +23,7 @@ REF = ["--backend", "reference", "--out-bits", "float"]
 
 @pytest.fixture(scope="module")
 def tunnel(tmp_path_factory):
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("tunnel")
     pattern, frames = write_tunnel_sequence(str(d / "scene"), 48, 27, 8.0, 0.5)
     return pattern, frames
@@ -165,7 +165,7 @@ def test_a_touch_alone_is_not_a_change_and_old_stores_are_checked_by_stat(shot, 
 def test_a_streamed_frame_keeps_its_identity(tmp_path, caplog):
     """A frame over --max-memory is measured in row bands: its statistics keep the
     input's identity as a whole frame's do."""
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     inp, frames = write_tunnel_sequence(str(tmp_path / "in"), 1280, 720, 8.0, 0.25)
     out = str(tmp_path / "out" / "o.####.exr")
     os.makedirs(os.path.dirname(out))

@@ -13,9 +13,9 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from ocl_tonemap.imageio import FrameError
+from ocl_tonemap.io.imageio import FrameError
 
-from ocl_tonemap.patterns import frame_path
+from ocl_tonemap.io.patterns import frame_path
 from ocl_tonemap.job.options import JobOptions
 from ocl_tonemap.job.run import run_job
 from ocl_tonemap.shot import passes
@@ -28,7 +28,7 @@ OPERATORS = ("pattanaik00", "durand00", "ledda04", "kirk11")
 @pytest.fixture(scope="module")
 def shot(tmp_path_factory):
     """The tunnel drive: 1 s at 30 fps, 48x27, entering the tunnel (EXR, cd/m^2)."""
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("shot")
     pattern, frames = write_tunnel_sequence(str(d / "scene"), 48, 27, 30.0, 1.0)
     return d, pattern, frames
@@ -229,7 +229,7 @@ def dusk_shot(tmp_path_factory):
     """The tunnel drive at a thousandth of its light (sunlit road 5, tunnel road 0.005
     cd/m^2): the observer crosses the mesopic range, so the plan turns the Purkinje
     shift, the acuity blur and the lamps' flare on and off within the shot."""
-    from ocl_tonemap.sample import write_tunnel_sequence
+    from ocl_tonemap.io.sample import write_tunnel_sequence
     d = tmp_path_factory.mktemp("dusk")
     pattern, frames = write_tunnel_sequence(str(d / "scene"), 48, 27, 30.0, 2.0)
     return d, pattern, frames
@@ -417,7 +417,7 @@ def lamp_fade(tmp_path_factory):
     over a second, through the flare's source limit, and fades again: the plan's flare
     comes in and goes out with its ramps and hysteresis, frames where its weight is
     neither the frame's own 0 nor 1."""
-    from ocl_tonemap.patterns import frame_path
+    from ocl_tonemap.io.patterns import frame_path
     d = tmp_path_factory.mktemp("lampfade")
     pattern = str(d / "scene" / "lamp.####.exr")
     os.makedirs(d / "scene")

@@ -12,14 +12,14 @@ level at once (a step from L20 at the entrance). A fixed target (CIE 88's small
 target: 20 cm at the stopping distance; contrast :data:`CONTRAST` below the road, a
 negative contrast) lies on the road luminance of each moment; its visibility level
 VL = |L_t - L_road| / dL_th, dL_th Adrian 1989's threshold times the transient factor
-of the operator's state (``ocl_tonemap/visibility.py``: :func:`seen` for the drive,
+of the operator's state (``ocl_tonemap/effects/visibility.py``: :func:`seen` for the drive,
 :func:`trace` for the step; no veil). Expected: along the curve VL stays near its
 threshold-zone value (CIE 88's k makes the target visible to an eye still adapted to
 L20 on entering; the curve is its assumption of how fast adaptation follows); after
 the step VL falls below 1 for some seconds.
 
 B. Light adaptation (Baker 1949). An observer dark-adapted for good (the darkest
-field the tool takes, :data:`ocl_tonemap.quantities.LUMINANCE_RANGE`'s lowest), a
+field the tool takes, :data:`ocl_tonemap.base.quantities.LUMINANCE_RANGE`'s lowest), a
 uniform field switched on at t = 0: the increment threshold of the visibility
 calculator's target on it over the first minute (dL_th = Adrian's steady threshold x
 TAF, TAF clipped to >= 1 as the model has it), and the unclipped gain ratio
@@ -103,7 +103,7 @@ def road(t, L_th: float = L_TH, L_in: float = L_INTERIOR, L_access: float = L20,
 def viewing():
     """The observer (``visibility.Viewing``): the small target, 25 years, the
     project's 0.2 s look, Adrian 1989."""
-    from ocl_tonemap.visibility import Viewing
+    from ocl_tonemap.effects.visibility import Viewing
     return Viewing(size_arcmin=target_arcmin())
 
 
@@ -162,7 +162,7 @@ def drive(name: str, view=None, dt: float = DT_S, seconds: float = DRIVE_S) -> D
     """``name``'s observer adapted to L20, driven along :func:`road` (the field held at
     each step's midpoint luminance over ``dt``), and stepped to the interior level."""
     from ocl_tonemap.operators import get_operator
-    from ocl_tonemap.visibility import seen, trace
+    from ocl_tonemap.effects.visibility import seen, trace
     view = view or viewing()
     op = get_operator(name)({})
     g = view.media_gain
@@ -218,8 +218,8 @@ class Onset:
 def onset(name: str, L: float, view=None, times=BAKER_TIMES) -> Onset:
     """``name``'s observer dark-adapted for good, a field of ``L`` from t = 0."""
     from ocl_tonemap.operators import get_operator
-    from ocl_tonemap.quantities import LUMINANCE_RANGE
-    from ocl_tonemap.visibility import trace
+    from ocl_tonemap.base.quantities import LUMINANCE_RANGE
+    from ocl_tonemap.effects.visibility import trace
     view = view or viewing()
     op = get_operator(name)({})
     g = view.media_gain

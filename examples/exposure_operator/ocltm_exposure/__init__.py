@@ -18,7 +18,7 @@ import numpy as np
 from ocl_tonemap.models.display import DISPLAY_LINEAR_MAX
 from ocl_tonemap.models.integrators import exponential_step
 from ocl_tonemap.operators.base import KernelCall, Operator, Option, Stage, StateSpec
-from ocl_tonemap.quantities import Quantity
+from ocl_tonemap.base.quantities import Quantity
 
 KERNEL = str(Path(__file__).with_name("exposure.cl"))
 

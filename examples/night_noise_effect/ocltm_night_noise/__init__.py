@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from ocl_tonemap.effects import Effect, EffectOption
-from ocl_tonemap.quantities import Quantity
+from ocl_tonemap.base.quantities import Quantity
 from ocl_tonemap.mechanisms.predict import display_ictcp, p99, sampled
 
 #: Cone levels (cd/m^2) where the grain starts and where it is full.

@@ -10,7 +10,7 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
-from ...resources import package_data_dir
+from ...base.resources import package_data_dir
 from . import icd
 from .constants import common_options, define_value  # noqa: F401 (define_value: runtime)
 

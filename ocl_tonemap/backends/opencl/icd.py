@@ -22,7 +22,7 @@ import os
 import sys
 from pathlib import Path
 
-from ...resources import user_cache_dir
+from ...base.resources import user_cache_dir
 
 #: The system's vendors folder (``OCLTM_SYSTEM_ICD_DIR`` overrides it: tests).
 SYSTEM_VENDORS = "/etc/OpenCL/vendors"

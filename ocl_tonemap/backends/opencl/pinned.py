@@ -17,13 +17,13 @@ import threading
 
 import numpy as np
 
-from ...reuse import Reused
+from ...base.reuse import Reused
 
 
 class HostArrays(Reused):
     """Host arrays for transfers to and from ``rt``'s device: page-locked where it is
     not a CPU, at most ``keep`` of them kept for reuse (a run's frames in flight;
-    ``reuse.py``: the mapped owner is what is kept, so that every view counts)."""
+    ``base/reuse.py``: the mapped owner is what is kept, so that every view counts)."""
 
     def __init__(self, rt, keep: int = 4, pinned: bool | None = None):
         import pyopencl as cl

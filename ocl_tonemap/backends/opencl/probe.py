@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass
 
 from ... import version
-from ...resources import cache_write
+from ...base.resources import cache_write
 from . import icd
 from .constants import common_options
 from .driver import build_options, cl_api, kernel_dir, quiet_compiler

@@ -21,7 +21,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ...resources import cache_write, user_cache_dir
+from ...base.resources import cache_write, user_cache_dir
 from . import probe
 # the driver layer below the runtime (probe.py builds on it too); names kept here
 from .driver import (INSTALL_HINT, DeviceBroken, KernelBuildError,  # noqa: F401

@@ -6,13 +6,13 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from .version import __version__
+from ..version import __version__
 
 
 def package_data_dir(name: str, probe: str) -> Path:
     """``ocl_tonemap/<name>`` in an installed wheel (where pyproject maps the
     top-level folder), else ``<name>`` beside the package in a source tree."""
-    here = Path(__file__).resolve().parent      # ocl_tonemap/
+    here = Path(__file__).resolve().parent.parent      # ocl_tonemap/
     for p in (here / name, here.parent / name):
         if (p / probe).is_file():
             return p

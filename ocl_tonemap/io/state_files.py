@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
-from . import safeio
-from .backends.planes import band_readable, plane_shape, read_rows
+from ..base import safeio
+from ..backends.planes import band_readable, plane_shape, read_rows
 from .imagewrite import ocltm_metadata
-from .state import AdaptationState
+from ..pipeline.state import AdaptationState
 
 
 def save_state(state: AdaptationState, path: str | os.PathLike, checkpoint: bool = False,

@@ -14,10 +14,10 @@ import os
 
 import numpy as np
 
-from . import safeio
-from .mechanisms.planner import mechanisms
-from .models.ferwerda1996 import log_threshold_rod
-from .visibility import trace
+from ..base import safeio
+from ..mechanisms.planner import mechanisms
+from ..models.ferwerda1996 import log_threshold_rod
+from ..effects.visibility import trace
 
 #: The PNG text key that holds each panel's legend (``{panel: [label, ...]}``): what
 #: the plot shows, readable without looking at it.

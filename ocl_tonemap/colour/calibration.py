@@ -14,7 +14,7 @@ The models need absolute luminance: the same picture is a daylight scene at
    luminance of the first frame of the run at LEVEL cd/m^2 (a number or a
    named level, :data:`NAMED_LEVELS`); one constant for the whole sequence;
 5. Radiance ``.hdr``: 179 lm/W, the format's definition of its radiance
-   units, after its EXPOSURE is divided out (``radiance.py``): a rendering (a
+   units, after its EXPOSURE is divided out (``io/radiance.py``): a rendering (a
    Radiance renderer in its header) is absolute; photographs saved as .hdr are
    seldom absolute (reported);
 6. 1 cd/m^2 per unit, with a warning naming the assumption and the flags.
@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .models.photometry import Y_WEIGHTS
-from .quantities import NAMED_LEVELS, luminance_scale  # noqa: F401 (NAMED_LEVELS: its API)
+from ..models.photometry import Y_WEIGHTS
+from ..base.quantities import NAMED_LEVELS, luminance_scale  # noqa: F401 (NAMED_LEVELS: its API)
 
 #: ISO 2720 reflected-light meter calibration constant K (cd s m^-2 ISO).
 METER_K = 12.5
@@ -151,7 +151,7 @@ class Calibrator:
     def frame(self, spec, format_name: str, working_rgb_fn, radiance=None) -> Calibration:
         """The calibration of one frame. ``working_rgb_fn()`` returns its working RGB
         (only called for ``auto`` on the first frame); ``radiance``: a Radiance
-        picture's header (``radiance.py``; its EXPOSURE is already divided out)."""
+        picture's header (``io/radiance.py``; its EXPOSURE is already divided out)."""
         r = self.request
         if r.scale is not None:
             return Calibration(r.scale, "--luminance-scale")

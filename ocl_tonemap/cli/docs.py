@@ -1,8 +1,8 @@
 """The command-line reference, ``docs/cli.md``, written from the parser itself.
 
-``python -m ocl_tonemap.cli_docs`` writes it (``--out PATH`` elsewhere);
-``python -m ocl_tonemap.cli_docs --check`` exits 1 when the file differs from what the
-parser gives now. Everything comes from :func:`ocl_tonemap.cli.build_parser`: the
+``python -m ocl_tonemap.cli.docs`` writes it (``--out PATH`` elsewhere);
+``python -m ocl_tonemap.cli.docs --check`` exits 1 when the file differs from what the
+parser gives now. Everything comes from :func:`ocl_tonemap.cli.table.build_parser`: the
 sub-commands (its ``_SubParsersAction``), each one's usage, and each argument group's
 title and options with their flags, metavar, choices, default and help, in the order
 ``--help`` shows them. Options a sub-command accepts without listing them (the run
@@ -17,13 +17,13 @@ import re
 import sys
 from pathlib import Path
 
-from .cli import build_parser
+from .table import build_parser
 
 #: Where the reference lives, from the repository root.
 DEFAULT_PATH = Path("docs") / "cli.md"
 #: The width usage lines are wrapped at (fixed: the file must not depend on a terminal).
 WIDTH = 88
-GENERATOR = "python -m ocl_tonemap.cli_docs"
+GENERATOR = "python -m ocl_tonemap.cli.docs"
 
 
 def _shown(action: argparse.Action) -> bool:
@@ -136,8 +136,8 @@ def _builtin_only():
     cleared before and after so the process sees its plugins again."""
     import importlib.metadata as md
     # lazy: the registries, imported where the parser is built with built-ins only
-    from .effects import settings
-    from .operators import ENTRY_POINT_GROUP, registry  # lazy: as above
+    from ..effects import settings
+    from ..operators import ENTRY_POINT_GROUP, registry  # lazy: as above
 
     plugin_groups = {ENTRY_POINT_GROUP, "ocl_tonemap.effects"}
     real = md.entry_points

@@ -1,5 +1,5 @@
 """The sub-commands of the command line, each a thin function ``(args, argv) -> exit
-code`` over the job's API; ``cli.py`` holds the table that names them and their
+code`` over the job's API; ``cli/table.py`` holds the table that names them and their
 arguments."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import shlex
 import shutil
 import sys
 
-from . import interrupts
-from .cli_options import job_options
+from ..base import interrupts
+from .options import job_options
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -50,24 +50,24 @@ def run_option_tokens(argv: list[str], a) -> list[str]:
 def run(a, argv) -> int:
     """``run``: the main job, serially or as a shot on Dask (``--scheduler``)."""
     if a.scheduler:
-        from .job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
-        from .shot.distributed import run_distributed  # lazy: a command loads its own layers
+        from ..job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
+        from ..shot.distributed import run_distributed  # lazy: a command loads its own layers
         opts = job_options(a, a.input, a.output)
         refuse_visibility(opts, "--scheduler")
-        from .shot.chunks import command_line  # lazy: a command loads its own layers
+        from ..shot.chunks import command_line  # lazy: a command loads its own layers
         interrupts.again = command_line(argv)      # (each pass keeps what it finished)
         res = run_distributed(opts, a.scheduler, a.workers, a.chunk_frames, a.store,
                               progress=opts.progress,
                               pocl_threads=max(1, (os.cpu_count() or 1) // max(1, a.workers)),
                               security=a.scheduler_security)
         if not a.quiet:
-            from .shot.distributed import overhead_line  # lazy: with --scheduler only
+            from ..shot.distributed import overhead_line  # lazy: with --scheduler only
             times = ", ".join(f"{k} {v:.2f} s" for k, v in res.passes.items())
             print(f"wrote {len(res.outputs)} frame(s) in {res.seconds:.2f} s ({times}; "
                   f"{overhead_line(res.tasks)})")
         return 0
-    from .job.options import Interrupted  # lazy: a command loads its own layers
-    from .job.run import run_job  # lazy: a command loads its own layers
+    from ..job.options import Interrupted  # lazy: a command loads its own layers
+    from ..job.run import run_job  # lazy: a command loads its own layers
     for flag, given in (("--workers", a.workers != 2), ("--chunk-frames", a.chunk_frames),
                         ("--store", a.store), ("--scheduler-security", a.scheduler_security)):
         if given:
@@ -125,9 +125,9 @@ def _target_report(res) -> None:
 
 def shot_pass(a, argv) -> int:
     """``measure`` / ``integrate`` / ``apply`` / ``export``: one pass of a split shot."""
-    from .job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
-    from .shot import chunks, passes  # lazy: a command loads its own layers
-    from .job.options import Interrupted  # lazy: a command loads its own layers
+    from ..job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
+    from ..shot import chunks, passes  # lazy: a command loads its own layers
+    from ..job.options import Interrupted  # lazy: a command loads its own layers
     opts = job_options(a, a.input, a.output)
     refuse_visibility(opts, f"the {a.cmd} pass")
     store = a.store or passes.default_store(opts)
@@ -162,7 +162,7 @@ def shot_pass(a, argv) -> int:
 def _apply_interrupted(e, a, argv) -> int:
     """The line an interrupted ``apply`` leaves: what it wrote, and the command that
     writes the frames left (``shot.chunks.finish_apply``)."""
-    from .shot import chunks, passes  # lazy: a command loads its own layers
+    from ..shot import chunks, passes  # lazy: a command loads its own layers
     again = chunks.finish_apply(argv, passes.shot_jobs(job_options(a, a.input, a.output)),
                                 e.last_frame, passes.parse_chunk(a.chunk))
     print(f"ocl-tonemap: interrupted after frame {e.last_frame} ({e.done} of {e.total} "
@@ -172,7 +172,7 @@ def _apply_interrupted(e, a, argv) -> int:
 
 
 def farm_template(a, argv) -> int:
-    from .shot.farm import write_template  # lazy: a command loads its own layers
+    from ..shot.farm import write_template  # lazy: a command loads its own layers
     path = write_template(a.format, job_options(a, a.input, a.output),
                           run_option_tokens(argv, a), a.job_file, store=a.store,
                           chunk=a.chunk_frames, name=a.name, command=a.command)
@@ -182,8 +182,8 @@ def farm_template(a, argv) -> int:
 
 
 def simulate(a, argv) -> int:
-    from .job.simulate import run_simulate  # lazy: a command loads its own layers
-    from .job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
+    from ..job.simulate import run_simulate  # lazy: a command loads its own layers
+    from ..job.visibility_out import refuse_visibility  # lazy: a command loads its own layers
     opts = job_options(a, a.input, a.output)
     refuse_visibility(opts, "simulate")
     res = run_simulate(opts, a.at)
@@ -197,10 +197,10 @@ def visibility(a, argv) -> int:
     """The calculator: Adrian's threshold of a target (``visibility.Viewing``: the run's
     observer) with each term; with ``--state`` under the eye a run left, with
     ``--adapted-to`` over the seconds after a step."""
-    from . import visibility as vis  # lazy: a command loads its own layers
-    from .models import adrian1989 as ad  # lazy: a command loads its own layers
-    from .models import cie203  # lazy: a command loads its own layers
-    from .models.spencer1995 import DEFAULT_AGE  # lazy: a command loads its own layers
+    from ..effects import visibility as vis  # lazy: a command loads its own layers
+    from ..models import adrian1989 as ad  # lazy: a command loads its own layers
+    from ..models import cie203  # lazy: a command loads its own layers
+    from ..models.spencer1995 import DEFAULT_AGE  # lazy: a command loads its own layers
     st = _run_state(a)
     age = a.age if a.age is not None else DEFAULT_AGE
     view = vis.Viewing(a.size, age, a.time, a.k, a.adrian).check()
@@ -300,8 +300,8 @@ def _run_state(a):
         if given is not None:
             raise ValueError(f"--state gives the eye as a run left it; {flag} (a step "
                              "from a uniform field) cannot go with it")
-    from .models import spencer1995 as fl  # lazy: a command loads its own layers
-    from .state_files import load_state  # lazy: a command loads its own layers
+    from ..models import spencer1995 as fl  # lazy: a command loads its own layers
+    from ..io.state_files import load_state  # lazy: a command loads its own layers
     st = load_state(a.state)
     if a.operator is not None and a.operator != st.operator:
         raise ValueError(f"--operator {a.operator}: the state {a.state} is {st.operator}'s")
@@ -334,8 +334,8 @@ def _visibility_state(a, st, view, polarity: str) -> dict | None:
     run's options); None without it."""
     if st is None:
         return None
-    from .operators import get_operator  # lazy: a command loads its own layers
-    from .visibility import seen  # lazy: a command loads its own layers
+    from ..operators import get_operator  # lazy: a command loads its own layers
+    from ..effects.visibility import seen  # lazy: a command loads its own layers
     op = get_operator(st.operator)(dict((st.extra.get("run") or {}).get("options") or {}))
     obs = op.observer_of(st)
     if op.observer_per_pixel:
@@ -368,14 +368,14 @@ def _visibility_step(a, view, polarity: str) -> dict | None:
             if given is not None:
                 raise ValueError(f"{flag} needs --adapted-to L0 (the step's start)")
         return None
-    from . import visibility as vis  # lazy: a command loads its own layers
-    from .operators import get_operator  # lazy: a command loads its own layers
+    from ..effects import visibility as vis  # lazy: a command loads its own layers
+    from ..operators import get_operator  # lazy: a command loads its own layers
     after = list(a.after or vis.AFTER_S)
     op = get_operator(a.operator or "pattanaik00")({})
     pts = vis.trace(op, a.adapted_to, a.adapted_for, a.background, after, view, polarity,
                     a.target, a.veil)
     if a.plot:
-        from .plot import plot_visibility_step  # lazy: matplotlib only for --plot
+        from ..io.plot import plot_visibility_step  # lazy: matplotlib only for --plot
         plot_visibility_step(a.plot, op, a.adapted_to, a.adapted_for, a.background, view,
                              polarity, max(after + [30.0]), a.veil)
     return {"operator": op.name, "adapted_to": a.adapted_to, "for_s": a.adapted_for,
@@ -386,8 +386,8 @@ def _visibility_step(a, view, polarity: str) -> dict | None:
 def demo(a, argv) -> int:
     """The sample written and the main job run on it; what it made is removed again
     where it fails (an interrupted demo keeps its frames)."""
-    from .job.options import Interrupted  # lazy: a command loads its own layers
-    from .sample import plan_sample  # lazy: a command loads its own layers
+    from ..job.options import Interrupted  # lazy: a command loads its own layers
+    from ..io.sample import plan_sample  # lazy: a command loads its own layers
     w, h = a.size
     scene = os.path.join(a.outdir, "scene")
     out = os.path.join(a.outdir, "display", "tunnel.####.png")
@@ -414,8 +414,8 @@ def demo(a, argv) -> int:
 
 
 def _demo_run(a, opts, w: int, h: int, scene: str):
-    from .job.run import run_job  # lazy: a command loads its own layers
-    from .sample import write_tunnel_sequence  # lazy: a command loads its own layers
+    from ..job.run import run_job  # lazy: a command loads its own layers
+    from ..io.sample import write_tunnel_sequence  # lazy: a command loads its own layers
     opts.input, _ = write_tunnel_sequence(scene, w, h, 30.0, a.seconds)
     os.makedirs(os.path.dirname(opts.output), exist_ok=True)
     return run_job(opts)
@@ -423,7 +423,7 @@ def _demo_run(a, opts, w: int, h: int, scene: str):
 
 def sample(a, argv) -> int:
     # lazy: a command loads its own layers
-    from .sample import plan_sample, write_spectral_image, write_tunnel_sequence
+    from ..io.sample import plan_sample, write_spectral_image, write_tunnel_sequence
     w, h = a.size
     plan_sample(a.outdir, w, h, a.fps, a.seconds)
     pattern, frames = write_tunnel_sequence(a.outdir, w, h, a.fps, a.seconds)
@@ -441,7 +441,7 @@ def displays(a, argv) -> int:
     where it is another (a run's default is the un-tone-mapped view: the operator
     does the tone mapping)."""
     # lazy: a command loads its own layers
-    from .colour import (ColourError, default_display, default_view, list_displays,
+    from ..colour import (ColourError, default_display, default_view, list_displays,
                          load_config, resolve_config_source)
     cfg = load_config(a.colorconfig)
     print(f"config: {resolve_config_source(a.colorconfig)} ({cfg.getName() or 'unnamed'})")
@@ -462,7 +462,7 @@ def displays(a, argv) -> int:
 def radiance_env(a, argv) -> int:
     """``export PATH=...`` and ``export RAYPATH=...`` for Radiance's programs of the
     pyradiance wheel (``radiance.tools``), quoted for a POSIX shell."""
-    from .radiance import tools  # lazy: a command loads its own layers
+    from ..io.radiance import tools  # lazy: a command loads its own layers
     found = tools()
     if found is None:
         raise ValueError("Radiance's programs are not installed: pip install "
@@ -475,9 +475,9 @@ def radiance_env(a, argv) -> int:
 
 def devices(a, argv) -> int:
     """Every OpenCL device with its probe verdict, and which one a run takes."""
-    from .backends.opencl import probe  # lazy: a command loads its own layers
+    from ..backends.opencl import probe  # lazy: a command loads its own layers
     # lazy: a command loads its own layers
-    from .backends.opencl.runtime import (INSTALL_HINT, OpenCLUnavailable, describe_device,
+    from ..backends.opencl.runtime import (INSTALL_HINT, OpenCLUnavailable, describe_device,
                                           device_status, list_devices)
     devs = list_devices()
     if not devs:

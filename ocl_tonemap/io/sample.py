@@ -14,11 +14,11 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
-from .models import lmsr
-from .models.lmsr import spectral_to_rgb
-from .models.photometry import Y_WEIGHTS
+from ..models import lmsr
+from ..models.lmsr import spectral_to_rgb
+from ..models.photometry import Y_WEIGHTS
 from .patterns import frame_path
-from .resources import available_memory, free_disk, gib
+from ..base.resources import available_memory, free_disk, gib
 
 SPEED = 25.0                 # m/s (90 km/h)
 CAM_H = 1.2                  # eye height, m

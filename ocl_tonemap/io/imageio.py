@@ -14,11 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 import OpenImageIO as oiio
 
-from . import radiance, safeio
-from .reuse import Reused
+from ..base import safeio
+from . import radiance
+from ..base.reuse import Reused
 from .channels import MIN_SPECTRAL_CHANNELS, channel_runs, select_channels, spectral_channels
-from .models.lmsr import spectral_to_rgb
-from .models.photometry import xy_to_rgb
+from ..models.lmsr import spectral_to_rgb
+from ..models.photometry import xy_to_rgb
 
 
 #: Default output sample type by file extension.

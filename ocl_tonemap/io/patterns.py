@@ -11,7 +11,7 @@ import glob
 import os
 import re
 
-from .quantities import MAX_FRAME, MAX_FRAMES, parse_frames  # noqa: F401 (re-exported)
+from ..base.quantities import MAX_FRAME, MAX_FRAMES, parse_frames  # noqa: F401 (re-exported)
 
 _PAT = re.compile(r"(#+|@+|%0?(\d*)d)")
 

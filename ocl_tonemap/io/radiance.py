@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .safeio import regular_file
+from ..base.safeio import regular_file
 
 log = logging.getLogger("ocl_tonemap")
 

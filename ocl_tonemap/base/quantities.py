@@ -441,7 +441,7 @@ def _luminance_scale(v):
     return v if isinstance(v, str) else float(v)
 
 
-#: name -> declaration of every number and syntax the run takes (``cli_options.py``
+#: name -> declaration of every number and syntax the run takes (``cli/options.py``
 #: makes the flags from them, ``JobOptions`` checks the API's values with them).
 RUN = {
     "fps": Quantity("frame rate", "frames/s", 0.0, 1e6, above=True),

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .backends.planes import band_readable
-from .quantities import Quantity
+from ..backends.planes import band_readable
+from ..base.quantities import Quantity
 
 STATE_FORMAT = "ocl-tonemap.adaptation-state/1"
 #: AdaptationState.extra key of the ``auto`` calibration constant of a run.
@@ -116,14 +116,14 @@ def check_values(values, operator: str | None, where: str = "values") -> dict:
 def _operator_scalars(operator: str) -> tuple | None:
     """The scalar fields ``operator`` declares (``StateSpec.scalars``), or None for a
     name that is not an operator (refused by :meth:`AdaptationState.from_json`)."""
-    from .operators import registry  # lazy: the state module loads no operator
+    from ..operators import registry  # lazy: the state module loads no operator
     cls = registry().get(operator)
     return None if cls is None else tuple(cls.state.scalars)
 
 
 def _pigment_ok(v) -> bool:
     """``extra["pigment"]``: the shared pigment course's state (``models/bleaching``)."""
-    from .models import bleaching  # lazy: the state module loads no model until checked
+    from ..models import bleaching  # lazy: the state module loads no model until checked
     return bleaching.check(v)
 
 
@@ -222,7 +222,7 @@ class AdaptationState:
         if missing:
             raise ValueError(f"{missing[0]} is missing (a state holds {', '.join(FIELDS)})")
         op = doc["operator"]
-        from .operators import registry  # lazy: the state module loads no operator
+        from ..operators import registry  # lazy: the state module loads no operator
         if not isinstance(op, str) or op not in registry():
             raise ValueError(f"operator {str(json.dumps(op))[:60]} is not an operator (one of "
                              f"{', '.join(registry())})")

@@ -21,10 +21,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .models import adrian1989 as ad
-from .models import cie203
-from .models.visibility_map import transient
-from .quantities import LUMINANCE_RANGE, OBSERVATION_S, TARGET_ARCMIN, VISIBILITY
+from ..models import adrian1989 as ad
+from ..models import cie203
+from ..models.visibility_map import transient
+from ..base.quantities import LUMINANCE_RANGE, OBSERVATION_S, TARGET_ARCMIN, VISIBILITY
 
 _LO = LUMINANCE_RANGE[0]
 #: Every number the visibility takes, declared once (``quantities.VISIBILITY``).

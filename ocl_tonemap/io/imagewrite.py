@@ -3,7 +3,7 @@ beside its target, checked, read back, fsynced and renamed into place
 (``safeio.commit``), whole (:func:`write_frame`) or in row bands
 (:class:`BandWriter`), with the input's windows and metadata and ours (``ocltm:*``;
 in ``ImageDescription`` for the formats that keep only standard tags). A write
-that fails, a full disk included, raises :class:`~ocl_tonemap.imageio.FrameError`
+that fails, a full disk included, raises :class:`~ocl_tonemap.io.imageio.FrameError`
 naming the file and frame and leaves nothing behind. The reading side:
 ``imageio.py``.
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
-from . import safeio
+from ..base import safeio
 from .imageio import (BITS_TYPES, DEFAULT_BITS, PNG_FILTER, PNG_FILTERS, PNG_LEVEL,
                       PREMULTIPLIED_FORMATS, FrameError, oiio_error)
 

@@ -1,5 +1,5 @@
 """The command line: a table of sub-commands (:data:`COMMANDS`), each its arguments and a
-thin function of ``cli_commands.py``; the run options come from ``cli_options.py``."""
+thin function of ``cli/commands.py``; the run options come from ``cli/options.py``."""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ import sys
 import textwrap
 from typing import Callable, NamedTuple
 
-from . import cli_commands as commands
-from . import interrupts
-from .cli_options import declared_flag, add_run_options, add_shot_options
-from .interrupts import Terminated, exit_code, install
-from .quantities import SAMPLE, VISIBILITY
-from .version import __version__
+from . import commands
+from ..base import interrupts
+from .options import declared_flag, add_run_options, add_shot_options
+from ..base.interrupts import Terminated, exit_code, install
+from ..base.quantities import SAMPLE, VISIBILITY
+from ..version import __version__
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -139,8 +139,8 @@ def _simulate_args(p) -> None:
 
 def _visibility_args(p) -> None:
     # lazy: this parser is built for its own command only (NumPy with the models)
-    from .models.adrian1989 import ADRIAN_1989, FIELD_FACTOR, VARIANTS
-    from .visibility import INPUTS, OBSERVATION_S, TARGET_ARCMIN  # lazy: as above
+    from ..models.adrian1989 import ADRIAN_1989, FIELD_FACTOR, VARIANTS
+    from ..effects.visibility import INPUTS, OBSERVATION_S, TARGET_ARCMIN  # lazy: as above
 
     def q(flag, name, help_, **kw):
         d = INPUTS[name]
@@ -360,7 +360,7 @@ def _main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=level, format="ocl-tonemap %(levelname)s: %(message)s")
     if a.quiet:
         logging.getLogger("ocl_tonemap").setLevel(logging.ERROR)
-    from .imageio import FrameError, one_line  # lazy: --help loads no OIIO
+    from ..io.imageio import FrameError, one_line  # lazy: --help loads no OIIO
     try:
         return BY_NAME[a.cmd].run(a, argv)
     except Exception as e:                                    # noqa: BLE001

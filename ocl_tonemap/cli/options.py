@@ -11,7 +11,7 @@ import logging
 import sys
 from typing import Callable, NamedTuple
 
-from .quantities import RUN
+from ..base.quantities import RUN
 
 log = logging.getLogger("ocl_tonemap")
 
@@ -45,7 +45,7 @@ class Group(NamedTuple):
 def _registry() -> dict:
     """The operators (imported when the options are made: ``--version`` and ``devices``
     need none of them, nor NumPy)."""
-    from .operators import registry  # lazy: --help loads no NumPy
+    from ..operators import registry  # lazy: --help loads no NumPy
     return registry()
 
 
@@ -180,7 +180,7 @@ def add_operator_options(p: argparse.ArgumentParser, shown: bool = True) -> None
 
 # -- effects ---------------------------------------------------------------------------------
 def _effect_flags(g) -> None:
-    from .effects.settings import options  # lazy: --help loads no NumPy
+    from ..effects.settings import options  # lazy: --help loads no NumPy
     g.add_argument("--model", choices=["auto", "full", "none"],
                    help="auto (default): each frame the mechanisms it needs, within one JND of "
                    "full; full: every effect; none: the operator alone")
@@ -191,7 +191,7 @@ def _effect_flags(g) -> None:
 def _effect_build(a, tier) -> dict:
     """The effects asked for, over the ``--quality`` tier's defaults; a parameter given
     for effects that are all off is ignored with a warning (one rule for all)."""
-    from .effects.settings import EffectSettings, options  # lazy: --help loads no NumPy
+    from ..effects.settings import EffectSettings, options  # lazy: --help loads no NumPy
     given = {k: getattr(a, o.dest) for k, (o, _) in options().items()}
     fx = EffectSettings.for_operator(
         a.operator, a.model or "auto", paper=a.mode == "paper",
@@ -270,13 +270,13 @@ def _visibility_flags(g) -> None:
                    help="also write VL in false colour over the shown frame")
     declared_flag(g, "--target", "a target (its centre's pixel, its size): its VL per frame, "
               "--plot", metavar="X,Y,SIZE")
-    from .quantities import OBSERVATION_S, TARGET_ARCMIN  # lazy: no NumPy
+    from ..base.quantities import OBSERVATION_S, TARGET_ARCMIN  # lazy: no NumPy
     declared_flag(g, "--target-size", f"--visibility: the target (default {TARGET_ARCMIN:g})",
               default=TARGET_ARCMIN, metavar="ARCMIN")
     declared_flag(g, "--observation-time", f"... the look (default {OBSERVATION_S:g}, RP-8's)",
               default=OBSERVATION_S, metavar="S")
     # lazy: the run's parser (NumPy already there)
-    from .models.adrian1989 import ADRIAN_1989, VARIANTS
+    from ..models.adrian1989 import ADRIAN_1989, VARIANTS
     g.add_argument("--adrian", choices=sorted(VARIANTS), default=ADRIAN_1989.name,
                    help="... Adrian's threshold: 1989 (default) or RP-8-00's")
     g.add_argument("--visibility-type", choices=("half", "float"), default="half",
@@ -286,8 +286,8 @@ def _visibility_flags(g) -> None:
 
 
 def _visibility_build(a, tier) -> dict:
-    from .models.adrian1989 import ADRIAN_1989  # lazy: the parser's NumPy, as above
-    from .quantities import OBSERVATION_S, TARGET_ARCMIN
+    from ..models.adrian1989 import ADRIAN_1989  # lazy: the parser's NumPy, as above
+    from ..base.quantities import OBSERVATION_S, TARGET_ARCMIN
     seen = a.visibility or a.visibility_view or a.target
     maps = a.visibility or a.visibility_view
     every = "--visibility, --visibility-view and --target"
@@ -325,14 +325,14 @@ def _state_flags(g) -> None:
 
 
 def _state_build(a, tier) -> dict:
-    from .job.options import parse_cuts  # lazy: the parser loads no OIIO
+    from ..job.options import parse_cuts  # lazy: the parser loads no OIIO
     return {"state_in": a.state_in, "state_out": a.state_out, "resume": a.resume,
             "checkpoint": a.checkpoint, "checkpoint_every": a.checkpoint_every,
             "cuts": parse_cuts(a.cuts)}
 
 
 def _device_flags(g) -> None:
-    from .backends.quality import QUALITY_NAMES  # lazy: --help loads no dataclasses
+    from ..backends.quality import QUALITY_NAMES  # lazy: --help loads no dataclasses
     g.add_argument("--backend", default=None, choices=["opencl", "reference"],
                    help="opencl (default) or reference (float64 NumPy)")
     g.add_argument("--quality", choices=list(QUALITY_NAMES), default=None,
@@ -395,8 +395,8 @@ def add_run_options(p: argparse.ArgumentParser, shown: bool = True) -> None:
 def job_options(a, input_, output, defer_backend: bool = False):
     """The run's :class:`~ocl_tonemap.job.options.JobOptions`, each group building its
     part; ``defer_backend``: the backend "auto", probed by ``job.run.run_job``."""
-    from .job.options import JobOptions  # lazy: the parser loads no OIIO
-    from .backends.quality import quality_tier  # lazy: --help loads no dataclasses
+    from ..job.options import JobOptions  # lazy: the parser loads no OIIO
+    from ..backends.quality import quality_tier  # lazy: --help loads no dataclasses
     tier = quality_tier(a.quality)
     parts = {}
     for grp in GROUPS:
@@ -414,7 +414,7 @@ def _backend(a, tier, defer: bool = False) -> str:
     if a.backend:
         return a.backend
     name = "auto" if tier.backend == "opencl" else tier.backend
-    from .backends.select import resolve_backend  # lazy: --help loads no NumPy
+    from ..backends.select import resolve_backend  # lazy: --help loads no NumPy
     return name if defer and name == "auto" else resolve_backend(name, a.device)
 
 
