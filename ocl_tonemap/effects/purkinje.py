@@ -4,8 +4,10 @@ pixel's photopic luminance kept (the operator models rod luminance itself).
 
 Slot: seen (after the state step: the metering sees the light, not the shift).
 Needs: the shared receptor levels (``models/pattanaik2000.py``: the adapted
-scotopic level and the rods' dark adaptation), kept in
-``AdaptationState.extra["purkinje_levels"]``; on the device, kirk11's shift kernel.
+scotopic level), kept in ``AdaptationState.extra["purkinje_levels"]``, and the rods'
+dark adaptation: the operator's shared pigment course where it runs one
+(``extra["pigment"]``, ``bleaching.rod_sensitivity``), else those levels' own
+bleaching (Eq. 7, ``--mode paper``); on the device, kirk11's shift kernel.
 :class:`PurkinjeShift` is the effect.
 """
 
@@ -13,11 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models import kirk2011 as ko, lmsr
+from ..models import bleaching, kirk2011 as ko, lmsr
 from ..models.pattanaik2000 import (receptor_levels_advance, receptor_levels_preadapted,
                                     receptor_levels_steady, rod_sensitivity)
 from ..models.photometry import Y_WEIGHTS, neutral_scotopic_ratio
 from ..backends.base import Later, settle
+from ..operators.pigment import PIGMENT_KEY
 from .base import Effect
 
 LEVELS_KEY = "purkinje_levels"
@@ -68,6 +71,9 @@ def _levels(settings, G_rod, G_cone, extra, dt, fresh, preadapt):
         lv = receptor_levels_advance(prev, G_rod, G_cone, dt)
     if extra is not None:
         extra[LEVELS_KEY] = {k: float(v) for k, v in lv.items()}
+    pig = (extra or {}).get(PIGMENT_KEY)
+    if bleaching.check(pig):           # the operator's own pigment course (this frame's)
+        return lv, bleaching.rod_sensitivity(pig, G_rod, G_cone)
     return lv, rod_sensitivity(lv)
 
 

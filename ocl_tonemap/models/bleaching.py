@@ -199,6 +199,17 @@ def equivalent_background(s: dict, L_rod: float = 0.0, L_cone: float = 0.0
             I_D_CONE * KAPPA_CONE * s["Bb_cone"] + W_N_CONE * max(s["N_cone"] - L_cone, 0.0))
 
 
+def rod_sensitivity(s: dict, L_rod: float, L_cone: float) -> float:
+    """How far the rods have come back on a field (L_rod scotopic, L_cone photopic
+    cd/m^2): a Weber observer's rod threshold on that field held for good over its
+    threshold with the pigment state ``s`` (Eq. 6), in (0, 1]. 1 on a steady field;
+    near 0 right after a bright one (the rods' equivalent background), rising as the
+    rhodopsin regenerates, never falling while the field stays."""
+    def threshold(st):
+        return I_D_ROD + L_rod + equivalent_background(st, L_rod, L_cone)[0]
+    return float(min(1.0, threshold(steady(L_rod, L_cone)) / threshold(s)))
+
+
 def dark_light(receptor: str) -> float:
     """I_D of ``"rod"`` (scotopic cd/m^2) or ``"cone"`` (cd/m^2)."""
     return I_D_ROD if receptor == "rod" else I_D_CONE
