@@ -187,9 +187,7 @@ class Ledda04(Operator):
         if not self.uses_pigment():
             return 1.0, 1.0
         g = self._global_goals(stats)
-        eff = self.pigment_goals(state, g, dt, fresh)
-        return (float(eff.G_cone) / max(g.G_cone, V_FLOOR),
-                float(eff.G_rod) / max(g.G_rod, V_FLOOR))
+        return _factors(self.pigment_goals(state, g, dt, fresh), g)
 
     def mesopic_gain(self, state, stats) -> float:
         """The factor on every pixel's cone level where Eq. 11's mes is read: the
@@ -202,9 +200,7 @@ class Ledda04(Operator):
         if not self.uses_pigment() or not bleaching.check(pig):
             return 1.0
         g = self._global_goals(stats)
-        eff = self.raised_goals(pig, g)
-        return max(float(eff.G_cone) / max(g.G_cone, V_FLOOR),
-                   float(eff.G_rod) / max(g.G_rod, V_FLOOR), 1.0)
+        return max(*_factors(self.raised_goals(pig, g), g), 1.0)
 
     @staticmethod
     def _global_goals(stats):
@@ -292,6 +288,12 @@ class Ledda04(Operator):
                                    L.sigma_of(Ir, L.BETA_ROD), sd, self.display.unit_cd,
                                    white, 0.0)
         return white_luminance(shown, white, lo)
+
+
+def _factors(raised, frame) -> tuple[float, float]:
+    """(cone, rod) factors of the raised goals over the frame's own."""
+    return (float(raised.G_cone) / max(frame.G_cone, V_FLOOR),
+            float(raised.G_rod) / max(frame.G_rod, V_FLOOR))
 
 
 #: Keys of an observer (:meth:`Ledda04.observer_of`) holding its current sigmas.

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import importlib
 import re
+from functools import lru_cache
 
 import pytest
 
@@ -37,9 +38,10 @@ def _text(page) -> str:
     return re.sub(r"(?ms)^#+ Old import paths\n.*?(?=^#)", "", page.read_text())
 
 
-def _sources() -> list[str]:
-    return [p.relative_to(ROOT).as_posix() for p in ROOT.rglob("*.py")
-            if not {".venv", "build", ".git"} & set(p.relative_to(ROOT).parts)]
+@lru_cache(maxsize=1)
+def _sources() -> tuple[str, ...]:
+    return tuple(p.relative_to(ROOT).as_posix() for p in ROOT.rglob("*.py")
+                 if not {".venv", "build", ".git"} & set(p.relative_to(ROOT).parts))
 
 
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
