@@ -167,6 +167,24 @@ __kernel void scale_rgb(__global float *rgb, const int n,
     p[0] = p[0] * gr; p[1] = p[1] * gg; p[2] = p[2] * gb;
 }
 
+/* The observer's absolute threshold on a frame held on the device (effects/threshold.py,
+ * models/absolute_threshold.py Eqs. 2-3): each pixel's light weighted by the chance
+ * that it is seen, P(x) = 1 - 2^(-x^beta), x = max(Y / T_c, Y' / T_r), in place.
+ * inv_tc, inv_tr: 1 / T; x at or above x_sure is seen for certain (P = 1 in float). */
+__kernel void absolute_threshold_rgb(__global float *rgb, const int n, const float inv_tc,
+                                     const float inv_tr, const float beta, const float x_sure)
+{
+    const int i = get_global_id(0);
+    if (i >= n) return;
+    __global float *p = rgb + 3 * (size_t)i;
+    const float r = p[0], g = p[1], b = p[2];
+    const float Y = M_YR * r + M_YG * g + M_YB * b;
+    const float x = fmax(Y * inv_tc, scotopic_luminance(r, g, b) * inv_tr);
+    if (x >= x_sure) return;
+    const float P = x > 0.0f ? -expm1(-M_LN2_F * pow(x, beta)) : 0.0f;
+    p[0] = r * P; p[1] = g * P; p[2] = b * P;
+}
+
 /* Spectral radiance to LMSR in one pass (kirk11, Eq. 8; host side
  * backends/opencl/kirk11.py lmsr_band): each value through the bad-value policy and
  * the scale (repair_and_scale, counted), then q = W v, channel by channel in the order

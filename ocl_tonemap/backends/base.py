@@ -260,6 +260,11 @@ class Backend(Protocol):
         """A device image's RGB times ``gains`` (float32, in place; the image back), or
         None where the backend holds no frame on a device."""
 
+    def threshold_image(self, img, T_rod: float, T_cone: float, beta: float, x_sure: float):
+        """A device image's pixels weighted by the chance that they are seen (in place;
+        the image back: ``models/absolute_threshold.py``), or None where the backend
+        holds no frame on a device."""
+
     def acuity_encoding(self, encoding, h: int, w: int, taps, t: float, blur):
         """``encoding`` with the acuity blur (``taps``, blended by ``t``) on the device
         before it, or None where the backend cannot."""
@@ -298,6 +303,9 @@ class HostBackend:
         return None
 
     def scale_image(self, img, gains):
+        return None
+
+    def threshold_image(self, img, T_rod, T_cone, beta, x_sure):
         return None
 
     def transfers(self):

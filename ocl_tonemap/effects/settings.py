@@ -15,11 +15,12 @@ from .base import Effect, EffectOption, mode_option, MODES, SLOTS
 from .chromatic import ChromaticAdaptation
 from .flare import Flare
 from .purkinje import PurkinjeShift
+from .threshold import AbsoluteThreshold
 
 #: --model -> the mode of every effect the operator can take (a mode given wins).
 MODEL_DEFAULTS = {"auto": "auto", "full": "on", "none": "off"}
 #: The built-in effects, in data-flow order (slot, then as listed).
-BUILT_IN = (Flare, PurkinjeShift, ChromaticAdaptation, Acuity)
+BUILT_IN = (Flare, PurkinjeShift, ChromaticAdaptation, AbsoluteThreshold, Acuity)
 #: Settings that are no effect's option: ``paper``, the papers' literal forms
 #: (``--mode paper``: complete chromatic adaptation to the frame's grey world,
 #: Shaler's table indexed by L_waR itself).

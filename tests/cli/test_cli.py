@@ -214,8 +214,9 @@ def test_durand_sequence_effects_metadata_and_chunks(sample_dir, tmp_path):
         np.testing.assert_array_equal(pixels(frame_path(one, f)), pixels(frame_path(two, f)))
     spec = oiio.ImageBuf(frame_path(one, b)).spec()
     eff = json.loads(spec.getattribute("ocltm:effects"))
-    assert set(eff) == {"flare", "acuity", "chromatic_adaptation", "purkinje"}
+    assert set(eff) == {"flare", "acuity", "chromatic_adaptation", "purkinje", "threshold"}
     assert not eff["purkinje"]["ran"]
+    assert eff["threshold"]["ran"] and eff["threshold"]["T_rod"] > 0.0   # on auto (defaults)
     assert eff["chromatic_adaptation"]["source"] == "estimate"
     assert spec.getattribute("ocltm:effects_ran") == ",".join(
         k for k, v in eff.items() if v["ran"])
@@ -316,7 +317,7 @@ def test_model_plan_in_metadata_verbose_and_plot(sample_dir, tmp_path, caplog):
     weights = [json.loads(oiio.ImageBuf(frame_path(one, f)).spec().getattribute("ocltm:plan"))
                for f in frames]
     assert set(weights[0]) == {"rods", "purkinje", "acuity", "flare", "chromatic-adaptation",
-                               "temporal"}
+                               "temporal", "threshold"}
     assert all(0.0 <= w <= 1.0 for ws in weights for w in ws.values())
     assert len(said) == 1 + sum(1 for x, y in zip(weights, weights[1:]) if x != y)
     assert main(["run", pattern, two, "--frames", f"{a}-{mid}", "--state-out", st, "-q",

@@ -54,6 +54,8 @@ TARGETS_CD = 10.0 ** np.linspace(-6.0, 0.0, 13)
 #: them and around (10 px of a 170 px chart are 2.9 degrees at the default 50-degree
 #: field of view: Hecht's 3-degree test field).
 TARGET_PX, GAP_PX, COLS = 10, 20, 5
+#: The chart's field of view, degrees (the tool's default).
+CHART_FOV_DEG = 50.0
 #: The surround ring: from RING_PX[0] to RING_PX[1] px outside the target's edge.
 RING_PX = (5, 10)
 #: One just noticeable difference on the display (BT.2124).
@@ -213,24 +215,53 @@ class Run:
         return np.array([first_visible(self.minutes, d[:, j]) for j in range(d.shape[1])])
 
 
+#: The two layouts: each target ``alone`` in its own frame (Hecht's method, one test
+#: field at a time: the primary reading), or all of them in one ``chart`` (the
+#: brighter targets' veil then lies over the dimmer ones).
+LAYOUTS = ("alone", "chart")
+#: A lone target's frame, px (the target at its centre, at the chart's degrees a pixel).
+ALONE_PX = 40
+
+
+def _frames(targets, layout: str):
+    """[(frame, masks, fov_deg, [target indices])]: the frames one run of ``layout``
+    shows, each with its targets' masks and its field of view (the chart's degrees a
+    pixel: a target is ~2.9 degrees either way)."""
+    if layout == "chart":
+        f, boxes = chart(targets)
+        return [(f, _masks(f.shape, boxes), CHART_FOV_DEG, list(range(len(targets))))]
+    out = []
+    y0 = (ALONE_PX - TARGET_PX) // 2
+    for k, L in enumerate(targets):
+        f = np.zeros((ALONE_PX, ALONE_PX, 3), np.float32)
+        f[y0:y0 + TARGET_PX, y0:y0 + TARGET_PX] = L
+        out.append((f, _masks(f.shape, [(y0, y0)]),
+                    CHART_FOV_DEG * ALONE_PX / chart(targets)[0].shape[1], [k]))
+    return out
+
+
 def simulate(op: str, td: float, times_min=TIMES_MIN, backend=None, targets=TARGETS_CD,
-             preadapt_s: float = PREADAPT_S, **kw) -> Run:
-    """The chart seen by ``op``'s default observer after ``td`` trolands for
-    ``preadapt_s`` (the field goes off at t = 0)."""
+             preadapt_s: float = PREADAPT_S, layout: str = "alone", **kw) -> Run:
+    """The targets seen by ``op``'s default observer after ``td`` trolands for
+    ``preadapt_s`` (the field goes off at t = 0), in ``layout`` (:data:`LAYOUTS`)."""
     from ocl_tonemap import Tonemapper
     L = trolands_to_cd(td)
-    tm = Tonemapper(op, backend=backend, preadapt=(L, preadapt_s), **kw)
-    f, boxes = chart(targets)
-    masks = _masks(f.shape, boxes)
-    tm.process(f, time_s=0.0)
-    de, de0, lev = [], [], []
-    for t in times_min:
-        out = tm.process(f, time_s=float(t) * 60.0)
-        de.append(delta_e(tm.display, out, masks, True))
-        de0.append(delta_e(tm.display, out, masks, False))
-        lev.append(float(np.mean(np.clip(out[..., :3], 0, 1) @ np.array([0.2126, 0.7152, 0.0722]))
-                         * tm.display.white_cd))
-    return Run(op, td, L, np.asarray(times_min, float), np.array(de), np.array(de0), lev)
+    n = len(targets)
+    de = np.zeros((len(times_min), n))
+    de0 = np.zeros_like(de)
+    lev = []
+    for f, masks, fov, idx in _frames(targets, layout):
+        tm = Tonemapper(op, backend=backend, preadapt=(L, preadapt_s), fov_deg=fov, **kw)
+        tm.process(f, time_s=0.0)
+        for i, t in enumerate(times_min):
+            out = tm.process(f, time_s=float(t) * 60.0)
+            de[i, idx] = delta_e(tm.display, out, masks, True)
+            de0[i, idx] = delta_e(tm.display, out, masks, False)
+            if layout == "chart":
+                lev.append(float(np.mean(np.clip(out[..., :3], 0, 1)
+                                         @ np.array([0.2126, 0.7152, 0.0722]))
+                                 * tm.display.white_cd))
+    return Run(op, td, L, np.asarray(times_min, float), de, de0, lev)
 
 
 @dataclass
@@ -283,7 +314,9 @@ def _interp_course(m, c, t):
     return float(a + (b - a) * (t - m[k - 1]) / (m[k] - m[k - 1]))
 
 
-def run_all(operators=OPERATORS, tds=None, times_min=TIMES_MIN, backend=None):
+def run_all(operators=OPERATORS, tds=None, times_min=TIMES_MIN, backend=None,
+            layout: str = "alone"):
     """{op: {td: Run}}."""
     tds = sorted(HECHT_TD.values()) if tds is None else tds
-    return {op: {td: simulate(op, td, times_min, backend) for td in tds} for op in operators}
+    return {op: {td: simulate(op, td, times_min, backend, layout=layout) for td in tds}
+            for op in operators}

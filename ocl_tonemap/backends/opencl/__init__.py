@@ -26,12 +26,13 @@ from .metering import DeviceMeter, MeteringPasses, repair_counts
 from .runtime import describe_device, frame_params, get_runtime, index_defines, round_up
 from . import pinned
 from .pinned import HostArrays
+from .pointwise import PointwiseStages
 from .stats import TAIL, statistics
 from .transfers import ConstantBuffers, Transfers, counted, transfer
 from .visibility import VisibilityStage
 
 
-class OpenCLBackend(MeteringPasses, VisibilityStage):
+class OpenCLBackend(MeteringPasses, VisibilityStage, PointwiseStages):
     """Float32 OpenCL kernels (kernels/*.cl)."""
 
     name = "opencl"
@@ -43,7 +44,6 @@ class OpenCLBackend(MeteringPasses, VisibilityStage):
         self.meter = DeviceMeter(self.rt)
         self._colour = self.rt.kernel("colour.cl", "scene_to_working4")
         self._gains = self.rt.kernel("colour.cl", "apply_gains")
-        self._scale = None             # colour.cl:scale_rgb, made when first used
         self._half = None              # colour.cl:half_to_float
         self._arrays = None            # the memory pool of device-array outputs
         self._consts = ConstantBuffers(self.rt.context)
@@ -164,19 +164,6 @@ class OpenCLBackend(MeteringPasses, VisibilityStage):
     def transfers(self) -> Transfers:
         """Host <-> device transfers so far in this thread (``transfers.py``)."""
         return counted()
-
-    def scale_image(self, img: DeviceImage, gains) -> DeviceImage:
-        """``img``'s RGB times ``gains`` in place (``colour.cl:scale_rgb``): chromatic
-        gains on a frame that stays on the device. A new image of the same buffer comes
-        back (another frame to the schedules' residency checks: its colour stage runs
-        again)."""
-        g = np.asarray(gains, np.float32)
-        n = img.shape[0] * img.shape[1]
-        if self._scale is None:
-            self._scale = self.rt.kernel("colour.cl", "scale_rgb")
-        self._scale(self.rt.queue, (round_up(n, 64),), (64,), img.buffer, np.int32(n),
-                    g[0], g[1], g[2])
-        return DeviceImage(img.rt, img.buffer, img.shape)
 
     # -- buffers -----------------------------------------------------------------------
     def buffer(self, name: str, nbytes: int):

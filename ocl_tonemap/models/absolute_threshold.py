@@ -1,0 +1,93 @@
+"""What lies below the observer's absolute threshold is not seen (issue 66): the
+dark-adaptation course on the display, for every operator.
+
+An operator's response maps a faint light to a faint display light, and a display
+viewed in the dark shows far less than the eye can see at its black: a target the
+observer, just in from daylight, cannot see yet still shows on the display. The
+observer's threshold on a black field is set by the eye's own noise, its dark light
+(Barlow 1957) and the equivalent background of the pigment still bleached (Crawford
+1947; ``bleaching.py`` Eq. 6). Here the light of each pixel is weighted by the chance
+that the observer detects it at all, so that what is shown follows the observer's
+threshold as it falls over the minutes in the dark (``--threshold``):
+
+>>> round(seen_fraction(1.0), 3), round(seen_fraction(3.0), 6), seen_fraction(0.0)
+(0.5, 1.0, 0.0)
+>>> Tr, Tc = thresholds(bleaching.dark())          # fully dark adapted
+>>> f"{Tr:.2e} {Tc:.2e}"
+'6.13e-05 1.12e-03'
+
+1. The thresholds on a black field (a Weber observer with the pigment model's dark
+   lights I_D, as ``bleaching.elevation``): rods T_r = T0_r (1 + L_eq,r / I_D,r)
+   (scotopic cd/m^2), cones T_c = T0_c (1 + L_eq,c / I_D,c) (cd/m^2), L_eq the
+   equivalent backgrounds (``bleaching.equivalent_background`` on the frame's field:
+   its early neural phase counts the field's memory above the field itself).
+   T0: Hecht, Haig & Chase 1937's dark-adapted threshold (rods) and cone plateau
+   (cones) for their 3-degree field (:data:`T0_ROD`, :data:`T0_CONE`).
+2. A pixel of photopic Y and scotopic Y' is x = max(Y / T_c, Y' / T_r) thresholds
+   of light to the receptor that sees it best (probability summation over the two
+   is left out: the largest term rules within a factor 2^(1/beta)).
+3. It is detected with Quick 1974's psychometric function (the Weibull form),
+   P(x) = 1 - 2^(-x^beta), beta = 3.5 (:data:`BETA`: Nachmias 1981, 3-4 for
+   luminance increments; Pelli 1987), and its light is weighted by P: a target at
+   its threshold shows at half its light, one at 3 thresholds whole (1 - 2e-14), one
+   at a tenth of it at 2e-4. Black stays black; nothing above ~3 T changes.
+
+Nothing here depends on an operator: every operator's display takes it from the
+same pigment state, after the optical effects (the veil of a bright source counts
+as light on the retina) and before the operator's response.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import bleaching
+from .photometry import Y_WEIGHTS, scotopic_luminance
+
+#: The rods' dark-adapted threshold for a neutral 3-degree field, scotopic cd/m^2:
+#: Hecht, Haig & Chase 1937's after 30 minutes in the dark (the median of every
+#: point, 2.81 log micro-micro-lamberts of their violet, 2.06e-6 cd/m^2), times the
+#: violet's L'/L (29.8 at 450 nm, CIE 1951 V' over CIE 1924 V):
+#: 10^(2.81 - 12) x 10^4 / pi x 29.8. ``tests/models/test_absolute_threshold.py``
+#: reads it off the data.
+T0_ROD = 6.13e-5
+#: The cones' dark-adapted threshold, cd/m^2: the data's cone plateau, 5-12 min
+#: after 400 000 td (the median, 10^-2.95), taken as the cones' absolute threshold
+#: after every field.
+T0_CONE = 1.12e-3
+#: The psychometric function's slope (Quick 1974; Nachmias 1981: 3-4 for luminance
+#: detection).
+BETA = 3.5
+#: x at and above which P is 1 in float64 and float32 (2^-(8^3.5) = 2^-1448): the
+#: kernel's early way out.
+X_SURE = 8.0
+
+
+def thresholds(pig: dict, G_rod: float = 0.0, G_cone: float = 0.0) -> tuple[float, float]:
+    """Eq. 1: (T_rod scotopic, T_cone photopic cd/m^2) of the pigment state ``pig`` on
+    a frame whose field is (``G_rod``, ``G_cone``)."""
+    Lr, Lc = bleaching.equivalent_background(pig, G_rod, G_cone)
+    return (T0_ROD * (1.0 + Lr / bleaching.I_D_ROD),
+            T0_CONE * (1.0 + Lc / bleaching.I_D_CONE))
+
+
+def seen_fraction(x):
+    """Eq. 3: P(x) = 1 - 2^(-x^beta) (x >= 0; NaN and negatives: 0)."""
+    x = np.asarray(x, np.float64)
+    x = np.where(x > 0.0, np.minimum(x, X_SURE), 0.0)
+    p = -np.expm1(-math.log(2.0) * x ** BETA)
+    return float(p) if p.ndim == 0 else p
+
+
+def apply_reference(rgb: np.ndarray, T_rod: float, T_cone: float) -> np.ndarray:
+    """Working RGB (cd/m^2) with each pixel's light weighted by the chance that it is
+    seen (Eqs. 2-3), float64."""
+    rgb = np.asarray(rgb, np.float64)[..., :3]
+    x = np.maximum(photopic(rgb) / T_cone, scotopic_luminance(rgb) / T_rod)
+    return rgb * seen_fraction(x)[..., None]
+
+
+def photopic(rgb: np.ndarray) -> np.ndarray:
+    return np.asarray(rgb, np.float64)[..., :3] @ Y_WEIGHTS
