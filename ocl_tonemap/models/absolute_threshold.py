@@ -44,7 +44,7 @@ import math
 import numpy as np
 
 from . import bleaching
-from .photometry import Y_WEIGHTS, scotopic_luminance
+from .photometry import photopic_luminance, scotopic_luminance
 
 #: The rods' dark-adapted threshold for a neutral 3-degree field, scotopic cd/m^2:
 #: Hecht, Haig & Chase 1937's after 30 minutes in the dark (the median of every
@@ -85,9 +85,5 @@ def apply_reference(rgb: np.ndarray, T_rod: float, T_cone: float) -> np.ndarray:
     """Working RGB (cd/m^2) with each pixel's light weighted by the chance that it is
     seen (Eqs. 2-3), float64."""
     rgb = np.asarray(rgb, np.float64)[..., :3]
-    x = np.maximum(photopic(rgb) / T_cone, scotopic_luminance(rgb) / T_rod)
+    x = np.maximum(photopic_luminance(rgb) / T_cone, scotopic_luminance(rgb) / T_rod)
     return rgb * seen_fraction(x)[..., None]
-
-
-def photopic(rgb: np.ndarray) -> np.ndarray:
-    return np.asarray(rgb, np.float64)[..., :3] @ Y_WEIGHTS
