@@ -22,9 +22,11 @@ from ..operators.pigment import PIGMENT_KEY
 from .base import Effect
 
 
-def advance(mode: str, G_rod: float, G_cone: float, extra: dict | None) -> dict:
-    """The frame's thresholds (Eq. 1) from the pigment state in ``extra``, and whether
-    the frame is weighted (``ran``)."""
+def advance(mode: str, G_rod: float, G_cone: float, extra: dict | None,
+            max_Y: float | None = None) -> dict:
+    """The frame's thresholds (Eq. 1) from the pigment state in ``extra``, whether the
+    frame is weighted (``ran``) and, where its largest luminance ``max_Y`` is known, the
+    share of that light that is seen (``peak_seen``: kirk11 maps its peak to white)."""
     if mode == "off":
         return {"ran": False}
     pig = (extra or {}).get(PIGMENT_KEY)
@@ -33,7 +35,10 @@ def advance(mode: str, G_rod: float, G_cone: float, extra: dict | None) -> dict:
             return {"ran": False, "reason": "no pigment course"}
         pig = bleaching.steady(G_rod, G_cone)
     T_rod, T_cone = at.thresholds(pig, G_rod, G_cone)
-    return {"ran": True, "T_rod": float(T_rod), "T_cone": float(T_cone)}
+    info = {"ran": True, "T_rod": float(T_rod), "T_cone": float(T_cone)}
+    if max_Y is not None:
+        info["peak_seen"] = float(at.peak_seen(max_Y, T_rod, T_cone))
+    return info
 
 
 def weigh(rgb, info: dict, backend=None):
@@ -59,7 +64,7 @@ class AbsoluteThreshold(Effect):
     capabilities = frozenset({"host", "device", "banded"})
 
     def advance(self, ctx) -> None:
-        ctx.eff[self.name] = advance(self.mode, ctx.G_rod, ctx.G_cone, ctx.extra)
+        ctx.eff[self.name] = advance(self.mode, ctx.G_rod, ctx.G_cone, ctx.extra, ctx.max_Y)
 
     def host(self, ctx, rgb):
         info = ctx.eff.get(self.name) or {"ran": False}

@@ -87,3 +87,19 @@ def apply_reference(rgb: np.ndarray, T_rod: float, T_cone: float) -> np.ndarray:
     rgb = np.asarray(rgb, np.float64)[..., :3]
     x = np.maximum(photopic_luminance(rgb) / T_cone, scotopic_luminance(rgb) / T_rod)
     return rgb * seen_fraction(x)[..., None]
+
+
+def peak_seen(max_Y: float, T_rod: float, T_cone: float) -> float:
+    """Eq. 3 at the frame's brightest light (``max_Y`` photopic cd/m^2): the share of
+    it that is seen, for operators whose range reduction maps the frame's peak to white
+    whatever its level (kirk11). Its scotopic luminance is not metered: the largest
+    scotopic/photopic ratio of any working colour (its bluest primary) bounds it, so the
+    factor errs toward showing light, never toward hiding what is seen (a peak that is
+    not a number, or infinite, keeps 1)."""
+    Y = float(max_Y)
+    if not math.isfinite(Y):
+        return 1.0
+    rgb = np.eye(3)
+    ratio = float(np.max(scotopic_luminance(rgb) / photopic_luminance(rgb)))
+    Y = max(Y, 0.0)
+    return seen_fraction(max(Y / T_cone, Y * ratio / T_rod))

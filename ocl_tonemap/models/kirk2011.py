@@ -245,22 +245,25 @@ def solve_display(M: np.ndarray, q_hat: np.ndarray, exact: bool):
     return nnls3(M, q_hat) if exact else gamut_map(M, q_hat)
 
 
-def anchor_gain(Y_out: np.ndarray, L_wa: float, A_cone: float) -> float:
+def anchor_gain(Y_out: np.ndarray, L_wa: float, A_cone: float, seen: float = 1.0) -> float:
     """Absolute level: the factor that brings the frame's log-average display
     luminance (relative to white) to display.scene_key of the adapted cone level
     ``A_cone`` (Krawczyk et al. 2005's key, as durand00 and ledda04 use), times
     (L_wa/A_cone)^n for a frame seen before the eye has adapted to it: darker
     entering a tunnel, brighter (dazzle) leaving it. The range reduction maps every
     frame's base maximum to white whatever its level; without this a 0.1 cd/m^2
-    scene was shown at 0.86x its daylight brightness."""
-    return anchor_key(L_wa, A_cone) / logmean(Y_out)
+    scene was shown at 0.86x its daylight brightness. ``seen``: the share of the frame's
+    brightest light that the observer sees (``models/absolute_threshold.py`` peak_seen;
+    the range reduction would show a lone target below threshold at white)."""
+    return anchor_key(L_wa, A_cone, seen) / logmean(Y_out)
 
 
-def anchor_key(L_wa: float, A_cone: float) -> float:
+def anchor_key(L_wa: float, A_cone: float, seen: float = 1.0) -> float:
     """:func:`anchor_gain` times the frame's log-average: the scene key of the adapted
-    cone level times the transient factor (L_wa/A_cone)^n (what a device divides by the
-    log-average it reduces: kernels/kirk11.cl kirk11_gain)."""
-    return float(scene_key(A_cone)) * (max(L_wa, 1e-10) / max(A_cone, 1e-10)) ** TRANSIENT_N
+    cone level times the transient factor (L_wa/A_cone)^n and ``seen`` (what a device
+    divides by the log-average it reduces: kernels/kirk11.cl kirk11_gain)."""
+    return float(scene_key(A_cone)) * (max(L_wa, 1e-10) / max(A_cone, 1e-10)) ** TRANSIENT_N \
+        * float(seen)
 
 
 # --- settings and the per-frame pieces -------------------------------------------------

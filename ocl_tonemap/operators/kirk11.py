@@ -159,9 +159,15 @@ class Kirk11(Operator):
         out = np.asarray(out, np.float64)
         if self.s.paper:
             return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
-        g = anchor_gain(out @ Y_WEIGHTS / u, stats.G_cone, stats.values["levels"]["A_cone"])
+        g = anchor_gain(out @ Y_WEIGHTS / u, *self.anchor_levels(stats))
         out = apply_shoulder(np.minimum(out * g, SIGNAL_CEILING), u, SHOULDER_KNEE)
         return np.clip(out, 0.0, DISPLAY_LINEAR_MAX)
+
+    @staticmethod
+    def anchor_levels(stats) -> tuple[float, float, float]:
+        """(frame level, adapted cone level, share of the peak seen) of ``anchor_gain``."""
+        v = stats.values
+        return stats.G_cone, v["levels"]["A_cone"], float(v.get("peak_seen", 1.0))
 
     # -- the observer: the receptor levels of its time course ----------------------------
     @staticmethod

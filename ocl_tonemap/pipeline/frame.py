@@ -85,11 +85,15 @@ class FrameGraph:
         obs.shown(time_s, frame_number)
         params = self.op.params(obs.scalars, stats) if self.schedule.receptor_gains else None
         G_rod, G_cone = stats.scene_goal or (stats.G_rod, stats.G_cone)
-        ctx = FrameContext(G_rod, G_cone, eff=eff, dt=dt, fresh=fresh, extra=obs.scalars.extra,
-                           preadapt=obs.preadapt, frame=frame_number, time_s=float(time_s))
+        ctx = FrameContext(G_rod, G_cone, eff=eff, max_Y=stats.scene_max_Y, dt=dt, fresh=fresh,
+                           extra=obs.scalars.extra, preadapt=obs.preadapt, frame=frame_number,
+                           time_s=float(time_s))
         gains = self.effects.advance(ctx, self.schedule.receptor_gains,
                                      stats.scene_goal is not None, illuminant, stats.illuminant,
                                      stats.G_cone)
+        peak = [r["peak_seen"] for r in eff.values() if isinstance(r, dict) and "peak_seen" in r]
+        if peak:        # what the frame's brightest light keeps (operators that map it to white)
+            stats.values["peak_seen"] = float(np.prod(peak))
         return params, gains
 
     def apply(self, frame: Frame, stats: FrameStats, params=None, gains=None, sink=None,

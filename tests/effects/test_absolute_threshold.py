@@ -114,13 +114,11 @@ def test_default_runs_it_and_paper_mode_does_not(op):
     rec = _record(tm, frame, 60.0)
     assert rec["T_cone"] > 1e-3 and rec["T_rod"] / neutral_scotopic_ratio() > 1e-3
     shown = float(np.max(tm.last_output[8:16, 8:16, :3]))
+    # (kirk11's range reduction maps the frame's peak to white whatever its level: its
+    # anchor takes the share of the peak that is seen, ``peak_seen``)
+    assert shown < 1e-4                                        # not seen yet
     if op == "kirk11":
-        # kirk11's miss (docs/validation.md): its range reduction maps the frame's base
-        # maximum to white and its key (floored at 0.02 of white) puts whatever light
-        # a frame has on the display; the weighted target still shows (own value 9e-4)
-        assert shown > 1e-4
-    else:
-        assert shown < 1e-4                                    # not seen yet
+        assert tm.last.effects["threshold"]["peak_seen"] < 1e-3
     dark_adapted = Tonemapper(op, preadapt=(0.0, None))
     assert _record(dark_adapted, frame, 0.0)["ran"]
     assert float(np.max(dark_adapted.last_output[8:16, 8:16, :3])) > 1e-3
@@ -155,3 +153,34 @@ def test_a_dark_adapted_observer_sees_what_a_person_sees(op):
     r = D.simulate(op, 263.0, np.array([60.0]), targets=np.array([1e-7, 1e-6, 3e-5]),
                    preadapt_s=0.001)
     assert r.de[0, 0] < D.JND and r.de[0, 1] < D.JND and r.de[0, 2] >= D.JND, r.de
+
+
+def test_peak_seen_follows_the_psychometric_function():
+    """Eq. 3 at the peak, its scotopic part bounded by the bluest primary's ratio: a
+    peak at the cones' threshold is seen half the time, one far above always, one far
+    below never; a peak that is not a number changes nothing."""
+    T_rod, T_cone = 1e3, 1e-3          # the cones' threshold rules
+    assert at.peak_seen(1e-3, T_rod, T_cone) == pytest.approx(0.5)
+    assert at.peak_seen(1.0, T_rod, T_cone) == 1.0
+    assert at.peak_seen(1e-6, T_rod, T_cone) < 1e-9
+    assert at.peak_seen(-1.0, T_rod, T_cone) == 0.0     # no light
+    for bad in (np.nan, np.inf, -np.inf):               # not a measure: the frame kept
+        assert at.peak_seen(bad, T_rod, T_cone) == 1.0
+    # the rods' threshold: the bluest primary's scotopic ratio bounds the peak's
+    ratio = max(at.scotopic_luminance(c) / at.photopic_luminance(c) for c in np.eye(3))
+    assert at.peak_seen(1e-4 / ratio, 1e-4, 1e3) == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("backend", ["reference", "opencl"])
+def test_kirk11_lone_target_below_threshold_is_black(backend):
+    """kirk11's range reduction maps the frame's peak to white at any level; with the
+    defaults a lone target on black that the dark-adapted observer cannot see (1e-7
+    cd/m^2, under Hecht's absolute threshold) stays black, one well above it shows."""
+    shown = {}
+    for L in (1e-7, 1e-3):
+        frame = np.zeros((40, 40, 3), np.float32)
+        frame[15:25, 15:25] = L
+        tm = Tonemapper("kirk11", backend=backend, preadapt=(1e-6, 7200.0))
+        shown[L] = float(np.max(tm.process(frame, time_s=0.0)[15:25, 15:25, :3]))
+    assert shown[1e-7] < 1e-5
+    assert shown[1e-3] > 0.5

@@ -109,7 +109,7 @@ class KirkSchedule(NoPixelState):
                        np.float32(u), np.int32(1 if blend else 0), out,
                        np.int32(0 if s.paper else 1))
         self._finish(out, n, 1.0 if op.s.paper else dev.gain(
-            out, n, 1.0 / u, anchor_key(stats.G_cone, stats.values["levels"]["A_cone"])))
+            out, n, 1.0 / u, anchor_key(*op.anchor_levels(stats))))
         # the record's fallbacks and w mean come down with the output (stats.py)
         nfb = statistics(be.rt).put(fb, 4, np.int32)
         w_sum = dev.sums_later(wbuf, n, dev.PLANE)
@@ -135,8 +135,7 @@ class KirkSchedule(NoPixelState):
         if log_sum is None:
             u = op.display.white_cd / op.display.unit_cd
             log_sum = self.dev.sums(out, n, self.dev.LOG_OUTPUT, 1.0 / u)[::2]
-        return anchor_gain(np.array([mean_exp(*log_sum)]), stats.G_cone,
-                           stats.values["levels"]["A_cone"])
+        return anchor_gain(np.array([mean_exp(*log_sum)]), *op.anchor_levels(stats))
 
     def _finish(self, out, n: int, gain: float) -> None:
         """``Kirk11.finish`` in place on the device (the shoulder and clamp per pixel;
