@@ -166,6 +166,7 @@ class Runner:
         self.times: dict[str, list[float]] = {}
         self.effects_off = effects_off
         self.effects_seen: dict[str, dict] = {}
+        self.gains = None        # the last run's von Kries gains (None: it did not run)
 
     def make(self, op: str, fov_deg: float | None = None):
         kw = {} if fov_deg is None else {"fov_deg": fov_deg}
@@ -192,6 +193,8 @@ class Runner:
             t = time.perf_counter()
             out = tm.process(rgb_cd, luminance_scale=1.0)
             self.times.setdefault(op, []).append(time.perf_counter() - t)
+            ca = (tm.last.effects or {}).get("chromatic_adaptation") or {}
+            self.gains = np.asarray(ca["gains"], np.float32) if ca.get("ran") else None
             out = np.asarray(out, np.float32)[..., :3]
             if out.shape != rgb_cd.shape or not np.all(np.isfinite(out)):
                 return None, f"bad output (shape {out.shape}, finite {np.isfinite(out).all()})"
@@ -273,6 +276,11 @@ def run_image(R: Runner, name: str, info: dict, ops, levels):
                                                  channels="any")
                 m["sat_ratio"] = am.saturation_ratio(out, rgb_cd, L,
                                                      source_factor=SOURCE_FACTOR)["ratio"]
+                # the same against the scene under the observer's own von Kries gains:
+                # the colours of the objects, not the cast that the eye discounts
+                adapted = rgb_cd if R.gains is None else rgb_cd * R.gains
+                m["sat_ratio_adapted"] = am.saturation_ratio(
+                    out, adapted, L, source_factor=SOURCE_FACTOR)["ratio"]
                 mg = am.magenta_excess(out, base, keep)
                 m["magenta"], m["magenta_share"] = mg["excess"], mg["share"]
                 wc = am.warm_to_cool(out, base, keep)
@@ -765,10 +773,13 @@ def _issue67_section(results, images, ops, levels) -> list[str]:
     rows = []
     for op in ops:
         for L in levels:
-            cl, sr = vals(op, L, "clip_any"), vals(op, L, "sat_ratio")
+            cl, sr = vals(op, L, "clip_any"), vals(op, L, "sat_ratio_adapted")
+            raw = vals(op, L, "sat_ratio")
             if any("error" in r["ops"][op]["levels"][lvl(L)] for r in photos.values()):
-                rows.append([op, lvl(L), "error", "-", "-", "-"])
+                rows.append([op, lvl(L), "error", "-", "-", "-", "-"])
                 continue
+            rcell = (f"{min(raw)[0]:.2f} ({min(raw)[1]}) .. {max(raw)[0]:.2f} ({max(raw)[1]})"
+                     if raw else "-")
             c = max(cl) if cl else None
             ccell = ("-" if c is None else "0.0%" if c[0] == 0 else
                      b(f"{c[0]:.2%} ({c[1]})", c[0] > CLIPANY_TARGET))
@@ -782,7 +793,7 @@ def _issue67_section(results, images, ops, levels) -> list[str]:
                     not on or (lo[0] >= SAT_RANGE[0] and hi[0] <= SAT_RANGE[1]))
             else:
                 scell, med, ok = "-", "-", c is None or c[0] <= CLIPANY_TARGET
-            rows.append([op, lvl(L), ccell, scell, med,
+            rows.append([op, lvl(L), ccell, scell, med, rcell,
                          "PASS" if ok else "FAIL"])
     return ["## 7. Clipping (any channel) and saturation kept, photographs (issue 67)", "",
             f"Over the {len(photos)} photographs only (rendered at their true angle, "
@@ -793,13 +804,19 @@ def _issue67_section(results, images, ops, levels) -> list[str]:
             "(scene luminance 0.25-4x the log-average, scene s = 1 - min/max of linear RGB > "
             "0.15, output not clipped) of s_out / s_scene, s on linear light of the output and "
             "of the scene (a hue-preserving rendering at the same exposure: 1; "
-            "`appearance_metrics.saturation_ratio`); lowest and highest photograph and the "
-            f"median over them; target {SAT_RANGE[0]:g}-{SAT_RANGE[1]:g} at "
+            "`appearance_metrics.saturation_ratio`), the scene taken under the run's own "
+            "von Kries gains (its chromatic adaptation's record): the objects' colours as the "
+            "adapted observer sees them, not the illuminant's cast, which the eye discounts "
+            "(docs/models.md, *Saturation*); lowest and highest photograph and the "
+            "median over them; beside it the same against the scene as it is (the cast "
+            "counted as colour: a bluish studio's 0.4x is its cast discounted), reported "
+            f"only; target {SAT_RANGE[0]:g}-{SAT_RANGE[1]:g} at "
             + " and ".join(f"{lvl(L)}" for L in SAT_LEVELS) + " cd/m² (interior, daylight); "
             "other levels (dusk 1, night 0.01) reported only: lower there, as the rods take "
             "over (the verdict there is the clipping's). **Bold** misses its target.", "",
             md_table(("operator", "level cd/m²", f"clip any channel (<= {CLIPANY_TARGET:.0%})",
-                      "saturation ratio lowest .. highest", "median", "verdict"), rows), ""]
+                      "saturation ratio lowest .. highest", "median",
+                      "against the unadapted scene", "verdict"), rows), ""]
 
 
 def _colour_cell(m, L):

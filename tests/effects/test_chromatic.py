@@ -116,3 +116,28 @@ def test_warm_scene_stays_warm_by_default(backend, rt):
         cool = np.mean(out[..., 2] > 1.15 * out[..., 0])
         assert cool < 0.05, (L, cool, tm.last.effects["chromatic_adaptation"])
         assert np.median(out[:8, :, 0]) > np.median(out[:8, :, 2])
+
+
+@pytest.mark.parametrize("op", ["pattanaik00", "durand00", "ledda04", "kirk11"])
+def test_a_cast_is_discounted_and_the_objects_keep_their_saturation(op):
+    """Issue 67's saturation measure: objects under a bluish light (a studio's cast,
+    B/G 1.2, R/G 0.85) at an interior level, the defaults. The eye adapts to the
+    light, so measured against the scene as it is the greys' cast counts as colour
+    and the ratio falls; measured against the scene under the run's own von Kries
+    gains (benchmarks/appearance.py) the objects keep 0.5-1.6x their saturation."""
+    from benchmarks.lib import appearance_metrics as am
+    rng = np.random.default_rng(3)
+    objects = rng.uniform(0.05, 0.9, (48, 48, 3))
+    objects[:, :16] = objects[:, :16].mean(axis=-1, keepdims=True)     # a third grey
+    scene = (objects * np.array([0.85, 1.0, 1.2]) * 60.0).astype(np.float32)
+    tm = Tonemapper(op)
+    out = np.asarray(tm.process(scene, luminance_scale=1.0), np.float64)[..., :3]
+    ca = tm.last.effects["chromatic_adaptation"]
+    assert ca["ran"]
+    gains = np.asarray(ca["gains"])
+    assert gains[2] < gains[1] < gains[0]                # the blue cast is discounted
+    L = float(np.exp(np.mean(np.log(am.luminance(scene)))))
+    raw = am.saturation_ratio(out, scene, L)["ratio"]
+    adapted = am.saturation_ratio(out, scene * gains, L)["ratio"]
+    assert 0.5 <= adapted <= 1.6
+    assert raw < adapted
