@@ -50,7 +50,7 @@ from .photometry import photopic_luminance, scotopic_luminance
 #: Hecht, Haig & Chase 1937's after 30 minutes in the dark (the median of every
 #: point, 2.81 log micro-micro-lamberts of their violet, 2.06e-6 cd/m^2), times the
 #: violet's L'/L (29.8 at 450 nm, CIE 1951 V' over CIE 1924 V):
-#: 10^(2.81 - 12) x 10^4 / pi x 29.8. ``tests/models/test_absolute_threshold.py``
+#: 10^(2.81 - 12) x 10^4 / pi x 29.8. ``tests/effects/test_absolute_threshold.py``
 #: reads it off the data.
 T0_ROD = 6.13e-5
 #: The cones' dark-adapted threshold, cd/m^2: the data's cone plateau, 5-12 min
@@ -63,6 +63,9 @@ BETA = 3.5
 #: x at and above which P is 1 in float64 and float32 (2^-(8^3.5) = 2^-1448): the
 #: kernel's early way out.
 X_SURE = 8.0
+#: The largest scotopic/photopic ratio of any non-negative working RGB: its bluest
+#: primary's (``peak_seen``).
+SCOTOPIC_RATIO_MAX = float(np.max(scotopic_luminance(np.eye(3)) / photopic_luminance(np.eye(3))))
 
 
 def thresholds(pig: dict, G_rod: float = 0.0, G_cone: float = 0.0) -> tuple[float, float]:
@@ -99,7 +102,4 @@ def peak_seen(max_Y: float, T_rod: float, T_cone: float) -> float:
     Y = float(max_Y)
     if not math.isfinite(Y):
         return 1.0
-    rgb = np.eye(3)
-    ratio = float(np.max(scotopic_luminance(rgb) / photopic_luminance(rgb)))
-    Y = max(Y, 0.0)
-    return seen_fraction(max(Y / T_cone, Y * ratio / T_rod))
+    return seen_fraction(max(Y / T_cone, Y * SCOTOPIC_RATIO_MAX / T_rod))
