@@ -168,9 +168,9 @@ __kernel void scale_rgb(__global float *rgb, const int n,
 }
 
 /* The observer's absolute threshold on a frame held on the device (effects/threshold.py,
- * models/absolute_threshold.py Eqs. 2-3): each pixel's light weighted by the chance
- * that it is seen, P(x) = 1 - 2^(-x^beta), x = max(Y / T_c, Y' / T_r), in place.
- * inv_tc, inv_tr: 1 / T; x at or above x_sure is seen for certain (P = 1 in float). */
+ * models/absolute_threshold.py Eqs. 2-3): each pixel's light weighted by the share
+ * seen beyond the threshold, w = max(0, 1 - 2^(1 - x^beta)), x = max(Y / T_c, Y' / T_r),
+ * in place. inv_tc, inv_tr: 1 / T; x at or above x_sure is shown whole (w = 1 in float). */
 __kernel void absolute_threshold_rgb(__global float *rgb, const int n, const float inv_tc,
                                      const float inv_tr, const float beta, const float x_sure)
 {
@@ -181,8 +181,8 @@ __kernel void absolute_threshold_rgb(__global float *rgb, const int n, const flo
     const float Y = M_YR * r + M_YG * g + M_YB * b;
     const float x = fmax(Y * inv_tc, scotopic_luminance(r, g, b) * inv_tr);
     if (x >= x_sure) return;
-    const float P = x > 0.0f ? -expm1(-M_LN2_F * pow(x, beta)) : 0.0f;
-    p[0] = r * P; p[1] = g * P; p[2] = b * P;
+    const float w = x > 1.0f ? -expm1(M_LN2_F * (1.0f - pow(x, beta))) : 0.0f;
+    p[0] = r * w; p[1] = g * w; p[2] = b * w;
 }
 
 /* Spectral radiance to LMSR in one pass (kirk11, Eq. 8; host side

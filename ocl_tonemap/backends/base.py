@@ -65,6 +65,7 @@ class Levels(NamedTuple):
     illuminant: Callable[[], np.ndarray] | None   # the grey-world estimate, made when called
     max_Y: float | None = None         # the largest working luminance, where known
     proxy: np.ndarray | None = None    # s x s block means of rgb (float64), where asked
+    max_Ys: float | None = None        # the largest scotopic luminance, where known
 
 
 @dataclass

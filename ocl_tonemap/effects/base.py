@@ -64,16 +64,17 @@ def mode_option(name: str, help: str) -> EffectOption:
 class FrameContext:
     """What the effects of one frame are given: the frame's levels (the scene's
     metering goals before the optical effects; the metered frame's in the display
-    slot), the flare's source limit and largest luminance, the state step (``dt``,
-    ``fresh``, the state's ``extra`` where time courses are kept, the run's
-    pre-adaptation), the frame's number and time, and ``eff``, the frame's effect
-    records (``ocltm:effects``), which each effect fills under its name."""
+    slot), the flare's source limit and largest luminance (photopic, scotopic), the
+    state step (``dt``, ``fresh``, the state's ``extra`` where time courses are kept,
+    the run's pre-adaptation), the frame's number and time, and ``eff``, the frame's
+    effect records (``ocltm:effects``), which each effect fills under its name."""
 
     G_rod: float
     G_cone: float
     eff: dict = field(default_factory=dict)
     lim: float = math.inf
     max_Y: float | None = None
+    max_Ys: float | None = None
     dt: float = 0.0
     fresh: bool = True
     extra: dict | None = None

@@ -1,6 +1,6 @@
 """The observer's absolute threshold as an effect on any operator
-(``models/absolute_threshold.py``): each pixel's light weighted by the chance that
-the observer sees it at all, so that the display shows the minutes of dark
+(``models/absolute_threshold.py``): each pixel's light weighted by the share of it
+the observer sees beyond the threshold, so that the display shows the minutes of dark
 adaptation (issue 66): after daylight, a faint target stays black until the
 observer's threshold has fallen below it.
 
@@ -23,10 +23,11 @@ from .base import Effect
 
 
 def advance(mode: str, G_rod: float, G_cone: float, extra: dict | None,
-            max_Y: float | None = None) -> dict:
+            max_Y: float | None = None, max_Ys: float | None = None) -> dict:
     """The frame's thresholds (Eq. 1) from the pigment state in ``extra``, whether the
-    frame is weighted (``ran``) and, where its largest luminance ``max_Y`` is known, the
-    share of that light that is seen (``peak_seen``: kirk11 maps its peak to white)."""
+    frame is weighted (``ran``) and, where its largest luminance ``max_Y`` is known (and
+    its largest scotopic one ``max_Ys``), the share of that light that is shown
+    (``peak_seen``: kirk11 maps its peak to white)."""
     if mode == "off":
         return {"ran": False}
     pig = (extra or {}).get(PIGMENT_KEY)
@@ -37,14 +38,14 @@ def advance(mode: str, G_rod: float, G_cone: float, extra: dict | None,
     T_rod, T_cone = at.thresholds(pig, G_rod, G_cone)
     info = {"ran": True, "T_rod": float(T_rod), "T_cone": float(T_cone)}
     if max_Y is not None:
-        info["peak_seen"] = float(at.peak_seen(max_Y, T_rod, T_cone))
+        info["peak_seen"] = float(at.peak_seen(max_Y, T_rod, T_cone, max_Ys))
     return info
 
 
 def weigh(rgb, info: dict, backend=None):
-    """(rgb weighted by the chance that each pixel is seen, info): in place on the
-    device where ``rgb`` is a device image there, else float32 from the float64
-    reference."""
+    """(rgb weighted by the share of each pixel seen beyond the threshold, info): in
+    place on the device where ``rgb`` is a device image there, else float32 from the
+    float64 reference."""
     if backend is not None and not isinstance(rgb, np.ndarray):
         out = backend.threshold_image(rgb, info["T_rod"], info["T_cone"], at.BETA, at.X_SURE)
         if out is not None:
@@ -64,7 +65,8 @@ class AbsoluteThreshold(Effect):
     capabilities = frozenset({"host", "device", "banded"})
 
     def advance(self, ctx) -> None:
-        ctx.eff[self.name] = advance(self.mode, ctx.G_rod, ctx.G_cone, ctx.extra, ctx.max_Y)
+        ctx.eff[self.name] = advance(self.mode, ctx.G_rod, ctx.G_cone, ctx.extra, ctx.max_Y,
+                                     ctx.max_Ys)
 
     def host(self, ctx, rgb):
         info = ctx.eff.get(self.name) or {"ran": False}

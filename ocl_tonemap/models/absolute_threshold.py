@@ -6,12 +6,15 @@ viewed in the dark shows far less than the eye can see at its black: a target th
 observer, just in from daylight, cannot see yet still shows on the display. The
 observer's threshold on a black field is set by the eye's own noise, its dark light
 (Barlow 1957) and the equivalent background of the pigment still bleached (Crawford
-1947; ``bleaching.py`` Eq. 6). Here the light of each pixel is weighted by the chance
-that the observer detects it at all, so that what is shown follows the observer's
-threshold as it falls over the minutes in the dark (``--threshold``):
+1947; ``bleaching.py`` Eq. 6). Here the light of each pixel is weighted by how far its
+chance of being detected exceeds the threshold's own, so that a light at or below the
+observer's threshold is black and what is shown follows the threshold as it falls
+over the minutes in the dark (``--threshold``):
 
->>> round(seen_fraction(1.0), 3), round(seen_fraction(3.0), 6), seen_fraction(0.0)
-(0.5, 1.0, 0.0)
+>>> seen_fraction(1.0), seen_fraction(0.5), round(seen_fraction(1.5), 3)
+(0.0, 0.0, 0.886)
+>>> round(seen_fraction(3.0), 9)
+1.0
 >>> Tr, Tc = thresholds(bleaching.dark())          # fully dark adapted
 >>> f"{Tr:.2e} {Tc:.2e}"
 '6.13e-05 1.12e-03'
@@ -28,9 +31,17 @@ threshold as it falls over the minutes in the dark (``--threshold``):
    is left out: the largest term rules within a factor 2^(1/beta)).
 3. It is detected with Quick 1974's psychometric function (the Weibull form),
    P(x) = 1 - 2^(-x^beta), beta = 3.5 (:data:`BETA`: Nachmias 1981, 3-4 for
-   luminance increments; Pelli 1987), and its light is weighted by P: a target at
-   its threshold shows at half its light, one at 3 thresholds whole (1 - 2e-14), one
-   at a tenth of it at 2e-4. Black stays black; nothing above ~3 T changes.
+   luminance increments; Pelli 1987); the threshold is its 50 % point. What is shown
+   is the light seen beyond the threshold's own chance, Abbott's correction at
+   P(1) = 1/2: w(x) = max(0, (P(x) - P(1)) / (1 - P(1))) = max(0, 1 - 2^(1 - x^beta)).
+   Nothing at or below the threshold shows, 0.46 of the light at 1.2 T, 0.89 at
+   1.5 T, 1 - 8e-4 at 2 T, 1 - 2e-14 at 3 T (all of it from 2.54 T in float32); the
+   weight is continuous and rises monotonically, so a gradient that crosses the
+   threshold fades to black with no edge. Black stays black. (Weighting by P itself
+   showed targets at a tenth to a half of the threshold plainly on the display,
+   whose viewer sees a step of ~2 % near its black: the display's course then ran
+   0.3-1.4 log units below the observer's, and by a margin that changed with the
+   operator and with the minutes in the dark; ``docs/models.md``.)
 
 Nothing here depends on an operator: every operator's display takes it from the
 same pigment state, after the optical effects (the veil of a bright source counts
@@ -60,7 +71,7 @@ T0_CONE = 1.12e-3
 #: The psychometric function's slope (Quick 1974; Nachmias 1981: 3-4 for luminance
 #: detection).
 BETA = 3.5
-#: x at and above which P is 1 in float64 and float32 (2^-(8^3.5) = 2^-1448): the
+#: x at and above which w is 1 in float64 and float32 (2^(1 - 8^3.5) = 2^-1447): the
 #: kernel's early way out.
 X_SURE = 8.0
 #: The largest scotopic/photopic ratio of any non-negative working RGB: its bluest
@@ -77,29 +88,33 @@ def thresholds(pig: dict, G_rod: float = 0.0, G_cone: float = 0.0) -> tuple[floa
 
 
 def seen_fraction(x):
-    """Eq. 3: P(x) = 1 - 2^(-x^beta) (x >= 0; NaN and negatives: 0)."""
+    """Eq. 3: the share of a light of x thresholds that is shown,
+    w = max(0, 1 - 2^(1 - x^beta)) (NaN and negatives: 0)."""
     x = np.asarray(x, np.float64)
-    x = np.where(x > 0.0, np.minimum(x, X_SURE), 0.0)
-    p = -np.expm1(-math.log(2.0) * x ** BETA)
-    return float(p) if p.ndim == 0 else p
+    x = np.where(x > 1.0, np.minimum(x, X_SURE), 1.0)
+    w = np.maximum(-np.expm1(math.log(2.0) * (1.0 - x ** BETA)), 0.0)
+    return float(w) if w.ndim == 0 else w
 
 
 def apply_reference(rgb: np.ndarray, T_rod: float, T_cone: float) -> np.ndarray:
-    """Working RGB (cd/m^2) with each pixel's light weighted by the chance that it is
-    seen (Eqs. 2-3), float64."""
+    """Working RGB (cd/m^2) with each pixel's light weighted by the share of it seen
+    beyond the threshold (Eqs. 2-3), float64."""
     rgb = np.asarray(rgb, np.float64)[..., :3]
     x = np.maximum(photopic_luminance(rgb) / T_cone, scotopic_luminance(rgb) / T_rod)
     return rgb * seen_fraction(x)[..., None]
 
 
-def peak_seen(max_Y: float, T_rod: float, T_cone: float) -> float:
-    """Eq. 3 at the frame's brightest light (``max_Y`` photopic cd/m^2): the share of
-    it that is seen, for operators whose range reduction maps the frame's peak to white
-    whatever its level (kirk11). Its scotopic luminance is not metered: the largest
-    scotopic/photopic ratio of any working colour (its bluest primary) bounds it, so the
-    factor errs toward showing light, never toward hiding what is seen (a peak that is
-    not a number, or infinite, keeps 1)."""
+def peak_seen(max_Y: float, T_rod: float, T_cone: float, max_Ys: float | None = None
+              ) -> float:
+    """Eq. 3 at the frame's brightest light: the share of it that is shown, for
+    operators whose range reduction maps the frame's peak to white whatever its level
+    (kirk11). x is taken from the frame's largest photopic (``max_Y``) and scotopic
+    (``max_Ys``) luminances, metered alike: no pixel's x is larger (a lone target's is
+    exactly it), so the factor errs toward showing light, never toward hiding what is
+    seen. Without ``max_Ys`` the largest scotopic/photopic ratio of any working colour
+    (its bluest primary) bounds it. A peak that is not a number, or infinite, keeps 1."""
     Y = float(max_Y)
-    if not math.isfinite(Y):
+    Ys = Y * SCOTOPIC_RATIO_MAX if max_Ys is None else float(max_Ys)
+    if not (math.isfinite(Y) and math.isfinite(Ys)):
         return 1.0
-    return seen_fraction(max(Y / T_cone, Y * SCOTOPIC_RATIO_MAX / T_rod))
+    return seen_fraction(max(Y / T_cone, Ys / T_rod))

@@ -28,9 +28,17 @@ rods; time in seconds; Bb bleached fraction):
    sub-step's midpoint, of at most SUBSTEP_S, found by three fixed-point passes):
    stable for any step, from 1 ms to hours; one step or its halves agree to ~2e-9.
 5. The early neural phase (Hecht's first minute: 2 log units gone in ~20 s after
-   263 td, before pigment rules; Baker 1949's fast phase): N follows a brighter
-   field at once (the operator's own neural filter is the fast part) and decays to
-   a dimmer one with tau_N: dN/dt = (L - N) / tau_N for L < N.
+   263 td, before pigment rules; Baker 1949's fast phase). The cones' N follows a
+   brighter field at once (the operator's own neural filter is the fast part) and
+   decays to a dimmer one with tau_N: dN/dt = (L - N) / tau_N. The rods' N rises to
+   a brighter field with tau_N (a flash of milliseconds leaves next to nothing) and
+   falls to a dimmer one at second order with a slow first-order end,
+   dD/dt = -w_N,r D^2 / C_N - D / tau_S for D = N - L > 0 (exact over a step:
+   D e / (1 + w_N,r D tau_S (1 - e) / C_N), e = exp(-dt / tau_S)): its equivalent
+   background w_N,r D then falls as C_N / t once t exceeds its first few seconds,
+   whatever the field, until tau_S ends it (Rushton & Powell 1972: after bleaches
+   under 10 % the threshold lies well above the pigment's course for minutes;
+   Hecht's 263 td: L_eq t about constant from 15 s to 10 min, falling after).
 6. The threshold elevation reaches the operator as an equivalent background
    (Crawford 1947; Lamb & Pugh 2004: the equivalent background is proportional to
    what is bleached and not yet regenerated), added to the adaptation level it uses:
@@ -45,8 +53,9 @@ rods; time in seconds; Bb bleached fraction):
    units a minute (Lamb 1981: ~0.24).
 
 Constants: published values (each with its source); the equivalent-background
-gains kappa_r, kappa_c and the neural phase's w_N (rods, cones) and tau_N are fitted,
-on Hecht, Haig & Chase 1937's 263, 19 500 and 400 000 td (the other two held out,
+gains kappa_r, kappa_c and the neural phase's w_N (rods, cones), tau_N, C_N and
+tau_S are fitted, on Hecht, Haig & Chase 1937's 263, 19 500 and 400 000 td (the
+other two held out,
 ``benchmarks/psychophysics.py``).
 """
 
@@ -74,8 +83,15 @@ Q_ROD = 1.0e7
 #: "standard parameters" v = 0.085 min^-1, K_m = 0.2).
 V_ROD_PER_MIN = 0.085
 KM_ROD = 0.2
-#: The early neural phase's time constant, s (fitted: the first 20 s after 263 td).
+#: The cones' early neural phase's time constant, s (fitted: the first 20 s after 263 td).
 TAU_N = 8.0
+#: The rods' early neural phase, second order: the product L_eq t its equivalent
+#: background tends to, scotopic cd/m^2 s (fitted on Hecht's 263 td: 1000 dark
+#: lights I_D_ROD x 1 s, ~17 I_D for a minute; with W_N_ROD the first seconds' decay
+#: time is C_N / L_eq(0), 4 s after 263 td), and the time constant, s, that ends it
+#: (fitted: Hecht's 263 td falls faster than 1 / t after ~10 min).
+C_N_ROD = 0.1
+TAU_S_ROD = 1200.0
 #: Dark lights (Weber knees) I_D: rods 10^-4 scotopic cd/m^2 (Aguilar & Stiles 1954:
 #: the rod threshold doubles near 10^-3 scotopic td through a dark pupil of ~50 mm^2,
 #: ~2e-5 cd/m^2; Hecht's 3-degree field's absolute threshold near 1e-4), cones
@@ -154,8 +170,16 @@ def _rod_step(bb: float, I: float, dt: float) -> float:
 
 
 def _neural_step(N: float, L: float, dt: float) -> float:
-    """Eq. 5 exactly."""
+    """Eq. 5 exactly (the cones: first order)."""
     return L if L >= N else L + (N - L) * math.exp(-dt / TAU_N)
+
+
+def _rod_neural_step(N: float, L: float, dt: float) -> float:
+    """Eq. 5 exactly (the rods: up with tau_N, down at second order)."""
+    if L >= N:
+        return L + (N - L) * math.exp(-dt / TAU_N)
+    d, e = N - L, math.exp(-dt / TAU_S_ROD)
+    return L + d * e / (1.0 + W_N_ROD * d * TAU_S_ROD * (1.0 - e) / C_N_ROD)
 
 
 def advance(s: dict, L_rod: float, L_cone: float, dt: float) -> dict:
@@ -168,7 +192,7 @@ def advance(s: dict, L_rod: float, L_cone: float, dt: float) -> dict:
     I_r, I_c = trolands(L_rod, L_cone)
     return {"Bb_rod": _rod_step(s["Bb_rod"], I_r, dt),
             "Bb_cone": _cone_step(s["Bb_cone"], I_c, dt),
-            "N_rod": _neural_step(s["N_rod"], L_rod, dt),
+            "N_rod": _rod_neural_step(s["N_rod"], L_rod, dt),
             "N_cone": _neural_step(s["N_cone"], L_cone, dt)}
 
 

@@ -132,8 +132,9 @@ class FrameStats:
     handle : the backend's resident frame (private to the schedule that made it).
     scene_goal : (G_rod, G_cone) of the run's ``--metering`` on the frame, where the
         effects need it (the operator's own goals may be local: ledda04, kirk11).
-    scene_max_Y, scene_repairs : the largest working luminance and the repair counts
-        of that metering (before the optical effects), where it ran: with
+    scene_max_Y, scene_max_Ys, scene_repairs : the largest working luminance (photopic,
+        scotopic) and the repair counts of that metering (before the optical effects),
+        where it ran: with
         ``scene_goal``, what a shot's apply pass takes from the store instead of
         metering the frame again (issue 59).
     """
@@ -150,6 +151,7 @@ class FrameStats:
     scene_goal: tuple | None = None
     scene_max_Y: float | None = None
     scene_repairs: RepairCounts | None = None
+    scene_max_Ys: float | None = None
 
 
 @dataclass

@@ -69,6 +69,7 @@ class FrameGraph:
             return
         stats.scene_goal = (float(levels.goal[0]), float(levels.goal[1]))
         stats.scene_max_Y = None if levels.max_Y is None else float(levels.max_Y)
+        stats.scene_max_Ys = None if levels.max_Ys is None else float(levels.max_Ys)
         stats.scene_repairs = levels.repairs
         est = self.effects.estimate
         if est is not None and not self.effects.s.paper:
@@ -85,7 +86,8 @@ class FrameGraph:
         obs.shown(time_s, frame_number)
         params = self.op.params(obs.scalars, stats) if self.schedule.receptor_gains else None
         G_rod, G_cone = stats.scene_goal or (stats.G_rod, stats.G_cone)
-        ctx = FrameContext(G_rod, G_cone, eff=eff, max_Y=stats.scene_max_Y, dt=dt, fresh=fresh,
+        ctx = FrameContext(G_rod, G_cone, eff=eff, max_Y=stats.scene_max_Y,
+                           max_Ys=stats.scene_max_Ys, dt=dt, fresh=fresh,
                            extra=obs.scalars.extra, preadapt=obs.preadapt, frame=frame_number,
                            time_s=float(time_s))
         gains = self.effects.advance(ctx, self.schedule.receptor_gains,
@@ -170,7 +172,7 @@ class FrameGraph:
         if stored is not None and replayed and stored.scene_goal is not None and \
                 stored.scene_max_Y is not None and stored.scene_repairs is not None:
             known = Levels(None, stored.scene_repairs, stored.scene_goal, stored.illuminant,
-                           stored.scene_max_Y)
+                           stored.scene_max_Y, max_Ys=stored.scene_max_Ys)
         return self.backend.working(pix, frame.scale, self.metering,
                                     self.own_chroma() and self.grey_world(), on_device=on_dev,
                                     proxy_stride=0 if replayed else self.plan.proxy_stride(h, w),

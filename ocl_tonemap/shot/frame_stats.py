@@ -47,7 +47,7 @@ def stats_document(stats: FrameStats, illuminant, hint, t: float, held: bool, in
             "G_rod": float(stats.G_rod), "G_cone": float(stats.G_cone),
             "scene_goal": None if stats.scene_goal is None else [float(g) for g in
                                                                    stats.scene_goal],
-            "scene_max_Y": stats.scene_max_Y,
+            "scene_max_Y": stats.scene_max_Y, "scene_max_Ys": stats.scene_max_Ys,
             "scene_repairs": None if stats.scene_repairs is None else
             stats.scene_repairs.as_dict(),
             "repairs": stats.repairs.as_dict(), "values": encode_value(dict(stats.values)),
@@ -68,13 +68,15 @@ def _stats_from_document(doc: dict, planes, schedule) -> tuple[FrameStats, objec
     illum = decode_value(doc.get("illuminant"))
     goal = doc.get("scene_goal")
     max_Y, scene_rep = doc.get("scene_max_Y"), doc.get("scene_repairs")
+    max_Ys = doc.get("scene_max_Ys")
     stats = FrameStats(int(doc["width"]), int(doc["height"]), float(doc["G_rod"]),
                        float(doc["G_cone"]), RepairCounts(**doc.get("repairs", {})),
                        (lambda: illum) if illum is not None else None,
                        decode_value(doc.get("values") or {}),
                        scene_goal=None if goal is None else (float(goal[0]), float(goal[1])),
                        scene_max_Y=None if max_Y is None else float(max_Y),
-                       scene_repairs=None if scene_rep is None else RepairCounts(**scene_rep))
+                       scene_repairs=None if scene_rep is None else RepairCounts(**scene_rep),
+                       scene_max_Ys=None if max_Ys is None else float(max_Ys))
     if planes is not None:
         stats = schedule.stats_from_planes(stats, planes)
     return stats, decode_value(doc.get("illuminant_hint"))

@@ -384,7 +384,8 @@ _SCHEMAS = {
                    {"held": bool, "repairs": dict, "values": dict, "planes": str,
                     "plan": dict, "input_stat": (list, None), "illuminant": (dict, list, str, None),
                     "illuminant_hint": (dict, list, str, None), "scene_goal": (list, None),
-                    "scene_max_Y": (int, float, None), "scene_repairs": (dict, None)}),
+                    "scene_max_Y": (int, float, None), "scene_repairs": (dict, None),
+                    "scene_max_Ys": (int, float, None)}),
     INTEGRATED_FORMAT: ({"frames": _INTS, "keyframes": _INTS, "cuts": _INTS}, {"inputs": list}),
 }
 

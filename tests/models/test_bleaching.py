@@ -73,11 +73,35 @@ def test_the_dark_and_the_equivalent_background():
     s = B.preadapted(1.3e5, 120.0)
     er, ec = B.elevation(B.advance(s, 0.0, 0.0, 60.0))
     assert er > ec > 0.0                      # the rods stay desensitised longer
-    # the neural phase decays with tau_N once the field is gone
+    # the cones' neural phase decays with tau_N once the field is gone
     s = B.steady(78.0, 31.0)
-    a = B.advance(s, 0.0, 0.0, 1.0)["N_rod"]
-    b = B.advance(s, 0.0, 0.0, 1.0 + B.TAU_N)["N_rod"]
+    a = B.advance(s, 0.0, 0.0, 1.0)["N_cone"]
+    b = B.advance(s, 0.0, 0.0, 1.0 + B.TAU_N)["N_cone"]
     assert b == pytest.approx(a / math.e, rel=1e-6)
+
+
+@pytest.mark.parametrize("L", [31.0, 5.2e3, 1.3e5])
+def test_the_rods_neural_phase_falls_as_one_over_time_whatever_the_field(L):
+    """Eq. 5, rods: second order, so after its first seconds the equivalent background
+    of the field's memory is near C_N / t whatever the field was (Hecht's 263 td:
+    L_eq t about constant from 15 s to 10 min) until tau_S ends it; one long step
+    equals many short ones."""
+    s = B.steady(L * 2.57, L)
+    first = B.C_N_ROD / (B.W_N_ROD * s["N_rod"])          # its first decay time, s
+    for t in (60.0, 600.0, 3600.0):
+        one = B.advance(s, 0.0, 0.0, t)
+        Leq_t = B.W_N_ROD * one["N_rod"] * t
+        end = math.exp(-t / B.TAU_S_ROD)
+        assert B.C_N_ROD * (1.0 - first / t) * end <= Leq_t <= B.C_N_ROD * end ** 0.5
+        many = s
+        for _ in range(1000):
+            many = B.advance(many, 0.0, 0.0, t / 1000)
+        assert many["N_rod"] == pytest.approx(one["N_rod"], rel=1e-9)
+    # it rises to a field with tau_N: a millisecond's flash leaves next to nothing
+    assert B.advance(B.dark(), 5.0, 2.0, 1e-3)["N_rod"] == pytest.approx(5.0 * 1e-3 / B.TAU_N,
+                                                                           rel=1e-3)
+    assert B.advance(B.dark(), 5.0, 2.0, 1e-3)["N_cone"] == 2.0      # the cones' at once
+    assert B.advance(s, L * 2.57, L, 3600.0)["N_rod"] == pytest.approx(L * 2.57, rel=1e-12)
 
 
 def test_steady_state_adds_little_to_a_steady_field():

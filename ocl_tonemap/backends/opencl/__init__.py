@@ -290,7 +290,7 @@ class OpenCLBackend(MeteringPasses, VisibilityStage, PointwiseStages):
         bands = self.bands(h, w)
         rgb = None if (on_device and len(bands) == 1) else np.empty((h, w, 3), np.float32)
         if metered is None:
-            bands, repairs, G, illum, max_Y, proxy = self.meter_pass(
+            bands, repairs, G, illum, max_Y, proxy, max_Ys = self.meter_pass(
                 pixels, scale, spec, illuminant, rgb, proxy_stride)
         else:
             self._ahead = None
@@ -304,7 +304,7 @@ class OpenCLBackend(MeteringPasses, VisibilityStage, PointwiseStages):
         if metered is not None:
             return metered._replace(rgb=rgb, proxy=None)
         return Levels(rgb, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y,
-                      proxy)
+                      proxy, max_Ys)
 
     # -- per-pixel kernels ---------------------------------------------------------------------
     def run_pointwise(self, call, rgb, Y, Ys, out, n: int) -> None:
@@ -334,7 +334,7 @@ class PointwiseSchedule(NoPixelState):
     def measure(self, frame, spec: met.MeteringSpec, want_illuminant: bool = False) -> FrameStats:
         be = self.backend
         h, w, _ = frame.pixels.shape
-        bands, repairs, (G_rod, G_cone), illum, _, _ = be.meter_pass(frame.pixels, frame.scale,
+        bands, repairs, (G_rod, G_cone), illum, *_ = be.meter_pass(frame.pixels, frame.scale,
                                                                   spec, want_illuminant, None)
         # one band stays resident in the backend's buffers until the next frame
         return FrameStats(w, h, G_rod, G_cone, repairs, lambda: illum[:3],

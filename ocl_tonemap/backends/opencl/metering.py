@@ -192,7 +192,8 @@ class MeteringPasses:
             proxy = log16_decode(log16_encode(blocks[..., :3] / np.maximum(blocks[..., 3:], 1.0)))
         elif proxy is not None:
             proxy = proxy()
-        return bands, repairs, sums.goal(spec), illum, float(sums.sums[5]), proxy
+        return (bands, repairs, sums.goal(spec), illum, float(sums.sums[5]), proxy,
+                float(sums.sums[6]))
 
     def source_proxy(self, shape, stride: int, lim: float) -> np.ndarray | None:
         """Block means of the flare's source part of the frame the last :meth:`working`
@@ -215,7 +216,7 @@ class MeteringPasses:
     def scene_levels(self, source, scale: float, spec: MeteringSpec,
                      illuminant: bool, proxy_stride: int = 0) -> Levels:
         """:meth:`meter_pass` over a band source (nothing kept)."""
-        _, repairs, G, illum, max_Y, proxy = self.meter_pass(source, scale, spec, illuminant,
-                                                             None, proxy_stride)
+        _, repairs, G, illum, max_Y, proxy, max_Ys = self.meter_pass(
+            source, scale, spec, illuminant, None, proxy_stride)
         return Levels(None, repairs, G, (lambda: illum[:3]) if illuminant else None, max_Y,
-                      proxy)
+                      proxy, max_Ys)

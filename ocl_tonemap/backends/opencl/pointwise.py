@@ -29,7 +29,7 @@ class PointwiseStages:
 
     def threshold_image(self, img: DeviceImage, T_rod: float, T_cone: float, beta: float,
                         x_sure: float) -> DeviceImage:
-        """``img``'s pixels weighted by the chance that they are seen, in place
+        """``img``'s pixels weighted by the share seen beyond the threshold, in place
         (``colour.cl:absolute_threshold_rgb``; ``models/absolute_threshold.py``)."""
         n = img.shape[0] * img.shape[1]
         if getattr(self, "_threshold", None) is None:

@@ -46,12 +46,12 @@ class ReferenceBackend(HostBackend):
         if metered is not None:
             return metered._replace(rgb=rgb, proxy=None)
         h, w = rgb.shape[:2]
-        Y = photopic_luminance(rgb)
-        G = met.reference_goal(Y, scotopic_luminance(rgb), spec, _mask(spec, w, h))
+        Y, Ys = photopic_luminance(rgb), scotopic_luminance(rgb)
+        G = met.reference_goal(Y, Ys, spec, _mask(spec, w, h))
         proxy = met.block_means(rgb, proxy_stride) if proxy_stride else None
         self._last_rgb = rgb
         return Levels(rgb, repairs, G, lambda: durand2000.illuminant_estimate_reference(rgb),
-                      float(Y.max(initial=0.0)), proxy)
+                      float(Y.max(initial=0.0)), proxy, float(Ys.max(initial=0.0)))
 
     def source_proxy(self, shape, stride: int, lim: float) -> np.ndarray | None:
         """Block means of the flare's source part of the last :meth:`working` frame."""
@@ -66,7 +66,7 @@ class ReferenceBackend(HostBackend):
         lv = self.working(source[0:source.shape[0]], scale, spec, proxy_stride=proxy_stride)
         illum = lv.illuminant() if illuminant else None
         return Levels(None, lv.repairs, lv.goal, None if illum is None else (lambda: illum),
-                      lv.max_Y, lv.proxy)
+                      lv.max_Y, lv.proxy, lv.max_Ys)
 
     def working_rows(self, pixels: np.ndarray, scale: float) -> np.ndarray:
         rgb, _ = sanitize(pixels[..., :3], scale)
