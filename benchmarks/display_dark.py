@@ -57,16 +57,21 @@ def score_table(res) -> list:
     return L + [""]
 
 
+#: The first-visible tables show every fourth target (0.5 log units apart).
+TABLE_EVERY = 4
+
+
 def first_table(res, td) -> list:
-    logs = np.log10(D.TARGETS_CD)
-    L = [f"**{td:g} td** (minutes at which each target first shows; 0: from the first "
-         "frame, 0.05 min; never: not within 40 min)", "",
+    k = TABLE_EVERY
+    logs = np.log10(D.TARGETS_CD)[::k]
+    L = [f"**{td:g} td** (minutes at which each target first shows, every {k}th "
+         "target; 0: from the first frame, 0.05 min; never: not within 40 min)", "",
          "| | " + " | ".join(f"{x:.1f}" for x in logs) + " |",
          "|---|" + "---|" * len(logs),
          "| Hecht median (neutral) | " +
-         " | ".join(_f(v, "{:.1f}") for v in D.hecht_first_visible(td)) + " |"]
+         " | ".join(_f(v, "{:.1f}") for v in D.hecht_first_visible(td)[::k]) + " |"]
     for op, d in res.items():
-        L.append(f"| {op} | " + " | ".join(_f(v, "{:.1f}") for v in d[td].first_visible())
+        L.append(f"| {op} | " + " | ".join(_f(v, "{:.1f}") for v in d[td].first_visible()[::k])
                  + " |")
     return L + [""]
 
@@ -126,11 +131,14 @@ def main(argv=None) -> int:
          f"- plot: [{os.path.basename(png)}]({os.path.basename(png)})", "",
          f"Targets: {len(D.TARGETS_CD)} neutral squares of {D.TARGET_PX} px "
          f"({D.TARGET_PX / f.shape[1] * 50:.1f} degrees), "
-         f"{D.TARGETS_CD[0]:g} to {D.TARGETS_CD[-1]:g} cd/m^2 in 0.5 log steps, on black: "
+         f"{D.TARGETS_CD[0]:g} to {D.TARGETS_CD[-1]:g} cd/m^2 in "
+         f"{np.diff(np.log10(D.TARGETS_CD))[0]:g} log steps, on black: "
          f"each alone in a {D.ALONE_PX} x {D.ALONE_PX} px frame (Hecht's method, one test "
-         "field at a time; the tables and the plot), and all in one chart of "
+         "field at a time; the tables and the plot), and every fourth of them "
+         f"({len(D.CHART_TARGETS_CD)}, 0.5 log apart) in one chart of "
          f"{f.shape[1]} x {f.shape[0]} px at the default 50-degree field (the last "
-         "table: the brighter targets' veil lies over the dimmer ones). Pre-adaptation {D.PREADAPT_S:.0f} s at each "
+         "table: the brighter targets' veil lies over the dimmer ones). Pre-adaptation "
+         f"{D.PREADAPT_S:.0f} s at each "
          "of Hecht's fields through the natural pupil; then frames at "
          f"{D.TIMES_MIN[0]:g}-{D.TIMES_MIN[-1]:g} min with the defaults "
          "(`Tonemapper(op, preadapt=(L, 120))`: `model=\"auto\"`, logmean metering, "
@@ -140,8 +148,10 @@ def main(argv=None) -> int:
          "Hecht's median (violet test light) read for a neutral target (above the cones' "
          f"plateau, 10^{np.log10(D.dark.data_cone_plateau()):.2f} cd/m^2, as measured; "
          f"below it min(plateau, {D.neutral_factor():.1f} x the violet's photopic "
-         "threshold)). Shape: both courses (the log10 luminance just visible at each time) "
-         "relative to their value at the last time of the data's median (29.5-39 min), "
+         "threshold)). Shape: both courses (the log10 luminance just visible at each time, "
+         "each read off the minutes at which the targets first show, linear in time between "
+         "them: the same ladder for both) relative to their value at the last time of the "
+         "data's median (29.5-39 min), "
          "compared at the frames within the data's range; the issue's target: within "
          f"{D.SHAPE_TARGET} log units at each time (max abs dev). Offset: display minus "
          "observers at that end time (a constant factor between the two JNDs). Times "

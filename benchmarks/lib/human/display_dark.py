@@ -29,13 +29,22 @@ alike; below it the rods see the violet, and a neutral needs 29.8 / 2.57 = 11.6x
 photopic luminance for the same rod signal, or the cones' plateau, whichever is less:
 neutral(t) = T(t) where T >= P, else min(P, 11.6 T(t)).
 
-**The comparison**: for each time the log10 target luminance just visible (where
-Delta E ITP crosses :data:`JND` between two targets, interpolated in log), relative to
-its value at the end (the last time of Hecht's median, 29.5-39 min: the display's at the
-same minute), against the same for the observers; RMS of the difference (the shape) and
-the mean absolute offset (display minus observer: the two JNDs may differ by a factor).
+**The comparison** (the issue's: the time at which each target first shows on the
+display, against the time at which the observers' threshold falls below it): for each
+target the minute it first reaches :data:`JND` for good (interpolated in log Delta E
+between frames), and the observers' minute for it (``hecht_first_visible``). Both sets
+of (minute, target) points are read as a course the same way (``course_from_first``:
+the log10 luminance just visible at each time, linear in time between the minutes at
+which successive targets came into view), so that both are sampled on the same
+ladder of targets, 0.125 log units a rung. Each course is taken relative to its value
+at the end (the last time of Hecht's median, 29.5-39 min) and compared at the frames
+within the data's range: RMS and largest absolute difference (the shape), and the
+offset at the end (display minus observer: the two JNDs may differ by a factor).
 Times where the display course leaves the chart (every target visible, or none) are
-left out and counted.
+left out and counted. (Reading the display's course off Delta E at each time instead,
+interpolated between targets, fails once the display shows a target from its
+threshold on: Delta E then jumps from 0 to tens between two targets and the reading
+snaps to the ladder.)
 """
 
 from __future__ import annotations
@@ -48,8 +57,11 @@ from . import dark
 from .data import HECHT_TD, log_uuL_to_cd, scotopic_photopic_ratio, trolands_to_cd
 
 OPERATORS = ("pattanaik00", "durand00", "kirk11", "ledda04")
-#: The targets, cd/m^2 (neutral): 13, log-spaced, 1e-6 .. 1.
-TARGETS_CD = 10.0 ** np.linspace(-6.0, 0.0, 13)
+#: The targets, cd/m^2 (neutral): 49, 0.125 log units apart, 1e-6 .. 1 (each alone in
+#: its frame; the ladder's rung is the resolution of both courses).
+TARGETS_CD = 10.0 ** np.linspace(-6.0, 0.0, 49)
+#: The chart's: every fourth, 0.5 log units apart (13 in one frame).
+CHART_TARGETS_CD = TARGETS_CD[::4]
 #: The chart: targets of TARGET_PX on a grid of COLS columns with GAP_PX of black between
 #: them and around (10 px of a 170 px chart are 2.9 degrees at the default 50-degree
 #: field of view: Hecht's 3-degree test field).
@@ -67,7 +79,7 @@ TIMES_MIN = np.unique(np.r_[np.geomspace(0.05, 1.0, 10), np.arange(1.5, 40.01, 0
 SHAPE_TARGET = 0.75
 
 
-def chart(targets=TARGETS_CD, size=TARGET_PX, gap=GAP_PX, cols=COLS):
+def chart(targets=CHART_TARGETS_CD, size=TARGET_PX, gap=GAP_PX, cols=COLS):
     """(H x W x 3 float32 frame, list of (y0, x0) corners of each target)."""
     n = len(targets)
     rows = -(-n // cols)
@@ -125,21 +137,6 @@ def visible_from(vis) -> int | None:
     return k
 
 
-def just_visible(de_row, targets=TARGETS_CD, jnd=JND) -> float:
-    """log10 cd/m^2 of the dimmest luminance visible at one time: where Delta E crosses
-    ``jnd`` going up the chart (log-log interpolation between the two targets around the
-    first crossing from the bright end down); -inf: every target visible; +inf: none."""
-    logL = np.log10(targets)
-    k = visible_from(de_row >= jnd)
-    if k is None:
-        return np.inf
-    if k == 0:
-        return -np.inf
-    a, b = max(de_row[k - 1], 1e-12), de_row[k]
-    f = (np.log10(jnd) - np.log10(a)) / (np.log10(b) - np.log10(a))
-    return float(logL[k - 1] + f * (logL[k] - logL[k - 1]))
-
-
 def first_visible(minutes, de_col, jnd=JND) -> float:
     """Minutes at which one target first reaches ``jnd`` for good (interpolated in log
     Delta E between the frames around it); 0: from the first frame; inf: never."""
@@ -151,6 +148,30 @@ def first_visible(minutes, de_col, jnd=JND) -> float:
     a, b = max(de_col[k - 1], 1e-12), de_col[k]
     f = (np.log10(jnd) - np.log10(a)) / (np.log10(b) - np.log10(a))
     return float(minutes[k - 1] + f * (minutes[k] - minutes[k - 1]))
+
+
+def course_from_first(minutes, first, targets=TARGETS_CD) -> np.ndarray:
+    """log10 cd/m^2 just visible at each of ``minutes``, from the minutes at which each
+    target (ascending) first shows for good (``first``: 0 from the start, inf never):
+    the dimmest target from which every brighter one is in view, linear in time toward
+    the next dimmer one until it comes into view; -inf: every target in view, +inf:
+    none. The time a target's rung is reached is the latest of its own and every
+    brighter target's first minute, so the course never rises."""
+    logL = np.log10(np.asarray(targets, float))
+    reach = np.maximum.accumulate(np.asarray(first, float)[::-1])[::-1]   # all >= k seen
+    out = []
+    for t in np.atleast_1d(np.asarray(minutes, float)):
+        k = int(np.searchsorted(-reach, -t, side="left"))     # first k with reach[k] <= t
+        if k >= len(logL):
+            out.append(np.inf)
+        elif k == 0:
+            out.append(-np.inf)
+        elif not np.isfinite(reach[k - 1]):
+            out.append(float(logL[k]))
+        else:
+            f = (t - reach[k]) / (reach[k - 1] - reach[k])
+            out.append(float(logL[k] + f * (logL[k - 1] - logL[k])))
+    return np.asarray(out)
 
 
 # -- the observers ---------------------------------------------------------------------
@@ -205,10 +226,14 @@ class Run:
     de: np.ndarray                          # times x targets (display black)
     de_noblack: np.ndarray                  # the same without the display's black
     level: list = field(default_factory=list)   # the frame's mean display luminance
+    targets: np.ndarray = field(default_factory=lambda: TARGETS_CD)
 
     def course(self, black: bool = True) -> np.ndarray:
-        d = self.de if black else self.de_noblack
-        return np.array([just_visible(r) for r in d])
+        """The display's course at its frames (``course_from_first``)."""
+        return self.course_at(self.minutes, black)
+
+    def course_at(self, minutes, black: bool = True) -> np.ndarray:
+        return course_from_first(minutes, self.first_visible(black), self.targets)
 
     def first_visible(self, black: bool = True) -> np.ndarray:
         d = self.de if black else self.de_noblack
@@ -240,11 +265,16 @@ def _frames(targets, layout: str):
     return out
 
 
-def simulate(op: str, td: float, times_min=TIMES_MIN, backend=None, targets=TARGETS_CD,
+def simulate(op: str, td: float, times_min=TIMES_MIN, backend=None, targets=None,
              preadapt_s: float = PREADAPT_S, layout: str = "alone", **kw) -> Run:
     """The targets seen by ``op``'s default observer after ``td`` trolands for
-    ``preadapt_s`` (the field goes off at t = 0), in ``layout`` (:data:`LAYOUTS`)."""
+    ``preadapt_s`` (the field goes off at t = 0), in ``layout`` (:data:`LAYOUTS`;
+    ``targets`` by default :data:`TARGETS_CD` alone, :data:`CHART_TARGETS_CD` in the
+    chart)."""
     from ocl_tonemap import Tonemapper
+    if targets is None:
+        targets = CHART_TARGETS_CD if layout == "chart" else TARGETS_CD
+    targets = np.asarray(targets, float)
     L = trolands_to_cd(td)
     n = len(targets)
     de = np.zeros((len(times_min), n))
@@ -261,7 +291,7 @@ def simulate(op: str, td: float, times_min=TIMES_MIN, backend=None, targets=TARG
                 lev.append(float(np.mean(np.clip(out[..., :3], 0, 1)
                                          @ np.array([0.2126, 0.7152, 0.0722]))
                                  * tm.display.white_cd))
-    return Run(op, td, L, np.asarray(times_min, float), de, de0, lev)
+    return Run(op, td, L, np.asarray(times_min, float), de, de0, lev, targets)
 
 
 @dataclass
@@ -277,41 +307,35 @@ class Score:
     within: bool              # max_dev <= SHAPE_TARGET
 
 
+def hecht_sampled(td: float, minutes, targets=TARGETS_CD) -> np.ndarray:
+    """The observers' course read as the display's is (``course_from_first`` on their
+    first minutes for the same targets)."""
+    return course_from_first(minutes, hecht_first_visible(td, targets), targets)
+
+
 def compare(run: Run, black: bool = True) -> tuple[Score, np.ndarray, np.ndarray, np.ndarray]:
     """(score, minutes, display relative course, observers' relative course) on the
-    times of the run within the data's range."""
-    t, h = hecht_course(run.td)
+    times of the run within the data's range, both read off their first minutes on
+    the same ladder of targets."""
+    t, _ = hecht_course(run.td)
     end = float(t[-1])
-    c = run.course(black)
     m = run.minutes
     sel = (m >= t[0]) & (m <= end)
-    d_end = _interp_course(m, c, end)
-    h_at = np.interp(m[sel], t, h)
-    d_at = c[sel]
-    ok = np.isfinite(d_at)
-    if not np.isfinite(d_end):
+    d_at = run.course(black)[sel]
+    d_end = float(run.course_at([end], black)[0])
+    h_at = hecht_sampled(run.td, m[sel], run.targets)
+    h_end = float(hecht_sampled(run.td, [end], run.targets)[0])
+    ok = np.isfinite(d_at) & np.isfinite(h_at)
+    if not (np.isfinite(d_end) and np.isfinite(h_end)):
         return (Score(np.nan, np.nan, np.nan, 0, int(sel.sum()), end, False), m[sel],
-                d_at - np.nan, h_at - h[-1])
-    rel_d, rel_h = d_at - d_end, h_at - h[-1]
+                d_at - np.nan, h_at - h_end)
+    rel_d, rel_h = d_at - d_end, h_at - h_end
     diff = (rel_d - rel_h)[ok]
     sc = Score(float(np.sqrt(np.mean(diff ** 2))) if ok.any() else np.nan,
                float(np.max(np.abs(diff))) if ok.any() else np.nan,
-               float(d_end - h[-1]), int(ok.sum()), int((~ok).sum()), end,
+               float(d_end - h_end), int(ok.sum()), int((~ok).sum()), end,
                bool(ok.any() and np.max(np.abs(diff)) <= SHAPE_TARGET))
     return sc, m[sel], rel_d, rel_h
-
-
-def _interp_course(m, c, t):
-    """The display course at minute ``t`` (linear between frames; inf if either is)."""
-    k = int(np.searchsorted(m, t))
-    if k <= 0:
-        return float(c[0])
-    if k >= len(m):
-        return float(c[-1])
-    a, b = c[k - 1], c[k]
-    if not (np.isfinite(a) and np.isfinite(b)):
-        return float(b if abs(m[k] - t) < abs(t - m[k - 1]) else a)
-    return float(a + (b - a) * (t - m[k - 1]) / (m[k] - m[k - 1]))
 
 
 def run_all(operators=OPERATORS, tds=None, times_min=TIMES_MIN, backend=None,
