@@ -178,7 +178,7 @@ def main(argv=None) -> int:
              "*pass*: the threshold pass's own time (the device queue drained before and "
              "after it), and as a share of the frame without it: the robust figure, where "
              "the whole-frame ratio moves by +-15 % between runs on this machine; "
-             "*weighed*: pixels whose chance of being seen is below 0.99; ΔE: p99 ΔE ITP "
+             "*weighed*: pixels whose share shown (Eq. 3) is below 0.99; ΔE: p99 ΔE ITP "
              "between the two outputs (what the threshold changes on the display).", "",
              "| operator | scene (cd/m² log-average) | off ms | auto ms | auto/off | pass ms | "
              "pass / off | ran | weighed | p99 ΔE ITP |", "|---|---|---|---|---|---|---|---|---|---|"]
