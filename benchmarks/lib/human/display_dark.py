@@ -198,15 +198,9 @@ def hecht_first_visible(td: float, targets=TARGETS_CD):
     t, y = hecht_course(td)
     out = []
     for L in np.log10(targets):
-        vis = y <= L
-        if not vis[-1]:
-            out.append(np.inf)
-            continue
-        k = len(vis) - 1
-        while k > 0 and vis[k - 1]:
-            k -= 1
-        if k == 0:
-            out.append(0.0)
+        k = visible_from(y <= L)
+        if k is None or k == 0:
+            out.append(np.inf if k is None else 0.0)
             continue
         f = (y[k - 1] - L) / (y[k - 1] - y[k])
         out.append(float(t[k - 1] + f * (t[k] - t[k - 1])))
