@@ -7,10 +7,13 @@ course (issue 66): how long a person takes to see again after a bright field.
 >>> round(regeneration_minutes(1.0, 0.2), 1)   # rods, a full bleach down to 20 %: Eq. 4
 13.2
 
-The state is four numbers per observer (``AdaptationState.extra["pigment"]``):
-the bleached fractions ``Bb_rod`` and ``Bb_cone`` (0: all pigment there) and the
+The state is five numbers per observer (``AdaptationState.extra["pigment"]``):
+the bleached fractions ``Bb_rod`` and ``Bb_cone`` (0: all pigment there), the
 neural levels ``N_rod``, ``N_cone`` (cd/m^2: the field's memory over the first
-seconds after it goes, the early neural phase).
+seconds after it goes, the early neural phase) and the cones' lagging level
+``M_cone`` (cd/m^2: where the cones' adaptation still is below a field that has just
+come on, Eq. 7). A state of the first four alone (written before Eq. 7)
+is read as one with no lag.
 
 The equations (units: trolands td = cd/m^2 x pupil area in mm^2, scotopic for
 rods; time in seconds; Bb bleached fraction):
@@ -51,12 +54,28 @@ rods; time in seconds; Bb bleached fraction):
    Rushton & Torii 1970) for large; with the regeneration's rate near v / K_m per
    minute once Bb is small, the rods' S2 slope near the end is about 0.23 log
    units a minute (Lamb 1981: ~0.24).
+7. Light adaptation's onset (Baker 1949, as Pattanaik et al. 2000 Sec. 3.1 and Ledda
+   et al. 2004 Sec. 5 read his Fig.: at the onset of a bright field on a dark-adapted
+   eye the threshold jumps, falls fast over the first seconds, then slowly to its
+   steady value by about 3 min, ~0.5 log in all, much alike for two fields). The
+   cones' adapting level M lags a brighter field: at most psi_f log units below it (a
+   step from the dark starts there, so the course does not depend on how dark it
+   was), it relaxes to it in log10, d log M / dt = (log L - log M) / tau_f. A dimmer
+   field is followed at once (Eqs. 2-6 carry dark adaptation). The fast phase only:
+   the slow one to 3 min, on a cone response, would leave the display visibly too
+   bright for a minute (docs/models.md). The operator's cone goal is taken down by
+   the lag psi = log10(L / M) (``onset_lag``): its response is compressed
+   (Pattanaik Sec. 3.1: "only when adaptation brings sigma nearer to the new,
+   much brighter I values will the response and threshold fall to their static
+   values"), so the field is white at first and its threshold raised.
 
 Constants: published values (each with its source); the equivalent-background
 gains kappa_r, kappa_c and the neural phase's w_N (rods, cones), tau_N, C_N and
 tau_S are fitted, on Hecht, Haig & Chase 1937's 263, 19 500 and 400 000 td (the
 other two held out,
-``benchmarks/psychophysics.py``).
+``benchmarks/psychophysics.py``); Eq. 7's psi_f and tau_f are set on Baker's
+course as the papers describe it (no numbers of his are at hand:
+``benchmarks/tunnel_entrance.py``, docs/models.md).
 """
 
 from __future__ import annotations
@@ -113,6 +132,11 @@ A_ROD = 5.0
 #: equivalent background as it goes (rods after 263 td, cones after 400 000 td).
 W_N_ROD = 3.3e-4
 W_N_CONE = 6.0e-5
+#: Eq. 7, the cones' onset lag (set on Baker 1949's course as Pattanaik et al. and
+#: Ledda et al. describe it): the largest lag, log10 units, and its time constant, s
+#: ("falls very rapidly within the first few seconds").
+PSI_FAST = 1.0
+TAU_FAST = 1.5
 #: The largest sub-step of the rods' integrator, s (the regeneration's own time scale
 #: K_m / v is 141 s): an hour is 360 sub-steps.
 SUBSTEP_S = 10.0
@@ -125,7 +149,9 @@ MAX_SUBSTEPS = 4096
 L_MAX = 1.0e10
 DT_MAX = 86400.0
 
-KEYS = ("Bb_rod", "Bb_cone", "N_rod", "N_cone")
+KEYS = ("Bb_rod", "Bb_cone", "N_rod", "N_cone", "M_cone")
+#: A state written before Eq. 7 (read as one with no lag).
+KEYS_V1 = KEYS[:4]
 
 
 def _field(L) -> float:
@@ -182,6 +208,15 @@ def _rod_neural_step(N: float, L: float, dt: float) -> float:
     return L + d * e / (1.0 + W_N_ROD * d * TAU_S_ROD * (1.0 - e) / C_N_ROD)
 
 
+def _onset_step(M: float, L: float, dt: float, psi: float, tau: float) -> float:
+    """Eq. 7 exactly (the lagging level: at most ``psi`` below the field, then toward
+    it in log10 with ``tau``; a dimmer field at once)."""
+    if not L > 0.0 or M >= L:
+        return L
+    lag = min(math.log10(L / M), psi) if M > 0.0 else psi
+    return L * 10.0 ** (-lag * math.exp(-dt / tau))
+
+
 def advance(s: dict, L_rod: float, L_cone: float, dt: float) -> dict:
     """The pigment state ``s`` after ``dt`` seconds of a field of ``L_rod`` scotopic and
     ``L_cone`` photopic cd/m^2 (held over the step)."""
@@ -193,7 +228,8 @@ def advance(s: dict, L_rod: float, L_cone: float, dt: float) -> dict:
     return {"Bb_rod": _rod_step(s["Bb_rod"], I_r, dt),
             "Bb_cone": _cone_step(s["Bb_cone"], I_c, dt),
             "N_rod": _rod_neural_step(s["N_rod"], L_rod, dt),
-            "N_cone": _neural_step(s["N_cone"], L_cone, dt)}
+            "N_cone": _neural_step(s["N_cone"], L_cone, dt),
+            "M_cone": _onset_step(s.get("M_cone", L_cone), L_cone, dt, PSI_FAST, TAU_FAST)}
 
 
 def steady(L_rod: float, L_cone: float) -> dict:
@@ -221,6 +257,14 @@ def equivalent_background(s: dict, L_rod: float = 0.0, L_cone: float = 0.0
     return (I_D_ROD * ((1.0 + KAPPA_ROD * b) * 10.0 ** (A_ROD * b) - 1.0)
             + W_N_ROD * max(s["N_rod"] - L_rod, 0.0),
             I_D_CONE * KAPPA_CONE * s["Bb_cone"] + W_N_CONE * max(s["N_cone"] - L_cone, 0.0))
+
+
+def onset_lag(s: dict, L_cone: float) -> float:
+    """Eq. 7: log10 units the cones' adapting level is still below a field of
+    ``L_cone`` cd/m^2 that came on lately (0 on a steady or dimming field; a state
+    without Eq. 7's level has none)."""
+    L, M = _field(L_cone), s.get("M_cone", 0.0)
+    return math.log10(L / M) if 0.0 < M < L else 0.0
 
 
 def rod_sensitivity(s: dict, L_rod: float, L_cone: float) -> float:
@@ -253,7 +297,7 @@ def regeneration_minutes(b_from: float, b_to: float) -> float:
 
 def check(s) -> bool:
     """Whether ``s`` is a pigment state (the state file's check)."""
-    return (isinstance(s, dict) and set(s) == set(KEYS)
-            and all(isinstance(s[k], (int, float)) and not isinstance(s[k], bool)
-                    and math.isfinite(s[k]) and s[k] >= 0.0 for k in KEYS)
+    return (isinstance(s, dict) and set(s) in (set(KEYS), set(KEYS_V1))
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                    and math.isfinite(v) and v >= 0.0 for v in s.values())
             and s["Bb_rod"] <= 1.0 and s["Bb_cone"] <= 1.0)

@@ -3,7 +3,8 @@
 of :class:`~ocl_tonemap.operators.base.Operator`.
 
 A frame's step advances the pigment state (``AdaptationState.extra["pigment"]``)
-and raises the frame's goals by the equivalent backgrounds, read on the operator's
+and raises the frame's goals by the equivalent backgrounds (the cones' lowered by
+their onset lag on a field that came on lately), read on the operator's
 own threshold curve (:meth:`PigmentCourse.receptor_threshold`): the goals its own
 (fast) time course then follows. The visibility observer carries the same pigment
 (:meth:`PigmentCourse.pigment_observer_advance`)."""
@@ -63,11 +64,20 @@ class PigmentCourse:
 
     def raised_goals(self, pig: dict, stats):
         """The frame's statistics with its goals raised by the equivalent backgrounds of
-        the pigment state ``pig`` (already advanced over the frame)."""
-        G_r, G_c = float(stats.G_rod), float(stats.G_cone)
+        the pigment state ``pig`` (already advanced over the frame) and the cones' taken
+        down by the onset lag (``bleaching.onset_lag``)."""
+        G_r, G_c = self.shifted_goals(pig, float(stats.G_rod), float(stats.G_cone))
+        return replace(stats, G_rod=G_r, G_cone=G_c)
+
+    def shifted_goals(self, pig: dict, G_r: float, G_c: float) -> tuple[float, float]:
+        """(rod, cone) goals on fields ``G_r``, ``G_c`` with the pigment state ``pig``:
+        each raised by its equivalent background (:meth:`equivalent_goal`), the cones'
+        then lowered by the lag of their adaptation behind a field that came on lately
+        (Eq. 7: their response compressed, the field white at first)."""
         Lr, Lc = bleaching.equivalent_background(pig, G_r, G_c)
-        return replace(stats, G_rod=G_r + self.equivalent_goal("rod", Lr, G_r),
-                       G_cone=G_c + self.equivalent_goal("cone", Lc, G_c))
+        lag = bleaching.onset_lag(pig, G_c)
+        return (G_r + self.equivalent_goal("rod", Lr, G_r),
+                (G_c + self.equivalent_goal("cone", Lc, G_c)) * 10.0 ** -lag)
 
     def receptor_threshold(self, receptor: str, L: float) -> float:
         """log10 of the threshold of a flash on a black field (cd/m^2; scotopic for the
@@ -131,8 +141,7 @@ class PigmentCourse:
         pig = obs.get(PIGMENT_KEY)
         pig = bleaching.advance(pig if bleaching.check(pig) else bleaching.steady(L_r, L_cd),
                                 L_r, L_cd, dt)
-        Lr, Lc = bleaching.equivalent_background(pig, L_r, L_cd)
-        goals = SimpleNamespace(G_rod=L_r + self.equivalent_goal("rod", Lr, L_r),
-                                G_cone=L_cd + self.equivalent_goal("cone", Lc, L_cd))
+        G_r, G_c = self.shifted_goals(pig, L_r, L_cd)
+        goals = SimpleNamespace(G_rod=G_r, G_cone=G_c)
         values = self.advance({k: v for k, v in obs.items() if k != PIGMENT_KEY}, goals, dt)
         return {**values, PIGMENT_KEY: pig}

@@ -115,3 +115,52 @@ def test_steady_state_adds_little_to_a_steady_field():
         Lr, Lc = B.equivalent_background(s, L * 2.5, L)
         assert Lc <= 0.02 * L + 1e-3, (L, Lc)
         assert Lr <= (0.02 if L <= 1e3 else 0.10) * L * 2.5 + 1e-3, (L, Lr)
+
+
+# -- Eq. 7: the cones' onset lag (Baker 1949 as Pattanaik and Ledda describe it) --------
+@pytest.mark.parametrize("L_dark", [0.0, 1e-6, 1e-3])
+def test_a_field_on_a_dark_eye_starts_the_same_lag_whatever_the_dark(L_dark):
+    s = B.steady(L_dark * 2.5, L_dark)
+    s = B.advance(s, 2500.0, 1000.0, 1e-3)
+    assert B.onset_lag(s, 1000.0) == pytest.approx(B.PSI_FAST, rel=2e-3)
+
+
+def test_the_lag_falls_with_its_time_constant_and_is_gone_within_seconds():
+    s = B.advance(B.dark(), 2500.0, 1000.0, 1e-3)
+    lag0 = B.onset_lag(s, 1000.0)
+    s = B.advance(s, 2500.0, 1000.0, B.TAU_FAST)
+    assert B.onset_lag(s, 1000.0) == pytest.approx(lag0 * math.exp(-1.0), rel=1e-6)
+    s = B.advance(s, 2500.0, 1000.0, 10.0)
+    assert B.onset_lag(s, 1000.0) < 1e-3 * lag0
+
+
+def test_the_lag_is_split_invariant_and_small_steps_lag_only_their_own_size():
+    one = B.advance(B.steady(25.0, 10.0), 250.0, 100.0, 3.0)
+    many = B.steady(25.0, 10.0)
+    for _ in range(300):
+        many = B.advance(many, 250.0, 100.0, 0.01)
+    assert B.onset_lag(many, 100.0) == pytest.approx(B.onset_lag(one, 100.0), rel=1e-9)
+    small = B.advance(B.steady(25.0, 10.0), 50.0, 20.0, 1e-9)
+    assert B.onset_lag(small, 20.0) == pytest.approx(math.log10(2.0), rel=1e-6)
+
+
+def test_a_dimmer_or_steady_field_has_no_lag_and_old_states_read_as_none():
+    s = B.advance(B.steady(2500.0, 1000.0), 2.5, 1.0, 1e-3)
+    assert B.onset_lag(s, 1.0) == 0.0
+    assert B.onset_lag(B.steady(2500.0, 1000.0), 1000.0) == 0.0
+    old = {k: v for k, v in B.steady(2.5, 1.0).items() if k in B.KEYS_V1}
+    assert B.check(old)
+    assert B.onset_lag(B.advance(old, 2500.0, 1000.0, 0.01), 1000.0) == 0.0
+    assert not B.check({**old, "M_cone": -1.0})
+
+
+def test_the_operators_goal_lags_a_field_that_comes_on_and_the_display_is_white_at_first():
+    """pattanaik00 with the defaults: stepping from the dark into 1000 cd/m^2, its cone
+    level sits below the field for the first seconds and is there by 10 s."""
+    from ocl_tonemap.operators import get_operator
+    op = get_operator("pattanaik00")({})
+    obs = op.observer_preadapted(1e-6, None)
+    obs = op.observer_advance(obs, 1000.0, 0.5)
+    assert op.observer_level(obs) < 10.0 ** -0.5 * 1000.0
+    obs = op.observer_advance(obs, 1000.0, 10.0)
+    assert op.observer_level(obs) == pytest.approx(1000.0, rel=0.01)

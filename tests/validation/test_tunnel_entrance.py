@@ -72,8 +72,10 @@ def test_the_drive_and_the_step(runs, op):
 
 
 # (dL_th / steady at 0, 0.1 and 2 s after 1000 cd/m^2 goes on before a dark eye)
+# ledda04: the cones' onset lag (bleaching Eq. 7, Baker's fast phase) on its
+# Naka-Rushton cone; the others' thresholds do not rise on a lowered level
 HELD_ONSET = {"pattanaik00": (3.93, 1.0, 1.0), "durand00": (1.0, 1.0, 1.0),
-              "ledda04": (1.0, 1.0, 1.0)}
+              "ledda04": (1.44, 1.51, 1.07)}
 
 
 @pytest.mark.parametrize("op", sorted(HELD_ONSET))
@@ -82,3 +84,12 @@ def test_light_adaptation_on_a_dark_eye(runs, op):
     for t, v in zip((0.0, 0.1, 2.0), HELD_ONSET[op]):
         assert o.over_steady_at(t) == pytest.approx(v, rel=REL)
     assert o.over_steady_at(60.0) == pytest.approx(1.0, abs=0.01)
+
+
+def test_the_onset_jump_falls_within_seconds(runs):
+    """Baker 1949's fast phase, as Ledda et al. Sec. 5 describe it: highest just after
+    the onset, falling fast over the first seconds (ledda04 with the defaults)."""
+    o = runs[1]["ledda04"][1000.0]
+    after = [o.over_steady_at(t) for t in (0.01, 0.1, 0.5, 1.0, 2.0, 5.0, 10.0)]
+    assert after[0] > 1.4 and all(a >= b for a, b in zip(after, after[1:]))
+    assert after[-2] < 1.02 and o.above_steady_until <= 5.0
